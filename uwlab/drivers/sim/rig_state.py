@@ -1,0 +1,58 @@
+"""Shared state of the simulated rig: what the simulated light is doing right now.
+
+The simulated light (a serial simulator in its own process) writes this state; the simulated
+camera and spectrometer read it, so dimming the light dims the images. The state lives in a
+small JSON file replaced atomically (``os.replace``), which any process can read without locks.
+Without a file, the state is held in memory (a single-process rig).
+"""
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+
+@dataclass(frozen=True)
+class LightState:
+    """Light output: ``on`` and the commanded ``level`` in [0, 1]; ``flux_fraction`` is the
+    emitted fraction of the rated luminous flux after the light's level→flux curve."""
+
+    on: bool = True
+    level: float = 1.0
+    flux_fraction: float = 1.0
+
+    @property
+    def effective_fraction(self) -> float:
+        return self.flux_fraction if self.on else 0.0
+
+
+class RigState:
+    """Light state shared between simulated instruments, optionally through a file."""
+
+    def __init__(self, path: str | os.PathLike | None = None, initial: LightState | None = None):
+        self.path = Path(path) if path is not None else None
+        self._light = initial or LightState()
+        if self.path is not None and (initial is not None or not self.path.exists()):
+            self._write(self._light)
+
+    @property
+    def light(self) -> LightState:
+        if self.path is None:
+            return self._light
+        try:
+            return LightState(**json.loads(self.path.read_text()))
+        except (OSError, ValueError, TypeError):
+            return self._light
+
+    def set_light(self, state: LightState) -> None:
+        self._light = state
+        if self.path is not None:
+            self._write(state)
+
+    def _write(self, state: LightState) -> None:
+        fd, tmp = tempfile.mkstemp(dir=self.path.parent, prefix=".rig-state-")
+        with os.fdopen(fd, "w") as fh:
+            json.dump(asdict(state), fh)
+        os.replace(tmp, self.path)

@@ -1,0 +1,101 @@
+"""The design figures of the paper, as PNG files: depth of field, spectra along the chain, framerate and
+exposure limits, water attenuation, quantum efficiency."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from uwlab.model.design import Design, evaluate, stage_spectra  # noqa: E402
+from uwlab.model.sensor import available_profiles, load_sensor_profile  # noqa: E402
+from uwlab.model.water import WATER_TYPES, water_iop  # noqa: E402
+
+
+def _save(fig, path: Path) -> Path:
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def plot_dof(design: Design, path: Path) -> Path:
+    f_numbers = np.geomspace(1.0, 22.0, 60)
+    altitude = float(design["operation.altitude_m"])
+    focus = altitude * np.array([0.5, 1.0, 2.0, 4.0])
+    grid = design.with_values(**{"lens.f_number": f_numbers[None, :], "operation.altitude_m": focus[:, None]})
+    dof = evaluate(grid)["dof_m"]
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for i, s in enumerate(focus):
+        far = np.where(np.isfinite(dof["far"][i]), dof["far"][i], np.nan)
+        line, = ax.plot(f_numbers, far, label=f"focus {s:.2f} m")
+        ax.plot(f_numbers, dof["near"][i], color=line.get_color(), linestyle="--")
+    ax.set(xscale="log", xlabel="f-number N", ylabel="object distance in water [m]",
+           title="Depth of field: far (solid) and near (dashed) limits")
+    ax.legend()
+    return _save(fig, path)
+
+
+def plot_stages(design: Design, path: Path) -> Path:
+    spectra = stage_spectra(design)
+    nm = spectra["wavelength_nm"]
+    fig, axes = plt.subplots(5, 1, figsize=(7, 10), sharex=True)
+    panels = [("source_w_nm", "source Φe [W/nm]"), ("target_irradiance_w_m2_nm", "at target E_t [W/m²/nm]"),
+              ("return_radiance_w_m2_sr_nm", "after return path L_w [W/m²/sr/nm]"),
+              ("sensor_irradiance_w_m2_nm", "after lens E_s [W/m²/nm]"), ("absorbed_w_m2_nm", "absorbed E_s·η [W/m²/nm]")]
+    for ax, (key, label) in zip(axes, panels):
+        ax.plot(nm, spectra[key])
+        ax.set_ylabel(label, fontsize=8)
+    axes[-1].set_xlabel("wavelength [nm]")
+    axes[0].set_title("Spectrum at each stage of the on-axis chain")
+    return _save(fig, path)
+
+
+def plot_operation(design: Design, path: Path) -> Path:
+    speeds = np.linspace(0.1, 3.0, 60)
+    altitude = float(design["operation.altitude_m"])
+    altitudes = altitude * np.array([0.5, 1.0, 2.0, 4.0])
+    out = evaluate(design.with_values(**{"operation.speed_m_s": speeds[None, :], "operation.altitude_m": altitudes[:, None]}))
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4))
+    for i, h in enumerate(altitudes):
+        a1.plot(speeds, out["min_framerate_hz"][i], label=f"altitude {h:.2f} m")
+        a2.plot(speeds, out["max_exposure_s"][i] * 1e3, label=f"altitude {h:.2f} m")
+    a1.set(xlabel="speed [m/s]", ylabel="minimum framerate [Hz]", title="Framerate for the overlap")
+    a2.set(xlabel="speed [m/s]", ylabel="maximum exposure [ms]", yscale="log", title="Exposure for the blur limit")
+    a1.legend()
+    return _save(fig, path)
+
+
+def plot_water(design: Design, path: Path) -> Path:
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for name in WATER_TYPES:
+        ax.plot(design.grid.nm, water_iop(name, design.grid).c_per_m, label=name)
+    ax.set(yscale="log", xlabel="wavelength [nm]", ylabel="beam attenuation c = a + b [1/m]",
+           title="Water attenuation profiles")
+    ax.legend(fontsize=7, ncol=2)
+    return _save(fig, path)
+
+
+def plot_qe(design: Design, path: Path) -> Path:
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    for name in available_profiles():
+        profile = load_sensor_profile(name)
+        ax.plot(profile.qe_nm, profile.qe["combined"], label=profile.name, linewidth=2.5 if profile is design.sensor else 1)
+    ax.set(xlabel="wavelength [nm]", ylabel="quantum efficiency η", title="Sensor quantum efficiency (mono / combined)")
+    ax.legend(fontsize=7)
+    return _save(fig, path)
+
+
+def write_design_plots(design: Design, out_dir: Path) -> list[Path]:
+    """Write all design figures for a scalar design into out_dir; returns the files."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    return [
+        plot_dof(design, out_dir / "dof.png"),
+        plot_stages(design, out_dir / "spectra.png"),
+        plot_operation(design, out_dir / "operation.png"),
+        plot_water(design, out_dir / "water.png"),
+        plot_qe(design, out_dir / "qe.png"),
+    ]

@@ -1,0 +1,373 @@
+"""The underwater image-formation chain and the design operations, evaluated with numpy broadcasting.
+
+On-axis chain (Billings, Iscar & Johnson-Roberson, "Parametric Design of Underwater Optical Systems", with the
+corrections listed in the README): light → water → Lambertian target → water → port → lens → sensor.
+
+1. Φe(λ) = count · Φv · S(λ) / (K_m ∫ S V dλ)                       [W/nm]   (uwlab.model.photometry)
+2. cone: E_t = Φe / Ω · cos θi / d_L² · e^(−c d_L), Ω = 2π(1 − cos β);
+   disk (the original tool): E_t = Φe / (π (d_L tan β)²) · e^(−c d_L)    [W/m²/nm]
+3. c(λ) = (a + b) · attenuation_scale                                         (uwlab.model.water)
+4. L_t = E_t M / π;  5. L_w = L_t e^(−c d_C);  6. L_a = L_w T_port / n_w²    [W/m²/sr/nm]
+7. E_s = L_a T_lens π / (4 N²) cos⁴α                                          (uwlab.model.optics)
+8. μ_e = A t / (h c) ∫ E_s λ η dλ;  μ_y = μ_y,dark + K μ_e (clipped)          (uwlab.model.sensor)
+
+Every numeric parameter may be an array; arrays broadcast against each other (a Cartesian grid is an open mesh:
+one axis per parameter), and each quantity is computed only over the axes it depends on. Spectral integrals
+depend on the design only through the attenuating path length D = scale · (d_L + d_C), so they are evaluated
+as exp(−D ⊗ c) @ W with W the fixed spectral weights (one matrix product, no per-wavelength loop).
+
+Image average (reported beside the on-axis figure): the mean over the sensor of the per-pixel response, for a
+flat target perpendicular to the optical axis at d_C and the light beside the camera aimed along its axis. A
+pixel at image radius r looks along α_air = atan(r / f) in air and α_w in water (flat port: tan α_w =
+tan α_air / n_w, the paraxial f_uw = n_w f mapping; dome: α_w = α_air). Its paths are d / cos α_w, the
+incidence on the target is α_w (cone: irradiance ∝ cos³α_w), pixels outside the beam (α_w > β) get no light,
+and the lens adds cos⁴α_air. The average is taken over a 16 × 16 midpoint grid on one sensor quadrant
+(the geometry is symmetric) of the unclipped signal, then clipped like a single pixel.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from uwlab.errors import ConfigError
+from uwlab.model import optics, port as port_model
+from uwlab.model.config import validate
+from uwlab.model.data import resolve_path
+from uwlab.model.grid import WavelengthGrid
+from uwlab.model.photometry import radiant_per_lumen
+from uwlab.model.sensor import SensorProfile, electrons_per_joule_nm, load_sensor_profile, response_dn, snr
+from uwlab.model.spectra import relative_spectrum
+from uwlab.model.target import reflectance, transmittance
+from uwlab.model.water import water_iop
+
+IMAGE_SAMPLES_PER_AXIS = 16
+
+
+@dataclass(frozen=True, eq=False)
+class Design:
+    """A validated design: `values` is {section: {key: value}} (numbers may be arrays); categorical inputs
+    (spectra, water, reflectance and transmittance files, sensor profile) are resolved to data."""
+
+    values: dict = field(repr=False)
+    grid: WavelengthGrid
+    sensor: SensorProfile
+    base_dir: Path | None = None
+
+    def __getitem__(self, dotted: str):
+        section, key = dotted.split(".")
+        return self.values[section][key]
+
+    def with_values(self, **dotted) -> "Design":
+        """A copy with some numeric values replaced, e.g. ``with_values(**{"lens.f_number": 4.0})``."""
+        values = {s: dict(v) for s, v in self.values.items()}
+        for name, value in dotted.items():
+            section, key = name.split(".")
+            values[section][key] = value
+        return replace(self, values=values)
+
+
+def _resolve(value, base: Path | None, names: tuple[str, ...] = ()):
+    """Names stay names; anything else that is a string is a path relative to the config file."""
+    if isinstance(value, str) and value not in names:
+        return str(resolve_path(value, base))
+    return value
+
+
+def build_design(raw: dict, base_dir: Path | None = None) -> Design:
+    """Validate a raw config dict and resolve its data; raises ConfigError naming the offending key."""
+    from uwlab.model.spectra import NAMED_SPECTRA
+    from uwlab.model.target import NAMED_REFLECTANCE
+    from uwlab.model.water import WATER_TYPES
+
+    values = validate(raw)
+    sp = values["spectral"]
+    for key in sp:
+        if isinstance(sp[key], np.ndarray):
+            raise ConfigError(f"spectral.{key}", sp[key].tolist(), "cannot be varied in a grid")
+    grid = WavelengthGrid(sp["start_nm"], sp["stop_nm"], sp["step_nm"])
+    light, housing, sensor_cfg = values["light"], values["housing"], values["sensor"]
+    if (light["beam_half_angle_deg"] is None) == (light["beam_half_angle_in_air_deg"] is None):
+        raise ConfigError("light.beam_half_angle_deg", light["beam_half_angle_deg"],
+                          "give exactly one of beam_half_angle_deg (in water) and beam_half_angle_in_air_deg")
+    if housing["port"] == "dome":
+        for key in ("dome_radius_mm", "dome_thickness_mm"):
+            if housing[key] is None:
+                raise ConfigError(f"housing.{key}", None, "required for a dome port")
+        if np.any(np.asarray(housing["dome_thickness_mm"]) >= np.asarray(housing["dome_radius_mm"])):
+            raise ConfigError("housing.dome_thickness_mm", housing["dome_thickness_mm"], "must be less than dome_radius_mm")
+    light["spectrum"] = _resolve(light["spectrum"], base_dir, NAMED_SPECTRA)
+    values["water"]["type"] = _resolve(values["water"]["type"], base_dir, WATER_TYPES)
+    refl = values["target"]["reflectance"]
+    values["target"]["reflectance"] = NAMED_REFLECTANCE.get(refl, refl) if isinstance(refl, str) else refl
+    values["target"]["reflectance"] = _resolve(values["target"]["reflectance"], base_dir)
+    values["lens"]["transmittance"] = _resolve(values["lens"]["transmittance"], base_dir)
+    sensor = load_sensor_profile(sensor_cfg["profile"], base_dir)
+    if sensor_cfg["bit_depth"] is None:
+        sensor_cfg["bit_depth"] = sensor.bit_depth
+    _check_range("sensor.gain_db", sensor_cfg["gain_db"], sensor.gain_min_db, sensor.gain_max_db, sensor.name)
+    exposure = values["operation"]["exposure_s"]
+    if not isinstance(exposure, str):
+        _check_range("operation.exposure_s", exposure, sensor.exposure_min_us * 1e-6, sensor.exposure_max_us * 1e-6,
+                     sensor.name)
+    design = Design(values=values, grid=grid, sensor=sensor, base_dir=base_dir)
+    _spectral_weights(design)  # resolve spectra, water and curves now, so bad names fail before evaluation
+    return design
+
+
+def _check_range(key, value, lo, hi, sensor_name):
+    arr = np.asarray(value, float)
+    bad = (arr < lo) | (arr > hi)
+    if np.any(bad):
+        raise ConfigError(key, float(arr[bad].flat[0]) if arr.ndim else value,
+                          f"outside {sensor_name}'s range [{lo:g}, {hi:g}]")
+
+
+def load_design(path: str | Path, overrides: dict | None = None) -> Design:
+    """Read a design TOML, apply ``{"section.key": value}`` overrides, validate and resolve."""
+    from uwlab.model.config import apply_override, load_raw
+
+    raw = load_raw(path)
+    for dotted, value in (overrides or {}).items():
+        apply_override(raw, dotted, value)
+    return build_design(raw, Path(path).resolve().parent)
+
+
+def _spectral_key(d: Design):
+    return (d.grid, d["light.spectrum"], d["water.type"], _hashable(d["target.reflectance"]),
+            _hashable(d["lens.transmittance"]), id(d.sensor), d["sensor.channel"])
+
+
+def _hashable(value):
+    return value if isinstance(value, (str, float, int)) else None
+
+
+@dataclass(frozen=True)
+class SpectralWeights:
+    """Fixed spectral factors of the chain on the grid.
+
+    c: beam attenuation [1/m] (unscaled). W: columns (target irradiance, sensor irradiance, electron rate) per
+    unit luminous flux, with the spectral (tabulated) reflectance and lens transmittance folded in and
+    trapezoidal weights applied, so that exp(−D c) @ W integrates over wavelength.
+    """
+
+    c: np.ndarray
+    W: np.ndarray
+    s_per_lm: np.ndarray
+    reflectance: object
+    lens_transmittance: object
+    qe: np.ndarray
+
+
+_WEIGHTS_CACHE: dict = {}
+
+
+def _spectral_weights(d: Design) -> SpectralWeights:
+    """The design's spectral weights, cached by its categorical inputs (numbers given as arrays are not cached)."""
+    key = _spectral_key(d)
+    if None in key:
+        return _compute_weights(d)
+    if key not in _WEIGHTS_CACHE:
+        if len(_WEIGHTS_CACHE) > 64:
+            _WEIGHTS_CACHE.clear()
+        _WEIGHTS_CACHE[key] = _compute_weights(d)
+    return _WEIGHTS_CACHE[key]
+
+
+def _compute_weights(d: Design) -> SpectralWeights:
+    grid = d.grid
+    s = radiant_per_lumen(relative_spectrum(d["light.spectrum"], grid), grid)
+    c = water_iop(d["water.type"], grid).c_per_m
+    m = reflectance(d["target.reflectance"], grid)
+    t = transmittance(d["lens.transmittance"], grid)
+    qe = d.sensor.qe_on(grid, d["sensor.channel"])
+    m_spec = m if _is_spectral(d, "target.reflectance") else 1.0
+    t_spec = t if _is_spectral(d, "lens.transmittance") else 1.0
+    base = s * grid.w_nm
+    W = np.stack([base, base * m_spec * t_spec, base * m_spec * t_spec * qe * electrons_per_joule_nm(grid)], axis=1)
+    return SpectralWeights(c=c, W=W, s_per_lm=s, reflectance=m, lens_transmittance=t, qe=qe)
+
+
+def _is_spectral(d: Design, dotted: str) -> bool:
+    """A factor given as a file is spectral (folded into W); a number (or grid array) is broadband."""
+    return isinstance(d[dotted], str)
+
+
+def _broadband(d: Design, dotted: str):
+    """A broadband factor: the configured number, or 1 when the factor is spectral (already in W)."""
+    return 1.0 if _is_spectral(d, dotted) else d[dotted]
+
+
+def path_integrals(weights: SpectralWeights, path_m) -> np.ndarray:
+    """∫ W(λ) exp(−c(λ) D) dλ for attenuating path lengths D (any shape) → shape D.shape + (3,)."""
+    path = np.asarray(path_m, float)
+    return np.exp(-path[..., None] * weights.c) @ weights.W
+
+
+def _beam_half_angle_rad(d: Design):
+    if d["light.beam_half_angle_deg"] is not None:
+        return np.radians(d["light.beam_half_angle_deg"])
+    return np.arcsin(np.sin(np.radians(d["light.beam_half_angle_in_air_deg"])) / d["housing.water_index"])
+
+
+def _irradiance_geometry(d: Design, beta, cos_incidence):
+    """Target irradiance per unit spectral radiant flux without attenuation [1/m²] (steps 2 of the chain)."""
+    count = d["light.count"]
+    d_l = _light_distance(d)
+    if d["light.beam_model"] == "cone":
+        return count * cos_incidence / (2 * np.pi * (1 - np.cos(beta)) * d_l**2)
+    return count / (np.pi * (d_l * np.tan(beta)) ** 2)
+
+
+def _light_distance(d: Design):
+    value = d["light.distance_m"]
+    return d["operation.altitude_m"] if value is None else value
+
+
+def _port_transmittance(d: Design):
+    value = d["housing.port_transmittance"]
+    if isinstance(value, str):
+        return port_model.port_transmittance(d["housing.water_index"], d["housing.port_index"])
+    return value
+
+
+def _radiance_to_sensor_factor(d: Design, weights: SpectralWeights):
+    """Broadband factors from target irradiance to sensor irradiance: M/π · T_port/n_w² · T_lens · π/(4N²)."""
+    m = _broadband(d, "target.reflectance")
+    t = _broadband(d, "lens.transmittance")
+    return (m / np.pi) * _port_transmittance(d) / d["housing.water_index"] ** 2 * t * optics.lens_irradiance_factor(
+        d["lens.f_number"])
+
+
+def _effective_focal_length_m(d: Design):
+    f = d["lens.focal_length_mm"] * 1e-3
+    return f * d["housing.water_index"] if d["housing.port"] == "flat" else f * np.ones_like(d["housing.water_index"])
+
+
+def _image_average_rate(d: Design, weights: SpectralWeights, beta, scale, flux_lm):
+    """Mean electron rate per pixel over the sensor [e⁻/s] (see the module docstring)."""
+    n = IMAGE_SAMPLES_PER_AXIS
+    u = (np.arange(n) + 0.5) / n
+    size_x, size_y = d.sensor.size_m
+    r = np.hypot.outer(u * size_x / 2, u * size_y / 2).ravel()
+    f = np.asarray(d["lens.focal_length_mm"] * 1e-3, float)[..., None]
+    tan_air = r / f
+    tan_w = tan_air / np.asarray(d["housing.water_index"])[..., None] if d["housing.port"] == "flat" else tan_air
+    cos_air = 1 / np.sqrt(1 + tan_air**2)
+    cos_w = 1 / np.sqrt(1 + tan_w**2)
+    in_beam = np.arctan(tan_w) <= np.asarray(beta)[..., None]
+    d_l = np.asarray(_light_distance(d))[..., None]
+    d_c = np.asarray(d["operation.altitude_m"])[..., None]
+    path = np.asarray(scale)[..., None] * (d_l + d_c) / cos_w
+    angular = cos_air**4 * in_beam * (cos_w**3 if d["light.beam_model"] == "cone" else 1.0)
+    rates = angular * path_integrals(weights, path)[..., 2]
+    geometry = _irradiance_geometry(d, beta, 1.0)
+    return flux_lm * geometry * _radiance_to_sensor_factor(d, weights) * d.sensor.pixel_area_m2 * rates.mean(axis=-1)
+
+
+def evaluate(d: Design) -> dict[str, np.ndarray]:
+    """All design outputs (the keys of `uwlab design --json`) as arrays broadcast over the design's grid axes."""
+    weights = _spectral_weights(d)
+    sensor = d.sensor
+    op = d.values["operation"]
+    f_eff = _effective_focal_length_m(d)
+    size = dict(zip("xy", sensor.size_m))
+    res = dict(zip("xy", sensor.resolution_px))
+    fov = {a: optics.angular_fov_rad(size[a], f_eff) for a in "xy"}
+    d_c = op["altitude_m"]
+    fov_m = {a: optics.spatial_fov_m(fov[a], d_c) for a in "xy"}
+    axis = op["motion_axis"]
+    speed = np.asarray(op["speed_m_s"], float)
+    with np.errstate(divide="ignore"):
+        max_exposure = np.where(speed > 0, op["max_blur_px"] * fov_m[axis] / (speed * res[axis]), np.inf)
+    min_framerate = speed / (fov_m[axis] * (1 - np.asarray(op["overlap"])))
+    if isinstance(op["exposure_s"], str):
+        exposure = np.clip(max_exposure, sensor.exposure_min_us * 1e-6, sensor.exposure_max_us * 1e-6)
+    else:
+        exposure = np.asarray(op["exposure_s"], float)
+
+    coc = op["circle_of_confusion_mm"]
+    coc_m = sensor.diagonal_m / 1500 if coc is None else np.asarray(coc) * 1e-3
+    f_m = d["lens.focal_length_mm"] * 1e-3
+    port, n_w = d["housing.port"], d["housing.water_index"]
+    dome = None
+    if port == "dome":
+        dome = (d["housing.dome_radius_mm"] * 1e-3, d["housing.dome_thickness_mm"] * 1e-3, d["housing.port_index"])
+    near, far = optics.dof_underwater(d_c, f_m, d["lens.f_number"], coc_m, port, n_w, dome)
+    min_n = None
+    if op["min_dof_m"] is not None:
+        min_n = optics.min_f_number(d_c, f_m, coc_m, op["min_dof_m"], port, n_w, dome)
+    virtual = port_model.dome_virtual_distance(d_c, *dome[:2], n_w, dome[2]) if dome else None
+
+    beta = _beam_half_angle_rad(d)
+    scale = d["water.attenuation_scale"]
+    flux = d["light.luminous_flux_lm"]
+    geometry = flux * _irradiance_geometry(d, beta, np.cos(np.radians(d["light.incidence_deg"])))
+    d_l = _light_distance(d)
+    target = geometry * path_integrals(weights, np.asarray(scale) * d_l)[..., 0]
+    to_sensor = geometry * _radiance_to_sensor_factor(d, weights)
+    integrals = path_integrals(weights, np.asarray(scale) * (np.asarray(d_l) + d_c))
+    sensor_irradiance = to_sensor * integrals[..., 1]
+    rate = to_sensor * integrals[..., 2] * sensor.pixel_area_m2
+    bits = d["sensor.bit_depth"]
+    k = sensor.gain_k(d["sensor.gain_db"], bits)
+    dark = sensor.dark_dn(bits)
+    mu_e_raw = rate * exposure
+    mu_y, saturated = response_dn(mu_e_raw, k, dark, sensor.saturation_e, bits)
+    mu_e = np.minimum(mu_e_raw, sensor.saturation_e)
+    snr_value = snr(mu_e, sensor.dark_noise_e, k)
+
+    image_raw = _image_average_rate(d, weights, beta, scale, flux) * exposure
+    image_y, _ = response_dn(image_raw, k, dark, sensor.saturation_e, bits)
+    image_e = np.minimum(image_raw, sensor.saturation_e)
+    with np.errstate(divide="ignore"):
+        snr_db = 20 * np.log10(snr_value)
+    return {
+        "effective_focal_length_mm": f_eff * 1e3,
+        "fov_deg": {a: np.degrees(fov[a]) for a in "xy"},
+        "fov_m": fov_m,
+        "max_exposure_s": max_exposure,
+        "exposure_s": exposure,
+        "min_framerate_hz": min_framerate,
+        "dof_m": {"near": near, "far": far},
+        "min_f_number_for_dof": min_n,
+        "dome_virtual_image_m": virtual,
+        "target_irradiance_w_m2": target,
+        "sensor_irradiance_w_m2": sensor_irradiance,
+        "mean_electrons": mu_e,
+        "mean_dn": mu_y,
+        "mean_fraction": mu_y / (2.0 ** np.asarray(bits) - 1),
+        "saturated": saturated,
+        "snr": snr_value,
+        "snr_db": snr_db,
+        "image_average": {"mean_electrons": image_e, "mean_dn": image_y, "snr": snr(image_e, sensor.dark_noise_e, k)},
+    }
+
+
+def stage_spectra(d: Design) -> dict[str, np.ndarray]:
+    """Spectra along the on-axis chain for a scalar design (for plots and the simulated spectrometer).
+
+    Keys: wavelength_nm; source_w_nm (Φe, all lights); target_irradiance_w_m2_nm (E_t); return_radiance_w_m2_sr_nm
+    (L_w at the camera, before the port); sensor_irradiance_w_m2_nm (E_s); absorbed_w_m2_nm (E_s η).
+    """
+    w = _spectral_weights(d)
+    grid = d.grid
+    c = w.c * d["water.attenuation_scale"]
+    beta = _beam_half_angle_rad(d)
+    flux = d["light.luminous_flux_lm"]
+    source = d["light.count"] * flux * w.s_per_lm
+    geometry = flux * _irradiance_geometry(d, beta, np.cos(np.radians(d["light.incidence_deg"])))
+    d_l, d_c = _light_distance(d), d["operation.altitude_m"]
+    e_t = geometry * w.s_per_lm * np.exp(-c * d_l)
+    l_w = e_t * w.reflectance / np.pi * np.exp(-c * d_c)
+    e_s = l_w * _port_transmittance(d) / d["housing.water_index"] ** 2 * w.lens_transmittance * optics.lens_irradiance_factor(
+        d["lens.f_number"])
+    return {
+        "wavelength_nm": grid.nm,
+        "source_w_nm": source,
+        "target_irradiance_w_m2_nm": e_t,
+        "return_radiance_w_m2_sr_nm": l_w,
+        "sensor_irradiance_w_m2_nm": e_s,
+        "absorbed_w_m2_nm": e_s * w.qe,
+    }

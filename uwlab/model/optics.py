@@ -1,0 +1,90 @@
+"""Lens geometry and image irradiance: field of view, depth of field, minimum aperture, lens irradiance factor.
+
+Conventions: lengths in metres unless the name says otherwise; f-number N = f / D; angles in radians inside,
+degrees only at the config/CLI boundary; the circle of confusion c is given on the sensor.
+
+- Camera equation: E_s = L_a · T_lens · π / (4 N²) · cos⁴α for an object at a distance much larger than f
+  (Slater, Remote Sensing: Optics and Optical Systems, 1980; EMVA 1288 Release 4.0 §3.1 uses the same).
+- Depth of field from the hyperfocal distance H = f²/(N c) + f of a thin lens focused at s (in the lens's own
+  medium, air): near = s (H − f) / (H + s − 2f), far = s (H − f) / (H − s) for s < H, else ∞
+  (Ray, Applied Photographic Optics, 3rd ed., 2002, §6). For s ≫ f the total is the paper's approximation
+  2 N c f² s² / (f⁴ − N² c² s²).
+- Underwater the lens focuses on the port's virtual image (flat: s / n_w; dome: see `uwlab.model.port`), so
+  near/far are computed in image space and mapped back to object distances in water.
+- The minimum f-number for a required depth of field D solves far − near = D. In air-equivalent space, with
+  a = f²/(N c), the total is 2 s a (s − f) / (a² − (s − f)²), so a = (s − f)(s + √(s² + D²)) / D and
+  N = f² / (c a). Dome ports have no closed form: bisection on log N.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from uwlab.model import port as port_model
+
+
+def lens_irradiance_factor(f_number, cos_alpha=1.0):
+    """π / (4 N²) · cos⁴α: sensor irradiance per unit scene radiance behind the port (×T_lens)."""
+    return np.pi / (4.0 * np.asarray(f_number, float) ** 2) * np.asarray(cos_alpha, float) ** 4
+
+
+def angular_fov_rad(sensor_size_m, focal_length_m):
+    """Full angular field of view 2·atan(size / 2f) along one sensor axis (pinhole, focus at infinity)."""
+    return 2.0 * np.arctan(np.asarray(sensor_size_m, float) / (2.0 * np.asarray(focal_length_m, float)))
+
+
+def spatial_fov_m(fov_rad, distance_m):
+    """Footprint 2 d tan(fov / 2) on a plane perpendicular to the axis at distance d."""
+    return 2.0 * np.asarray(distance_m, float) * np.tan(np.asarray(fov_rad, float) / 2.0)
+
+
+def dof_in_air(s_m, focal_length_m, f_number, coc_m):
+    """(near, far) limits of acceptable focus for a thin lens in air focused at s_m (far = inf past H)."""
+    s = np.asarray(s_m, float)
+    f = np.asarray(focal_length_m, float)
+    a = f**2 / (np.asarray(f_number, float) * np.asarray(coc_m, float))
+    near = s * a / (a + s - f)
+    with np.errstate(divide="ignore"):
+        far = np.where(a + f - s > 0, s * a / (a + f - s), np.inf)
+    return near, far
+
+
+def dof_underwater(s_m, focal_length_m, f_number, coc_m, port, water_index, dome=None):
+    """(near, far) object distances in water for a lens focused on the object at s_m behind `port`.
+
+    port: "flat" or "dome"; dome = (radius_m, thickness_m, port_index) for a dome port.
+    """
+    if port == "dome":
+        radius_m, thickness_m, port_index = dome
+        v = port_model.dome_virtual_distance(s_m, radius_m, thickness_m, water_index, port_index)
+        v_near, v_far = dof_in_air(v, focal_length_m, f_number, coc_m)
+        near = port_model.dome_object_distance(v_near, radius_m, thickness_m, water_index, port_index)
+        far = port_model.dome_object_distance(v_far, radius_m, thickness_m, water_index, port_index)
+        return near, far
+    near, far = dof_in_air(port_model.flat_apparent_distance(s_m, water_index), focal_length_m, f_number, coc_m)
+    return near * water_index, far * water_index
+
+
+def min_f_number_in_air(s_m, focal_length_m, coc_m, dof_m):
+    """Smallest N giving a total depth of field dof_m for a thin lens in air focused at s_m (closed form)."""
+    s = np.asarray(s_m, float)
+    f = np.asarray(focal_length_m, float)
+    d = np.asarray(dof_m, float)
+    a = (s - f) * (s + np.sqrt(s**2 + d**2)) / d
+    return f**2 / (np.asarray(coc_m, float) * a)
+
+
+def min_f_number(s_m, focal_length_m, coc_m, dof_m, port, water_index, dome=None, iterations=60):
+    """Smallest N whose underwater depth of field (far − near) reaches dof_m."""
+    if port != "dome":
+        n = np.asarray(water_index, float)
+        return min_f_number_in_air(np.asarray(s_m) / n, focal_length_m, coc_m, np.asarray(dof_m) / n)
+    shape = np.broadcast_shapes(*(np.shape(x) for x in (s_m, focal_length_m, coc_m, dof_m, water_index, *dome)))
+    lo = np.full(shape, np.log(0.05))
+    hi = np.full(shape, np.log(1.0e4))
+    for _ in range(iterations):
+        mid = 0.5 * (lo + hi)
+        near, far = dof_underwater(s_m, focal_length_m, np.exp(mid), coc_m, port, water_index, dome)
+        enough = (far - near) >= dof_m
+        hi = np.where(enough, mid, hi)
+        lo = np.where(enough, lo, mid)
+    return np.exp(hi)
