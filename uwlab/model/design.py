@@ -245,25 +245,50 @@ def _effective_focal_length_m(d: Design):
     return f * d["housing.water_index"] if d["housing.port"] == "flat" else f * np.ones_like(d["housing.water_index"])
 
 
-def _image_average_rate(d: Design, weights: SpectralWeights, beta, scale, flux_lm):
-    """Mean electron rate per pixel over the sensor [e⁻/s] (see the module docstring)."""
-    n = IMAGE_SAMPLES_PER_AXIS
-    u = (np.arange(n) + 0.5) / n
-    size_x, size_y = d.sensor.size_m
-    r = np.hypot.outer(u * size_x / 2, u * size_y / 2).ravel()
+def electron_rate_at_radius(d: Design, r_m, weights: SpectralWeights | None = None):
+    """Electron rate [e⁻/s] of pixels at image radius r_m (any shape, trailing axis broadcast against the
+    design's arrays) under the image-average geometry of the module docstring: light beside the camera,
+    target plane perpendicular to the axis at d_C, cos⁴ lens falloff, beam cut-off at α_w > β."""
+    weights = _spectral_weights(d) if weights is None else weights
+    beta = _beam_half_angle_rad(d)
     f = np.asarray(d["lens.focal_length_mm"] * 1e-3, float)[..., None]
-    tan_air = r / f
+    tan_air = np.asarray(r_m, float) / f
     tan_w = tan_air / np.asarray(d["housing.water_index"])[..., None] if d["housing.port"] == "flat" else tan_air
     cos_air = 1 / np.sqrt(1 + tan_air**2)
     cos_w = 1 / np.sqrt(1 + tan_w**2)
     in_beam = np.arctan(tan_w) <= np.asarray(beta)[..., None]
     d_l = np.asarray(_light_distance(d))[..., None]
     d_c = np.asarray(d["operation.altitude_m"])[..., None]
-    path = np.asarray(scale)[..., None] * (d_l + d_c) / cos_w
+    path = np.asarray(d["water.attenuation_scale"])[..., None] * (d_l + d_c) / cos_w
     angular = cos_air**4 * in_beam * (cos_w**3 if d["light.beam_model"] == "cone" else 1.0)
-    rates = angular * path_integrals(weights, path)[..., 2]
-    geometry = _irradiance_geometry(d, beta, 1.0)
-    return flux_lm * geometry * _radiance_to_sensor_factor(d, weights) * d.sensor.pixel_area_m2 * rates.mean(axis=-1)
+    prefactor = d["light.luminous_flux_lm"] * _irradiance_geometry(d, beta, 1.0) * _radiance_to_sensor_factor(d, weights)
+    return np.asarray(prefactor)[..., None] * d.sensor.pixel_area_m2 * angular * path_integrals(weights, path)[..., 2]
+
+
+def _image_average_rate(d: Design, weights: SpectralWeights):
+    """Mean electron rate per pixel over the sensor [e⁻/s]: midpoint rule on one quadrant."""
+    n = IMAGE_SAMPLES_PER_AXIS
+    u = (np.arange(n) + 0.5) / n
+    size_x, size_y = d.sensor.size_m
+    r = np.hypot.outer(u * size_x / 2, u * size_y / 2).ravel()
+    return electron_rate_at_radius(d, r, weights).mean(axis=-1)
+
+
+def _on_axis(d: Design, weights: SpectralWeights):
+    """(target irradiance [W/m²], sensor irradiance [W/m²], electron rate [e⁻/s]) on the optical axis."""
+    beta = _beam_half_angle_rad(d)
+    geometry = d["light.luminous_flux_lm"] * _irradiance_geometry(d, beta, np.cos(np.radians(d["light.incidence_deg"])))
+    scale = np.asarray(d["water.attenuation_scale"])
+    d_l = np.asarray(_light_distance(d))
+    target = geometry * path_integrals(weights, scale * d_l)[..., 0]
+    to_sensor = geometry * _radiance_to_sensor_factor(d, weights)
+    integrals = path_integrals(weights, scale * (d_l + d["operation.altitude_m"]))
+    return target, to_sensor * integrals[..., 1], to_sensor * integrals[..., 2] * d.sensor.pixel_area_m2
+
+
+def on_axis_electron_rate(d: Design):
+    """Electron rate [e⁻/s] of the on-axis pixel, before any clipping (μ_e = rate · t_exp)."""
+    return _on_axis(d, _spectral_weights(d))[2]
 
 
 def evaluate(d: Design) -> dict[str, np.ndarray]:
@@ -300,16 +325,7 @@ def evaluate(d: Design) -> dict[str, np.ndarray]:
         min_n = optics.min_f_number(d_c, f_m, coc_m, op["min_dof_m"], port, n_w, dome)
     virtual = port_model.dome_virtual_distance(d_c, *dome[:2], n_w, dome[2]) if dome else None
 
-    beta = _beam_half_angle_rad(d)
-    scale = d["water.attenuation_scale"]
-    flux = d["light.luminous_flux_lm"]
-    geometry = flux * _irradiance_geometry(d, beta, np.cos(np.radians(d["light.incidence_deg"])))
-    d_l = _light_distance(d)
-    target = geometry * path_integrals(weights, np.asarray(scale) * d_l)[..., 0]
-    to_sensor = geometry * _radiance_to_sensor_factor(d, weights)
-    integrals = path_integrals(weights, np.asarray(scale) * (np.asarray(d_l) + d_c))
-    sensor_irradiance = to_sensor * integrals[..., 1]
-    rate = to_sensor * integrals[..., 2] * sensor.pixel_area_m2
+    target, sensor_irradiance, rate = _on_axis(d, weights)
     bits = d["sensor.bit_depth"]
     k = sensor.gain_k(d["sensor.gain_db"], bits)
     dark = sensor.dark_dn(bits)
@@ -318,7 +334,7 @@ def evaluate(d: Design) -> dict[str, np.ndarray]:
     mu_e = np.minimum(mu_e_raw, sensor.saturation_e)
     snr_value = snr(mu_e, sensor.dark_noise_e, k)
 
-    image_raw = _image_average_rate(d, weights, beta, scale, flux) * exposure
+    image_raw = _image_average_rate(d, weights) * exposure
     image_y, _ = response_dn(image_raw, k, dark, sensor.saturation_e, bits)
     image_e = np.minimum(image_raw, sensor.saturation_e)
     with np.errstate(divide="ignore"):

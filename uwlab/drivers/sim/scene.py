@@ -1,0 +1,139 @@
+"""The simulated rig's scene: what the simulated camera and spectrometer see, rendered from `uwlab.model`.
+
+A rig config is a design config (the sections of `uwlab design`) plus a `[sim]` section:
+``seed`` (fixed-pattern noise maps), ``light_gamma`` (flux fraction = level^γ), ``board_size_m`` [x, y] (the
+target board on the target plane, centred on the axis) and ``surround_reflectance`` (outside the board).
+
+Images: the per-pixel electron rate is the model's on-axis rate (configured distances and incidence) times the
+relative profile of `uwlab.model.design.electron_rate_at_radius` (cos⁴ falloff, oblique paths, beam cut-off),
+with the board's reflectance inside its footprint and the surround's outside. Spectra: at the target, the
+irradiance on a board facing the light (normal incidence); at the camera, π L_w, the irradiance from a
+Lambertian target filling the meter's field. Both scale linearly with the light's flux fraction.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from uwlab.drivers.sim.rig_state import RigState
+from uwlab.errors import ConfigError
+from uwlab.model.config import Num
+from uwlab.model.data import config_dir, read_toml
+from uwlab.model.design import Design, build_design, electron_rate_at_radius, on_axis_electron_rate, stage_spectra
+from uwlab.model.sensor import SensorProfile
+
+DEFAULT_RIG = "rigs/sim-tank.toml"
+SIM_SCHEMA = {
+    "seed": Num(1288, lo=0, integer=True),
+    "light_gamma": Num(2.2, lo=0.0, lo_open=True),
+    "surround_reflectance": Num(0.05, lo=0.0, hi=1.0),
+}
+POSITIONS = ("target", "camera")
+
+
+def _sim_values(raw: dict) -> dict:
+    body = raw.get("sim", {})
+    if not isinstance(body, dict):
+        raise ConfigError("sim", body, "must be a table")
+    out = {}
+    for key, value in body.items():
+        if key not in (*SIM_SCHEMA, "board_size_m"):
+            raise ConfigError(f"sim.{key}", value, f"unknown key; sim has {', '.join([*SIM_SCHEMA, 'board_size_m'])}")
+    for key, spec in SIM_SCHEMA.items():
+        out[key] = spec.check(f"sim.{key}", body[key]) if key in body else spec.default
+    board = body.get("board_size_m", [0.15, 0.12])
+    if not (isinstance(board, list) and len(board) == 2 and all(isinstance(v, (int, float)) and v > 0 for v in board)):
+        raise ConfigError("sim.board_size_m", board, "must be [x, y] with positive sizes in metres")
+    out["board_size_m"] = (float(board[0]), float(board[1]))
+    out["seed"] = int(out["seed"])
+    return out
+
+
+@dataclass(eq=False)
+class RigScene:
+    """The simulated rig: a scalar design, simulation settings and the shared light state."""
+
+    design: Design
+    sim: dict
+    state: RigState = field(default_factory=RigState)
+    _profile: tuple | None = field(default=None, repr=False)
+
+    @classmethod
+    def from_toml(cls, path: str | Path | None = None, state: RigState | None = None) -> "RigScene":
+        """Load a rig config (None: the default simulated tank, configs/rigs/sim-tank.toml)."""
+        path = Path(path) if path is not None else config_dir() / DEFAULT_RIG
+        raw = read_toml(path, "--config")
+        sim = _sim_values(raw)
+        design = build_design({k: v for k, v in raw.items() if k != "sim"}, path.resolve().parent)
+        return cls(design=design, sim=sim, state=state or RigState())
+
+    @property
+    def sensor(self) -> SensorProfile:
+        return self.design.sensor
+
+    def flux_fraction(self) -> float:
+        """The light's current output as a fraction of its rated flux (0 when off)."""
+        return self.state.light.effective_fraction
+
+    def level_to_flux_fraction(self, level: float) -> float:
+        return float(level) ** self.sim["light_gamma"]
+
+    def on_axis_rate_e_per_s(self, flux_fraction: float = 1.0) -> float:
+        """The model's on-axis electron rate of a board pixel [e⁻/s] at this flux fraction."""
+        return flux_fraction * float(on_axis_electron_rate(self.design))
+
+    def _magnification(self) -> float:
+        """Object size on the target plane per unit image size (pinhole with the effective focal length)."""
+        d = self.design
+        f_m = d["lens.focal_length_mm"] * 1e-3 * (d["housing.water_index"] if d["housing.port"] == "flat" else 1.0)
+        return float(d["operation.altitude_m"]) / f_m
+
+    def electron_rate_map(self, shape_yx: tuple[int, int], flux_fraction: float = 1.0) -> np.ndarray:
+        """Per-pixel electron rate [e⁻/s] (float32) for an image of `shape_yx` covering the full sensor."""
+        if self._profile is None or self._profile[0] != tuple(shape_yx):
+            self._profile = (tuple(shape_yx), self._render(tuple(shape_yx)))
+        return self._profile[1] * np.float32(flux_fraction)
+
+    def _render(self, shape_yx: tuple[int, int]) -> np.ndarray:
+        d = self.design
+        ny, nx = shape_yx
+        size_x, size_y = d.sensor.size_m
+        x = (np.arange(nx) + 0.5) / nx * size_x - size_x / 2
+        y = (np.arange(ny) + 0.5) / ny * size_y - size_y / 2
+        r = np.hypot(x[None, :], y[:, None])
+        radii = np.linspace(0.0, float(r.max()), 512)
+        profile = electron_rate_at_radius(d, radii)
+        relative = np.interp(r, radii, profile / profile[0])
+        magnification = self._magnification()
+        half_x, half_y = (s / 2 / magnification for s in self.sim["board_size_m"])
+        board = (np.abs(x)[None, :] <= half_x) & (np.abs(y)[:, None] <= half_y)
+        board_reflectance = d["target.reflectance"]
+        if isinstance(board_reflectance, str):
+            raise ConfigError("target.reflectance", board_reflectance, "the simulated rig needs a number")
+        surround = self.sim["surround_reflectance"] / board_reflectance if board_reflectance > 0 else 0.0
+        contrast = np.where(board, 1.0, surround)
+        return (self.on_axis_rate_e_per_s() * relative * contrast).astype(np.float32)
+
+    def board_roi(self, shape_yx: tuple[int, int]) -> tuple[int, int, int, int]:
+        """The board's footprint in an image of `shape_yx` as (x, y, width, height) pixels."""
+        d = self.design
+        ny, nx = shape_yx
+        size_x, size_y = d.sensor.size_m
+        magnification = self._magnification()
+        w = min(nx, int(self.sim["board_size_m"][0] / magnification / size_x * nx))
+        h = min(ny, int(self.sim["board_size_m"][1] / magnification / size_y * ny))
+        return ((nx - w) // 2, (ny - h) // 2, w, h)
+
+    def spectral_irradiance(self, position: str, flux_fraction: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+        """(wavelength_nm, irradiance_w_m2_nm) a spectrometer measures at `position` ("target" or "camera")."""
+        if position not in POSITIONS:
+            raise ConfigError("position", position, f"must be one of {', '.join(POSITIONS)}")
+        spectra = stage_spectra(self.design)
+        if position == "target":
+            cos_i = np.cos(np.radians(self.design["light.incidence_deg"]))
+            irradiance = spectra["target_irradiance_w_m2_nm"] / cos_i
+        else:
+            irradiance = np.pi * spectra["return_radiance_w_m2_sr_nm"]
+        return spectra["wavelength_nm"], flux_fraction * irradiance
