@@ -1,0 +1,73 @@
+"""Cameras: one interface (`Camera`), backends ``sim``, ``harvesters`` (GenTL) and ``aravis``.
+
+`open_camera` picks a backend by name; `discover` lists cameras on every backend, reporting
+backends whose libraries are missing instead of failing.
+"""
+from __future__ import annotations
+
+import importlib
+from types import ModuleType
+from typing import Any
+
+from uwlab.drivers.camera.interface import (
+    AcquisitionStats,
+    Camera,
+    CameraInfo,
+    DeviceEntry,
+    DeviceLost,
+    Frame,
+    FrameTimeout,
+    Policy,
+    RawFrame,
+    Settings,
+    Transport,
+)
+from uwlab.errors import ConfigError, DeviceError
+
+BACKENDS = {
+    "sim": "uwlab.drivers.sim.camera",
+    "harvesters": "uwlab.drivers.camera.harvesters_backend",
+    "aravis": "uwlab.drivers.camera.aravis_backend",
+}
+
+__all__ = [
+    "AcquisitionStats", "BACKENDS", "BackendUnavailable", "Camera", "CameraInfo", "DeviceEntry", "DeviceLost",
+    "Frame", "FrameTimeout", "Policy", "RawFrame", "Settings", "Transport", "backend_module", "discover", "open_camera",
+]
+
+
+class BackendUnavailable(DeviceError):
+    """A backend's library (PyGObject/Aravis, harvesters/GenTL producer) is not installed."""
+
+
+def backend_module(name: str) -> ModuleType:
+    if name not in BACKENDS:
+        raise ConfigError("backend", name, f"expected one of {', '.join(BACKENDS)}")
+    try:
+        module = importlib.import_module(BACKENDS[name])
+    except ImportError as exc:
+        raise BackendUnavailable(f"{name}: not installed ({exc})") from exc
+    return module
+
+
+def discover(backends: tuple[str, ...] = tuple(BACKENDS), **options: Any) -> tuple[list[DeviceEntry], dict[str, str]]:
+    """Cameras on every backend, and ``{backend: reason}`` for backends that are unavailable."""
+    found: list[DeviceEntry] = []
+    unavailable: dict[str, str] = {}
+    for name in backends:
+        try:
+            found.extend(backend_module(name).discover(**options))
+        except BackendUnavailable as exc:
+            unavailable[name] = str(exc)
+    return found, unavailable
+
+
+def open_camera(backend: str = "sim", device_id: str | None = None, policy: Policy | None = None, **options: Any) -> Camera:
+    """Open ``device_id`` (first found when None) on ``backend``; options go to the backend
+    (``cti`` for harvesters, ``config``/``faults``/``sensor`` for sim, ``address`` for aravis)."""
+    transport = backend_module(backend).open_transport(device_id, **options)
+    try:
+        return Camera(transport, policy=policy)
+    except BaseException:
+        transport.close()
+        raise

@@ -1,0 +1,182 @@
+"""Aravis backend: GigE Vision and USB3 Vision cameras through libaravis 0.8 (PyGObject).
+
+Features are accessed by name through the device's GenICam node map (typed by node class:
+enumeration, boolean, float, integer, string, command). Buffers come from an `Aravis.Stream`
+with a small pool; a buffer whose status is not SUCCESS (missing packets, size mismatch, ...)
+is reported as incomplete. When no buffer arrives in time, one register read tells a silent
+device (`DeviceLost`) from a plain timeout. ``device_id`` is an Aravis id (``vendor-model-serial``)
+or a GigE Vision device's IP address (no discovery needed, e.g. on the loopback interface).
+"""
+from __future__ import annotations
+
+from typing import Any
+
+from uwlab.drivers.camera.interface import DeviceEntry, DeviceLost, FrameTimeout, RawFrame, unknown_device
+from uwlab.drivers.camera.pixels import pixel_format
+from uwlab.errors import ConfigError, DeviceError
+
+try:
+    import gi
+
+    gi.require_version("Aravis", "0.8")
+    from gi.repository import Aravis, GLib
+except (ImportError, ValueError) as exc:  # the caller reports the backend as unavailable
+    raise ImportError(f"Aravis 0.8 GObject bindings not importable: {exc}") from exc
+
+N_BUFFERS = 8
+
+
+def discover(**_: Any) -> list[DeviceEntry]:
+    Aravis.update_device_list()
+    return [DeviceEntry("aravis", Aravis.get_device_id(i), Aravis.get_device_vendor(i) or "",
+                        Aravis.get_device_model(i) or "", Aravis.get_device_serial_nbr(i) or "")
+            for i in range(Aravis.get_n_devices())]
+
+
+def open_transport(device_id: str | None = None, **_: Any) -> AravisTransport:
+    return AravisTransport(device_id)
+
+
+def _open_camera(device_id: str | None) -> Any:
+    try:
+        return Aravis.Camera.new(device_id)
+    except GLib.Error as exc:
+        found = [d.id for d in discover()]
+        if device_id is None:
+            raise DeviceError(f"aravis: no camera found ({exc.message})") from exc
+        raise unknown_device("aravis", device_id, found) from exc
+
+
+class AravisTransport:
+    """`Transport` over one `Aravis.Camera`."""
+
+    backend = "aravis"
+
+    def __init__(self, device_id: str | None):
+        self._camera = _open_camera(device_id)
+        self.device_id = device_id or self._camera.get_device_id()
+        self._device = self._camera.get_device()
+        self._stream = None
+
+    def _node(self, name: str) -> Any:
+        return self._device.get_feature(name)
+
+    def has(self, name: str) -> bool:
+        node = self._node(name)
+        try:
+            return node is not None and bool(node.is_available())
+        except GLib.Error:
+            return False
+
+    def get(self, name: str) -> Any:
+        node, dev = self._node(name), self._device
+        try:
+            if isinstance(node, Aravis.GcEnumeration) or isinstance(node, Aravis.GcString):
+                return dev.get_string_feature_value(name)
+            if isinstance(node, Aravis.GcBoolean):
+                return bool(dev.get_boolean_feature_value(name))
+            if isinstance(node, Aravis.GcFloat):
+                return float(dev.get_float_feature_value(name))
+            return int(dev.get_integer_feature_value(name))
+        except GLib.Error as exc:
+            raise self._error(f"cannot read {name}", exc) from exc
+
+    def set(self, name: str, value: Any) -> None:
+        node, dev = self._node(name), self._device
+        try:
+            if isinstance(node, Aravis.GcEnumeration) or isinstance(node, Aravis.GcString):
+                dev.set_string_feature_value(name, str(value))
+            elif isinstance(node, Aravis.GcBoolean):
+                dev.set_boolean_feature_value(name, bool(value))
+            elif isinstance(node, Aravis.GcFloat):
+                dev.set_float_feature_value(name, float(value))
+            else:
+                dev.set_integer_feature_value(name, int(value))
+        except GLib.Error as exc:
+            if "invalid-parameter" in exc.message or "out of range" in exc.message.lower():
+                raise ConfigError(name, value, f"rejected by the device ({exc.message})") from exc
+            raise self._error(f"cannot write {name}={value!r}", exc) from exc
+
+    def _error(self, what: str, exc: GLib.Error) -> DeviceError:
+        if "timeout" in exc.message.lower():
+            return DeviceLost(f"aravis: {self.device_id}: {what}: {exc.message}")
+        return DeviceError(f"aravis: {self.device_id}: {what}: {exc.message}")
+
+    def bounds(self, name: str) -> tuple[float, float] | None:
+        node = self._node(name)
+        try:
+            if isinstance(node, Aravis.GcFloat):
+                b = self._device.get_float_feature_bounds(name)
+            elif isinstance(node, Aravis.GcInteger) and not isinstance(node, Aravis.GcEnumeration):
+                b = self._device.get_integer_feature_bounds(name)
+            else:
+                return None
+        except GLib.Error:
+            return None
+        return float(b.min), float(b.max)
+
+    def entries(self, name: str) -> tuple[str, ...]:
+        if not isinstance(self._node(name), Aravis.GcEnumeration):
+            return ()
+        return tuple(self._device.dup_available_enumeration_feature_values_as_strings(name))
+
+    def execute(self, name: str) -> None:
+        try:
+            self._device.execute_command(name)
+        except GLib.Error as exc:
+            raise self._error(f"cannot execute {name}", exc) from exc
+
+    def start(self) -> None:
+        try:
+            payload = self._camera.get_payload()
+            self._stream = self._camera.create_stream(None, None)
+            for _ in range(N_BUFFERS):
+                self._stream.push_buffer(Aravis.Buffer.new_allocate(payload))
+            self._camera.start_acquisition()
+        except GLib.Error as exc:
+            self._stream = None
+            raise self._error("cannot start acquisition", exc) from exc
+
+    def stop(self) -> None:
+        if self._stream is not None:
+            try:
+                self._camera.stop_acquisition()
+            except GLib.Error:
+                pass
+            self._stream = None
+
+    def fetch(self, timeout_s: float) -> RawFrame:
+        if self._stream is None:
+            raise FrameTimeout(f"aravis: {self.device_id}: not acquiring")
+        buf = self._stream.timeout_pop_buffer(max(int(timeout_s * 1e6), 1))
+        if buf is None:
+            self._check_alive()
+            raise FrameTimeout(f"aravis: {self.device_id}: no buffer within {timeout_s:g} s")
+        try:
+            return self._raw(buf)
+        finally:
+            self._stream.push_buffer(buf)
+
+    def _raw(self, buf: Any) -> RawFrame:
+        complete = buf.get_status() == Aravis.BufferStatus.SUCCESS
+        if not complete:
+            return RawFrame(int(buf.get_frame_id()), int(buf.get_timestamp()), 0, 0, "Mono8", b"", complete=False)
+        fmt = pixel_format(int(buf.get_image_pixel_format()))
+        return RawFrame(int(buf.get_frame_id()), int(buf.get_timestamp()), int(buf.get_image_width()),
+                        int(buf.get_image_height()), fmt.name, buf.get_data())
+
+    def _check_alive(self) -> None:
+        try:
+            self._device.get_integer_feature_value("Width")
+        except GLib.Error as exc:
+            raise DeviceLost(f"aravis: {self.device_id}: device not responding ({exc.message})") from exc
+
+    def reconnect(self) -> None:
+        self.stop()
+        self._camera = _open_camera(self.device_id)
+        self._device = self._camera.get_device()
+
+    def close(self) -> None:
+        self.stop()
+        self._camera = None
+        self._device = None

@@ -1,0 +1,179 @@
+"""harvesters backend: GenICam cameras through GenTL producers (``*.cti``).
+
+Producers come from the ``cti`` option (paths to ``.cti`` files or folders) or from the
+``GENICAM_GENTL64_PATH`` environment variable (folders separated by ``os.pathsep``), as the
+GenTL standard (GenTL 1.5, section "Discovery") specifies. Device information the remote node
+map lacks (e.g. the Viky test producer has no ``DeviceVendorName``) comes from the GenTL device
+info. When a producer does not time-stamp buffers, host time is used (``CLOCK_REALTIME``).
+"""
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+from typing import Any
+
+from uwlab.drivers.camera.interface import DeviceEntry, DeviceLost, FrameTimeout, RawFrame, unknown_device
+from uwlab.errors import ConfigError, DeviceError
+
+try:
+    from genicam import gentl
+    from genicam import genapi
+    from harvesters.core import Harvester
+except ImportError as exc:  # the caller reports the backend as unavailable
+    raise ImportError(f"harvesters/genicam not importable: {exc}") from exc
+
+ENV_VAR = "GENICAM_GENTL64_PATH"
+
+
+def cti_files(cti: list[str] | tuple[str, ...] | None = None) -> list[Path]:
+    """Producer files from explicit paths, else from ``GENICAM_GENTL64_PATH``."""
+    from uwlab.drivers.camera import BackendUnavailable
+
+    roots = [Path(p) for p in cti] if cti else [Path(p) for p in os.environ.get(ENV_VAR, "").split(os.pathsep) if p]
+    files: list[Path] = []
+    for root in roots:
+        if root.is_dir():
+            files.extend(sorted(root.glob("*.cti")))
+        elif root.is_file():
+            files.append(root)
+        elif cti:
+            raise ConfigError("cti", str(root), "no such GenTL producer file or folder")
+    if not files:
+        raise BackendUnavailable(f"harvesters: no GenTL producer (*.cti) found; pass --cti or set {ENV_VAR}")
+    return files
+
+
+def _harvester(cti: list[str] | None) -> Harvester:
+    h = Harvester()
+    for path in cti_files(cti):
+        h.add_file(str(path))
+    h.update()
+    return h
+
+
+def _info_str(info: Any, attr: str) -> str:
+    try:
+        return str(getattr(info, attr) or "")
+    except gentl.GenericException:
+        return ""
+
+
+def discover(cti: list[str] | None = None, **_: Any) -> list[DeviceEntry]:
+    h = _harvester(cti)
+    try:
+        return [DeviceEntry("harvesters", _info_str(d, "id_"), _info_str(d, "vendor"), _info_str(d, "model"),
+                            _info_str(d, "serial_number")) for d in h.device_info_list]
+    finally:
+        h.reset()
+
+
+def open_transport(device_id: str | None = None, cti: list[str] | None = None, **_: Any) -> HarvestersTransport:
+    h = _harvester(cti)
+    ids = [_info_str(d, "id_") for d in h.device_info_list]
+    if not ids or (device_id is not None and device_id not in ids):
+        h.reset()
+        raise unknown_device("harvesters", device_id or "<first>", ids)
+    return HarvestersTransport(h, device_id or ids[0], cti)
+
+
+class HarvestersTransport:
+    """`Transport` over one harvesters `ImageAcquirer`."""
+
+    backend = "harvesters"
+
+    def __init__(self, harvester: Harvester, device_id: str, cti: list[str] | None):
+        self.device_id = device_id
+        self._cti = cti
+        self._h = harvester
+        self._open()
+
+    def _open(self) -> None:
+        try:
+            self._ia = self._h.create({"id_": self.device_id})
+        except gentl.GenericException as exc:
+            raise DeviceError(f"harvesters: cannot open {self.device_id}: {exc}") from exc
+        info = next(d for d in self._h.device_info_list if _info_str(d, "id_") == self.device_id)
+        self._tl_info = {"DeviceVendorName": _info_str(info, "vendor"), "DeviceModelName": _info_str(info, "model"),
+                         "DeviceSerialNumber": _info_str(info, "serial_number"), "DeviceVersion": _info_str(info, "version")}
+        self._nm = self._ia.remote_device.node_map
+
+    def _node(self, name: str) -> Any:
+        return self._nm.get_node(name)
+
+    def has(self, name: str) -> bool:
+        if name in self._tl_info:
+            return True
+        return self._nm.has_node(name) and genapi.is_available(self._node(name).node)
+
+    def get(self, name: str) -> Any:
+        if not self._nm.has_node(name) and name in self._tl_info:
+            return self._tl_info[name]
+        try:
+            return self._node(name).value
+        except genapi.GenericException as exc:
+            raise DeviceError(f"harvesters: cannot read {name}: {exc}") from exc
+
+    def set(self, name: str, value: Any) -> None:
+        try:
+            self._node(name).value = value
+        except (genapi.OutOfRangeException, genapi.InvalidArgumentException) as exc:
+            raise ConfigError(name, value, str(exc).split(":")[0]) from exc
+        except genapi.GenericException as exc:
+            raise DeviceError(f"harvesters: cannot write {name}={value!r}: {exc}") from exc
+
+    def bounds(self, name: str) -> tuple[float, float] | None:
+        node = self._node(name)
+        try:
+            return float(node.min), float(node.max)
+        except (AttributeError, genapi.GenericException):
+            return None
+
+    def entries(self, name: str) -> tuple[str, ...]:
+        try:
+            return tuple(e.symbolic for e in self._node(name).entries if genapi.is_available(e.node))
+        except (AttributeError, genapi.GenericException):
+            return ()
+
+    def execute(self, name: str) -> None:
+        self._node(name).execute()
+
+    def start(self) -> None:
+        self._ia.start()
+
+    def stop(self) -> None:
+        if self._ia.is_acquiring():
+            self._ia.stop()
+
+    def fetch(self, timeout_s: float) -> RawFrame:
+        try:
+            with self._ia.fetch(timeout=timeout_s) as buffer:
+                return self._raw(buffer)
+        except gentl.TimeoutException as exc:
+            raise FrameTimeout(f"harvesters: no buffer within {timeout_s:g} s") from exc
+        except (gentl.IoException, gentl.InvalidHandleException, gentl.NotInitializedException) as exc:
+            raise DeviceLost(f"harvesters: {self.device_id}: {exc}") from exc
+
+    def _raw(self, buffer: Any) -> RawFrame:
+        module = buffer.module
+        component = buffer.payload.components[0]
+        width, height = int(component.width), int(component.height)
+        data = component.data
+        data = data.reshape(height, width).copy() if data.size == width * height else data.tobytes()
+        try:
+            ts = int(module.timestamp_ns)
+        except gentl.GenericException:
+            ts = time.time_ns()
+        return RawFrame(int(module.frame_id), ts, width, height, str(component.data_format), data,
+                        complete=bool(module.is_complete()))
+
+    def reconnect(self) -> None:
+        self.close()
+        self._h = _harvester(self._cti)
+        self._open()
+
+    def close(self) -> None:
+        try:
+            self._ia.destroy()
+        finally:
+            self._h.reset()
