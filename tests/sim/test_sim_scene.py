@@ -60,3 +60,12 @@ def test_unknown_sim_key_is_refused(tmp_path):
     bad.write_text(text)
     with pytest.raises(ConfigError, match="sim.seeed"):
         RigScene.from_toml(bad)
+
+
+def test_set_lens_rerenders_with_inverse_square_f_number():
+    scene = RigScene.from_toml()
+    before = scene.electron_rate_map((20, 24))[10, 12]
+    scene.set_lens(f_number=4.0)
+    assert scene.electron_rate_map((20, 24))[10, 12] == pytest.approx(before / 4.0, rel=1e-5)
+    with pytest.raises(ConfigError, match="lens.f_number"):
+        scene.set_lens(f_number=-1)

@@ -31,6 +31,7 @@ SIM_SCHEMA = {
     "surround_reflectance": Num(0.05, lo=0.0, hi=1.0),
 }
 POSITIONS = ("target", "camera")
+POSITIVE_NUM = dict(lo=0.0, lo_open=True)
 
 
 def _sim_values(raw: dict) -> dict:
@@ -72,6 +73,16 @@ class RigScene:
     @property
     def sensor(self) -> SensorProfile:
         return self.design.sensor
+
+    def set_lens(self, focal_length_mm: float | None = None, f_number: float | None = None) -> None:
+        """Change the simulated lens (as an operator would on a manual lens); cached images are re-rendered."""
+        changes = {}
+        if focal_length_mm is not None:
+            changes["lens.focal_length_mm"] = Num(**POSITIVE_NUM).check("lens.focal_length_mm", focal_length_mm)
+        if f_number is not None:
+            changes["lens.f_number"] = Num(**POSITIVE_NUM).check("lens.f_number", f_number)
+        self.design = self.design.with_values(**changes)
+        self._profile = None
 
     def flux_fraction(self) -> float:
         """The light's current output as a fraction of its rated flux (0 when off)."""
