@@ -17,8 +17,8 @@ def test_centre_pixel_follows_the_model(scene):
     out = evaluate(scene.design)
     rate = scene.electron_rate_map((205, 245))
     centre = rate[102, 122]
-    expected = float(out["mean_electrons"]) / float(out["exposure_s"])
-    assert not out["saturated"]
+    expected = scene.sim["light_efficiency"] * float(out["mean_electrons"]) / float(out["exposure_s"])
+    assert not out["saturated"] and scene.sim["light_efficiency"] == 0.8
     assert centre == pytest.approx(expected, rel=1e-3)  # the centre pixel is 0.3 pixel off axis
 
 
@@ -35,7 +35,8 @@ def test_rate_is_linear_in_flux_and_board_is_brighter(scene):
 def test_spectra_integrate_to_model_irradiance(scene):
     nm, target = scene.spectral_irradiance("target", 0.25)
     out = evaluate(scene.design)
-    assert scene.design.grid.integrate(target) == pytest.approx(0.25 * float(out["target_irradiance_w_m2"]))
+    efficiency = scene.sim["light_efficiency"]
+    assert scene.design.grid.integrate(target) == pytest.approx(0.25 * efficiency * float(out["target_irradiance_w_m2"]))
     nm, camera = scene.spectral_irradiance("camera")
     assert 0 < scene.design.grid.integrate(camera) < scene.design.grid.integrate(target / 0.25)
     with pytest.raises(ConfigError, match="position"):
@@ -69,3 +70,14 @@ def test_set_lens_rerenders_with_inverse_square_f_number():
     assert scene.electron_rate_map((20, 24))[10, 12] == pytest.approx(before / 4.0, rel=1e-5)
     with pytest.raises(ConfigError, match="lens.f_number"):
         scene.set_lens(f_number=-1)
+
+
+def test_no_lens_sees_pi_times_radiance_uniformly():
+    scene = RigScene.from_toml()
+    f_number, t_lens = scene.design["lens.f_number"], scene.design["lens.transmittance"]
+    with_lens = scene.electron_rate_map((20, 24))[10, 12]
+    scene.remove_lens()
+    bare = scene.electron_rate_map((20, 24))
+    assert np.ptp(bare) == 0
+    # camera equation: E = L T π/(4N²) → bare sensor: E = π L
+    assert bare[0, 0] == pytest.approx(with_lens * 4 * f_number**2 / t_lens, rel=1e-3)

@@ -2,7 +2,9 @@
 
 A rig config is a design config (the sections of `uwlab design`) plus a `[sim]` section:
 ``seed`` (fixed-pattern noise maps), ``light_gamma`` (flux fraction = level^γ), ``board_size_m`` [x, y] (the
-target board on the target plane, centred on the axis) and ``surround_reflectance`` (outside the board).
+target board on the target plane, centred on the axis), ``surround_reflectance`` (outside the board) and
+``light_efficiency`` (the true emitted flux as a fraction of the rated `light.luminous_flux_lm`: a ground truth
+that a model fit starting from the rated lumens should recover).
 
 Images: the per-pixel electron rate is the model's on-axis rate (configured distances and incidence) times the
 relative profile of `uwlab.model.design.electron_rate_at_radius` (cos⁴ falloff, oblique paths, beam cut-off),
@@ -29,6 +31,7 @@ SIM_SCHEMA = {
     "seed": Num(1288, lo=0, integer=True),
     "light_gamma": Num(2.2, lo=0.0, lo_open=True),
     "surround_reflectance": Num(0.05, lo=0.0, hi=1.0),
+    "light_efficiency": Num(1.0, lo=0.0, lo_open=True),
 }
 POSITIONS = ("target", "camera")
 POSITIVE_NUM = dict(lo=0.0, lo_open=True)
@@ -59,6 +62,7 @@ class RigScene:
     design: Design
     sim: dict
     state: RigState = field(default_factory=RigState)
+    no_lens: bool = False
     _profile: tuple | None = field(default=None, repr=False)
 
     @classmethod
@@ -82,6 +86,14 @@ class RigScene:
         if f_number is not None:
             changes["lens.f_number"] = Num(**POSITIVE_NUM).check("lens.f_number", f_number)
         self.design = self.design.with_values(**changes)
+        self.no_lens = False
+        self._profile = None
+
+    def remove_lens(self) -> None:
+        """Take the lens off: the bare sensor sees the board's radiance field, E = π L_a (the camera equation
+        with N = 0.5 and T = 1), uniform over the sensor (the board is taken to fill the field)."""
+        self.design = self.design.with_values(**{"lens.f_number": 0.5, "lens.transmittance": 1.0})
+        self.no_lens = True
         self._profile = None
 
     def flux_fraction(self) -> float:
@@ -93,7 +105,7 @@ class RigScene:
 
     def on_axis_rate_e_per_s(self, flux_fraction: float = 1.0) -> float:
         """The model's on-axis electron rate of a board pixel [e⁻/s] at this flux fraction."""
-        return flux_fraction * float(on_axis_electron_rate(self.design))
+        return flux_fraction * self.sim["light_efficiency"] * float(on_axis_electron_rate(self.design))
 
     def _magnification(self) -> float:
         """Object size on the target plane per unit image size (pinhole with the effective focal length)."""
@@ -108,6 +120,8 @@ class RigScene:
         return self._profile[1] * np.float32(flux_fraction)
 
     def _render(self, shape_yx: tuple[int, int]) -> np.ndarray:
+        if self.no_lens:
+            return np.full(shape_yx, self.on_axis_rate_e_per_s(), np.float32)
         d = self.design
         ny, nx = shape_yx
         size_x, size_y = d.sensor.size_m
@@ -147,4 +161,4 @@ class RigScene:
             irradiance = spectra["target_irradiance_w_m2_nm"] / cos_i
         else:
             irradiance = np.pi * spectra["return_radiance_w_m2_sr_nm"]
-        return spectra["wavelength_nm"], flux_fraction * irradiance
+        return spectra["wavelength_nm"], flux_fraction * self.sim["light_efficiency"] * irradiance
