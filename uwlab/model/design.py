@@ -112,7 +112,7 @@ def build_design(raw: dict, base_dir: Path | None = None) -> Design:
         _check_range("operation.exposure_s", exposure, sensor.exposure_min_us * 1e-6, sensor.exposure_max_us * 1e-6,
                      sensor.name)
     design = Design(values=values, grid=grid, sensor=sensor, base_dir=base_dir)
-    _spectral_weights(design)  # resolve spectra, water and curves now, so bad names fail before evaluation
+    spectral_weights(design)  # resolve spectra, water and curves now, so bad names fail before evaluation
     return design
 
 
@@ -163,7 +163,7 @@ class SpectralWeights:
 _WEIGHTS_CACHE: dict = {}
 
 
-def _spectral_weights(d: Design) -> SpectralWeights:
+def spectral_weights(d: Design) -> SpectralWeights:
     """The design's spectral weights, cached by its categorical inputs (numbers given as arrays are not cached)."""
     key = _spectral_key(d)
     if None in key:
@@ -249,7 +249,7 @@ def electron_rate_at_radius(d: Design, r_m, weights: SpectralWeights | None = No
     """Electron rate [e⁻/s] of pixels at image radius r_m (any shape, trailing axis broadcast against the
     design's arrays) under the image-average geometry of the module docstring: light beside the camera,
     target plane perpendicular to the axis at d_C, cos⁴ lens falloff, beam cut-off at α_w > β."""
-    weights = _spectral_weights(d) if weights is None else weights
+    weights = spectral_weights(d) if weights is None else weights
     beta = _beam_half_angle_rad(d)
     f = np.asarray(d["lens.focal_length_mm"] * 1e-3, float)[..., None]
     tan_air = np.asarray(r_m, float) / f
@@ -288,12 +288,12 @@ def _on_axis(d: Design, weights: SpectralWeights):
 
 def on_axis_electron_rate(d: Design):
     """Electron rate [e⁻/s] of the on-axis pixel, before any clipping (μ_e = rate · t_exp)."""
-    return _on_axis(d, _spectral_weights(d))[2]
+    return _on_axis(d, spectral_weights(d))[2]
 
 
 def evaluate(d: Design) -> dict[str, np.ndarray]:
     """All design outputs (the keys of `uwlab design --json`) as arrays broadcast over the design's grid axes."""
-    weights = _spectral_weights(d)
+    weights = spectral_weights(d)
     sensor = d.sensor
     op = d.values["operation"]
     f_eff = _effective_focal_length_m(d)
@@ -367,7 +367,7 @@ def stage_spectra(d: Design) -> dict[str, np.ndarray]:
     Keys: wavelength_nm; source_w_nm (Φe, all lights); target_irradiance_w_m2_nm (E_t); return_radiance_w_m2_sr_nm
     (L_w at the camera, before the port); sensor_irradiance_w_m2_nm (E_s); absorbed_w_m2_nm (E_s η).
     """
-    w = _spectral_weights(d)
+    w = spectral_weights(d)
     grid = d.grid
     c = w.c * d["water.attenuation_scale"]
     beta = _beam_half_angle_rad(d)

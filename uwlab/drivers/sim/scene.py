@@ -69,9 +69,13 @@ class RigScene:
     def from_toml(cls, path: str | Path | None = None, state: RigState | None = None) -> "RigScene":
         """Load a rig config (None: the default simulated tank, configs/rigs/sim-tank.toml)."""
         path = Path(path) if path is not None else config_dir() / DEFAULT_RIG
-        raw = read_toml(path, "--config")
+        return cls.from_dict(read_toml(path, "--config"), path.resolve().parent, state)
+
+    @classmethod
+    def from_dict(cls, raw: dict, base_dir: Path | None = None, state: RigState | None = None) -> "RigScene":
+        """A rig from its config dict (design sections + [sim]); relative paths resolve against base_dir."""
         sim = _sim_values(raw)
-        design = build_design({k: v for k, v in raw.items() if k != "sim"}, path.resolve().parent)
+        design = build_design({k: v for k, v in raw.items() if k != "sim"}, base_dir)
         return cls(design=design, sim=sim, state=state or RigState())
 
     @property

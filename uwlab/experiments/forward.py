@@ -1,0 +1,184 @@
+"""The forward model of a calibration: predicted dark-subtracted mean response of every measured point, for
+many parameter vectors at once (emcee's ``vectorize=True``).
+
+For point i of configuration k (a sweep's rig with its lens setting), the model's on-axis electron rate at the
+nominal parameters, r_k = `uwlab.model.design.on_axis_electron_rate`, is rescaled analytically by the free
+parameters θ (every factor below is exact for the chain in `uwlab.model.design`):
+
+  r_k(θ) = r_k · ε · Ω(β₀)/Ω(β) · (M/M₀) · (T/T₀)^[lens] · G_k(s)/G_k(s₀) · v_k,
+  G_k(s) = ∫ W_k(λ) exp(−s c(λ) D_k) dλ,   μ_y,i − μ_y,dark,i = K_cam · 10^(g_i/20) · 2^(b_i − b_profile) · r_k(θ) · t_i,
+
+with ε the light efficiency (true/rated flux), β the beam half-angle (Ω = 2π(1 − cos β) for the cone model,
+π tan²β for the disk), M the target reflectance, T the lens transmittance (absent without a lens), s the
+attenuation scale over the light→target→camera path D_k, K the camera's system gain, and v_k the mean
+vignetting over the ROI (an ROI centred on the axis). A "no lens" point (f_number null) is a bare sensor in the
+board's radiance field: N = 0.5, T = 1, no vignetting (see `uwlab.drivers.sim.scene.RigScene.remove_lens`).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from uwlab.errors import ConfigError
+from uwlab.model.design import (Design, build_design, electron_rate_at_radius, on_axis_electron_rate, path_integrals,
+                                spectral_weights)
+
+SHARED = ("light_efficiency", "beam_half_angle_deg", "attenuation_scale", "reflectance", "lens_transmittance",
+          "discrepancy")
+PER_CAMERA = ("K_dn_per_e",)
+REQUIRED_COLUMNS = ("sweep_id", "exposure_us", "gain_db", "f_number", "focal_length_mm", "bit_depth", "sensor_profile",
+                    "signal_dn", "temporal_var_dn2", "frames", "roi_w", "roi_h", "saturated")
+
+
+@dataclass
+class ForwardModel:
+    """Per-point constants and per-configuration spectral terms of a calibration data set."""
+
+    names: tuple[str, ...]
+    nominal: dict[str, float]
+    y: np.ndarray
+    sigma_meas: np.ndarray
+    scale: np.ndarray            # K₀-free per-point factor: 10^(g/20) 2^(b − b_profile) t
+    config: np.ndarray           # configuration index per point
+    camera: np.ndarray           # camera (sensor profile) index per point
+    cameras: tuple[str, ...]
+    rate0: np.ndarray            # nominal on-axis rate × vignetting per configuration [e⁻/s]
+    has_lens: np.ndarray         # per configuration
+    omega_cone: bool
+    weights_e: np.ndarray        # (n_config, n_λ)
+    c: np.ndarray                # (n_config, n_λ), unscaled attenuation
+    path_m: np.ndarray           # (n_config,)
+    g0: np.ndarray               # G_k(s₀)
+    designs: list[Design] = field(repr=False, default_factory=list)
+    points: pd.DataFrame = field(repr=False, default=None)
+
+    def index(self, name: str) -> int:
+        return self.names.index(name)
+
+    def parameter(self, theta: np.ndarray, name: str) -> np.ndarray:
+        """Column `name` of θ (shape (n_walkers,)), or its nominal value when the parameter is fixed."""
+        if name in self.names:
+            return theta[:, self.names.index(name)]
+        return np.full(theta.shape[0], self.nominal[name])
+
+    def predict(self, theta: np.ndarray) -> np.ndarray:
+        """Predicted dark-subtracted mean [DN], shape (n_walkers, n_points)."""
+        theta = np.atleast_2d(theta)
+        p = lambda name: self.parameter(theta, name)[:, None]  # noqa: E731
+        beta, beta0 = np.radians(p("beam_half_angle_deg")), np.radians(self.nominal["beam_half_angle_deg"])
+        if self.omega_cone:
+            beam = (1 - np.cos(beta0)) / (1 - np.cos(beta))
+        else:
+            beam = np.tan(beta0) ** 2 / np.tan(beta) ** 2
+        s = p("attenuation_scale")
+        g = np.einsum("wkl,kl->wk", np.exp(-s[..., None] * (self.path_m[:, None] * self.c)[None]), self.weights_e)
+        lens = np.where(self.has_lens[None, :], p("lens_transmittance") / self.nominal["lens_transmittance"], 1.0)
+        rate = (self.rate0[None, :] * p("light_efficiency") * beam * p("reflectance") / self.nominal["reflectance"]
+                * lens * g / self.g0[None, :])
+        k = np.stack([self.parameter(theta, f"K_dn_per_e:{cam}") for cam in self.cameras], axis=1)
+        return k[:, self.camera] * self.scale[None, :] * rate[:, self.config]
+
+    def sigma(self, theta: np.ndarray, prediction: np.ndarray) -> np.ndarray:
+        """Per-point standard deviation: measurement noise of the ROI mean ⊕ fractional model discrepancy."""
+        delta = self.parameter(np.atleast_2d(theta), "discrepancy")[:, None]
+        return np.sqrt(self.sigma_meas[None, :] ** 2 + (delta * prediction) ** 2)
+
+
+def _roi_vignetting(design: Design, roi_w: float, roi_h: float) -> float:
+    """Mean relative rate over an axis-centred ROI of roi_w × roi_h pixels (midpoint rule, 16 × 16)."""
+    pitch = design.sensor.pixel_size_um * 1e-6
+    u = (np.arange(16) + 0.5) / 16
+    r = np.hypot.outer(u * roi_w * pitch / 2, u * roi_h * pitch / 2).ravel()
+    rates = electron_rate_at_radius(design, np.concatenate([[0.0], r]))
+    return float(rates[1:].mean() / rates[0])
+
+
+def _configuration_design(rig: dict, base_dir: Path | None, sensor: str, focal_length_mm, f_number) -> tuple[Design, bool]:
+    raw = {s: dict(v) for s, v in rig.items() if s != "sim"}
+    raw.setdefault("sensor", {})["profile"] = sensor
+    has_lens = f_number is not None and np.isfinite(f_number)
+    if has_lens:
+        raw.setdefault("lens", {}).update(f_number=float(f_number), focal_length_mm=float(focal_length_mm))
+    else:
+        raw.setdefault("lens", {}).update(f_number=0.5, transmittance=1.0)
+    raw.setdefault("operation", {}).pop("exposure_s", None)
+    return build_design(raw, base_dir), has_lens
+
+
+def build_forward_model(points: pd.DataFrame, rigs: dict[str, dict], names: tuple[str, ...],
+                        base_dir: Path | None = None) -> ForwardModel:
+    """Assemble the forward model for the points (contract columns) with the rigs {sweep_id: design config}."""
+    missing = [c for c in REQUIRED_COLUMNS if c not in points.columns]
+    if missing:
+        raise ConfigError("dataset", ", ".join(missing), "missing column(s) in points")
+    cameras = tuple(sorted(points["sensor_profile"].astype(str).unique()))
+    allowed = set(SHARED) | {f"{p}:{c}" for p in PER_CAMERA for c in cameras}
+    for name in names:
+        if name not in allowed:
+            raise ConfigError(f"parameters.{name}", name, f"unknown parameter; this dataset allows {', '.join(sorted(allowed))}")
+    keys = points[["sweep_id", "sensor_profile", "focal_length_mm", "f_number"]].astype(object).where(points.notna(), None)
+    key_tuples = [tuple(row) for row in keys.itertuples(index=False)]
+    unique = list(dict.fromkeys(key_tuples))
+    config = np.array([unique.index(k) for k in key_tuples])
+    designs, has_lens, rate0, w_e, c, path, g0 = [], [], [], [], [], [], []
+    for sweep_id, sensor, focal, f_number in unique:
+        if sweep_id not in rigs:
+            raise ConfigError("dataset", sweep_id, "no rig recorded for this sweep in metadata.json")
+        design, lens = _configuration_design(rigs[sweep_id], base_dir, sensor, focal, f_number)
+        rows = points[config == len(designs)]
+        vignetting = _roi_vignetting(design, rows["roi_w"].median(), rows["roi_h"].median()) if lens else 1.0
+        weights = spectral_weights(design)
+        d_l = design["light.distance_m"] if design["light.distance_m"] is not None else design["operation.altitude_m"]
+        path_m = float(d_l + design["operation.altitude_m"])
+        designs.append(design)
+        has_lens.append(lens)
+        rate0.append(float(on_axis_electron_rate(design)) * vignetting)
+        w_e.append(weights.W[:, 2])
+        c.append(weights.c)
+        path.append(path_m)
+        g0.append(float(path_integrals(weights, design["water.attenuation_scale"] * path_m)[2]))
+    first = designs[0]
+    with_lens = next((d for d, lens in zip(designs, has_lens) if lens), None)
+    nominal = {
+        "light_efficiency": 1.0,
+        "beam_half_angle_deg": float(np.degrees(np.arcsin(np.sin(np.radians(first["light.beam_half_angle_in_air_deg"]))
+                                                          / first["housing.water_index"])))
+        if first["light.beam_half_angle_deg"] is None else float(first["light.beam_half_angle_deg"]),
+        "attenuation_scale": float(first["water.attenuation_scale"]),
+        "reflectance": _number(first, "target.reflectance"),
+        "lens_transmittance": _number(with_lens, "lens.transmittance") if with_lens is not None else 1.0,
+        "discrepancy": 0.0,
+    }
+    camera = np.array([cameras.index(s) for s in points["sensor_profile"].astype(str)])
+    profile_of = {}
+    for idx, design in enumerate(designs):
+        profile_of.setdefault(unique[idx][1], design.sensor)
+    for cam in cameras:
+        nominal[f"K_dn_per_e:{cam}"] = profile_of[cam].K_dn_per_e
+    profile_bits = np.array([profile_of[s].bit_depth for s in points["sensor_profile"].astype(str)])
+    n_pix = points["roi_w"].to_numpy(float) * points["roi_h"].to_numpy(float)
+    var_mean = points["temporal_var_dn2"].to_numpy(float) / (points["frames"].to_numpy(float) * n_pix)
+    if "dark_temporal_var_dn2" in points and "dark_frames" in points:
+        dark = points["dark_temporal_var_dn2"].to_numpy(float) / (points["dark_frames"].to_numpy(float).clip(1) * n_pix)
+        var_mean = var_mean + np.nan_to_num(dark)
+    beam_model = {d["light.beam_model"] for d in designs}
+    if len(beam_model) > 1:
+        raise ConfigError("light.beam_model", sorted(beam_model), "all sweeps of one fit must share a beam model")
+    return ForwardModel(
+        names=tuple(names), nominal=nominal, y=points["signal_dn"].to_numpy(float), sigma_meas=np.sqrt(var_mean),
+        scale=10 ** (points["gain_db"].to_numpy(float) / 20) * 2.0 ** (points["bit_depth"].to_numpy(float) - profile_bits)
+        * points["exposure_us"].to_numpy(float) * 1e-6,
+        config=config, camera=camera, cameras=cameras, rate0=np.array(rate0), has_lens=np.array(has_lens),
+        omega_cone=beam_model == {"cone"}, weights_e=np.array(w_e), c=np.array(c), path_m=np.array(path), g0=np.array(g0),
+        designs=designs, points=points.reset_index(drop=True),
+    )
+
+
+def _number(design: Design, dotted: str) -> float:
+    value = design[dotted]
+    if isinstance(value, str):
+        raise ConfigError(dotted, value, "a fit needs a broadband number here, not a spectrum file")
+    return float(value)
