@@ -13,7 +13,7 @@ import sys
 from uwlab import __version__
 from uwlab.errors import UwlabError
 
-SUBCOMMAND_MODULES = ("design", "devices", "grab")
+SUBCOMMAND_MODULES = ("design", "devices", "grab", "light", "spectrum", "sim")
 
 
 class _Parser(argparse.ArgumentParser):

@@ -1,0 +1,89 @@
+"""`uwlab light`: switch and dim the light; `uwlab light calibrate`: its level → irradiance curve."""
+from __future__ import annotations
+
+import json
+import sys
+from datetime import datetime, timezone
+from pathlib import Path
+
+from tqdm import tqdm
+
+from uwlab.drivers.serial import PROTOCOLS, open_light, open_spectrometer
+from uwlab.drivers.serial.base import check_level
+from uwlab.errors import ConfigError
+from uwlab.experiments.light_calibration import calibrate_light, calibration_levels, save_light_calibration
+
+DEFAULT_CALIBRATION = "light-calibration.csv"
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("light", help="switch and dim the light, or calibrate it",
+                              description="Set and read back the light controller (uwlab-ascii over serial).")
+    p.add_argument("--port", help="serial port of the light (e.g. /dev/ttyUSB0)")
+    p.add_argument("--protocol", choices=PROTOCOLS, default=PROTOCOLS[0], help="instrument protocol")
+    output = p.add_mutually_exclusive_group()
+    output.add_argument("--on", dest="output", action="store_const", const=True, help="switch the output on")
+    output.add_argument("--off", dest="output", action="store_const", const=False, help="switch the output off")
+    p.add_argument("--level", type=float, help="light level in [0, 1]")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=run)
+    sub = p.add_subparsers(dest="light_command", metavar="calibrate")
+    c = sub.add_parser("calibrate", help="measure irradiance at N light levels",
+                       description="Step the light through N levels in [0, 1] and store the spectrum at each.")
+    c.add_argument("--light", required=True, metavar="PORT", help="serial port of the light")
+    c.add_argument("--spectrometer", required=True, metavar="PORT", help="serial port of the spectrometer")
+    c.add_argument("--protocol", choices=PROTOCOLS, default=PROTOCOLS[0], help="instrument protocol")
+    c.add_argument("--levels", type=int, default=11, help="number of levels, evenly spaced over [0, 1] (default 11)")
+    c.add_argument("--out", default=DEFAULT_CALIBRATION, metavar="FILE",
+                   help=f"calibration CSV to create; never overwritten (default {DEFAULT_CALIBRATION})")
+    c.add_argument("--json", action="store_true", help="print one JSON object")
+    c.set_defaults(func=run_calibrate)
+
+
+def run(args) -> int:
+    if args.port is None:
+        raise ConfigError("port", None, "--port is required (or use 'uwlab light calibrate')")
+    if args.level is not None:
+        check_level(args.level)
+    with open_light(args.port, args.protocol) as light:
+        if args.output is not None:
+            light.set_output(args.output)
+        if args.level is not None:
+            light.set_level(args.level)
+        state = {"port": args.port, "identity": light.identity(), "on": light.output(), "level": light.level()}
+    if args.json:
+        print(json.dumps(state))
+    else:
+        print(f"{state['identity']} on {args.port}: output {'on' if state['on'] else 'off'}, level {state['level']:g}")
+    return 0
+
+
+def run_calibrate(args) -> int:
+    levels = calibration_levels(args.levels)
+    out = Path(args.out)
+    if out.exists():
+        raise ConfigError("out", str(out), "file exists; refusing to overwrite it")
+    with open_light(args.light, args.protocol) as light, \
+            open_spectrometer(args.spectrometer, args.protocol) as spectrometer, \
+            tqdm(total=len(levels), desc="light levels", unit="level", file=sys.stderr, disable=None) as bar:
+        comments = [
+            f"uwlab light calibration, {datetime.now(timezone.utc).isoformat(timespec='seconds')}",
+            f"light: {args.light} ({light.identity()})",
+            f"spectrometer: {args.spectrometer} ({spectrometer.identity()})",
+        ]
+        calibration = calibrate_light(light, spectrometer, levels, lambda done, total: bar.update(1))
+    save_light_calibration(out, calibration, comments)
+    result = {
+        "out": str(out),
+        "level": calibration.level.tolist(),
+        "irradiance_w_m2": calibration.irradiance_w_m2.tolist(),
+        "illuminance_lux": calibration.illuminance_lux.tolist(),
+    }
+    if args.json:
+        print(json.dumps(result))
+    else:
+        print(f"light calibration written to {out}")
+        print(f"{'level':>8} {'irradiance_w_m2':>16} {'illuminance_lux':>16}")
+        for row in zip(result["level"], result["irradiance_w_m2"], result["illuminance_lux"]):
+            print(f"{row[0]:8.3f} {row[1]:16.6g} {row[2]:16.6g}")
+    return 0

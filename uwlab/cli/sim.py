@@ -1,0 +1,57 @@
+"""`uwlab sim`: run simulated instruments (one function pair per sub-subcommand)."""
+from __future__ import annotations
+
+import json
+import signal
+import tempfile
+import threading
+
+from uwlab.cli.sim_camera import add_sim_camera_parser
+from uwlab.drivers.sim.serial_instruments import POSITIONS
+from uwlab.drivers.sim.serial_sim import SerialRig, SerialSimSettings
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("sim", help="run simulated instruments until Ctrl-C",
+                              description="Run simulated instruments that behave like the rig's hardware.")
+    sub = p.add_subparsers(dest="sim_command", required=True, metavar="INSTRUMENTS")
+    register_serial(sub)
+    add_sim_camera_parser(sub)
+
+
+def register_serial(sub) -> None:
+    p = sub.add_parser("serial", help="simulated light and spectrometer on pseudo-terminals",
+                       description="Start the simulated light and spectrometer behind pseudo-terminals, print "
+                                   "their ports, and run until Ctrl-C or SIGTERM.")
+    p.add_argument("--config", metavar="RIG.toml", help="rig config (default: configs/rigs/sim-tank.toml)")
+    p.add_argument("--spectrometer-position", choices=POSITIONS, default="target",
+                   help="where the spectrometer sits: facing the light at the target board, or at the camera")
+    p.add_argument("--json", action="store_true",
+                   help='print {"light": PORT, "spectrometer": PORT, "rig_state": FILE} as the first line')
+    p.set_defaults(func=run_serial)
+
+
+def run_serial(args) -> int:
+    settings = SerialSimSettings.from_config(args.config, args.spectrometer_position)
+    stop = threading.Event()
+    previous = signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    try:
+        with tempfile.TemporaryDirectory(prefix="uwlab-sim-") as directory, SerialRig(directory, settings) as rig:
+            info = {**rig.ports, "rig_state": str(rig.rig_state_path)}
+            if args.json:
+                print(json.dumps(info), flush=True)
+            else:
+                print(f"light:        {info['light']}\nspectrometer: {info['spectrometer']}\n"
+                      f"rig state:    {info['rig_state']}\nrunning; Ctrl-C to stop", flush=True)
+            _wait(stop)
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+    return 0
+
+
+def _wait(stop: threading.Event) -> None:
+    try:
+        while not stop.wait(0.5):
+            continue
+    except KeyboardInterrupt:
+        stop.set()

@@ -1,0 +1,248 @@
+"""Line transport over pyserial: framing, timeouts, bounded retries and recovery (docs/serial-protocol.md).
+
+One `LineTransport` owns one port. Every command is one line; every reply is one line (or, for a
+block, a header, data lines and ``END``). What is recovered, each within ``1 + retries`` attempts:
+
+- no reply, or a partial line followed by silence (timeout) → the command is sent again;
+- garbage (non-ASCII, control bytes, wrong reply type) → input discarded, command sent again;
+- ``ERR 200`` (busy) → sent again; any other ``ERR`` is reported at once;
+- a banner (``# ...``, the instrument has reset, during a command or between commands) → ``on_reset``
+  is called (drivers re-apply their settings), then the command is sent again;
+- the port disappearing (read/write/open errors) → closed and reopened until ``reopen_s`` has passed,
+  then the command is sent again.
+
+Giving up raises one `DeviceError` naming the port and the command. All commands of the protocol are
+idempotent, so repeating one is safe.
+"""
+from __future__ import annotations
+
+import termios
+import time
+from typing import Callable, TypeVar
+
+import serial
+
+from uwlab.drivers.serial.protocol import (
+    BLOCK_END,
+    MAX_LINE_BYTES,
+    RETRYABLE_ERROR_CODES,
+    TERMINATOR,
+    Reply,
+    ReplyParseError,
+    decode_line,
+    parse_block_header,
+    parse_reply,
+)
+from uwlab.errors import ConfigError, DeviceError
+
+BAUDRATE = 115200
+PORT_ERRORS = (serial.SerialException, OSError, termios.error)
+T = TypeVar("T")
+
+
+class _Retry(Exception):
+    """A failed attempt that may succeed if the command is sent again."""
+
+
+class _Reset(_Retry):
+    """The instrument announced a reset (banner) instead of replying."""
+
+
+class _PortLost(_Retry):
+    """The port raised an OS-level error: it has vanished."""
+
+
+class _Refused(Exception):
+    """The instrument replied ``ERR <code> <message>`` with a code that retrying cannot fix."""
+
+
+class LineTransport:
+    """Send commands and read replies on one serial port, with bounded retries.
+
+    ``port`` is anything `serial.serial_for_url` opens (a device path, a symlink to one, or a URL); it is
+    locked (``flock``) while open, so two programs cannot interleave commands on one instrument.
+    ``timeout_s`` bounds each reply, ``retries`` the extra attempts per command, ``reopen_s`` the time
+    allowed for a vanished port to come back. ``on_reset`` is called after an unrequested reset.
+    """
+
+    def __init__(
+        self,
+        port: str,
+        *,
+        baudrate: int = BAUDRATE,
+        timeout_s: float = 1.0,
+        retries: int = 3,
+        reopen_s: float = 5.0,
+        on_reset: Callable[[], None] | None = None,
+    ):
+        if isinstance(retries, bool) or not isinstance(retries, int) or retries < 0:
+            raise ConfigError("retries", retries, "must be an integer >= 0")
+        if not (timeout_s > 0 and reopen_s >= 0):
+            raise ConfigError("timeout_s", timeout_s, "timeout must be > 0 and reopen time >= 0")
+        self.port = port
+        self.baudrate = baudrate
+        self.timeout_s = timeout_s
+        self.retries = retries
+        self.reopen_s = reopen_s
+        self.on_reset = on_reset
+        self._serial: serial.SerialBase | None = None
+        self._buffer = b""
+        self._restoring = False
+
+    def open(self) -> LineTransport:
+        try:
+            self._serial = self._open_port()
+        except PORT_ERRORS as exc:
+            raise DeviceError(f"{self.port}: cannot open port ({exc})") from None
+        return self
+
+    def close(self) -> None:
+        if self._serial is not None:
+            try:
+                self._serial.close()
+            except PORT_ERRORS:
+                pass
+        self._serial = None
+        self._buffer = b""
+
+    def __enter__(self) -> LineTransport:
+        return self if self._serial is not None else self.open()
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
+
+    def command(self, command: str) -> None:
+        """Send a setting command; the instrument must reply ``OK``."""
+        self._transact(command, lambda deadline: self._expect(self._read_reply(deadline), "ok"), self.timeout_s)
+
+    def query(self, command: str, parse: Callable[[str], T] = str) -> T:
+        """Send a query; returns its value text through ``parse`` (a `ReplyParseError` there is retried)."""
+        return self._transact(
+            command, lambda deadline: parse(self._expect(self._read_reply(deadline), "value").text), self.timeout_s
+        )
+
+    def query_block(self, command: str, timeout_s: float, parse: Callable[[list[str]], T]) -> tuple[bool, T]:
+        """Send a block query (``BEGIN <n> <flag>`` … ``END``); returns (flag, ``parse(data lines)``)."""
+        return self._transact(command, lambda deadline: self._read_block(deadline, parse), timeout_s)
+
+    def reset(self) -> None:
+        """``*RST``: the banner it causes is expected and does not trigger ``on_reset``."""
+        self._transact("*RST", self._read_ok_after_banner, self.timeout_s)
+
+    def _transact(self, command: str, receive: Callable[[float], T], timeout_s: float) -> T:
+        attempts = 1 + self.retries
+        for _ in range(attempts):
+            try:
+                self._ensure_open(command)
+                self._drain_unsolicited()
+                self._send(command)
+                return receive(time.monotonic() + timeout_s)
+            except _Reset as exc:
+                last = exc
+                self._restore()
+            except _PortLost as exc:
+                last = exc
+                self._reopen(command)
+            except (_Retry, ReplyParseError) as exc:
+                last = exc
+            except _Refused as exc:
+                raise DeviceError(f"{self.port}: command {command!r} refused by the instrument: {exc}") from None
+        raise DeviceError(f"{self.port}: command {command!r} failed after {attempts} attempts (last: {last})")
+
+    def _open_port(self) -> serial.SerialBase:
+        return serial.serial_for_url(self.port, baudrate=self.baudrate, timeout=self.timeout_s, exclusive=True)
+
+    def _ensure_open(self, command: str) -> None:
+        if self._serial is None:
+            self._reopen(command)
+
+    def _reopen(self, command: str) -> None:
+        self.close()
+        deadline = time.monotonic() + self.reopen_s
+        while True:
+            try:
+                self._serial = self._open_port()
+                return
+            except PORT_ERRORS as exc:
+                if time.monotonic() > deadline:
+                    raise DeviceError(
+                        f"{self.port}: port vanished during command {command!r} and did not come back "
+                        f"within {self.reopen_s:g} s ({exc})"
+                    ) from None
+                time.sleep(0.05)
+
+    def _restore(self) -> None:
+        if self.on_reset is None or self._restoring:
+            return
+        self._restoring = True
+        try:
+            self.on_reset()
+        finally:
+            self._restoring = False
+
+    def _io(self, operation: Callable[[], T]) -> T:
+        try:
+            return operation()
+        except PORT_ERRORS as exc:
+            raise _PortLost(f"port error: {exc}") from None
+
+    def _drain_unsolicited(self) -> None:
+        """Discard pending input; a banner among it means the instrument reset since the last reply."""
+        pending = self._buffer + self._io(lambda: self._serial.read(self._serial.in_waiting))
+        self._buffer = b""
+        for raw in pending.split(TERMINATOR):
+            try:
+                banner = parse_reply(raw).kind == "banner"
+            except ReplyParseError:
+                continue
+            if banner:
+                self._restore()
+
+    def _send(self, command: str) -> None:
+        line = command.encode("ascii") + TERMINATOR
+        self._io(lambda: (self._serial.write(line), self._serial.flush()))
+
+    def _read_line(self, deadline: float) -> bytes:
+        while TERMINATOR not in self._buffer:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                partial = f", partial line {self._buffer[:40]!r}" if self._buffer else ""
+                self._buffer = b""
+                raise _Retry(f"no reply within {self.timeout_s:g} s{partial}")
+            if len(self._buffer) > MAX_LINE_BYTES:
+                self._buffer = b""
+                raise ReplyParseError(f"line longer than {MAX_LINE_BYTES} bytes")
+            self._serial.timeout = remaining
+            self._buffer += self._io(lambda: self._serial.read(max(1, self._serial.in_waiting)))
+        line, _, self._buffer = self._buffer.partition(TERMINATOR)
+        return line
+
+    def _read_reply(self, deadline: float) -> Reply:
+        reply = parse_reply(self._read_line(deadline))
+        if reply.kind == "banner":
+            raise _Reset(f"instrument reset ({reply.text})")
+        if reply.kind == "error" and reply.code in RETRYABLE_ERROR_CODES:
+            raise _Retry(f"ERR {reply.code} {reply.text}")
+        if reply.kind == "error":
+            raise _Refused(f"ERR {reply.code} {reply.text}")
+        return reply
+
+    def _expect(self, reply: Reply, kind: str) -> Reply:
+        if reply.kind != kind:
+            raise ReplyParseError(f"expected a reply of type {kind!r}, got {reply.kind!r} {reply.text!r}")
+        return reply
+
+    def _read_ok_after_banner(self, deadline: float) -> None:
+        while (reply := parse_reply(self._read_line(deadline))).kind == "banner":
+            continue
+        if reply.kind == "error":
+            raise _Refused(f"ERR {reply.code} {reply.text}")
+        self._expect(reply, "ok")
+
+    def _read_block(self, deadline: float, parse: Callable[[list[str]], T]) -> tuple[bool, T]:
+        n, flag = parse_block_header(self._expect(self._read_reply(deadline), "value").text)
+        lines = [decode_line(self._read_line(deadline)) for _ in range(n)]
+        end = decode_line(self._read_line(deadline))
+        if end != BLOCK_END:
+            raise ReplyParseError(f"expected {BLOCK_END!r} after {n} data lines, got {end!r}")
+        return flag, parse(lines)

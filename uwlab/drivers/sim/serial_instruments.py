@@ -1,0 +1,235 @@
+"""Simulated ``uwlab-ascii`` instruments: command handlers of the light and the spectrometer.
+
+Each handler maps one command line to its reply lines (docs/serial-protocol.md); the serving loop,
+the pseudo-terminal and fault injection are in `uwlab.drivers.sim.serial_sim`.
+
+Light: output on/off and level x ∈ [0, 1]; the emitted fraction of the rated flux follows the
+non-linear curve ``flux_fraction = x ** gamma`` (a gamma-law dimmer; gamma from the rig config key
+``[sim] light_gamma``). Every change is written to the shared `RigState`, so the simulated camera
+and spectrometer see it. Power-on / reset state: output off, level 0.
+
+Spectrometer: reports the spectral irradiance ``spectrum(position, flux_fraction)`` [W/m²/nm] of the
+rig model for the current light state, resampled to 380–780 nm in 1 nm steps, through a CCD-like
+count model per pixel and frame (e.g. Janesick, *Photon Transfer*, SPIE 2007):
+``counts = bias + k·t·E + dark_rate·t + N(0, √(k·t·E + dark_rate·t)) + N(0, read_noise)``, clipped to
+[0, full_scale] (saturation). Frames are averaged; the instrument then subtracts its stored dark
+reference, which is off by ``dark_error`` (a relative error), and divides by ``k·t``. Integration time
+1–10000 ms, averaging 1–100; an acquisition takes integration × averaging of real time.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from uwlab.drivers.serial.base import AVERAGING_RANGE, INTEGRATION_MS_RANGE
+from uwlab.drivers.serial.protocol import (
+    BLOCK_BEGIN,
+    BLOCK_END,
+    ERR_BAD_ARGUMENT,
+    ERR_OUT_OF_RANGE,
+    ERR_UNKNOWN_COMMAND,
+    ERROR_CODES,
+    format_float,
+)
+from uwlab.drivers.sim.rig_state import LightState, RigState
+from uwlab.model.grid import DEFAULT_GRID
+
+SpectrumSource = Callable[[str, float], tuple[np.ndarray, np.ndarray]]
+POSITIONS = ("target", "camera")
+
+
+class CommandError(Exception):
+    """A command the instrument refuses: becomes ``ERR <code> <message>``."""
+
+    def __init__(self, code: int, message: str):
+        super().__init__(message)
+        self.code = code
+
+
+def _number(argument: str, low: float, high: float) -> float:
+    try:
+        value = float(argument)
+    except ValueError:
+        raise CommandError(ERR_BAD_ARGUMENT, f"not a number: {argument!r}") from None
+    if not low <= value <= high:
+        raise CommandError(ERR_OUT_OF_RANGE, f"{argument} outside [{low:g}, {high:g}]")
+    return value
+
+
+class SimInstrument:
+    """Command dispatch shared by the simulated instruments: ``*IDN?``, ``*RST``, ``SYST:ERR?``."""
+
+    model = "SIM"
+
+    def __init__(self, serial_number: str = "0001"):
+        self.identity = f"UWLAB,{self.model},{serial_number},1.0"
+        self._last_error = (0, "No error")
+        self.power_on()
+
+    @property
+    def banner(self) -> str:
+        return f"# {self.identity} ready"
+
+    def power_on(self) -> None:
+        """Set the power-on state (also the state after ``*RST`` or a spontaneous reset)."""
+
+    def handle(self, line: str) -> list[str]:
+        """Reply lines for one command line."""
+        header, _, argument = line.strip().partition(" ")
+        header = header.upper()
+        try:
+            if header == "*IDN?":
+                return [self.identity]
+            if header == "*RST":
+                self.power_on()
+                return [self.banner, "OK"]
+            if header == "SYST:ERR?":
+                code, message = self._last_error
+                self._last_error = (0, "No error")
+                return [f"{code} {message}"]
+            return self.dispatch(header, argument.strip())
+        except CommandError as exc:
+            self._last_error = (exc.code, str(exc))
+            return [f"ERR {exc.code} {exc}"]
+
+    def dispatch(self, header: str, argument: str) -> list[str]:
+        raise CommandError(ERR_UNKNOWN_COMMAND, f"{ERROR_CODES[ERR_UNKNOWN_COMMAND]} {header!r}")
+
+
+class SimLight(SimInstrument):
+    """Gamma-law dimmable light writing its state to the rig state."""
+
+    model = "SIM-LIGHT"
+
+    def __init__(self, rig_state: RigState, gamma: float = 2.2, serial_number: str = "0001"):
+        self.rig_state = rig_state
+        self.gamma = gamma
+        super().__init__(serial_number)
+
+    def power_on(self) -> None:
+        self.on = False
+        self.level = 0.0
+        self._publish()
+
+    def dispatch(self, header: str, argument: str) -> list[str]:
+        if header == "OUTP" and argument.upper() in ("ON", "OFF", "1", "0"):
+            self.on = argument.upper() in ("ON", "1")
+        elif header == "OUTP":
+            raise CommandError(ERR_BAD_ARGUMENT, f"expected ON or OFF, got {argument!r}")
+        elif header == "OUTP?":
+            return ["1" if self.on else "0"]
+        elif header == "LEV":
+            self.level = _number(argument, 0.0, 1.0)
+        elif header == "LEV?":
+            return [format_float(self.level)]
+        else:
+            return super().dispatch(header, argument)
+        self._publish()
+        return ["OK"]
+
+    def _publish(self) -> None:
+        self.rig_state.set_light(LightState(self.on, self.level, self.level**self.gamma))
+
+
+@dataclass(frozen=True)
+class DetectorModel:
+    """Count model of the simulated spectrometer (see the module docstring)."""
+
+    counts_per_w_m2_nm_s: float = 1.0e6
+    full_scale_counts: float = 65535.0
+    bias_counts: float = 1000.0
+    dark_rate_counts_s: float = 200.0
+    read_noise_counts: float = 8.0
+    dark_error: float = 0.02
+
+    def dark_counts(self, integration_s: float) -> float:
+        return self.bias_counts + self.dark_rate_counts_s * integration_s
+
+    def expected_sigma_w_m2_nm(self, irradiance: np.ndarray, integration_s: float, averaging: int) -> np.ndarray:
+        """Standard deviation of one reported value: shot, dark-current and read noise, averaged."""
+        gain = self.counts_per_w_m2_nm_s * integration_s
+        variance = gain * np.maximum(irradiance, 0) + self.dark_rate_counts_s * integration_s
+        return np.sqrt((variance + self.read_noise_counts**2) / averaging) / gain
+
+    def dark_residual_w_m2_nm(self, integration_s: float) -> float:
+        """The offset left by the imperfect dark subtraction."""
+        gain = self.counts_per_w_m2_nm_s * integration_s
+        return self.dark_error * self.dark_counts(integration_s) / gain
+
+    def measure(
+        self, irradiance: np.ndarray, integration_s: float, averaging: int, rng: np.random.Generator
+    ) -> tuple[np.ndarray, bool]:
+        """Reported irradiance [W/m²/nm] and whether any pixel of any frame saturated."""
+        gain = self.counts_per_w_m2_nm_s * integration_s
+        signal = gain * np.maximum(irradiance, 0)
+        dark = self.dark_counts(integration_s)
+        shot = np.sqrt(signal + self.dark_rate_counts_s * integration_s)
+        frames = dark + signal + rng.standard_normal((averaging, signal.size)) * np.hypot(
+            shot, self.read_noise_counts
+        )
+        saturated = bool(np.any(frames >= self.full_scale_counts))
+        counts = np.clip(frames, 0, self.full_scale_counts).mean(axis=0)
+        return (counts - dark * (1 - self.dark_error)) / gain, saturated
+
+
+class SimSpectrometer(SimInstrument):
+    """Spectrometer at ``position`` reporting ``spectrum(position, flux_fraction)`` with detector noise."""
+
+    model = "SIM-SPECTROMETER"
+
+    def __init__(
+        self,
+        rig_state: RigState,
+        spectrum: SpectrumSource,
+        position: str = "target",
+        detector: DetectorModel = DetectorModel(),
+        seed: int | None = None,
+        serial_number: str = "0001",
+    ):
+        self.rig_state = rig_state
+        self.spectrum = spectrum
+        self.position = position
+        self.detector = detector
+        self.wavelength_nm = DEFAULT_GRID.nm
+        self.rng = np.random.default_rng(seed)
+        super().__init__(serial_number)
+
+    def power_on(self) -> None:
+        self.integration_ms = 100.0
+        self.averaging = 1
+
+    def dispatch(self, header: str, argument: str) -> list[str]:
+        if header == "SPEC:INT":
+            self.integration_ms = _number(argument, *INTEGRATION_MS_RANGE)
+        elif header == "SPEC:INT?":
+            return [format_float(self.integration_ms)]
+        elif header == "SPEC:AVG":
+            self.averaging = int(_number(argument, *AVERAGING_RANGE))
+        elif header == "SPEC:AVG?":
+            return [str(self.averaging)]
+        elif header == "SPEC:READ?":
+            return self.read()
+        elif header == "SIM:POS" and argument.lower() in POSITIONS:
+            self.position = argument.lower()
+        elif header == "SIM:POS":
+            raise CommandError(ERR_BAD_ARGUMENT, f"position must be one of {', '.join(POSITIONS)}")
+        elif header == "SIM:POS?":
+            return [self.position]
+        else:
+            return super().dispatch(header, argument)
+        return ["OK"]
+
+    def true_irradiance(self) -> np.ndarray:
+        """The model's spectral irradiance for the current light state, on the instrument's grid."""
+        wavelength_nm, irradiance = self.spectrum(self.position, self.rig_state.light.effective_fraction)
+        return np.interp(self.wavelength_nm, wavelength_nm, irradiance, left=0.0, right=0.0)
+
+    def read(self) -> list[str]:
+        integration_s = self.integration_ms / 1000.0
+        time.sleep(integration_s * self.averaging)
+        measured, saturated = self.detector.measure(self.true_irradiance(), integration_s, self.averaging, self.rng)
+        rows = [f"{format_float(w)} {value:.6e}" for w, value in zip(self.wavelength_nm, measured)]
+        return [f"{BLOCK_BEGIN} {len(rows)} {int(saturated)}", *rows, BLOCK_END]

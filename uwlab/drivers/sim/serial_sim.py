@@ -1,0 +1,335 @@
+"""Simulated serial instruments, each in its own process behind a real pseudo-terminal.
+
+A simulator owns a pty pair (``os.openpty``, raw mode) and publishes the slave device through a
+stable symlink (e.g. ``<dir>/light``): drivers open the symlink with pyserial, exactly as they would
+open ``/dev/ttyUSB0``. When the port "vanishes" the simulator closes the pty, removes the symlink,
+waits, opens a fresh pty and re-points the symlink (a pty path cannot be re-created).
+
+Fault injection, by command (never faulted itself; docs/serial-protocol.md):
+
+- ``SIM:FAULT <name> [count]`` — the next ``count`` (default 1) commands get fault ``name``:
+  ``noreply`` (command applied, reply lost), ``garbage`` (binary junk line instead of the reply),
+  ``partial`` (first half of the reply, no terminator), ``err`` (``ERR 300``), ``busy`` (``ERR 200``),
+  ``reset`` (instrument resets, sends its banner, command lost), ``vanish`` (port disappears for
+  ``vanish_s`` and comes back as a new pty; command lost). ``SIM:FAULT NONE`` clears the queue.
+- ``SIM:RESET`` — a spontaneous reset: ``OK``, then the banner, as if the instrument rebooted.
+
+Every received line can be appended to a command log file (tests check what reached the device).
+"""
+from __future__ import annotations
+
+import multiprocessing
+import os
+import select
+import signal
+import time
+import tty
+from dataclasses import dataclass
+from functools import partial
+from pathlib import Path
+from typing import Callable
+
+from uwlab.drivers.serial.protocol import ERR_BUSY, ERR_HARDWARE, TERMINATOR
+from uwlab.drivers.sim.rig_state import RigState
+from uwlab.drivers.sim.scene import RigScene
+from uwlab.drivers.sim.serial_instruments import (
+    POSITIONS,
+    SimInstrument,
+    SimLight,
+    SimSpectrometer,
+    SpectrumSource,
+)
+from uwlab.errors import ConfigError, DeviceError, UwlabError
+
+FAULTS = ("noreply", "garbage", "partial", "err", "busy", "reset", "vanish")
+GARBAGE = b"\x00\xff\xfe\x1b[2J\xc3(\x07garbage\x80"
+WRITE_TIMEOUT_S = 5.0
+START_TIMEOUT_S = 60.0
+
+
+class PtyPort:
+    """The master side of a pty whose slave is published at the symlink ``link``."""
+
+    def __init__(self, link: Path):
+        self.link = Path(link)
+        self._open()
+
+    def _open(self) -> None:
+        self.master, self._slave = os.openpty()
+        tty.setraw(self._slave)
+        temporary = self.link.with_name(f".{self.link.name}.new")
+        temporary.unlink(missing_ok=True)
+        os.symlink(os.ttyname(self._slave), temporary)
+        os.replace(temporary, self.link)
+
+    def close(self) -> None:
+        self.link.unlink(missing_ok=True)
+        for fd in (self.master, self._slave):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+
+    def vanish(self, seconds: float) -> None:
+        """Disappear for ``seconds``, then come back on a new pty at the same symlink."""
+        self.close()
+        time.sleep(seconds)
+        self._open()
+
+    def read(self, timeout_s: float) -> bytes:
+        ready, _, _ = select.select([self.master], [], [], timeout_s)
+        return os.read(self.master, 4096) if ready else b""
+
+    def write(self, data: bytes) -> None:
+        """Write all of ``data`` unless the reader stops reading for `WRITE_TIMEOUT_S` (rest dropped)."""
+        deadline = time.monotonic() + WRITE_TIMEOUT_S
+        view = memoryview(data)
+        while view and time.monotonic() < deadline:
+            _, writable, _ = select.select([], [self.master], [], 0.1)
+            if writable:
+                view = view[os.write(self.master, view):]
+
+
+class SerialServer:
+    """Read command lines from a `PtyPort`, answer with an instrument, inject the queued faults."""
+
+    def __init__(self, instrument: SimInstrument, port: PtyPort, command_log: Path | None = None,
+                 vanish_s: float = 0.5):
+        self.instrument = instrument
+        self.port = port
+        self.command_log = command_log
+        self.vanish_s = vanish_s
+        self.faults: list[str] = []
+        self._buffer = b""
+
+    def step(self, timeout_s: float) -> None:
+        """Wait up to ``timeout_s`` for input and answer every complete line."""
+        self._buffer += self.port.read(timeout_s)
+        while TERMINATOR in self._buffer:
+            raw, _, self._buffer = self._buffer.partition(TERMINATOR)
+            line = raw.decode("ascii", "replace").strip()
+            if line:
+                self._log(line)
+                self._send(self.respond(line))
+
+    def respond(self, line: str) -> list[bytes]:
+        """Reply lines (terminated) for one command, after any queued fault."""
+        header, _, argument = line.partition(" ")
+        if header.upper() == "SIM:FAULT":
+            return [self._queue_faults(argument.split())]
+        if header.upper() == "SIM:RESET":
+            self.instrument.power_on()
+            return [b"OK\n", self.instrument.banner.encode() + TERMINATOR]
+        try:
+            if self.faults:
+                return self._fault(self.faults.pop(0), line)
+            return [reply.encode() + TERMINATOR for reply in self.instrument.handle(line)]
+        except Exception as exc:  # a simulator bug or model error must not kill the port: report it as hardware
+            return [f"ERR {ERR_HARDWARE} internal: {type(exc).__name__}: {exc}".encode()[:200] + TERMINATOR]
+
+    def _queue_faults(self, fields: list[str]) -> bytes:
+        if fields and fields[0].upper() == "NONE":
+            self.faults.clear()
+            return b"OK\n"
+        valid_count = len(fields) == 1 or (len(fields) == 2 and fields[1].isdigit())
+        if not fields or fields[0].lower() not in FAULTS or not valid_count:
+            return f"ERR 101 expected SIM:FAULT <{'|'.join(FAULTS)}|NONE> [count]\n".encode()
+        count = int(fields[1]) if len(fields) == 2 else 1
+        self.faults.extend([fields[0].lower()] * count)
+        return b"OK\n"
+
+    def _fault(self, fault: str, line: str) -> list[bytes]:
+        if fault == "noreply":
+            self.instrument.handle(line)
+            return []
+        if fault == "garbage":
+            return [GARBAGE + TERMINATOR]
+        if fault == "partial":
+            reply = self.instrument.handle(line)[0].encode()
+            return [reply[: max(1, len(reply) // 2)]]
+        if fault == "err":
+            return [f"ERR {ERR_HARDWARE} simulated hardware fault\n".encode()]
+        if fault == "busy":
+            return [f"ERR {ERR_BUSY} busy\n".encode()]
+        if fault == "reset":
+            self.instrument.power_on()
+            return [self.instrument.banner.encode() + TERMINATOR]
+        self.port.vanish(self.vanish_s)
+        self._buffer = b""
+        return []
+
+    def _send(self, replies: list[bytes]) -> None:
+        if replies:
+            self.port.write(b"".join(replies))
+
+    def _log(self, line: str) -> None:
+        if self.command_log is not None:
+            with open(self.command_log, "a") as fh:
+                fh.write(line + "\n")
+
+
+def _child_main(factory, link: Path, command_log: Path | None, vanish_s: float, status, stop) -> None:
+    """Process entry point: build the instrument, serve until ``stop`` is set, SIGTERM arrives or the parent dies."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    try:
+        server = SerialServer(factory(), PtyPort(link), command_log, vanish_s)
+    except (UwlabError, OSError) as exc:
+        status.send(f"{type(exc).__name__}: {exc}")
+        return
+    status.send("ready")
+    parent = multiprocessing.parent_process()
+    try:
+        while not stop.is_set() and parent.is_alive():
+            server.step(0.1)
+    finally:
+        server.port.close()
+
+
+class SimulatorProcess:
+    """One simulated instrument in a spawned process; ``link`` is its port path once started."""
+
+    def __init__(self, factory: Callable[[], SimInstrument], link: Path, *, command_log: Path | None = None,
+                 vanish_s: float = 0.5):
+        context = multiprocessing.get_context("spawn")
+        self.link = Path(link)
+        self._status, child_status = context.Pipe(duplex=False)
+        self._stop = context.Event()
+        self.process = context.Process(
+            target=_child_main,
+            args=(factory, self.link, command_log, vanish_s, child_status, self._stop),
+            daemon=True,
+        )
+
+    @property
+    def port(self) -> str:
+        return str(self.link)
+
+    def start(self, timeout_s: float = START_TIMEOUT_S) -> SimulatorProcess:
+        self.process.start()
+        deadline = time.monotonic() + timeout_s
+        while not self._status.poll(0.1):
+            if not self.process.is_alive() or time.monotonic() > deadline:
+                self.stop()
+                raise DeviceError(f"simulator for {self.link} did not start (exit code {self.process.exitcode})")
+        try:
+            status = self._status.recv()
+        except EOFError:
+            status = f"exited (code {self.process.exitcode}) before it was ready"
+        if status != "ready":
+            self.stop()
+            raise DeviceError(f"simulator for {self.link} failed to start: {status}")
+        return self
+
+    def stop(self, timeout_s: float = 10.0) -> None:
+        """Ask the process to finish, then terminate and kill it if it does not."""
+        self._stop.set()
+        if self.process.pid is None:
+            return
+        self.process.join(timeout_s)
+        if self.process.is_alive():
+            self.process.terminate()
+            self.process.join(timeout_s)
+        if self.process.is_alive():
+            self.process.kill()
+            self.process.join(timeout_s)
+        self.link.unlink(missing_ok=True)
+
+    def __enter__(self) -> SimulatorProcess:
+        return self.start() if self.process.pid is None else self
+
+    def __exit__(self, *exc_info) -> None:
+        self.stop()
+
+
+@dataclass(frozen=True)
+class SerialSimSettings:
+    """What the serial simulators take from the rig: the config, the light's gamma, the spectrometer position."""
+
+    config_path: Path | None = None
+    light_gamma: float = 2.2
+    spectrometer_position: str = "target"
+
+    @classmethod
+    def from_config(cls, path: str | os.PathLike | None, spectrometer_position: str = "target") -> SerialSimSettings:
+        """Load and check the rig config (None: the default rig) and take its ``[sim] light_gamma``."""
+        if spectrometer_position not in POSITIONS:
+            raise ConfigError("spectrometer_position", spectrometer_position, f"must be one of {', '.join(POSITIONS)}")
+        scene = RigScene.from_toml(path)
+        return cls(Path(path) if path is not None else None, scene.sim["light_gamma"], spectrometer_position)
+
+
+class SceneSpectrum:
+    """`SpectrumSource` from the rig model, `uwlab.drivers.sim.scene.RigScene`, built on first use."""
+
+    def __init__(self, config_path: Path | None):
+        self.config_path = config_path
+        self._scene = None
+
+    def __call__(self, position: str, flux_fraction: float):
+        if self._scene is None:
+            self._scene = RigScene.from_toml(self.config_path)
+        return self._scene.spectral_irradiance(position, flux_fraction)
+
+
+def _make_light(rig_state_path: Path, gamma: float) -> SimLight:
+    return SimLight(RigState(rig_state_path), gamma)
+
+
+def _make_spectrometer(rig_state_path: Path, spectrum: SpectrumSource, position: str, seed: int | None):
+    return SimSpectrometer(RigState(rig_state_path), spectrum, position, seed=seed)
+
+
+class SerialRig:
+    """The simulated light and spectrometer sharing one rig state file in ``directory``.
+
+    Ports: ``<directory>/light`` and ``<directory>/spectrometer``; rig state: ``<directory>/rig-state.json``.
+    ``spectrum`` replaces the rig model (tests inject a known one); it must be picklable.
+    With ``command_log``, each simulator appends received lines to ``<directory>/<name>.log``.
+    """
+
+    def __init__(self, directory: str | os.PathLike, settings: SerialSimSettings = SerialSimSettings(), *,
+                 spectrum: SpectrumSource | None = None, seed: int | None = None, command_log: bool = False,
+                 vanish_s: float = 0.5):
+        self.directory = Path(directory)
+        self.rig_state_path = self.directory / "rig-state.json"
+        spectrum = spectrum if spectrum is not None else SceneSpectrum(settings.config_path)
+        factories = {
+            "light": partial(_make_light, self.rig_state_path, settings.light_gamma),
+            "spectrometer": partial(
+                _make_spectrometer, self.rig_state_path, spectrum, settings.spectrometer_position, seed
+            ),
+        }
+        self.simulators = {
+            name: SimulatorProcess(
+                factory, self.directory / name,
+                command_log=self.log_path(name) if command_log else None, vanish_s=vanish_s,
+            )
+            for name, factory in factories.items()
+        }
+
+    def log_path(self, name: str) -> Path:
+        return self.directory / f"{name}.log"
+
+    @property
+    def ports(self) -> dict[str, str]:
+        return {name: simulator.port for name, simulator in self.simulators.items()}
+
+    def start(self) -> SerialRig:
+        try:
+            for simulator in self.simulators.values():
+                simulator.start()
+        except BaseException:
+            self.stop()
+            raise
+        return self
+
+    def stop(self) -> None:
+        for simulator in self.simulators.values():
+            simulator.stop()
+
+    def __enter__(self) -> SerialRig:
+        return self.start()
+
+    def __exit__(self, *exc_info) -> None:
+        self.stop()
