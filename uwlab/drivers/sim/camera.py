@@ -124,12 +124,19 @@ class SimSensor:
         rng = np.random.default_rng(seed)
         self.dsnu_map_e = (rng.standard_normal((height, width), np.float32) * np.float32(truth.dsnu_e))
         self.prnu_map = 1.0 + rng.standard_normal((height, width), np.float32) * np.float32(truth.prnu_percent / 100.0)
-        self.rate_e_per_s = np.asarray(rate_map((height, width)), np.float32)
-        if self.rate_e_per_s.shape != (height, width):
-            raise ConfigError("rate_map", self.rate_e_per_s.shape, f"expected shape {(height, width)}")
         self._rng = np.random.default_rng(seed + 1)
         self._bank = np.empty(0, np.float32)
         self._work = np.empty((0, 0), np.float32)
+        self.set_rate_map(rate_map)
+
+    def set_rate_map(self, rate_map: RateMap) -> None:
+        """Replace the electron-rate map (e.g. after a lens change in the scene); cached images are dropped,
+        so the next frame is rendered from the new map."""
+        width, height = self.truth.resolution_px
+        rate = np.asarray(rate_map((height, width)), np.float32)
+        if rate.shape != (height, width):
+            raise ConfigError("rate_map", rate.shape, f"expected shape {(height, width)}")
+        self.rate_e_per_s = rate
         self._cache: tuple[Any, tuple[np.ndarray, np.ndarray, float]] | None = None
 
     def electrons(self, cfg: SensorConfig, fraction: float) -> tuple[np.ndarray, np.ndarray]:

@@ -1,0 +1,199 @@
+"""`uwlab emva`: EMVA 1288 characterisation of a sweep dataset or a descriptor dataset, and export to the
+EMVA 1288 descriptor format."""
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+
+from uwlab.errors import ConfigError
+
+RESULT_NAME = "emva.json"
+_SUMMARY = (
+    ("K_dn_per_e", "system gain K", "DN/e-", "{:.5g}"),
+    ("quantum_efficiency", "quantum efficiency η", "", "{:.4f}"),
+    ("dark_noise_e", "temporal dark noise σ_d", "e-", "{:.4g}"),
+    ("saturation_e", "saturation capacity μ_e,sat", "e-", "{:.5g}"),
+    ("snr_max_db", "maximum SNR", "dB", "{:.2f}"),
+    ("dynamic_range_db", "dynamic range", "dB", "{:.2f}"),
+    ("linearity_error_percent", "linearity error", "%", "{:.3g}"),
+    ("dark_current_e_per_s", "dark current", "e-/s", "{:.4g}"),
+    ("dsnu_e", "DSNU", "e-", "{:.3g}"),
+    ("prnu_percent", "PRNU", "%", "{:.3g}"),
+)
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("emva", help="EMVA 1288 sensor characterisation and descriptor-file export",
+                              description="EMVA 1288 Release 4.0 (linear) characterisation (docs/emva.md).")
+    sub = p.add_subparsers(dest="emva_command", required=True, parser_class=type(p))
+    c = sub.add_parser("characterize", help="EMVA 1288 parameters, plots and a sensor profile from a photon transfer")
+    c.add_argument("dataset", nargs="?", help="uwlab sweep dataset directory")
+    c.add_argument("--descriptor", metavar="FILE", help="EMVA 1288 descriptor file (instead of a dataset)")
+    _input_options(c)
+    c.add_argument("--name", help="name of the sensor profile written to --out (default: measured-<camera>)")
+    c.add_argument("--seed", type=int, default=0, help="seed of the emcee posterior (default 0)")
+    c.add_argument("--out", metavar="DIR", help="write emva.json, the plots and the profile TOML here")
+    c.add_argument("--json", action="store_true", help="print one JSON object")
+    c.set_defaults(func=run_characterize)
+    e = sub.add_parser("export", help="write a dataset's photon transfer as an EMVA 1288 descriptor dataset")
+    e.add_argument("dataset", help="uwlab sweep dataset directory")
+    _input_options(e)
+    e.add_argument("--out", metavar="DIR", required=True, help="directory for the descriptor and its images")
+    e.add_argument("--image-size", default="256x256", metavar="WxH", help="synthetic image size (default 256x256)")
+    e.add_argument("--json", action="store_true", help="print one JSON object")
+    e.set_defaults(func=run_export)
+
+
+def _input_options(p) -> None:
+    p.add_argument("--sweep", help="sweep_id of the photon-transfer sweep (default: the only one)")
+    p.add_argument("--irradiance", metavar="W_M2|CSV",
+                   help="irradiance at the sensor: a number [W/m²] (with --wavelength-nm) or a spectrum CSV "
+                        "(wavelength_nm, irradiance_w_m2_nm); overrides the dataset's readings")
+    p.add_argument("--wavelength-nm", type=float, help="wavelength of monochromatic light, for integrated irradiances")
+    p.add_argument("--pixel-size-um", type=float, help="pixel pitch (default: from the dataset's sensor profile)")
+
+
+def _override(args):
+    from uwlab.experiments.emva_dataset import IrradianceOverride
+
+    if args.irradiance is None:
+        return None
+    try:
+        value = float(args.irradiance)
+    except ValueError:
+        return IrradianceOverride.from_csv(args.irradiance)
+    if not value > 0 or not math.isfinite(value):
+        raise ConfigError("--irradiance", args.irradiance, "must be > 0")
+    return IrradianceOverride(irradiance_w_m2=value, wavelength_nm=args.wavelength_nm)
+
+
+def _load_dataset(args):
+    from uwlab.experiments.dataset import Dataset
+    from uwlab.experiments.emva_dataset import named_profile, photon_transfer_from_points
+
+    dataset = Dataset.open(args.dataset)
+    points = dataset.points()
+    pt = photon_transfer_from_points(points, dataset.spectra(), sweep_id=args.sweep, pixel_size_um=args.pixel_size_um,
+                                     override=_override(args), wavelength_nm=args.wavelength_nm,
+                                     source=f"dataset {args.dataset}")
+    camera = points["camera_model"].dropna() if "camera_model" in points else []
+    return pt, named_profile(points), (str(camera.iloc[0]) if len(camera) else "camera")
+
+
+def _jsonable(value):
+    if isinstance(value, dict):
+        return {k: _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, (str, bool, int)) or value is None:
+        return value
+    x = float(value)
+    return x if math.isfinite(x) else None
+
+
+def _targets(out: Path, name: str, with_profile: bool) -> tuple[list[Path], tuple[Path, Path] | None]:
+    """(result and plot paths, profile TOML and QE CSV paths or None); refuses if any exists."""
+    from uwlab.experiments.emva_plots import PLOT_NAMES
+
+    core = [out / n for n in (RESULT_NAME, *PLOT_NAMES)]
+    profile = (out / f"{name}.toml", out / f"{name}_qe.csv") if with_profile else None
+    for path in core + list(profile or ()):
+        if path.exists():
+            raise ConfigError("--out", str(path), "exists; refusing to overwrite")
+    return core, profile
+
+
+def _safe_name(text: str) -> str:
+    return "".join(ch if ch.isalnum() or ch in "-_" else "-" for ch in text.lower()).strip("-") or "camera"
+
+
+def run_characterize(args) -> int:
+    from uwlab.experiments.emva import characterize
+
+    if (args.dataset is None) == (args.descriptor is None):
+        raise ConfigError("DATASET|--descriptor", None, "give exactly one of a dataset directory or --descriptor")
+    if args.descriptor:
+        from uwlab.experiments.emva_descriptor import photon_transfer_from_descriptor
+
+        pt, base, camera = photon_transfer_from_descriptor(args.descriptor, args.pixel_size_um), None, "descriptor"
+    else:
+        pt, base, camera = _load_dataset(args)
+    name = _safe_name(args.name or f"measured-{camera}")
+    with_profile = bool(args.pixel_size_um or base)
+    out = Path(args.out) if args.out else None
+    core, profile = _targets(out, name, with_profile) if out else ([], None)
+    result = characterize(pt, seed=args.seed)
+    document = _jsonable(result.values)
+    if out:
+        document["files"] = [str(p) for p in core + list(profile or ())]
+        if not with_profile:
+            document["notes"] = document["notes"] + ["no sensor profile written: pixel size unknown (--pixel-size-um)"]
+        _write_outputs(result, pt, out, core[0], profile, name, base, args.pixel_size_um, document)
+    if args.json:
+        json.dump(document, sys.stdout, indent=2)
+        sys.stdout.write("\n")
+    else:
+        print(_summary(document))
+    return 0
+
+
+def _write_outputs(result, pt, out: Path, json_path: Path, profile, name: str, base, pixel_size_um,
+                   document) -> None:
+    from uwlab.experiments.emva_plots import write_plots
+    from uwlab.experiments.emva_profile import profile_documents
+
+    out.mkdir(parents=True, exist_ok=True)
+    write_plots(result, out)
+    if profile:
+        exposure_us = (float(pt.exposure_s.min() * 1e6), float(pt.exposure_s.max() * 1e6))
+        toml_text, csv_text = profile_documents(result.values, name=name, width_px=pt.width_px,
+                                                height_px=pt.height_px, exposure_range_us=exposure_us,
+                                                pixel_size_um=pixel_size_um, base=base)
+        profile[0].write_text(toml_text)
+        profile[1].write_text(csv_text)
+    json_path.write_text(json.dumps(document, indent=2) + "\n")
+
+
+def _summary(doc: dict) -> str:
+    lines = [f"EMVA 1288 (Release 4.0 linear) — {doc['source']}",
+             f"{doc['points']} points, {doc['sensitivity_fit_points']} in the 0-70 % fit, gain {doc['gain_db']:g} dB, "
+             f"{doc['bit_depth']} bit"]
+    for key, label, unit, fmt in _SUMMARY:
+        value = doc.get(key)
+        text = "n/a" if value is None else fmt.format(value)
+        std = doc.get(f"{key}_std")
+        if value is not None and std is not None:
+            text += f" ± {fmt.format(std)}"
+            if doc.get(f"{key}_std_mcmc") is not None:
+                text += f" (posterior ± {fmt.format(doc[f'{key}_std_mcmc'])})"
+        lines.append(f"  {label:<30} {text} {unit}".rstrip())
+    lines += [f"  note: {n}" for n in doc.get("notes", [])]
+    lines += [f"  wrote {f}" for f in doc.get("files", [])]
+    return "\n".join(lines)
+
+
+def _image_size(text: str) -> tuple[int, int]:
+    width, x, height = text.lower().partition("x")
+    try:
+        w, h = int(width), int(height)
+    except ValueError:
+        raise ConfigError("--image-size", text, "expected WxH, e.g. 256x256") from None
+    if not x or not (8 <= w <= 8192 and 8 <= h <= 8192):
+        raise ConfigError("--image-size", text, "expected WxH with 8 <= W, H <= 8192")
+    return h, w
+
+
+def run_export(args) -> int:
+    from uwlab.experiments.emva_descriptor import write_descriptor
+
+    shape = _image_size(args.image_size)
+    pt, _, _ = _load_dataset(args)
+    path = write_descriptor(pt, args.out, shape=shape, source=pt.source)
+    if args.json:
+        json.dump({"descriptor": str(path), "points": int(len(pt.photons)), "synthetic_images": True}, sys.stdout)
+        sys.stdout.write("\n")
+    else:
+        print(f"wrote {path} ({len(pt.photons)} points, synthetic images from the recorded statistics)")
+    return 0

@@ -1,0 +1,141 @@
+"""The simulated rig for ``uwlab sweep --sim``: the same code paths as the tank, with simulated devices.
+
+- Light and spectrometer: the serial simulators (`uwlab.drivers.sim.serial_sim.SerialRig`) in their own
+  processes behind real pseudo-terminals, driven through the real serial drivers;
+- camera: the in-process simulated camera through the real `Camera` interface, one per sweep, with the
+  sweep's sensor profile and lens (`uwlab.drivers.sim.scene.RigScene` renders the electron-rate map);
+- all of them share one `RigState` file, so a light level set through the serial driver dims the images.
+
+Apertures are set directly (`RigScene.set_lens` and a re-render); the spectrometer is moved between the
+target and the camera with the simulator's ``SIM:POS`` command. "No lens" gives a uniform field (a bare
+sensor sees the whole hemisphere; see `uwlab.experiments.plan`). The simulated board carries no printed
+markers, so an ``aruco`` ROI is the board's footprint from the scene (what the detector would report).
+The spectrometer simulator models the rig file's geometry; per-sweep geometry overrides change the images only.
+"""
+from __future__ import annotations
+
+import tempfile
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+
+from uwlab.drivers.camera import Camera, Policy, open_camera
+from uwlab.drivers.camera.pixels import pixel_format
+from uwlab.drivers.serial import Light, Spectrometer, open_light, open_spectrometer
+from uwlab.drivers.sim.camera import SimFaults, SimSensor, SimTruth, flat_rate_map
+from uwlab.drivers.sim.rig_state import RigState
+from uwlab.drivers.sim.scene import RigScene
+from uwlab.drivers.sim.serial_sim import SerialRig, SerialSimSettings
+from uwlab.experiments.plan import SweepSpec
+from uwlab.experiments.roi import Rect
+
+
+class SimRig:
+    """The simulated rig (a context manager: simulators are always stopped, the temporary folder removed)."""
+
+    sim = True
+
+    def __init__(self, rig_path: Path, faults: SimFaults | None = None, seed: int = 0):
+        self.rig_path = Path(rig_path)
+        self.faults = faults
+        self.seed = seed
+        self._tmp = tempfile.TemporaryDirectory(prefix="uwlab-simrig-")
+        self._serial = SerialRig(self._tmp.name, SerialSimSettings.from_config(self.rig_path))
+        self.light: Light | None = None
+        self.spectrometer: Spectrometer | None = None
+        self._scene: RigScene | None = None
+        self._sensor: SimSensor | None = None
+        self._sweep: SweepSpec | None = None
+
+    def __enter__(self) -> SimRig:
+        try:
+            self._serial.start()
+            self.light = open_light(self._serial.ports["light"])
+            self.spectrometer = open_spectrometer(self._serial.ports["spectrometer"])
+        except BaseException:
+            self.close()
+            raise
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
+
+    def close(self) -> None:
+        for device in (self.light, self.spectrometer):
+            if device is not None:
+                device.close()
+        self._serial.stop()
+        self._tmp.cleanup()
+
+    @property
+    def rig_state_path(self) -> Path:
+        return self._serial.rig_state_path
+
+    def open_camera(self, sweep: SweepSpec) -> Camera:
+        """The sweep's simulated camera: its sensor profile and lens, lit by the shared light state."""
+        scene = RigScene.from_toml(self.rig_path, RigState(self.rig_state_path))
+        scene.design = sweep.design
+        truth = SimTruth.from_sensor_profile(scene.sensor)
+        self._scene, self._sweep = scene, sweep
+        self._sensor = SimSensor(truth, self._rate_map(), lambda: scene.state.light.effective_fraction,
+                                 seed=scene.sim["seed"] + self.seed)
+        return open_camera("sim", "sim0", policy=Policy(timeout_s=sweep.camera.timeout_s), sensor=self._sensor,
+                           faults=self.faults)
+
+    def _rate_map(self):
+        scene = self._scene
+        if self._sweep.lens.focal_length_mm is None:
+            return flat_rate_map(scene.on_axis_rate_e_per_s())
+        return lambda shape: scene.electron_rate_map(shape, 1.0)
+
+    def set_aperture(self, sweep: SweepSpec, f_number: float) -> None:
+        """Set the simulated lens's f-number directly and re-render the scene."""
+        self._scene.set_lens(f_number=f_number)
+        self._sensor.set_rate_map(self._rate_map())
+
+    def place_spectrometer(self, position: str) -> None:
+        self.spectrometer.transport.command(f"SIM:POS {position}")
+
+    def board_roi(self, sweep: SweepSpec, camera: Camera, image: np.ndarray) -> Rect:
+        """The board's footprint within the acquired window (the simulated board has no printed markers)."""
+        width, height = self._sensor.truth.resolution_px
+        bx, by, bw, bh = self._scene.board_roi((height, width))
+        s = camera.read_settings()
+        x0, y0 = max(bx - s.offset_x, 0), max(by - s.offset_y, 0)
+        x1, y1 = min(bx + bw - s.offset_x, image.shape[1]), min(by + bh - s.offset_y, image.shape[0])
+        return x0, y0, max(x1 - x0, 0), max(y1 - y0, 0)
+
+    def full_scale_dn(self, camera: Camera) -> float:
+        """The code of a saturated pixel in the output format: the full well or the ADC range, whichever
+        is reached first (`SimSensor` clips at both), shifted to the output format's bit depth."""
+        truth = self._sensor.truth
+        s = camera.read_settings()
+        cap = truth.system_gain(s.gain_db) * truth.saturation_e + truth.dark_offset_dn + (s.black_level or 0.0)
+        native = min(int(np.floor(cap + 0.5)), (1 << truth.bit_depth) - 1)
+        shift = pixel_format(s.pixel_format).bits - truth.bit_depth
+        return float(native << shift if shift >= 0 else native >> -shift)
+
+    def truth(self, camera: Camera) -> dict:
+        """Ground truth of the sweep's simulated sensor and light, for checking an EMVA characterisation."""
+        truth = self._sensor.truth
+        s = camera.read_settings()
+        fmt_bits = pixel_format(s.pixel_format).bits
+        return {
+            **{k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(truth).items()},
+            "output_bit_depth": fmt_bits,
+            "dn_scale": 2.0 ** (fmt_bits - truth.bit_depth),
+            "K_dn_per_e_output": truth.system_gain(s.gain_db or 0.0) * 2.0 ** (fmt_bits - truth.bit_depth),
+            "black_level_dn": s.black_level,
+            "full_scale_dn": self.full_scale_dn(camera),
+            "light_gamma": self._scene.sim["light_gamma"],
+            "light_curve": "flux_fraction = level ** light_gamma",
+            "on_axis_rate_e_per_s": self._scene.on_axis_rate_e_per_s(),
+            "window_mean_rate_e_per_s": float(self._window_rate(s).mean()),
+            "f_number": self._scene.design["lens.f_number"],
+        }
+
+    def _window_rate(self, s) -> np.ndarray:
+        rate = self._sensor.rate_e_per_s
+        bh, bv = s.binning
+        return rate[s.offset_y * bv: (s.offset_y + s.height) * bv, s.offset_x * bh: (s.offset_x + s.width) * bh]

@@ -1,0 +1,325 @@
+"""The sweep engine: measure every point of a plan, appending each to the dataset as it completes.
+
+Per point (EMVA Standard 1288, Release 4.0 Linear, section 6 "Methods for computing the parameters"):
+L ≥ 2 frames over the ROI give ``mean_dn`` (mean over all frames and pixels), ``temporal_var_dn2`` (for
+frame pairs (0,1), (2,3), …: half the variance of the difference image, ``σ² = var(y_A − y_B) / 2``, the
+standard's 1/(2NM)·Σ(y_A − y_B)² − (μ_A − μ_B)²/2, averaged over pairs) and ``spatial_var_dn2`` (sample
+variance over the ROI of the L-frame mean image, *not* corrected for its residual temporal variance σ²/L).
+The same statistics of dark frames (light off) at the point — or once per sweep ("block") — give the dark
+columns and ``signal_dn = mean_dn − dark_mean_dn``. ``saturated_fraction`` is the fraction of ROI pixels at
+full scale in any frame; the point is flagged ``saturated`` above the sweep's threshold (not dropped).
+
+Resume: points already in the dataset are skipped. Every point is flushed before the next starts, so
+Ctrl-C or a crash loses at most the point in progress. A device that disappears is reconnected by the
+camera layer (settings restored); a failed write raises `DatasetWriteError` with the dataset intact.
+"""
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Protocol
+
+import numpy as np
+import pandas as pd
+
+from uwlab.drivers.camera import Camera, Frame, Policy, open_camera
+from uwlab.drivers.camera.pixels import pixel_format
+from uwlab.drivers.serial import Light, Spectrometer, open_light, open_spectrometer
+from uwlab.errors import ConfigError
+from uwlab.experiments.dataset import FRAMES_DIR, Dataset, spectra_frame
+from uwlab.experiments.light_calibration import measure_unsaturated
+from uwlab.experiments.plan import Plan, Point, SweepSpec, resolved_rig
+from uwlab.experiments.roi import Rect, aruco_roi, check_inside
+from uwlab.experiments.spectra import irradiance_w_m2
+
+MONO16_UNUSED_LSB_MARGIN = 0x000F
+
+
+@dataclass(frozen=True)
+class Progress:
+    """Reported after each recorded point: counts over the whole plan and the latest reading."""
+
+    done: int
+    total: int
+    sweep_id: str
+    point_index: int
+    latest: dict
+
+
+class Rig(Protocol):
+    """What the engine needs from a rig (`uwlab.experiments.simrig.SimRig` or `HardwareRig`)."""
+
+    sim: bool
+    light: Light | None
+    spectrometer: Spectrometer | None
+
+    def open_camera(self, sweep: SweepSpec) -> Camera: ...
+    def set_aperture(self, sweep: SweepSpec, f_number: float) -> None: ...
+    def place_spectrometer(self, position: str) -> None: ...
+    def board_roi(self, sweep: SweepSpec, camera: Camera, image: np.ndarray) -> Rect: ...
+    def full_scale_dn(self, camera: Camera) -> float: ...
+    def truth(self, camera: Camera) -> dict | None: ...
+
+
+Confirm = Callable[[str], None]
+
+
+class HardwareRig:
+    """The tank: a camera by backend and id, the light and spectrometer on serial ports. ``confirm(message)``
+    asks the operator to do something (set an aperture, move the spectrometer) and returns once done; None
+    (``--non-interactive``) refuses every such request."""
+
+    sim = False
+
+    def __init__(self, plan: Plan, confirm: Confirm | None = None):
+        self.plan = plan
+        self.confirm = confirm
+        self.light: Light | None = None
+        self.spectrometer: Spectrometer | None = None
+        self._position: str | None = None
+
+    def __enter__(self) -> HardwareRig:
+        ports = self.plan.instruments
+        protocol = ports.get("protocol", "uwlab-ascii")
+        try:
+            if "light_port" in ports:
+                self.light = open_light(ports["light_port"], protocol)
+            if "spectrometer_port" in ports:
+                self.spectrometer = open_spectrometer(ports["spectrometer_port"], protocol)
+        except BaseException:
+            self.__exit__()
+            raise
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        for device in (self.light, self.spectrometer):
+            if device is not None:
+                device.close()
+
+    def open_camera(self, sweep: SweepSpec) -> Camera:
+        return open_camera(sweep.camera.backend, sweep.camera.device_id, policy=Policy(timeout_s=sweep.camera.timeout_s))
+
+    def _ask(self, key: str, value: object, message: str) -> None:
+        if self.confirm is None:
+            raise ConfigError(key, value, f"needs the operator ({message}); refused under --non-interactive")
+        self.confirm(message)
+
+    def set_aperture(self, sweep: SweepSpec, f_number: float) -> None:
+        self._ask(f"sweep.{sweep.id}.values", f_number, f"set the {sweep.lens.focal_length_mm:g} mm lens to "
+                                                          f"F{f_number:g}")
+
+    def place_spectrometer(self, position: str) -> None:
+        if position != self._position:
+            self._ask("spectrometer", position, f"place the spectrometer at the {position}")
+            self._position = position
+
+    def board_roi(self, sweep: SweepSpec, camera: Camera, image: np.ndarray) -> Rect:
+        return aruco_roi(image, sweep.aruco_dictionary)
+
+    def full_scale_dn(self, camera: Camera) -> float:
+        """The output format's maximum; for Mono16 less the unused LSBs of an MSB-aligned ≥ 12-bit ADC."""
+        fmt = pixel_format(camera.pixel_format)
+        return float(fmt.max_value - (MONO16_UNUSED_LSB_MARGIN if fmt.bits == 16 else 0))
+
+    def truth(self, camera: Camera) -> dict | None:
+        return None
+
+
+@dataclass(frozen=True)
+class StackStats:
+    mean_dn: float
+    temporal_var_dn2: float
+    spatial_var_dn2: float
+    saturated_fraction: float
+
+
+def stack_stats(images: list[np.ndarray], full_scale_dn: float) -> StackStats:
+    """EMVA 1288 statistics of L ≥ 2 ROI images (see the module docstring)."""
+    if len(images) < 2:
+        raise ConfigError("frames", len(images), "temporal variance needs at least 2 frames")
+    stack = np.stack([np.asarray(img, np.float64) for img in images])
+    pairs = [np.var(stack[i] - stack[i + 1]) / 2.0 for i in range(0, len(stack) - 1, 2)]
+    mean_image = stack.mean(axis=0)
+    saturated = np.any(stack >= full_scale_dn, axis=0)
+    return StackStats(float(stack.mean()), float(np.mean(pairs)), float(np.var(mean_image, ddof=1)),
+                      float(np.count_nonzero(saturated) / saturated.size))
+
+
+def _crop(image: np.ndarray, roi: Rect) -> np.ndarray:
+    x, y, w, h = roi
+    return image[y:y + h, x:x + w]
+
+
+class SweepRunner:
+    """Runs the points of a plan missing from ``dataset`` on ``rig``."""
+
+    def __init__(self, plan: Plan, dataset: Dataset, rig: Rig, progress: Callable[[Progress], None] | None = None,
+                 sleep: Callable[[float], None] = time.sleep):
+        self.plan = plan
+        self.dataset = dataset
+        self.rig = rig
+        self.progress = progress
+        self.sleep = sleep
+        self._done = len(dataset.completed())
+
+    def run(self) -> None:
+        """Measure every remaining point, then record the finish time."""
+        completed = self.dataset.completed()
+        for sweep in self.plan.sweeps:
+            todo = [p for p in sweep.points() if (sweep.id, p.index) not in completed]
+            if todo:
+                self._run_sweep(sweep, todo)
+        self.dataset.finish()
+
+    def _run_sweep(self, sweep: SweepSpec, todo: list[Point]) -> None:
+        self._needs_instruments(sweep)
+        with self.rig.open_camera(sweep) as camera:
+            self._configure(camera, sweep)
+            self._record_devices(sweep, camera)
+            self._set_light(sweep.kind != "dark", sweep.light_level, sweep.settle_s)
+            roi = self._roi(sweep, camera)
+            block = self._dark(sweep, camera, roi) if sweep.dark == "block" else None
+            for point in todo:
+                row, spectra = self._measure(sweep, camera, roi, point, block)
+                self.dataset.append_point(row, spectra)
+                self._done += 1
+                if self.progress is not None:
+                    self.progress(Progress(self._done, self.plan.total_points(), sweep.id, point.index,
+                                           {k: row[k] for k in ("exposure_us", "signal_dn", "saturated")}))
+
+    def _needs_instruments(self, sweep: SweepSpec) -> None:
+        if self.rig.light is None and (sweep.kind in ("light-level", "dark") or sweep.dark != "none"):
+            raise ConfigError("instruments.light_port", None, f"sweep {sweep.id} switches or dims the light")
+        if self.rig.spectrometer is None and sweep.spectrometer:
+            raise ConfigError("instruments.spectrometer_port", None, f"sweep {sweep.id} reads the spectrometer")
+
+    def _configure(self, camera: Camera, sweep: SweepSpec) -> None:
+        spec = sweep.camera
+        if spec.pixel_format is not None:
+            camera.pixel_format = spec.pixel_format
+        if spec.window is not None:
+            camera.set_roi(*spec.window)
+        if sweep.black_level_dn is not None:
+            camera.black_level = sweep.black_level_dn
+        camera.gain_db = sweep.gain_db
+        camera.exposure_us = sweep.exposure_us
+        if self.rig.spectrometer is not None and sweep.spectrometer:
+            self.rig.spectrometer.set_integration_ms(sweep.spectrometer_integration_ms)
+            self.rig.spectrometer.set_averaging(sweep.spectrometer_averaging)
+
+    def _record_devices(self, sweep: SweepSpec, camera: Camera) -> None:
+        info = camera.info
+        devices = {"camera": {"vendor": info.vendor, "model": info.model, "serial": info.serial,
+                              "firmware": info.firmware, "backend": info.backend, "id": info.device_id},
+                   "light": self.rig.light.identity() if self.rig.light is not None else None,
+                   "spectrometer": self.rig.spectrometer.identity() if self.rig.spectrometer is not None else None}
+        changes = {"devices": {sweep.id: devices}, "rigs": {sweep.id: resolved_rig(sweep.design)}}
+        truth = self.rig.truth(camera)
+        if truth is not None:
+            changes["sim_truth"] = {sweep.id: truth}
+        self.dataset.update_metadata(**changes)
+
+    def _set_light(self, on: bool, level: float, settle_s: float) -> None:
+        if self.rig.light is None:
+            return
+        self.rig.light.set_level(level)
+        self.rig.light.set_output(on)
+        self.sleep(settle_s)
+
+    def _roi(self, sweep: SweepSpec, camera: Camera) -> Rect:
+        image = camera.acquire(1)[0].image
+        height, width = image.shape
+        if sweep.roi is None:
+            return 0, 0, width, height
+        if sweep.roi == "aruco":
+            return check_inside(f"sweep.{sweep.id}.roi", self.rig.board_roi(sweep, camera, image), image.shape)
+        return check_inside(f"sweep.{sweep.id}.roi", sweep.roi, image.shape)
+
+    def _dark(self, sweep: SweepSpec, camera: Camera, roi: Rect) -> tuple[StackStats, int]:
+        """Statistics of dark frames (light off), leaving the light as the sweep wants it."""
+        self._set_light(False, sweep.light_level, sweep.settle_s)
+        frames = camera.acquire(sweep.dark_frames)
+        self._set_light(sweep.kind != "dark", sweep.light_level, 0.0)
+        return stack_stats([_crop(f.image, roi) for f in frames], self.rig.full_scale_dn(camera)), len(frames)
+
+    def _apply(self, sweep: SweepSpec, camera: Camera, point: Point) -> None:
+        camera.exposure_us = point.exposure_us
+        camera.gain_db = point.gain_db
+        if sweep.kind == "aperture":
+            self.rig.set_aperture(sweep, point.f_number)
+        if sweep.kind == "light-level":
+            self.rig.light.set_level(point.light_level)
+        self.sleep(sweep.settle_s)
+
+    def _measure(self, sweep: SweepSpec, camera: Camera, roi: Rect, point: Point, block) -> tuple[dict, pd.DataFrame]:
+        t_start = time.time_ns()
+        self._apply(sweep, camera, point)
+        frames = camera.acquire(sweep.frames_per_point)
+        full_scale = self.rig.full_scale_dn(camera)
+        stats = stack_stats([_crop(f.image, roi) for f in frames], full_scale)
+        readings = [self._spectrum(position) for position in sweep.spectrometer]
+        dark = block if block is not None else (self._dark(sweep, camera, roi) if sweep.dark == "point" else None)
+        if sweep.save_frames:
+            self._save_frames(sweep, point, frames)
+        row = self._row(sweep, camera, roi, point, frames, stats, dark, readings, full_scale)
+        row.update(t_start_ns=t_start, t_end_ns=time.time_ns())
+        return row, spectra_frame(sweep.id, point.index, readings)
+
+    def _spectrum(self, position: str) -> tuple[str, np.ndarray, np.ndarray]:
+        self.rig.place_spectrometer(position)
+        wavelength_nm, irradiance = measure_unsaturated(self.rig.spectrometer)
+        return position, wavelength_nm, irradiance
+
+    def _row(self, sweep, camera, roi, point, frames: list[Frame], stats: StackStats, dark, readings,
+             full_scale: float) -> dict:
+        settings = frames[-1].settings
+        lens = sweep.lens
+        dark_stats, dark_frames = dark if dark is not None else (None, 0)
+        return {
+            "sweep_id": sweep.id, "point_index": point.index, "kind": sweep.kind,
+            "camera_backend": camera.info.backend, "camera_id": camera.info.device_id, "camera_model": camera.info.model,
+            "sensor_profile": sweep.sensor_profile, "lens_label": lens.label if sweep.kind != "aperture" else
+            f"{lens.focal_length_mm:g}mm-F{point.f_number:.1f}",
+            "focal_length_mm": lens.focal_length_mm, "f_number": point.f_number,
+            "exposure_us": point.exposure_us, "gain_db": point.gain_db, "black_level_dn": settings.black_level,
+            "light_level": point.light_level if self.rig.light is not None else None, "light_on": point.light_on,
+            "frames": len(frames), "bit_depth": pixel_format(settings.pixel_format).bits,
+            "roi_x": roi[0], "roi_y": roi[1], "roi_w": roi[2], "roi_h": roi[3],
+            "mean_dn": stats.mean_dn, "temporal_var_dn2": stats.temporal_var_dn2,
+            "spatial_var_dn2": stats.spatial_var_dn2,
+            "dark_mean_dn": dark_stats.mean_dn if dark_stats else None,
+            "dark_temporal_var_dn2": dark_stats.temporal_var_dn2 if dark_stats else None,
+            "dark_spatial_var_dn2": dark_stats.spatial_var_dn2 if dark_stats else None,
+            "dark_frames": dark_frames,
+            "signal_dn": stats.mean_dn - dark_stats.mean_dn if dark_stats else None,
+            "saturated_fraction": stats.saturated_fraction,
+            "saturated": stats.saturated_fraction > sweep.saturation_threshold,
+            "exposure_us_readback": settings.exposure_us, "gain_db_readback": settings.gain_db,
+            "temperature_c": camera.temperature_c,
+            "irradiance_w_m2": irradiance_w_m2(readings[0][1], readings[0][2]) if readings else None,
+            "irradiance_position": readings[0][0] if readings else None,
+            "frame_ids": [f.frame_id for f in frames],
+        }
+
+    def _save_frames(self, sweep: SweepSpec, point: Point, frames: list[Frame]) -> None:
+        import tifffile
+
+        directory = self.dataset.root / FRAMES_DIR / sweep.id
+        directory.mkdir(parents=True, exist_ok=True)
+        for number, frame in enumerate(frames):
+            path = Path(directory, f"point{point.index:05d}-frame{number:03d}.tiff")
+            tifffile.imwrite(path, frame.image, metadata={"frame_id": frame.frame_id,
+                                                          "settings": frame.settings.to_dict()})
+
+
+def check_resumable(dataset: Dataset, plan: Plan, sim: bool) -> None:
+    """Refuse to resume a dataset recorded from another plan (or on another kind of rig), with the reason."""
+    if dataset.plan_sha256 != plan.sha256:
+        raise ConfigError("resume", str(dataset.root),
+                          f"recorded with a different plan (plan_sha256 {dataset.plan_sha256[:12]}…, "
+                          f"{plan.path} has {plan.sha256[:12]}…)")
+    if bool(dataset.metadata.get("sim")) != sim:
+        was = "the simulated rig" if dataset.metadata.get("sim") else "hardware"
+        raise ConfigError("resume", str(dataset.root), f"recorded on {was}; resume it the same way")
