@@ -18,6 +18,7 @@ Posterior p(θ | y) ∝ p(θ) ∏ N(y_i | μ_i(θ), σ_i(θ)²) with μ from `uw
 """
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
@@ -135,9 +136,11 @@ def find_map(log_density: Callable[[np.ndarray], np.ndarray], start: np.ndarray)
         raise UwlabError("the prior medians have zero posterior density: check the priors against the data")
     best = start
     for method in ("Nelder-Mead", "Powell"):
-        result = optimize.minimize(objective, best, method=method,
-                                   options={"maxiter": 20000, "xatol": 1e-10, "fatol": 1e-10} if method == "Nelder-Mead"
-                                   else {"maxiter": 20000, "xtol": 1e-10, "ftol": 1e-12})
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            result = optimize.minimize(objective, best, method=method,
+                                       options={"maxiter": 20000, "xatol": 1e-10, "fatol": 1e-10} if method == "Nelder-Mead"
+                                       else {"maxiter": 20000, "xtol": 1e-10, "ftol": 1e-12})
         if np.isfinite(result.fun) and result.fun <= objective(best):
             best = result.x
     return best
@@ -208,9 +211,27 @@ class FitResult:
     converged: bool
     steps: int
     model: ForwardModel = field(repr=False)
+    priors: dict = field(repr=False, default_factory=dict)
 
     def correlations(self) -> np.ndarray:
         return np.corrcoef(self.samples.T) if len(self.names) > 1 else np.ones((1, 1))
+
+    def warnings(self, q: np.ndarray) -> list[str]:
+        """Plain-language problems: unconverged chains, posteriors pushed into a prior's tail, a poor model fit."""
+        notes = []
+        if not self.converged:
+            notes.append(f"not converged: {self.steps} steps are {self.steps / np.max(self.tau):.0f} τ (< {MIN_TAU_MULTIPLE})")
+        for i, name in enumerate(self.names):
+            prior = self.priors[name]
+            draws = prior.sample(np.random.default_rng(0), (4000,))
+            tail = np.mean(draws < q[2, i])
+            if min(tail, 1 - tail) < 0.005 and name != "discrepancy":
+                notes.append(f"prior tension: {name} posterior median {q[2, i]:.4g} lies in the outer 1 % of its prior")
+        if "discrepancy" in self.names:
+            delta = q[2, self.names.index("discrepancy")]
+            if delta > 0.05:
+                notes.append(f"poor fit: the model discrepancy is {100 * delta:.1f} % of the response")
+        return notes
 
     def summary(self) -> dict:
         """Per-parameter median, 2.5/16/84/97.5 percentiles and τ; diagnostics; unseparable pairs."""
@@ -227,6 +248,7 @@ class FitResult:
             "walkers": int(self.chain.shape[1]), "samples": int(self.samples.shape[0]),
             "tau_multiple": float(self.steps / np.max(self.tau)),
             "not_separable": pairs,
+            "warnings": self.warnings(q),
             "correlation": {"names": list(self.names), "matrix": corr.tolist()},
             "points_used": int(self.model.y.size),
         }
@@ -263,7 +285,7 @@ def run_fit(model: ForwardModel, config: FitConfig, progress: Callable[[int, flo
         names=model.names, samples=samples, chain=chain, log_prob=post(samples),
         theta_map=find_map(post, post.to_theta(u_map)), tau=tau,
         acceptance=float(np.mean(sampler.acceptance_fraction)), rhat=split_rhat(chain[burn:]), converged=converged,
-        steps=sampler.iteration, model=model,
+        steps=sampler.iteration, model=model, priors=config.priors,
     )
 
 

@@ -11,7 +11,8 @@ parameters θ (every factor below is exact for the chain in `uwlab.model.design`
 with ε the light efficiency (true/rated flux), β the beam half-angle (Ω = 2π(1 − cos β) for the cone model,
 π tan²β for the disk), M the target reflectance, T the lens transmittance (absent without a lens), s the
 attenuation scale over the light→target→camera path D_k, K the camera's system gain, and v_k the mean
-vignetting over the ROI (an ROI centred on the axis). A "no lens" point (f_number null) is a bare sensor in the
+vignetting over the ROI (an ROI centred on the axis). Points taken with the light dimmed are scaled by the
+light's measured relative output (`relative_flux`). A "no lens" point (f_number null) is a bare sensor in the
 board's radiance field: N = 0.5, T = 1, no vignetting (see `uwlab.drivers.sim.scene.RigScene.remove_lens`).
 """
 from __future__ import annotations
@@ -164,17 +165,43 @@ def build_forward_model(points: pd.DataFrame, rigs: dict[str, dict], names: tupl
     if "dark_temporal_var_dn2" in points and "dark_frames" in points:
         dark = points["dark_temporal_var_dn2"].to_numpy(float) / (points["dark_frames"].to_numpy(float).clip(1) * n_pix)
         var_mean = var_mean + np.nan_to_num(dark)
+    flux = points["relative_flux"].to_numpy(float) if "relative_flux" in points else relative_flux(points)
     beam_model = {d["light.beam_model"] for d in designs}
     if len(beam_model) > 1:
         raise ConfigError("light.beam_model", sorted(beam_model), "all sweeps of one fit must share a beam model")
     return ForwardModel(
         names=tuple(names), nominal=nominal, y=points["signal_dn"].to_numpy(float), sigma_meas=np.sqrt(var_mean),
         scale=10 ** (points["gain_db"].to_numpy(float) / 20) * 2.0 ** (points["bit_depth"].to_numpy(float) - profile_bits)
-        * points["exposure_us"].to_numpy(float) * 1e-6,
+        * points["exposure_us"].to_numpy(float) * 1e-6 * flux,
         config=config, camera=camera, cameras=cameras, rate0=np.array(rate0), has_lens=np.array(has_lens),
         omega_cone=beam_model == {"cone"}, weights_e=np.array(w_e), c=np.array(c), path_m=np.array(path), g0=np.array(g0),
         designs=designs, points=points.reset_index(drop=True),
     )
+
+
+def relative_flux(points: pd.DataFrame) -> np.ndarray:
+    """The light's output at each point relative to full output (level 1), from the spectrometer.
+
+    The light's level→flux curve is not assumed: each point's measured irradiance is divided by the median
+    irradiance of the level-1 points measured at the same position. Points all at level 1 need no readings.
+    """
+    levels = points["light_level"].to_numpy(float) if "light_level" in points else np.ones(len(points))
+    if np.all(levels == 1.0):
+        return np.ones(len(points))
+    if "irradiance_w_m2" not in points or points["irradiance_w_m2"].isna().any():
+        raise ConfigError("light_level", sorted(set(levels)), "points below full light need spectrometer irradiance "
+                          "(irradiance_w_m2) to scale the light's output")
+    position = points["irradiance_position"].astype(str).to_numpy() if "irradiance_position" in points else np.full(
+        len(points), "")
+    irradiance = points["irradiance_w_m2"].to_numpy(float)
+    out = np.empty(len(points))
+    for pos in np.unique(position):
+        here = position == pos
+        reference = irradiance[here & (levels == 1.0)]
+        if reference.size == 0:
+            raise ConfigError("light_level", pos, "no level-1 spectrometer reading at this position to normalise against")
+        out[here] = irradiance[here] / np.median(reference)
+    return out
 
 
 def _number(design: Design, dotted: str) -> float:

@@ -133,6 +133,11 @@ class SimRig:
             "on_axis_rate_e_per_s": self._scene.on_axis_rate_e_per_s(),
             "window_mean_rate_e_per_s": float(self._window_rate(s).mean()),
             "f_number": self._scene.design["lens.f_number"],
+            "light_efficiency": self._scene.sim["light_efficiency"],
+            "attenuation_scale": float(self._scene.design["water.attenuation_scale"]),
+            "beam_half_angle_deg": float(self._scene.design["light.beam_half_angle_deg"]),
+            "reflectance": float(self._scene.design["target.reflectance"]),
+            "lens_transmittance": float(self._scene.design["lens.transmittance"]),
         }
 
     def _window_rate(self, s) -> np.ndarray:

@@ -163,6 +163,7 @@ class SweepRunner:
         self.progress = progress
         self.sleep = sleep
         self._done = len(dataset.completed())
+        self._spectrometer_darks: dict = {}
 
     def run(self) -> None:
         """Measure every remaining point, then record the finish time."""
@@ -259,7 +260,7 @@ class SweepRunner:
         frames = camera.acquire(sweep.frames_per_point)
         full_scale = self.rig.full_scale_dn(camera)
         stats = stack_stats([_crop(f.image, roi) for f in frames], full_scale)
-        readings = [self._spectrum(position) for position in sweep.spectrometer]
+        readings = [self._spectrum(sweep, position) for position in sweep.spectrometer]
         dark = block if block is not None else (self._dark(sweep, camera, roi) if sweep.dark == "point" else None)
         if sweep.save_frames:
             self._save_frames(sweep, point, frames)
@@ -267,10 +268,22 @@ class SweepRunner:
         row.update(t_start_ns=t_start, t_end_ns=time.time_ns())
         return row, spectra_frame(sweep.id, point.index, readings)
 
-    def _spectrum(self, position: str) -> tuple[str, np.ndarray, np.ndarray]:
+    def _spectrum(self, sweep: SweepSpec, position: str) -> tuple[str, np.ndarray, np.ndarray]:
+        """A reading at `position`, minus the spectrometer's own light-off reading (see `_spectrometer_dark`)."""
         self.rig.place_spectrometer(position)
         wavelength_nm, irradiance = measure_unsaturated(self.rig.spectrometer)
-        return position, wavelength_nm, irradiance
+        dark_nm, dark = self._spectrometer_dark(sweep, position)
+        return position, wavelength_nm, irradiance - np.interp(wavelength_nm, dark_nm, dark)
+
+    def _spectrometer_dark(self, sweep: SweepSpec, position: str) -> tuple[np.ndarray, np.ndarray]:
+        """What the spectrometer reports with the light off at its current integration time (its imperfectly
+        subtracted dark signal), measured once per sweep, position and integration time."""
+        key = (sweep.id, position, self.rig.spectrometer.integration_ms())
+        if key not in self._spectrometer_darks:
+            self._set_light(False, sweep.light_level, sweep.settle_s)
+            self._spectrometer_darks[key] = self.rig.spectrometer.read_spectrum()
+            self._set_light(sweep.kind != "dark", sweep.light_level, sweep.settle_s)
+        return self._spectrometer_darks[key]
 
     def _row(self, sweep, camera, roi, point, frames: list[Frame], stats: StackStats, dark, readings,
              full_scale: float) -> dict:

@@ -1,0 +1,109 @@
+"""Model calibration: the forward model's rescaling is exact, fits recover the simulated truth, bad fits are reported."""
+import numpy as np
+import pandas as pd
+import pytest
+
+from uwlab.errors import ConfigError, UwlabError
+from uwlab.experiments.fit import FitConfig, default_fit_config, fit_points
+from uwlab.experiments.forward import build_forward_model, relative_flux
+from uwlab.experiments.priors import Prior
+from uwlab.experiments.simulate import LensSetting, simulate_campaign
+from uwlab.model.design import build_design, on_axis_electron_rate
+
+TRUTH = {"light_efficiency": 0.8, "attenuation_scale": 1.2, "K_dn_per_e:imx250m": 0.36, "K_dn_per_e:icx285alm": 1.05}
+ONE_LENS = (LensSetting("30mm-F2.0", 30.0, 2.0), LensSetting("no-lens", None, None))
+
+
+@pytest.fixture(scope="module")
+def campaign():
+    return simulate_campaign(TRUTH, seed=3)
+
+
+def test_forward_rescaling_equals_the_full_model(campaign):
+    """Changing θ by the analytic ratios gives what the full model computes with those values in the design."""
+    points, rigs = campaign
+    names = ("light_efficiency", "beam_half_angle_deg", "attenuation_scale", "reflectance", "lens_transmittance",
+             "K_dn_per_e:imx250m")
+    lens_points = points[points["sweep_id"] == "imx250m-30mm-F2.0"].head(1)
+    model = build_forward_model(lens_points, rigs, names)
+    theta = np.array([[0.7, 25.0, 2.5, 0.4, 0.6, 0.5]])
+    raw = {s: dict(v) for s, v in rigs["imx250m-30mm-F2.0"].items()}
+    raw["light"].update(luminous_flux_lm=raw["light"]["luminous_flux_lm"] * 0.7, beam_half_angle_deg=25.0)
+    raw["water"]["attenuation_scale"] = 2.5
+    raw["target"]["reflectance"] = 0.4
+    raw["lens"].update(transmittance=0.6, focal_length_mm=30.0, f_number=2.0)
+    rate = float(on_axis_electron_rate(build_design(raw)))
+    row = lens_points.iloc[0]
+    vignetting = model.rate0[0] / float(on_axis_electron_rate(model.designs[0]))
+    expected = 0.5 * 2.0 ** (16 - 12) * rate * vignetting * row["exposure_us"] * 1e-6
+    assert model.predict(theta)[0, 0] == pytest.approx(expected, rel=1e-9)
+
+
+def test_fit_recovers_the_simulated_truth(campaign):
+    points, rigs = campaign
+    result = fit_points(points, rigs)
+    summary = result.summary()
+    assert summary["converged"] and summary["tau_multiple"] >= 50
+    for name, value in TRUTH.items():
+        p = summary["parameters"][name]
+        assert p["p2_5"] <= value <= p["p97_5"], name
+    assert summary["parameters"]["discrepancy"]["median"] < 0.02
+    assert max(p["rhat"] for p in summary["parameters"].values()) < 1.1
+
+
+def test_saturated_points_are_excluded_and_all_saturated_is_an_error(campaign):
+    points, rigs = campaign
+    assert points["saturated"].any()
+    result = fit_points(points, rigs)
+    assert result.model.y.size == int((~points["saturated"]).sum())
+    with pytest.raises(UwlabError, match="no unsaturated points"):
+        fit_points(points.assign(saturated=True), rigs)
+
+
+def test_missing_points_and_columns(campaign):
+    points, rigs = campaign
+    sparse = points.sample(frac=0.5, random_state=0)
+    assert fit_points(sparse, rigs).converged
+    with pytest.raises(ConfigError, match="signal_dn"):
+        build_forward_model(points.drop(columns=["signal_dn"]), rigs, ())
+    with pytest.raises(ConfigError, match="parameters.K_dn_per_e:imx999"):
+        build_forward_model(points, rigs, ("K_dn_per_e:imx999",))
+
+
+def test_a_wrong_prior_is_reported(campaign):
+    """A prior that excludes what the data need is not hidden: the discrepancy absorbs the misfit and the
+    summary says the model does not fit."""
+    points, rigs = campaign
+    priors = {"light_efficiency": Prior("normal", 2.0, 0.02, lo=0.0), "K_dn_per_e:imx250m": Prior("normal", 0.36, 0.001),
+              "K_dn_per_e:icx285alm": Prior("normal", 1.05, 0.003), "discrepancy": Prior("halfnormal", 0.05)}
+    result = fit_points(points, rigs, FitConfig(priors))
+    notes = " ".join(result.summary()["warnings"])
+    assert "poor fit" in notes
+    assert result.summary()["parameters"]["discrepancy"]["median"] > 0.2
+
+
+def test_relative_flux_needs_a_level_one_reference():
+    points = pd.DataFrame({"light_level": [1.0, 0.5], "irradiance_w_m2": [10.0, 2.5], "irradiance_position": ["target"] * 2})
+    assert relative_flux(points).tolist() == [1.0, 0.25]
+    with pytest.raises(ConfigError, match="light_level"):
+        relative_flux(points.assign(irradiance_w_m2=[10.0, None]))
+
+
+@pytest.mark.slow
+def test_credible_intervals_cover_the_truth_over_20_seeds():
+    """Simulation-based calibration: truths drawn from the priors; 95 % intervals should cover 90–99 % of them.
+
+    The discrepancy is left out of the count: the simulation has none, a truth on its prior's boundary."""
+    priors = {"light_efficiency": Prior("lognormal", 0.8, 0.2), "attenuation_scale": Prior("lognormal", 1.0, 0.3),
+              "K_dn_per_e:imx250m": Prior("normal", 0.3473, 0.0174, lo=0.0), "discrepancy": Prior("halfnormal", 0.05)}
+    hits = total = 0
+    for seed in range(20):
+        rng = np.random.default_rng(100 + seed)
+        truth = {name: prior.sample(rng) for name, prior in priors.items() if name != "discrepancy"}
+        points, rigs = simulate_campaign(truth, sensors=("imx250m",), lenses=ONE_LENS, points_per_sweep=8, seed=seed)
+        summary = fit_points(points, rigs, FitConfig(priors, seed=seed)).summary()
+        for name, value in truth.items():
+            p = summary["parameters"][name]
+            hits += p["p2_5"] <= value <= p["p97_5"]
+            total += 1
+    assert 0.90 <= hits / total <= 0.99, f"coverage {hits}/{total}"

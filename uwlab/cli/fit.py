@@ -1,0 +1,62 @@
+"""`uwlab fit`: Bayesian calibration of the model against a dataset, with validation."""
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+from tqdm import tqdm
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("fit", help="calibrate the model against a dataset (emcee) and validate it",
+                              description="Fit the image-formation model's free parameters to a sweep dataset.")
+    p.add_argument("dataset", help="dataset directory (from `uwlab sweep`)")
+    p.add_argument("--config", metavar="FIT.toml", help="free parameters and priors (default: light efficiency, "
+                   "attenuation scale, each camera's K, discrepancy; see configs/fit/default.toml)")
+    p.add_argument("--out", metavar="DIR", help="output directory (default: DATASET/fit)")
+    p.add_argument("--train", action="append", metavar="SWEEP_ID", help="sweeps to fit in the cross-configuration check")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.set_defaults(func=run)
+
+
+def progress_bar(description: str):
+    """A tqdm bar on stderr over chain length in autocorrelation times (the run stops at 50 τ)."""
+    bar = tqdm(total=50, desc=description, unit="τ", file=sys.stderr, leave=False,
+               bar_format="{desc}: {n:.0f}/{total} τ |{bar}| {elapsed} {postfix}")
+
+    def update(steps: int, tau_multiple: float) -> None:
+        bar.n = min(50.0, tau_multiple)
+        bar.set_postfix_str(f"{steps} steps")
+        bar.refresh()
+
+    return bar, update
+
+
+def run(args) -> int:
+    from uwlab.experiments.calibration import calibrate
+
+    out = Path(args.out) if args.out else Path(args.dataset) / "fit"
+    bar, update = progress_bar("sampling")
+    try:
+        calibration = calibrate(args.dataset, args.config, out, args.train, progress=update)
+    finally:
+        bar.close()
+    summary = calibration.summary
+    if args.json:
+        json.dump(summary, sys.stdout, indent=2)
+        sys.stdout.write("\n")
+        return 0
+    print(f"calibration written to {out}")
+    print(f"converged: {summary['converged']} ({summary['steps']} steps, {summary['tau_multiple']:.0f} τ, "
+          f"acceptance {summary['acceptance_fraction']:.2f})")
+    print(f"{'parameter':<26}{'median':>12}{'68 % interval':>26}{'truth':>10}")
+    for name, p in summary["parameters"].items():
+        truth = p.get("truth")
+        print(f"{name:<26}{p['median']:>12.4g}   [{p['p16']:.4g}, {p['p84']:.4g}]".ljust(64)
+              + (f"{truth:>10.4g}" if truth is not None else f"{'':>10}"))
+    for note in summary["warnings"]:
+        print(f"warning: {note}")
+    for pair in summary["not_separable"]:
+        print(f"not separable by these data: {pair['a']} and {pair['b']} (correlation {pair['rho']:+.2f})")
+    return 0

@@ -1,0 +1,127 @@
+"""Fast in-process measurement campaigns on the simulated rig, for calibration tests and benchmarks.
+
+The frames come from the simulated camera (`uwlab.drivers.sim.camera.SimSensor`) looking at the rig's scene
+(`uwlab.drivers.sim.scene.RigScene`) — the same physics and noise as the simulated rig behind `uwlab sweep
+--sim` — but rendered directly in a small axis-centred ROI, without the device and serial layers, so that many
+campaigns (one per seed) run in seconds. Rows follow the dataset contract of `uwlab.experiments.dataset`.
+
+The true rig differs from the nominal one (the rig config, which the fit starts from) by `truth`:
+``light_efficiency``, ``attenuation_scale``, ``beam_half_angle_deg``, ``reflectance``, ``lens_transmittance``
+and ``K_dn_per_e:<profile>``.
+"""
+from __future__ import annotations
+
+import copy
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from uwlab.drivers.sim.camera import SensorConfig, SimSensor, SimTruth
+from uwlab.drivers.sim.scene import RigScene
+from uwlab.experiments.emva_stream import stack_statistics
+from uwlab.model.data import config_dir, read_toml
+
+BLACK_LEVEL_DN = 16.0  # native DN, so that dark frames are not clipped at zero
+_DESIGN_KEYS = {"attenuation_scale": ("water", "attenuation_scale"), "beam_half_angle_deg": ("light", "beam_half_angle_deg"),
+                "reflectance": ("target", "reflectance"), "lens_transmittance": ("lens", "transmittance")}
+
+
+@dataclass(frozen=True)
+class LensSetting:
+    """A lens configuration; focal_length_mm = f_number = None is the bare sensor."""
+
+    label: str
+    focal_length_mm: float | None
+    f_number: float | None
+
+
+PAPER_LENSES = (LensSetting("no-lens", None, None), LensSetting("30mm-F2.0", 30.0, 2.0), LensSetting("12mm-F4.0", 12.0, 4.0))
+
+
+def _true_scene(raw: dict, base_dir: Path, sensor: str, lens: LensSetting, truth: dict) -> RigScene:
+    raw = copy.deepcopy(raw)
+    raw["sensor"]["profile"] = sensor
+    for name, (section, key) in _DESIGN_KEYS.items():
+        if name in truth:
+            raw.setdefault(section, {})[key] = float(truth[name])
+    raw.setdefault("sim", {})["light_efficiency"] = float(truth.get("light_efficiency", raw.get("sim", {}).get(
+        "light_efficiency", 1.0)))
+    scene = RigScene.from_dict(raw, base_dir)
+    if lens.f_number is None:
+        scene.remove_lens()
+    else:
+        scene.set_lens(lens.focal_length_mm, lens.f_number)
+    return scene
+
+
+def simulate_campaign(truth: dict, sensors=("imx250m", "icx285alm"), lenses=PAPER_LENSES, points_per_sweep: int = 12,
+                      frames: int = 2, roi_px: int = 32, seed: int = 0, rig: str | Path | None = None,
+                      max_fraction: float = 1.1) -> tuple[pd.DataFrame, dict]:
+    """Exposure sweeps (log-spaced up to `max_fraction` of the saturation exposure) for every sensor × lens.
+
+    Returns (points, rigs) where rigs maps sweep_id to the nominal rig config (what a fit starts from).
+    """
+    path = Path(rig) if rig is not None else config_dir() / "rigs" / "sim-tank.toml"
+    raw = read_toml(path, "--config")
+    nominal = {s: v for s, v in raw.items() if s != "sim"}
+    rows, rigs = [], {}
+    rng = np.random.default_rng(seed)
+    for sensor in sensors:
+        for lens in lenses:
+            sweep_id = f"{sensor}-{lens.label}"
+            scene = _true_scene(raw, path.resolve().parent, sensor, lens, truth)
+            k_true = truth.get(f"K_dn_per_e:{sensor}")
+            sim_truth = SimTruth.from_sensor_profile(scene.sensor, **({"K_dn_per_e": float(k_true)} if k_true else {}))
+            width, height = sim_truth.resolution_px
+            rate = scene.on_axis_rate_e_per_s()
+            window = _centre_window(width, height, roi_px)
+            light = {"on": 1.0}
+            sensor_sim = SimSensor(sim_truth, _window_map(scene, window, (height, width)),
+                                   lambda: light["on"], seed=int(rng.integers(2**31)))
+            t_sat = sim_truth.saturation_e / rate * 1e6
+            lo = max(sim_truth.exposure_min_us, 0.02 * t_sat)
+            exposures = np.geomspace(lo, max(lo * 1.01, min(max_fraction * t_sat, sim_truth.exposure_max_us)), points_per_sweep)
+            shift = 16 - sim_truth.bit_depth  # frames are read as Mono16 (MSB-aligned)
+            full_scale = ((1 << sim_truth.bit_depth) - 1) << shift
+            sat_dn = (1 << shift) * min(sim_truth.K_dn_per_e * sim_truth.saturation_e, (1 << sim_truth.bit_depth) - 1)
+            rigs[sweep_id] = nominal
+            for index, exposure in enumerate(exposures):
+                cfg = SensorConfig(float(exposure), 0.0, BLACK_LEVEL_DN, "Mono16", *window)
+                light["on"] = 1.0
+                bright = stack_statistics((sensor_sim.render(cfg) for _ in range(frames)), full_scale)
+                light["on"] = 0.0
+                dark = stack_statistics((sensor_sim.render(cfg) for _ in range(frames)), full_scale)
+                rows.append({
+                    "sweep_id": sweep_id, "point_index": index, "kind": "exposure", "sensor_profile": sensor,
+                    "lens_label": lens.label, "focal_length_mm": lens.focal_length_mm, "f_number": lens.f_number,
+                    "exposure_us": float(exposure), "gain_db": 0.0, "black_level_dn": BLACK_LEVEL_DN, "bit_depth": 16, "frames": frames,
+                    "roi_x": 0, "roi_y": 0, "roi_w": roi_px, "roi_h": roi_px,
+                    "mean_dn": bright.mean_dn, "temporal_var_dn2": bright.temporal_var_dn2,
+                    "spatial_var_dn2": bright.spatial_var_dn2, "dark_mean_dn": dark.mean_dn,
+                    "dark_temporal_var_dn2": dark.temporal_var_dn2, "dark_spatial_var_dn2": dark.spatial_var_dn2,
+                    "dark_frames": frames, "signal_dn": bright.mean_dn - dark.mean_dn,
+                    "saturated_fraction": bright.saturated_fraction,
+                    "saturated": bright.saturated_fraction > 0.0 or bright.mean_dn > 0.98 * sat_dn,
+                })
+    return pd.DataFrame(rows), rigs
+
+
+def _centre_window(width: int, height: int, size: int) -> tuple[int, int, int, int]:
+    return ((width - size) // 2, (height - size) // 2, size, size)
+
+
+def _window_map(scene: RigScene, window, full_shape):
+    """The scene's rate map, rendered only where the window is (zeros elsewhere), at full resolution."""
+    x, y, w, h = window
+
+    def rate_map(shape):
+        full = np.zeros(full_shape, np.float32)
+        coarse = scene.electron_rate_map((full_shape[0] // 16, full_shape[1] // 16))
+        ys = (np.arange(y, y + h) * coarse.shape[0]) // full_shape[0]
+        xs = (np.arange(x, x + w) * coarse.shape[1]) // full_shape[1]
+        full[y:y + h, x:x + w] = coarse[np.ix_(ys, xs)]
+        return full
+
+    return rate_map
