@@ -25,7 +25,7 @@ $(VENV)/.aravis: $(VENV)/.installed
 	touch $@
 
 demo: venv
-	$(VENV)/bin/uwlab design configs/design/example.toml --plot out/design
+	$(VENV)/bin/uwlab demo
 
 test: $(VENV)/.aravis
 	$(VENV)/bin/python -m pytest

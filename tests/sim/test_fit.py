@@ -87,23 +87,3 @@ def test_relative_flux_needs_a_level_one_reference():
     assert relative_flux(points).tolist() == [1.0, 0.25]
     with pytest.raises(ConfigError, match="light_level"):
         relative_flux(points.assign(irradiance_w_m2=[10.0, None]))
-
-
-@pytest.mark.slow
-def test_credible_intervals_cover_the_truth_over_20_seeds():
-    """Simulation-based calibration: truths drawn from the priors; 95 % intervals should cover 90–99 % of them.
-
-    The discrepancy is left out of the count: the simulation has none, a truth on its prior's boundary."""
-    priors = {"light_efficiency": Prior("lognormal", 0.8, 0.2), "attenuation_scale": Prior("lognormal", 1.0, 0.3),
-              "K_dn_per_e:imx250m": Prior("normal", 0.3473, 0.0174, lo=0.0), "discrepancy": Prior("halfnormal", 0.05)}
-    hits = total = 0
-    for seed in range(20):
-        rng = np.random.default_rng(100 + seed)
-        truth = {name: prior.sample(rng) for name, prior in priors.items() if name != "discrepancy"}
-        points, rigs = simulate_campaign(truth, sensors=("imx250m",), lenses=ONE_LENS, points_per_sweep=8, seed=seed)
-        summary = fit_points(points, rigs, FitConfig(priors, seed=seed)).summary()
-        for name, value in truth.items():
-            p = summary["parameters"][name]
-            hits += p["p2_5"] <= value <= p["p97_5"]
-            total += 1
-    assert 0.90 <= hits / total <= 0.99, f"coverage {hits}/{total}"

@@ -5,9 +5,9 @@ Posterior p(θ | y) ∝ p(θ) ∏ N(y_i | μ_i(θ), σ_i(θ)²) with μ from `uw
 
 - Start: the maximum a posteriori point (scipy.optimize, Nelder–Mead then Powell), walkers drawn from the
   Laplace approximation there (inverse of a finite-difference Hessian), falling back to a small ball.
-- Parametrisation: the multiplicative factors (light efficiency, reflectance, lens transmittance, K, discrepancy)
-  are sampled as u = ln θ (with the Jacobian, ln p(u) = ln p(θ) + u), the attenuation scale s and the beam angle
-  as they are. The chain's degeneracies (ε × M × T × K; ln ε against s, since the response ∝ ε e^(−s c̄ D)) then
+- Parametrisation: the multiplicative factors (light efficiency, reflectance, lens transmittance, K) are sampled
+  as u = ln θ (with the Jacobian, ln p(u) = ln p(θ) + u); the attenuation scale s, the beam angle and the
+  discrepancy as they are (in ln δ the flat likelihood below the measurement noise would leave a long tail). The chain's degeneracies (ε × M × T × K; ln ε against s, since the response ∝ ε e^(−s c̄ D)) then
   become linear, which the affine-invariant sampler handles without loss of efficiency.
 - Sampler: emcee's ensemble sampler (Foreman-Mackey et al. 2013), ``vectorize=True``, with differential-evolution
   moves (ter Braak 2006; 80 %) and snooker moves (ter Braak & Vrugt 2008; 20 %), which mix faster than the
@@ -34,7 +34,8 @@ from uwlab.model.data import read_toml
 
 MIN_TAU_MULTIPLE = 50
 CORRELATED = 0.9
-LINEAR = ("attenuation_scale", "beam_half_angle_deg")
+OVERDISPERSION = 4.0
+LINEAR = ("attenuation_scale", "beam_half_angle_deg", "discrepancy")
 
 
 @dataclass
@@ -158,11 +159,12 @@ def laplace_covariance(log_density: Callable[[np.ndarray], np.ndarray], theta: n
     values = log_density(np.array(pts))
     hess = np.empty((n, n))
     k = 1
-    for i in range(n):
-        for j in range(n):
-            pp, pm, mp, mm = values[k:k + 4]
-            hess[i, j] = -(pp - pm - mp + mm) / (4 * h[i] * h[j])
-            k += 4
+    with np.errstate(invalid="ignore", over="ignore"):
+        for i in range(n):
+            for j in range(n):
+                pp, pm, mp, mm = values[k:k + 4]
+                hess[i, j] = -(pp - pm - mp + mm) / (4 * h[i] * h[j])
+                k += 4
     if not np.all(np.isfinite(hess)):
         return None
     try:
@@ -173,18 +175,21 @@ def laplace_covariance(log_density: Callable[[np.ndarray], np.ndarray], theta: n
         return None
 
 
-def initial_walkers(log_density, theta_map: np.ndarray, walkers: int, rng: np.random.Generator) -> np.ndarray:
-    """Walkers from the Laplace approximation at the mode (shrunk until all have finite density)."""
-    cov = laplace_covariance(log_density, theta_map)
-    for _ in range(100):
-        if cov is not None:
-            p0 = rng.multivariate_normal(theta_map, cov, size=walkers)
-        else:
-            p0 = theta_map + 1e-3 * rng.standard_normal((walkers, theta_map.size))
-        finite = np.isfinite(log_density(p0))
-        if finite.all():
+def initial_walkers(log_density, mode: np.ndarray, walkers: int, rng: np.random.Generator) -> np.ndarray:
+    """Over-dispersed walkers (Gelman & Rubin 1992): the Laplace approximation at the mode with its covariance
+    inflated OVERDISPERSION times (a small ball where it is not positive definite); a walker outside the support
+    has its offset mirrored, then halved, until its density is finite. The burn-in discards the start."""
+    cov = laplace_covariance(log_density, mode)
+    if cov is not None:
+        offsets = rng.multivariate_normal(np.zeros(mode.size), OVERDISPERSION * cov, size=walkers)
+    else:
+        offsets = 1e-3 * rng.standard_normal((walkers, mode.size))
+    for attempt in range(80):
+        p0 = mode + offsets
+        bad = ~np.isfinite(log_density(p0))
+        if not bad.any():
             return p0
-        cov = None if cov is None else cov * 0.25
+        offsets[bad] = -offsets[bad] if attempt % 2 == 0 else 0.5 * offsets[bad]
     raise UwlabError("could not place the walkers where the posterior is finite")
 
 

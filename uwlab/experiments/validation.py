@@ -129,7 +129,8 @@ def cross_configuration(points: pd.DataFrame, rigs: dict, config: FitConfig, tra
 
 
 def predicted_spectra(result: FitResult) -> pd.DataFrame:
-    """Model spectra at the target and at the camera, per rig configuration, with the posterior median parameters."""
+    """Model spectra at the target and at the camera, per sweep, with the posterior median parameters and the
+    sweep's measured relative light output."""
     model = result.model
     median = dict(zip(result.names, np.median(result.samples, axis=0)))
     value = lambda name: median.get(name, model.nominal[name])  # noqa: E731
@@ -146,7 +147,9 @@ def predicted_spectra(result: FitResult) -> pd.DataFrame:
                                        "target.reflectance": value("reflectance")})
         spectra = stage_spectra(fitted)
         cos_i = np.cos(np.radians(design["light.incidence_deg"]))
-        eff = value("light_efficiency")
+        rows = model.points["sweep_id"] == sweep_id
+        level = float(model.points.loc[rows, "relative_flux"].median()) if "relative_flux" in model.points else 1.0
+        eff = value("light_efficiency") * level
         for position, irradiance in (("target", spectra["target_irradiance_w_m2_nm"] / cos_i),
                                      ("camera", np.pi * spectra["return_radiance_w_m2_sr_nm"])):
             frames.append(pd.DataFrame({"sweep_id": sweep_id, "position": position, "wavelength_nm": spectra["wavelength_nm"],

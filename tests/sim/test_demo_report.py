@@ -1,0 +1,58 @@
+"""The main job end to end on the simulated rig, and the report and fit commands on its outputs."""
+import json
+
+import pytest
+
+from uwlab.cli.main import main
+from tests.sim.conftest import ROOT
+
+
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory):
+    out = tmp_path_factory.mktemp("demo") / "campaign"
+    assert main(["demo", "--out", str(out)]) == 0
+    return out
+
+
+def test_demo_recovers_the_simulated_truth(demo):
+    summary = json.loads((demo / "summary.json").read_text())
+    assert summary["converged"]
+    for name, p in summary["parameters"].items():
+        assert set(p) == {"truth", "median", "p2_5", "p16", "p84", "p97_5", "tau"}
+        assert p["p2_5"] <= p["p16"] <= p["median"] <= p["p84"] <= p["p97_5"]
+        if p["truth"] is not None:
+            assert p["p2_5"] <= p["truth"] <= p["p97_5"], name
+    assert summary["parameters"]["light_efficiency"]["truth"] == pytest.approx(0.8)
+    held_out = [r for r in summary["cross_configuration"] if r["role"] == "held out"]
+    assert len(held_out) == 5 and all(r["median_abs_rel_error"] < 0.03 for r in held_out)
+
+
+def test_report_is_self_contained(demo):
+    html = (demo / "report.html").read_text()
+    for heading in ("Set-up", "Measured against predicted", "Posterior", "Cross-configuration", "Spectra", "Provenance"):
+        assert heading in html
+    assert html.count("data:image/png;base64,") >= 4 and "src=\"http" not in html and "src=\"/" not in html
+
+
+def test_report_refuses_to_overwrite_and_fit_refuses_existing_output(demo, capsys):
+    assert main(["report", str(demo)]) == 2
+    assert "exists" in capsys.readouterr().err
+    assert main(["report", str(demo), "--out", str(demo / "again.html"), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["report"].endswith("again.html")
+    assert main(["fit", str(demo / "dataset"), "--out", str(demo / "fit")]) == 2
+    assert "already holds a calibration" in capsys.readouterr().err
+
+
+def test_fit_with_a_config_file_and_bad_configs(demo, tmp_path, capsys):
+    out = tmp_path / "fit"
+    assert main(["fit", str(demo / "dataset"), "--config", str(ROOT / "configs/fit/default.toml"), "--out", str(out),
+                 "--json"]) == 0
+    summary = json.loads(capsys.readouterr().out)
+    assert summary["training_sweeps"] == ["imx250-30mm-f2"] and summary["converged"]
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[parameters.light_efficency]\nkind = "lognormal"\nmedian = 1.0\nsigma = 0.5\n')
+    assert main(["fit", str(demo / "dataset"), "--config", str(bad), "--out", str(tmp_path / "x")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "parameters.light_efficency" in err
+    assert main(["demo", "--out", str(demo)]) == 2
+    assert "not empty" in capsys.readouterr().err

@@ -1,0 +1,34 @@
+"""`uwlab report`: the self-contained HTML validation report of a campaign directory."""
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+from uwlab.errors import ConfigError
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("report", help="write the HTML validation report of a directory",
+                              description="Collect the datasets, calibrations and EMVA characterisations under DIR "
+                                          "into one self-contained HTML file.")
+    p.add_argument("dir", help="campaign directory (datasets, `uwlab fit` and `uwlab emva` outputs)")
+    p.add_argument("--out", metavar="FILE", help="report file (default: DIR/report.html)")
+    p.add_argument("--force", action="store_true", help="replace an existing report file")
+    p.add_argument("--json", action="store_true", help='print {"report": PATH}')
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from uwlab.experiments.report import write_report
+
+    out = Path(args.out) if args.out else Path(args.dir) / "report.html"
+    if out.exists() and not args.force:
+        raise ConfigError("--out", str(out), "exists; use --force to replace it")
+    path = write_report(args.dir, out)
+    if args.json:
+        json.dump({"report": str(path)}, sys.stdout)
+        sys.stdout.write("\n")
+    else:
+        print(path)
+    return 0
