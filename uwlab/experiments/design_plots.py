@@ -10,16 +10,10 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from uwlab.experiments.figures import save_figure  # noqa: E402
 from uwlab.model.design import Design, evaluate, stage_spectra  # noqa: E402
 from uwlab.model.sensor import available_profiles, load_sensor_profile  # noqa: E402
 from uwlab.model.water import WATER_TYPES, water_iop  # noqa: E402
-
-
-def _save(fig, path: Path) -> Path:
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
 
 
 def plot_dof(design: Design, path: Path) -> Path:
@@ -36,7 +30,7 @@ def plot_dof(design: Design, path: Path) -> Path:
     ax.set(xscale="log", xlabel="f-number N", ylabel="object distance in water [m]",
            title="Depth of field: far (solid) and near (dashed) limits")
     ax.legend()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_stages(design: Design, path: Path) -> Path:
@@ -51,7 +45,7 @@ def plot_stages(design: Design, path: Path) -> Path:
         ax.set_ylabel(label, fontsize=8)
     axes[-1].set_xlabel("wavelength [nm]")
     axes[0].set_title("Spectrum at each stage of the on-axis chain")
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_operation(design: Design, path: Path) -> Path:
@@ -66,7 +60,7 @@ def plot_operation(design: Design, path: Path) -> Path:
     a1.set(xlabel="speed [m/s]", ylabel="minimum framerate [Hz]", title="Framerate for the overlap")
     a2.set(xlabel="speed [m/s]", ylabel="maximum exposure [ms]", yscale="log", title="Exposure for the blur limit")
     a1.legend()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_water(design: Design, path: Path) -> Path:
@@ -76,7 +70,7 @@ def plot_water(design: Design, path: Path) -> Path:
     ax.set(yscale="log", xlabel="wavelength [nm]", ylabel="beam attenuation c = a + b [1/m]",
            title="Water attenuation profiles")
     ax.legend(fontsize=7, ncol=2)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_qe(design: Design, path: Path) -> Path:
@@ -86,7 +80,7 @@ def plot_qe(design: Design, path: Path) -> Path:
         ax.plot(profile.qe_nm, profile.qe["combined"], label=profile.name, linewidth=2.5 if profile is design.sensor else 1)
     ax.set(xlabel="wavelength [nm]", ylabel="quantum efficiency η", title="Sensor quantum efficiency (mono / combined)")
     ax.legend(fontsize=7)
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def write_design_plots(design: Design, out_dir: Path) -> list[Path]:

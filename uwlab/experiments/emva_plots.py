@@ -10,16 +10,10 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from uwlab.experiments.emva import EmvaResult  # noqa: E402
+from uwlab.experiments.figures import save_figure  # noqa: E402
 from uwlab.model.sensor import snr  # noqa: E402
 
 PLOT_NAMES = ("photon_transfer.png", "snr.png", "linearity.png", "dark_current.png")
-
-
-def _save(fig, path: Path) -> Path:
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
 
 
 def plot_photon_transfer(result: EmvaResult, path: Path) -> Path:
@@ -32,7 +26,7 @@ def plot_photon_transfer(result: EmvaResult, path: Path) -> Path:
     ax.axvline(c["signal_dn"][c["sat"]], ls=":", color="grey", label="saturation")
     ax.set(xlabel="μ_y − μ_y,dark [DN]", ylabel="σ²_y − σ²_y,dark [DN²]", title="Photon transfer")
     ax.legend()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_snr(result: EmvaResult, path: Path) -> Path:
@@ -47,7 +41,7 @@ def plot_snr(result: EmvaResult, path: Path) -> Path:
     ax.axhline(1.0, color="grey", lw=0.8)
     ax.set(xlabel="μ_p [photons/pixel]", ylabel="SNR", title="Signal-to-noise ratio")
     ax.legend()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_linearity(result: EmvaResult, path: Path) -> Path:
@@ -60,7 +54,7 @@ def plot_linearity(result: EmvaResult, path: Path) -> Path:
     idx = c["lin_idx"]
     bx.plot(c["photons"][idx], c["linearity_dev_percent"][idx], "o-", ms=3)
     bx.set(xlabel="μ_p [photons/pixel]", ylabel="deviation [%]")
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def plot_dark_current(result: EmvaResult, path: Path) -> Path:
@@ -73,7 +67,7 @@ def plot_dark_current(result: EmvaResult, path: Path) -> Path:
         ax.plot(t * 1e3, slope * t + offset, "-", label=f"{v['dark_current_e_per_s']:.4g} e-/s")
     ax.set(xlabel="exposure [ms]", ylabel="mean dark signal [DN]", title="Dark current")
     ax.legend()
-    return _save(fig, path)
+    return save_figure(fig, path)
 
 
 def write_plots(result: EmvaResult, out_dir: Path) -> list[Path]:

@@ -33,14 +33,14 @@ import numpy as np
 
 from uwlab.errors import ConfigError
 from uwlab.model import optics, port as port_model
-from uwlab.model.config import validate
+from uwlab.model.config import apply_override, load_raw, validate
 from uwlab.model.data import resolve_path
 from uwlab.model.grid import WavelengthGrid
 from uwlab.model.photometry import radiant_per_lumen
 from uwlab.model.sensor import SensorProfile, electrons_per_joule_nm, load_sensor_profile, response_dn, snr
-from uwlab.model.spectra import relative_spectrum
-from uwlab.model.target import reflectance, transmittance
-from uwlab.model.water import water_iop
+from uwlab.model.spectra import NAMED_SPECTRA, relative_spectrum
+from uwlab.model.target import NAMED_REFLECTANCE, reflectance, transmittance
+from uwlab.model.water import WATER_TYPES, water_iop
 
 IMAGE_SAMPLES_PER_AXIS = 16
 
@@ -77,10 +77,6 @@ def _resolve(value, base: Path | None, names: tuple[str, ...] = ()):
 
 def build_design(raw: dict, base_dir: Path | None = None) -> Design:
     """Validate a raw config dict and resolve its data; raises ConfigError naming the offending key."""
-    from uwlab.model.spectra import NAMED_SPECTRA
-    from uwlab.model.target import NAMED_REFLECTANCE
-    from uwlab.model.water import WATER_TYPES
-
     values = validate(raw)
     sp = values["spectral"]
     for key in sp:
@@ -126,8 +122,6 @@ def _check_range(key, value, lo, hi, sensor_name):
 
 def load_design(path: str | Path, overrides: dict | None = None) -> Design:
     """Read a design TOML, apply ``{"section.key": value}`` overrides, validate and resolve."""
-    from uwlab.model.config import apply_override, load_raw
-
     raw = load_raw(path)
     for dotted, value in (overrides or {}).items():
         apply_override(raw, dotted, value)
