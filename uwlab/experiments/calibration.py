@@ -16,9 +16,9 @@ import pandas as pd
 
 from uwlab.errors import ConfigError
 from uwlab.experiments.dataset import Dataset
-from uwlab.experiments.fit import FitConfig, default_fit_config, fit_points, load_fit_config
+from uwlab.experiments.fit import FitConfig, default_config_for, fit_points, load_fit_config
 from uwlab.experiments.fit_output import check_output_dir, write_fit
-from uwlab.experiments.forward import build_forward_model, relative_flux
+from uwlab.experiments.forward import relative_flux
 from uwlab.experiments.validation import compare_spectra, cross_configuration, predicted_spectra
 
 
@@ -43,9 +43,7 @@ def truth_from_metadata(metadata: dict, points: pd.DataFrame, names) -> dict:
 def resolve_fit_config(config_path: str | Path | None, points: pd.DataFrame, rigs: dict) -> FitConfig:
     if config_path is not None:
         return load_fit_config(config_path)
-    usable = points[~points["saturated"].astype(bool)]
-    probe = build_forward_model(usable, rigs, ())
-    return default_fit_config(probe.cameras, {c: probe.nominal[f"K_dn_per_e:{c}"] for c in probe.cameras})
+    return default_config_for(points[~points["saturated"].astype(bool)], rigs)
 
 
 @dataclass

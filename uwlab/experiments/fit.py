@@ -63,6 +63,12 @@ def default_fit_config(cameras: tuple[str, ...], nominal_k: dict[str, float]) ->
     return FitConfig(priors)
 
 
+def default_config_for(points, rigs: dict, base_dir: Path | None = None) -> FitConfig:
+    """`default_fit_config` for the cameras of these points, K centred on their sensor profiles."""
+    probe = build_forward_model(points, rigs, (), base_dir)
+    return default_fit_config(probe.cameras, {c: probe.nominal[f"K_dn_per_e:{c}"] for c in probe.cameras})
+
+
 def load_fit_config(path: str | Path) -> FitConfig:
     """[parameters.NAME] prior tables, and an optional [sampler] (walkers, chunk_steps, max_steps, seed)."""
     raw = read_toml(Path(path), "--config")
@@ -300,9 +306,7 @@ def fit_points(points, rigs: dict, config: FitConfig | None = None, base_dir: Pa
     used = points[~points["saturated"].astype(bool)]
     if used.empty:
         raise UwlabError("no unsaturated points to fit")
-    if config is None:
-        probe = build_forward_model(used, rigs, (), base_dir)
-        config = default_fit_config(probe.cameras, {c: probe.nominal[f"K_dn_per_e:{c}"] for c in probe.cameras})
+    config = config or default_config_for(used, rigs, base_dir)
     model = build_forward_model(used, rigs, config.names, base_dir)
     if model.y.size <= len(config.names):
         raise UwlabError(f"{model.y.size} unsaturated points cannot constrain {len(config.names)} free parameters")

@@ -24,8 +24,8 @@ import numpy as np
 import pandas as pd
 
 from uwlab.errors import ConfigError
-from uwlab.model.design import (Design, build_design, electron_rate_at_radius, on_axis_electron_rate, path_integrals,
-                                spectral_weights)
+from uwlab.model.design import (Design, beam_half_angle_rad, build_design, electron_rate_at_radius, light_distance_m,
+                                on_axis_electron_rate, path_integrals, spectral_weights)
 
 SHARED = ("light_efficiency", "beam_half_angle_deg", "attenuation_scale", "reflectance", "lens_transmittance",
           "discrepancy")
@@ -132,8 +132,7 @@ def build_forward_model(points: pd.DataFrame, rigs: dict[str, dict], names: tupl
         rows = points[config == len(designs)]
         vignetting = _roi_vignetting(design, rows["roi_w"].median(), rows["roi_h"].median()) if lens else 1.0
         weights = spectral_weights(design)
-        d_l = design["light.distance_m"] if design["light.distance_m"] is not None else design["operation.altitude_m"]
-        path_m = float(d_l + design["operation.altitude_m"])
+        path_m = float(light_distance_m(design) + design["operation.altitude_m"])
         designs.append(design)
         has_lens.append(lens)
         rate0.append(float(on_axis_electron_rate(design)) * vignetting)
@@ -145,9 +144,7 @@ def build_forward_model(points: pd.DataFrame, rigs: dict[str, dict], names: tupl
     with_lens = next((d for d, lens in zip(designs, has_lens) if lens), None)
     nominal = {
         "light_efficiency": 1.0,
-        "beam_half_angle_deg": float(np.degrees(np.arcsin(np.sin(np.radians(first["light.beam_half_angle_in_air_deg"]))
-                                                          / first["housing.water_index"])))
-        if first["light.beam_half_angle_deg"] is None else float(first["light.beam_half_angle_deg"]),
+        "beam_half_angle_deg": float(np.degrees(beam_half_angle_rad(first))),
         "attenuation_scale": float(first["water.attenuation_scale"]),
         "reflectance": _number(first, "target.reflectance"),
         "lens_transmittance": _number(with_lens, "lens.transmittance") if with_lens is not None else 1.0,

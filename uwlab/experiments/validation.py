@@ -96,10 +96,8 @@ def cross_configuration(points: pd.DataFrame, rigs: dict, config: FitConfig, tra
     train = usable[usable["sweep_id"].isin(train_sweeps)]
     test = usable[~usable["sweep_id"].isin(train_sweeps)]
     cameras = tuple(sorted(train["sensor_profile"].astype(str).unique()))
-    train_config = FitConfig({n: p for n, p in config.priors.items()
-                              if not n.startswith("K_dn_per_e:") or n.split(":", 1)[1] in cameras},
-                             walkers=config.walkers, chunk_steps=config.chunk_steps, max_steps=config.max_steps,
-                             seed=config.seed)
+    train_config = replace(config, priors={n: p for n, p in config.priors.items()
+                                           if not n.startswith("K_dn_per_e:") or n.split(":", 1)[1] in cameras})
     result = fit_points(train, rigs, train_config, progress=progress)
     rows = []
     if not test.empty:

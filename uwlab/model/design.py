@@ -199,7 +199,8 @@ def path_integrals(weights: SpectralWeights, path_m) -> np.ndarray:
     return np.exp(-path[..., None] * weights.c) @ weights.W
 
 
-def _beam_half_angle_rad(d: Design):
+def beam_half_angle_rad(d: Design):
+    """Beam half-angle in water [rad]; one given in air behind a flat light port is refracted (Snell)."""
     if d["light.beam_half_angle_deg"] is not None:
         return np.radians(d["light.beam_half_angle_deg"])
     return np.arcsin(np.sin(np.radians(d["light.beam_half_angle_in_air_deg"])) / d["housing.water_index"])
@@ -208,13 +209,14 @@ def _beam_half_angle_rad(d: Design):
 def _irradiance_geometry(d: Design, beta, cos_incidence):
     """Target irradiance per unit spectral radiant flux without attenuation [1/m²] (steps 2 of the chain)."""
     count = d["light.count"]
-    d_l = _light_distance(d)
+    d_l = light_distance_m(d)
     if d["light.beam_model"] == "cone":
         return count * cos_incidence / (2 * np.pi * (1 - np.cos(beta)) * d_l**2)
     return count / (np.pi * (d_l * np.tan(beta)) ** 2)
 
 
-def _light_distance(d: Design):
+def light_distance_m(d: Design):
+    """Light → target distance [m]: `light.distance_m`, by default the altitude."""
     value = d["light.distance_m"]
     return d["operation.altitude_m"] if value is None else value
 
@@ -234,7 +236,8 @@ def _radiance_to_sensor_factor(d: Design, weights: SpectralWeights):
         d["lens.f_number"])
 
 
-def _effective_focal_length_m(d: Design):
+def effective_focal_length_m(d: Design):
+    """Focal length seen from the water [m]: n_w f behind a flat port, f behind a centred dome."""
     f = d["lens.focal_length_mm"] * 1e-3
     return f * d["housing.water_index"] if d["housing.port"] == "flat" else f * np.ones_like(d["housing.water_index"])
 
@@ -244,14 +247,14 @@ def electron_rate_at_radius(d: Design, r_m, weights: SpectralWeights | None = No
     design's arrays) under the image-average geometry of the module docstring: light beside the camera,
     target plane perpendicular to the axis at d_C, cos⁴ lens falloff, beam cut-off at α_w > β."""
     weights = spectral_weights(d) if weights is None else weights
-    beta = _beam_half_angle_rad(d)
+    beta = beam_half_angle_rad(d)
     f = np.asarray(d["lens.focal_length_mm"] * 1e-3, float)[..., None]
     tan_air = np.asarray(r_m, float) / f
     tan_w = tan_air / np.asarray(d["housing.water_index"])[..., None] if d["housing.port"] == "flat" else tan_air
     cos_air = 1 / np.sqrt(1 + tan_air**2)
     cos_w = 1 / np.sqrt(1 + tan_w**2)
     in_beam = np.arctan(tan_w) <= np.asarray(beta)[..., None]
-    d_l = np.asarray(_light_distance(d))[..., None]
+    d_l = np.asarray(light_distance_m(d))[..., None]
     d_c = np.asarray(d["operation.altitude_m"])[..., None]
     path = np.asarray(d["water.attenuation_scale"])[..., None] * (d_l + d_c) / cos_w
     angular = cos_air**4 * in_beam * (cos_w**3 if d["light.beam_model"] == "cone" else 1.0)
@@ -270,10 +273,10 @@ def _image_average_rate(d: Design, weights: SpectralWeights):
 
 def _on_axis(d: Design, weights: SpectralWeights):
     """(target irradiance [W/m²], sensor irradiance [W/m²], electron rate [e⁻/s]) on the optical axis."""
-    beta = _beam_half_angle_rad(d)
+    beta = beam_half_angle_rad(d)
     geometry = d["light.luminous_flux_lm"] * _irradiance_geometry(d, beta, np.cos(np.radians(d["light.incidence_deg"])))
     scale = np.asarray(d["water.attenuation_scale"])
-    d_l = np.asarray(_light_distance(d))
+    d_l = np.asarray(light_distance_m(d))
     target = geometry * path_integrals(weights, scale * d_l)[..., 0]
     to_sensor = geometry * _radiance_to_sensor_factor(d, weights)
     integrals = path_integrals(weights, scale * (d_l + d["operation.altitude_m"]))
@@ -290,7 +293,7 @@ def evaluate(d: Design) -> dict[str, np.ndarray]:
     weights = spectral_weights(d)
     sensor = d.sensor
     op = d.values["operation"]
-    f_eff = _effective_focal_length_m(d)
+    f_eff = effective_focal_length_m(d)
     size = dict(zip("xy", sensor.size_m))
     res = dict(zip("xy", sensor.resolution_px))
     fov = {a: optics.angular_fov_rad(size[a], f_eff) for a in "xy"}
@@ -364,11 +367,11 @@ def stage_spectra(d: Design) -> dict[str, np.ndarray]:
     w = spectral_weights(d)
     grid = d.grid
     c = w.c * d["water.attenuation_scale"]
-    beta = _beam_half_angle_rad(d)
+    beta = beam_half_angle_rad(d)
     flux = d["light.luminous_flux_lm"]
     source = d["light.count"] * flux * w.s_per_lm
     geometry = flux * _irradiance_geometry(d, beta, np.cos(np.radians(d["light.incidence_deg"])))
-    d_l, d_c = _light_distance(d), d["operation.altitude_m"]
+    d_l, d_c = light_distance_m(d), d["operation.altitude_m"]
     e_t = geometry * w.s_per_lm * np.exp(-c * d_l)
     l_w = e_t * w.reflectance / np.pi * np.exp(-c * d_c)
     e_s = l_w * _port_transmittance(d) / d["housing.water_index"] ** 2 * w.lens_transmittance * optics.lens_irradiance_factor(

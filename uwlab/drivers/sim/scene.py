@@ -23,7 +23,8 @@ from uwlab.drivers.sim.rig_state import RigState
 from uwlab.errors import ConfigError
 from uwlab.model.config import Num
 from uwlab.model.data import config_dir, read_toml
-from uwlab.model.design import Design, build_design, electron_rate_at_radius, on_axis_electron_rate, stage_spectra
+from uwlab.model.design import (Design, build_design, effective_focal_length_m, electron_rate_at_radius,
+                                on_axis_electron_rate, stage_spectra)
 from uwlab.model.sensor import SensorProfile
 
 DEFAULT_RIG = "rigs/sim-tank.toml"
@@ -113,9 +114,7 @@ class RigScene:
 
     def _magnification(self) -> float:
         """Object size on the target plane per unit image size (pinhole with the effective focal length)."""
-        d = self.design
-        f_m = d["lens.focal_length_mm"] * 1e-3 * (d["housing.water_index"] if d["housing.port"] == "flat" else 1.0)
-        return float(d["operation.altitude_m"]) / f_m
+        return float(self.design["operation.altitude_m"]) / float(effective_focal_length_m(self.design))
 
     def electron_rate_map(self, shape_yx: tuple[int, int], flux_fraction: float = 1.0) -> np.ndarray:
         """Per-pixel electron rate [e⁻/s] (float32) for an image of `shape_yx` covering the full sensor."""
