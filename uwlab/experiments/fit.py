@@ -6,9 +6,13 @@ Posterior p(θ | y) ∝ p(θ) ∏ N(y_i | μ_i(θ), σ_i(θ)²) with μ from `uw
 - Start: the maximum a posteriori point (scipy.optimize, Nelder–Mead then Powell), walkers drawn from the
   Laplace approximation there (inverse of a finite-difference Hessian), falling back to a small ball.
 - Parametrisation: the multiplicative factors (light efficiency, reflectance, lens transmittance, K) are sampled
-  as u = ln θ (with the Jacobian, ln p(u) = ln p(θ) + u); the attenuation scale s, the beam angle and the
-  discrepancy as they are (in ln δ the flat likelihood below the measurement noise would leave a long tail). The chain's degeneracies (ε × M × T × K; ln ε against s, since the response ∝ ε e^(−s c̄ D)) then
-  become linear, which the affine-invariant sampler handles without loss of efficiency.
+  as u = ln θ; the attenuation scale s, the beam angle β and the discrepancy δ as they are (in ln δ the flat
+  likelihood below the measurement noise would leave a long tail). The response is ∝ ε K · S_k(s, β), where
+  S_k is the nonlinear beam × water-transmission shape (`ForwardModel.shape`); with few path lengths the data fix
+  ln ε + ln K + ln S_k almost exactly, a ridge that is curved in (ln ε, s) by more than its width, which stalls
+  every ensemble move. So the anchor ε (or the reflectance when ε is fixed) is sampled as
+  u_ε = ln ε + h(s, β), h = the points' mean of ln S_k: the ridge becomes a hyperplane in u, s and β move along
+  it freely. The map u → θ stays triangular, so ln p(u) = ln p(θ) + Σ ln θ over the logged parameters.
 - Sampler: emcee's ensemble sampler (Foreman-Mackey et al. 2013), ``vectorize=True``, with differential-evolution
   moves (ter Braak 2006; 80 %) and snooker moves (ter Braak & Vrugt 2008; 20 %), which mix faster than the
   stretch move (Goodman & Weare 2010) on this problem's elongated posteriors. The run extends itself in chunks until the chain is at
@@ -36,6 +40,8 @@ MIN_TAU_MULTIPLE = 50
 CORRELATED = 0.9
 OVERDISPERSION = 4.0
 LINEAR = ("attenuation_scale", "beam_half_angle_deg", "discrepancy")
+SHAPE_PARAMETERS = ("attenuation_scale", "beam_half_angle_deg")
+ANCHORS = ("light_efficiency", "reflectance")
 
 
 @dataclass
@@ -94,12 +100,19 @@ def load_fit_config(path: str | Path) -> FitConfig:
 
 
 class Posterior:
-    """Vectorised log posterior over θ of shape (n_walkers, n_params); `log_u` is the same in u = ln θ."""
+    """Vectorised log posterior over θ of shape (n_walkers, n_params); `log_u` is the same in the sampling
+    coordinates u (see the module docstring): u = ln θ for the multiplicative factors, u = θ for LINEAR ones, and
+    the anchor (light efficiency, else reflectance) carries the mean log shape: u_a = ln θ_a + h(θ)."""
+
+    CHUNK = 20000
 
     def __init__(self, model: ForwardModel, priors: dict[str, Prior]):
         self.model = model
         self.priors = [priors[name] for name in model.names]
         self.logged = np.array([name not in LINEAR for name in model.names])
+        anchors = [n for n in ANCHORS if n in model.names]
+        shaped = any(n in model.names for n in SHAPE_PARAMETERS)
+        self.anchor = model.names.index(anchors[0]) if anchors and shaped else None
 
     def log_prior(self, theta: np.ndarray) -> np.ndarray:
         theta = np.atleast_2d(theta)
@@ -122,18 +135,37 @@ class Posterior:
             out[ok] = np.where(np.isfinite(ll), lp[ok] + ll, -np.inf)
         return out
 
+    def _shift(self, theta: np.ndarray) -> np.ndarray:
+        """h(θ) for rows of θ (any leading shape), computed in chunks; finite only where the shape is positive."""
+        flat = theta.reshape(-1, theta.shape[-1])
+        with np.errstate(all="ignore"):
+            h = np.concatenate([self.model.mean_log_shape(flat[i:i + self.CHUNK])
+                                for i in range(0, flat.shape[0], self.CHUNK)])
+        return h.reshape(theta.shape[:-1])
+
     def to_theta(self, u: np.ndarray) -> np.ndarray:
         with np.errstate(over="ignore"):
-            return np.where(self.logged, np.exp(u), u)
+            theta = np.where(self.logged, np.exp(u), u)
+        if self.anchor is not None:
+            with np.errstate(over="ignore", invalid="ignore"):
+                theta[..., self.anchor] = np.exp(u[..., self.anchor] - self._shift(theta))
+        return theta
 
     def to_u(self, theta: np.ndarray) -> np.ndarray:
         with np.errstate(divide="ignore", invalid="ignore"):
-            return np.where(self.logged, np.log(theta), theta)
+            u = np.where(self.logged, np.log(theta), theta)
+        if self.anchor is not None:
+            u[..., self.anchor] += self._shift(theta)
+        return u
 
     def log_u(self, u: np.ndarray) -> np.ndarray:
-        """ln p(u | y) in the sampling parametrisation (Jacobian of the logged parameters included)."""
-        u = np.atleast_2d(u)
-        return self(self.to_theta(u)) + (u * self.logged).sum(axis=1)
+        """ln p(u | y) in the sampling coordinates: ln p(θ | y) + Σ ln θ_j over the logged parameters (the map
+        u → θ is triangular with ∂θ_j/∂u_j = θ_j for those and 1 for the others, so that is its log-Jacobian)."""
+        theta = self.to_theta(np.atleast_2d(u))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            jacobian = np.where(self.logged, np.log(np.where(self.logged, theta, 1.0)), 0.0).sum(axis=1)
+        out = self(theta) + jacobian
+        return np.where(np.isnan(out), -np.inf, out)
 
 
 def find_map(log_density: Callable[[np.ndarray], np.ndarray], start: np.ndarray) -> np.ndarray:

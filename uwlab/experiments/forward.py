@@ -65,20 +65,33 @@ class ForwardModel:
             return theta[:, self.names.index(name)]
         return np.full(theta.shape[0], self.nominal[name])
 
-    def predict(self, theta: np.ndarray) -> np.ndarray:
-        """Predicted dark-subtracted mean [DN], shape (n_walkers, n_points)."""
+    def shape(self, theta: np.ndarray) -> np.ndarray:
+        """The nonlinear shared factors relative to nominal, per configuration, shape (n_walkers, n_config):
+        beam concentration (cone: solid-angle ratio; disk: tan² ratio) × water transmission G_k(s)/G_k(s₀), with
+        G_k(s) = Σ_λ W_k(λ) exp(−s c(λ) D_k) (D_k the light→target→camera path)."""
         theta = np.atleast_2d(theta)
-        p = lambda name: self.parameter(theta, name)[:, None]  # noqa: E731
-        beta, beta0 = np.radians(p("beam_half_angle_deg")), np.radians(self.nominal["beam_half_angle_deg"])
+        beta = np.radians(self.parameter(theta, "beam_half_angle_deg"))[:, None]
+        beta0 = np.radians(self.nominal["beam_half_angle_deg"])
         if self.omega_cone:
             beam = (1 - np.cos(beta0)) / (1 - np.cos(beta))
         else:
             beam = np.tan(beta0) ** 2 / np.tan(beta) ** 2
-        s = p("attenuation_scale")
-        g = np.einsum("wkl,kl->wk", np.exp(-s[..., None] * (self.path_m[:, None] * self.c)[None]), self.weights_e)
+        s = self.parameter(theta, "attenuation_scale")[:, None, None]
+        g = np.einsum("wkl,kl->wk", np.exp(-s * (self.path_m[:, None] * self.c)[None]), self.weights_e)
+        return beam * g / self.g0[None, :]
+
+    def mean_log_shape(self, theta: np.ndarray) -> np.ndarray:
+        """ln `shape` averaged over the points (each point weighted by its configuration), shape (n_walkers,)."""
+        share = np.bincount(self.config, minlength=self.g0.size) / self.config.size
+        return np.log(self.shape(theta)) @ share
+
+    def predict(self, theta: np.ndarray) -> np.ndarray:
+        """Predicted dark-subtracted mean [DN], shape (n_walkers, n_points)."""
+        theta = np.atleast_2d(theta)
+        p = lambda name: self.parameter(theta, name)[:, None]  # noqa: E731
         lens = np.where(self.has_lens[None, :], p("lens_transmittance") / self.nominal["lens_transmittance"], 1.0)
-        rate = (self.rate0[None, :] * p("light_efficiency") * beam * p("reflectance") / self.nominal["reflectance"]
-                * lens * g / self.g0[None, :])
+        rate = (self.rate0[None, :] * p("light_efficiency") * p("reflectance") / self.nominal["reflectance"]
+                * lens * self.shape(theta))
         k = np.stack([self.parameter(theta, f"K_dn_per_e:{cam}") for cam in self.cameras], axis=1)
         return k[:, self.camera] * self.scale[None, :] * rate[:, self.config]
 
@@ -179,8 +192,11 @@ def build_forward_model(points: pd.DataFrame, rigs: dict[str, dict], names: tupl
 def relative_flux(points: pd.DataFrame) -> np.ndarray:
     """The light's output at each point relative to full output (level 1), from the spectrometer.
 
-    The light's level→flux curve is not assumed: each point's measured irradiance is divided by the median
-    irradiance of the level-1 points measured at the same position. Points all at level 1 need no readings.
+    The light's level→flux curve is not assumed: the median irradiance of the points of one sweep, position and
+    level is divided by the median irradiance of all level-1 points at that position. Taking the median over a
+    sweep's points at one level (assumed steady over a sweep; each point's reading stays in the dataset) keeps the
+    reading noise of a dimmed light (read-noise limited) out of the predictions. Points all at level 1 need no
+    readings.
     """
     levels = points["light_level"].to_numpy(float) if "light_level" in points else np.ones(len(points))
     if np.all(levels == 1.0):
@@ -190,14 +206,16 @@ def relative_flux(points: pd.DataFrame) -> np.ndarray:
                           "(irradiance_w_m2) to scale the light's output")
     position = points["irradiance_position"].astype(str).to_numpy() if "irradiance_position" in points else np.full(
         len(points), "")
-    irradiance = points["irradiance_w_m2"].to_numpy(float)
+    sweep = points["sweep_id"].astype(str).to_numpy() if "sweep_id" in points else np.full(len(points), "")
+    irradiance = pd.Series(points["irradiance_w_m2"].to_numpy(float))
+    level_median = irradiance.groupby([sweep, position, levels]).transform("median").to_numpy()
     out = np.empty(len(points))
     for pos in np.unique(position):
         here = position == pos
-        reference = irradiance[here & (levels == 1.0)]
+        reference = irradiance.to_numpy()[here & (levels == 1.0)]
         if reference.size == 0:
             raise ConfigError("light_level", pos, "no level-1 spectrometer reading at this position to normalise against")
-        out[here] = irradiance[here] / np.median(reference)
+        out[here] = level_median[here] / np.median(reference)
     return out
 
 
