@@ -27,6 +27,7 @@ import pandas as pd
 from uwlab.drivers.camera import Camera, Frame, Policy, open_camera
 from uwlab.drivers.camera.pixels import pixel_format
 from uwlab.drivers.serial import Light, Spectrometer, open_light, open_spectrometer
+from uwlab.drivers.serial.base import AVERAGING_RANGE
 from uwlab.errors import ConfigError
 from uwlab.experiments.dataset import FRAMES_DIR, Dataset, spectra_frame
 from uwlab.experiments.light_calibration import measure_unsaturated
@@ -35,6 +36,7 @@ from uwlab.experiments.roi import Rect, aruco_roi, check_inside
 from uwlab.experiments.spectra import irradiance_w_m2
 
 MONO16_UNUSED_LSB_MARGIN = 0x000F
+DARK_AVERAGING = 16
 
 
 @dataclass(frozen=True)
@@ -277,11 +279,19 @@ class SweepRunner:
 
     def _spectrometer_dark(self, sweep: SweepSpec, position: str) -> tuple[np.ndarray, np.ndarray]:
         """What the spectrometer reports with the light off at its current integration time (its imperfectly
-        subtracted dark signal), measured once per sweep, position and integration time."""
-        key = (sweep.id, position, self.rig.spectrometer.integration_ms())
+        subtracted dark signal), measured once per sweep, position and integration time. It is read with
+        DARK_AVERAGING times the usual averaging (up to the instrument's limit): every reading of the sweep
+        shares its noise, which would otherwise bias the sweep's whole flux scale."""
+        spectrometer = self.rig.spectrometer
+        key = (sweep.id, position, spectrometer.integration_ms())
         if key not in self._spectrometer_darks:
             self._set_light(False, sweep.light_level, sweep.settle_s)
-            self._spectrometer_darks[key] = self.rig.spectrometer.read_spectrum()
+            averaging = spectrometer.averaging()
+            spectrometer.set_averaging(min(AVERAGING_RANGE[1], DARK_AVERAGING * averaging))
+            try:
+                self._spectrometer_darks[key] = spectrometer.read_spectrum()
+            finally:
+                spectrometer.set_averaging(averaging)
             self._set_light(sweep.kind != "dark", sweep.light_level, sweep.settle_s)
         return self._spectrometer_darks[key]
 
