@@ -162,3 +162,24 @@ def test_bad_tables_name_the_problem():
         photon_transfer_from_points(at_target, EMPTY_SPECTRA, wavelength_nm=550)
     with pytest.raises(ConfigError, match="--sweep"):
         photon_transfer_from_points(frame, EMPTY_SPECTRA, sweep_id="other", wavelength_nm=550)
+
+
+def test_a_variance_outlier_below_saturation_is_not_the_saturation_point():
+    """A disturbed frame pair at low signal can show a variance above the true peak; saturation stays put."""
+    pt = model_transfer()
+    clean = characterize(pt).values
+    spiked = pt.temporal_var_dn2.copy()
+    spiked[3] = 10 * spiked.max()
+    v = characterize(replace(pt, temporal_var_dn2=spiked)).values
+    assert v["saturation_index"] == clean["saturation_index"]
+    assert v["saturation_photons"] == clean["saturation_photons"] == pytest.approx(SAT_E / ETA, rel=0.05)
+
+
+def test_sensitivity_threshold_is_where_the_snr_is_one():
+    """μ_p,min solves η μ_p / √(σ²_y,dark/K² + η μ_p) = 1, and DR is μ_p,sat over it."""
+    v = characterize(model_transfer()).values
+    eta, k, mu = v["quantum_efficiency"], v["K_dn_per_e"], v["sensitivity_threshold_photons"]
+    dark_var = max(v["dark_var_dn2"], 0.24)
+    assert eta * mu / math.sqrt(dark_var / k**2 + eta * mu) == pytest.approx(1.0, rel=1e-12)
+    assert v["dynamic_range_db"] == pytest.approx(20 * math.log10(v["saturation_photons"] / mu), rel=1e-12)
+    assert v["sensitivity_threshold_e"] == pytest.approx(eta * mu, rel=1e-12)

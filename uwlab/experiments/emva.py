@@ -7,12 +7,15 @@ implementation):
 * system gain K: slope of σ²_y − σ²_y,dark against μ_y − μ_y,dark, and responsivity R = η K: slope of
   μ_y − μ_y,dark against μ_p, both least-squares lines through the origin over 0–70 % of the saturation
   signal; quantum efficiency η = R / K;
-* saturation: the point of maximum temporal variance σ²_y; μ_p,sat its photon count, μ_e,sat = η μ_p,sat,
+* saturation: the point of maximum temporal variance σ²_y among the points with at least half the largest
+  signal (a low-signal variance outlier is not saturation); μ_p,sat its photon count, μ_e,sat = η μ_p,sat,
   SNR_max = √μ_e,sat;
 * temporal dark noise σ_d = √(σ²_y,dark − σ²_q) / K with σ²_q = 1/12 DN²; σ²_y,dark is the t_exp → 0 intercept of
   the dark variance when dark frames at more than two exposures exist, and is raised to 0.24 DN² when smaller
   (the quantisation-limited case);
-* absolute sensitivity threshold (SNR = 1) μ_p,min = (√(σ²_y,dark/K² + 1/4) + 1/2) / η; dynamic range
+* absolute sensitivity threshold (SNR = 1) μ_p,min = (√(σ²_y,dark/K² + 1/4) + 1/2) / η — the exact root of
+  SNR(μ_p) = 1 in the linear model. The reference implementation (2025) still uses Release 3.1's first-order
+  form (σ_y,dark/K + 1/2) / η, smaller by 7 % at σ_y,dark/K = 1 and 0.5 % at 5; dynamic range
   DR = μ_p,sat / μ_p,min, in dB 20 log₁₀ DR;
 * linearity: a line fitted to μ_y − μ_y,dark against μ_p over 5–95 % of the saturation signal, weighted
   to minimise the relative deviation; δ = 100 (y − fit)/fit; LE = (max δ − min δ) / 2 [%];
@@ -192,9 +195,15 @@ def _indices(signal: np.ndarray, sat: int, lo: float, hi: float) -> np.ndarray:
     return idx[(s >= lo * signal[sat]) & (s <= hi * signal[sat])]
 
 
-def saturation_index(temporal_var_dn2: np.ndarray) -> int:
-    """Index of the maximum of the temporal variance (EMVA 1288 saturation point)."""
-    return int(np.argmax(temporal_var_dn2))
+def saturation_index(temporal_var_dn2: np.ndarray, signal_dn: np.ndarray) -> int:
+    """Index of the maximum of the temporal variance (EMVA 1288 saturation point), searched only among the
+    points whose signal is at least half the largest: the variance peaks where the signal nears its maximum, and
+    a variance outlier far below saturation (a disturbed frame pair) must not be taken for it. (The reference
+    implementation guards against the same by searching down from the brightest point.)"""
+    var = np.asarray(temporal_var_dn2, float)
+    signal = np.asarray(signal_dn, float)
+    candidates = np.flatnonzero(signal >= 0.5 * np.nanmax(signal))
+    return int(candidates[np.argmax(var[candidates])])
 
 
 def _dark_variance(pt: PhotonTransfer) -> tuple[float, float]:
@@ -220,7 +229,7 @@ def half_saturation_index(pt: PhotonTransfer) -> int:
     """Index (in ``pt``'s order, which must be sorted by μ_p) of the point at or below saturation whose signal
     is nearest 50 % of the saturation signal."""
     signal = pt.signal_dn
-    sat = saturation_index(pt.temporal_var_dn2)
+    sat = saturation_index(pt.temporal_var_dn2, pt.signal_dn)
     return int(np.argmin(np.abs(signal[: sat + 1] - 0.5 * signal[sat])))
 
 
@@ -274,7 +283,7 @@ def characterize(pt: PhotonTransfer, seed: int = 0) -> EmvaResult:
     if len(pt.dark_series_var_dn2) == 0:
         raise ConfigError("dark frames", 0, "no dark frames: EMVA 1288 needs dark statistics")
     signal, var = pt.signal_dn, pt.signal_var_dn2
-    sat = saturation_index(pt.temporal_var_dn2)
+    sat = saturation_index(pt.temporal_var_dn2, pt.signal_dn)
     fit_idx = _indices(signal, sat, -np.inf, SENSITIVITY_FIT_FRACTION)
     fit_idx = fit_idx[pt.photons[fit_idx] > 0]
     _require_fit_points(fit_idx, "sensitivity fit (0-70 % of saturation)", len(signal))
