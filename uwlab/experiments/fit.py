@@ -104,7 +104,7 @@ class Posterior:
     coordinates u (see the module docstring): u = ln θ for the multiplicative factors, u = θ for LINEAR ones, and
     the anchor (light efficiency, else reflectance) carries the mean log shape: u_a = ln θ_a + h(θ)."""
 
-    CHUNK = 20000
+    CHUNK = 2000  # rows per evaluation of the shape when mapping whole chains: (CHUNK, n_config, n_λ) floats
 
     def __init__(self, model: ForwardModel, priors: dict[str, Prior]):
         self.model = model
