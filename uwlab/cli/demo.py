@@ -30,11 +30,11 @@ def run(args) -> int:
             bar.set_postfix_str(event.sweep_id)
             bar.update(1)
 
-        fit_bar, fit_progress = progress_bar("calibration")
+        close_fit_bar, fit_progress = progress_bar("calibration")
         try:
             summary = run_demo(out, sweep_progress, fit_progress)
         finally:
-            fit_bar.close()
+            close_fit_bar()
     if args.json:
         json.dump(summary, sys.stdout, indent=2)
         sys.stdout.write("\n")
