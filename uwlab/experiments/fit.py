@@ -104,7 +104,7 @@ class Posterior:
     coordinates u (see the module docstring): u = ln θ for the multiplicative factors, u = θ for LINEAR ones, and
     the anchor (light efficiency, else reflectance) carries the mean log shape: u_a = ln θ_a + h(θ)."""
 
-    CHUNK = 2000  # rows per evaluation of the shape when mapping whole chains: (CHUNK, n_config, n_λ) floats
+    CHUNK = 2000  # rows per shape evaluation when mapping whole chains: (CHUNK, n_config, n_λ) floats
 
     def __init__(self, model: ForwardModel, priors: dict[str, Prior]):
         self.model = model
@@ -118,53 +118,55 @@ class Posterior:
         theta = np.atleast_2d(theta)
         return sum(prior.logpdf(theta[:, j]) for j, prior in enumerate(self.priors))
 
-    def log_likelihood(self, theta: np.ndarray) -> np.ndarray:
+    def log_likelihood(self, theta: np.ndarray, shape: np.ndarray | None = None) -> np.ndarray:
         theta = np.atleast_2d(theta)
-        mu = self.model.predict(theta)
+        mu = self.model.predict(theta, shape)
         sigma = self.model.sigma(theta, mu)
         return -0.5 * np.sum(((self.model.y - mu) / sigma) ** 2 + 2 * np.log(sigma), axis=1)
 
-    def __call__(self, theta: np.ndarray) -> np.ndarray:
+    def __call__(self, theta: np.ndarray, shape: np.ndarray | None = None) -> np.ndarray:
+        """ln p(θ | y) up to a constant; `shape` = `model.shape(θ)` when the caller has it already."""
         theta = np.atleast_2d(theta)
         lp = self.log_prior(theta)
         ok = np.isfinite(lp)
         out = np.full(theta.shape[0], -np.inf)
         if np.any(ok):
             with np.errstate(all="ignore"):
-                ll = self.log_likelihood(theta[ok])
+                ll = self.log_likelihood(theta[ok], None if shape is None else shape[ok])
             out[ok] = np.where(np.isfinite(ll), lp[ok] + ll, -np.inf)
         return out
 
-    def _shift(self, theta: np.ndarray) -> np.ndarray:
-        """h(θ) for rows of θ (any leading shape), computed in chunks; finite only where the shape is positive."""
-        flat = theta.reshape(-1, theta.shape[-1])
+    def _from_u(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """(θ, model.shape(θ)) for rows u of shape (n, n_params); the shape only when there is an anchor. It
+        depends on the LINEAR parameters alone, so it is known before the anchor is."""
         with np.errstate(all="ignore"):
-            h = np.concatenate([self.model.mean_log_shape(flat[i:i + self.CHUNK])
-                                for i in range(0, flat.shape[0], self.CHUNK)])
-        return h.reshape(theta.shape[:-1])
+            theta = np.where(self.logged, np.exp(u), u)
+            if self.anchor is None:
+                return theta, None
+            shape = self.model.shape(theta)
+            theta[:, self.anchor] = np.exp(u[:, self.anchor] - self.model.mean_log(shape))
+        return theta, shape
 
     def to_theta(self, u: np.ndarray) -> np.ndarray:
-        with np.errstate(over="ignore"):
-            theta = np.where(self.logged, np.exp(u), u)
-        if self.anchor is not None:
-            with np.errstate(over="ignore", invalid="ignore"):
-                theta[..., self.anchor] = np.exp(u[..., self.anchor] - self._shift(theta))
-        return theta
+        """θ for u of any leading shape (whole chains are mapped CHUNK rows at a time)."""
+        flat = u.reshape(-1, u.shape[-1])
+        theta = np.concatenate([self._from_u(flat[i:i + self.CHUNK])[0] for i in range(0, flat.shape[0], self.CHUNK)])
+        return theta.reshape(u.shape)
 
     def to_u(self, theta: np.ndarray) -> np.ndarray:
+        """u for θ of shape (n_params,) or (n, n_params)."""
         with np.errstate(divide="ignore", invalid="ignore"):
             u = np.where(self.logged, np.log(theta), theta)
-        if self.anchor is not None:
-            u[..., self.anchor] += self._shift(theta)
+            if self.anchor is not None:
+                u[..., self.anchor] += self.model.mean_log(self.model.shape(theta)).reshape(u.shape[:-1])
         return u
 
     def log_u(self, u: np.ndarray) -> np.ndarray:
         """ln p(u | y) in the sampling coordinates: ln p(θ | y) + Σ ln θ_j over the logged parameters (the map
         u → θ is triangular with ∂θ_j/∂u_j = θ_j for those and 1 for the others, so that is its log-Jacobian)."""
-        theta = self.to_theta(np.atleast_2d(u))
+        theta, shape = self._from_u(np.atleast_2d(u))
         with np.errstate(divide="ignore", invalid="ignore"):
-            jacobian = np.where(self.logged, np.log(np.where(self.logged, theta, 1.0)), 0.0).sum(axis=1)
-        out = self(theta) + jacobian
+            out = self(theta, shape) + np.log(theta[:, self.logged]).sum(axis=1)
         return np.where(np.isnan(out), -np.inf, out)
 
 

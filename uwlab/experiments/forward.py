@@ -80,18 +80,20 @@ class ForwardModel:
         g = np.einsum("wkl,kl->wk", np.exp(-s * (self.path_m[:, None] * self.c)[None]), self.weights_e)
         return beam * g / self.g0[None, :]
 
-    def mean_log_shape(self, theta: np.ndarray) -> np.ndarray:
-        """ln `shape` averaged over the points (each point weighted by its configuration), shape (n_walkers,)."""
+    def mean_log(self, shape: np.ndarray) -> np.ndarray:
+        """ln of a `shape` averaged over the points (each configuration weighted by its points), (n_walkers,)."""
         share = np.bincount(self.config, minlength=self.g0.size) / self.config.size
-        return np.log(self.shape(theta)) @ share
+        return np.log(shape) @ share
 
-    def predict(self, theta: np.ndarray) -> np.ndarray:
-        """Predicted dark-subtracted mean [DN], shape (n_walkers, n_points)."""
+    def predict(self, theta: np.ndarray, shape: np.ndarray | None = None) -> np.ndarray:
+        """Predicted dark-subtracted mean [DN], shape (n_walkers, n_points); `shape` = `self.shape(theta)` when the
+        caller has it already."""
         theta = np.atleast_2d(theta)
+        shape = self.shape(theta) if shape is None else shape
         p = lambda name: self.parameter(theta, name)[:, None]  # noqa: E731
         lens = np.where(self.has_lens[None, :], p("lens_transmittance") / self.nominal["lens_transmittance"], 1.0)
         rate = (self.rate0[None, :] * p("light_efficiency") * p("reflectance") / self.nominal["reflectance"]
-                * lens * self.shape(theta))
+                * lens * shape)
         k = np.stack([self.parameter(theta, f"K_dn_per_e:{cam}") for cam in self.cameras], axis=1)
         return k[:, self.camera] * self.scale[None, :] * rate[:, self.config]
 
