@@ -19,7 +19,7 @@ import tracemalloc
 
 import numpy as np
 
-from uwlab.experiments.emva_stream import StackAccumulator
+from uwlab.experiments.emva.stream import StackAccumulator
 
 WIDTH, HEIGHT = 2448, 2048
 BANK = 3

@@ -10,9 +10,9 @@ import time
 
 import numpy as np
 
-from uwlab.experiments.fit import FitConfig, fit_points
-from uwlab.experiments.priors import Prior
-from uwlab.experiments.simulate import simulate_campaign
+from uwlab.experiments.calibration.fit import FitConfig, fit_points
+from uwlab.experiments.calibration.priors import Prior
+from uwlab.experiments.calibration.simulate import simulate_campaign
 
 TRUTH = {"light_efficiency": 0.8, "attenuation_scale": 1.1, "reflectance": 0.88, "K_dn_per_e:imx250m": 0.35,
          "K_dn_per_e:icx285alm": 1.1}

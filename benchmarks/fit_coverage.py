@@ -1,4 +1,4 @@
-"""Calibration of the credible intervals (simulation-based; `uwlab.experiments.coverage`): truths drawn from the
+"""Calibration of the credible intervals (simulation-based; `uwlab.experiments.calibration.coverage`): truths drawn from the
 priors, one simulated campaign per seed, and the fraction of 95 % intervals that contain the truth.
 Target (issue 6): 90–99 % over ≥ 20 seeds; the slow test in tests/sim/test_fit.py asserts it.
 Prints one JSON object (coverage, wall time and every miss). Usage: python benchmarks/fit_coverage.py [SEEDS]
@@ -9,7 +9,7 @@ import json
 import sys
 import time
 
-from uwlab.experiments.coverage import interval_coverage
+from uwlab.experiments.calibration.coverage import interval_coverage
 
 
 def main(seeds: int = 20) -> None:

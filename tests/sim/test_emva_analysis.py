@@ -8,12 +8,12 @@ import pandas as pd
 import pytest
 
 from uwlab.errors import ConfigError
-from uwlab.experiments.emva import (
+from uwlab.experiments.emva.analysis import (
     PhotonTransfer, characterize, fit_line, line_posterior, photon_irradiance, photon_irradiance_mono,
     photons_per_pixel,
 )
-from uwlab.experiments.emva_dataset import photon_transfer_from_points
-from uwlab.experiments.emva_stream import StackAccumulator, stack_statistics
+from uwlab.experiments.emva.from_dataset import photon_transfer_from_points
+from uwlab.experiments.emva.stream import StackAccumulator, stack_statistics
 from uwlab.model.photometry import C_M_S, H_J_S
 
 K, ETA, SIGMA_D, SAT_E, DARK_E_S, OFFSET = 0.5, 0.6, 3.0, 8000.0, 100.0, 40.0

@@ -7,7 +7,7 @@ import pytest
 
 from uwlab.cli.main import main
 from uwlab.drivers.sim.camera import SimTruth
-from uwlab.experiments.emva_sim import simulate_photon_transfer
+from uwlab.experiments.emva.simulate import simulate_photon_transfer
 from uwlab.model.sensor import load_sensor_profile
 
 from tests.sim.conftest import EXAMPLE

@@ -4,8 +4,8 @@ import pytest
 import tifffile
 
 from uwlab.errors import ConfigError
-from uwlab.experiments.emva import characterize
-from uwlab.experiments.emva_descriptor import (
+from uwlab.experiments.emva.analysis import characterize
+from uwlab.experiments.emva.descriptor import (
     Block, Descriptor, format_descriptor, parse_descriptor, photon_transfer_from_descriptor, write_descriptor,
 )
 from tests.sim.test_emva_analysis import model_transfer

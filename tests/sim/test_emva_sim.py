@@ -4,9 +4,9 @@ import pytest
 
 from uwlab.drivers.sim.camera import SimTruth
 from uwlab.experiments.dataset import Dataset
-from uwlab.experiments.emva import characterize
-from uwlab.experiments.emva_dataset import IrradianceOverride, photon_transfer_from_points
-from uwlab.experiments.emva_sim import sim_truth_of, simulate_photon_transfer
+from uwlab.experiments.emva.analysis import characterize
+from uwlab.experiments.emva.from_dataset import IrradianceOverride, photon_transfer_from_points
+from uwlab.experiments.emva.simulate import sim_truth_of, simulate_photon_transfer
 from uwlab.model.sensor import load_sensor_profile
 
 RATE_E_S = 1.07e5  # full well (10700 e-) at 100 ms

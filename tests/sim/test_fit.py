@@ -4,11 +4,11 @@ import pandas as pd
 import pytest
 
 from uwlab.errors import ConfigError, UwlabError
-from uwlab.experiments.coverage import interval_coverage
-from uwlab.experiments.fit import FitConfig, Posterior, fit_points
-from uwlab.experiments.forward import build_forward_model, relative_flux
-from uwlab.experiments.priors import Prior
-from uwlab.experiments.simulate import LensSetting, simulate_campaign
+from uwlab.experiments.calibration.coverage import interval_coverage
+from uwlab.experiments.calibration.fit import FitConfig, Posterior, fit_points
+from uwlab.experiments.calibration.forward import build_forward_model, relative_flux
+from uwlab.experiments.calibration.priors import Prior
+from uwlab.experiments.calibration.simulate import LensSetting, simulate_campaign
 from uwlab.model.design import build_design, on_axis_electron_rate
 
 TRUTH = {"light_efficiency": 0.8, "attenuation_scale": 1.2, "K_dn_per_e:imx250m": 0.36, "K_dn_per_e:icx285alm": 1.05}

@@ -4,8 +4,8 @@ import pytest
 from scipy import stats
 
 from uwlab.errors import ConfigError
-from uwlab.experiments.fit import split_rhat
-from uwlab.experiments.priors import parse_prior
+from uwlab.experiments.calibration.fit import split_rhat
+from uwlab.experiments.calibration.priors import parse_prior
 
 X = np.array([0.2, 0.7, 1.0, 1.9, 3.5])
 

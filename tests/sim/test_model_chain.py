@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from uwlab.experiments.design_grid import evaluate_grid
+from uwlab.experiments.design.grid import evaluate_grid
 from uwlab.model.design import build_design, evaluate, stage_spectra
 from uwlab.model.grid import WavelengthGrid
 from uwlab.model.port import port_transmittance

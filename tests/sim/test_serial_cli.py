@@ -17,8 +17,8 @@ from uwlab.drivers.serial import open_light, open_spectrometer
 from uwlab.drivers.sim.rig_state import RigState
 from uwlab.drivers.sim.scene import RigScene
 from uwlab.drivers.sim.serial_sim import SerialRig, SerialSimSettings
-from uwlab.experiments.light_calibration import load_light_calibration
-from uwlab.experiments.spectra import irradiance_w_m2
+from uwlab.experiments.acquisition.light_calibration import load_light_calibration
+from uwlab.experiments.acquisition.spectra import irradiance_w_m2
 
 GAMMA = 1.8
 SEKONIC_SAMPLE = Path(__file__).parent / "data" / "sekonic_c7000_synthetic.csv"

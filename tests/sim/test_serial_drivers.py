@@ -9,7 +9,7 @@ from uwlab.drivers.sim.rig_state import RigState
 from uwlab.drivers.sim.serial_instruments import DetectorModel
 from uwlab.drivers.sim.serial_sim import SerialRig, SerialSimSettings
 from uwlab.errors import ConfigError, DeviceError
-from uwlab.experiments.light_calibration import measure_unsaturated
+from uwlab.experiments.acquisition.light_calibration import measure_unsaturated
 
 GAMMA = 2.2
 PEAK_W_M2_NM = 0.3

@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 from uwlab.errors import ConfigError
-from uwlab.experiments.spectra import (
+from uwlab.experiments.acquisition.spectra import (
     cct_k,
     illuminance_lux,
     irradiance_w_m2,

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from uwlab.experiments.dataset import Dataset
-from uwlab.experiments.plan import load_plan
+from uwlab.experiments.acquisition.plan import load_plan
 
 ROOT = Path(__file__).resolve().parents[2]
 PLAN = f"""

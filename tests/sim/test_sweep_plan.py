@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from uwlab.errors import ConfigError
-from uwlab.experiments.plan import expand_values, load_plan, point_counts
+from uwlab.experiments.acquisition.plan import expand_values, load_plan, point_counts
 
 ROOT = Path(__file__).resolve().parents[2]
 RIG = ROOT / "configs" / "rigs" / "sim-tank.toml"

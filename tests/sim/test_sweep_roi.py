@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from uwlab.errors import ConfigError, DeviceError
-from uwlab.experiments.roi import aruco_roi, check_inside
+from uwlab.experiments.acquisition.roi import aruco_roi, check_inside
 
 
 def board_image(marker_px=40, origin=(60, 50), size=(300, 200), dtype=np.uint16):

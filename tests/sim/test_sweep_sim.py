@@ -10,9 +10,9 @@ from uwlab.drivers.sim.camera import SimFaults
 from uwlab.errors import ConfigError
 from uwlab.experiments import dataset as ds
 from uwlab.experiments.dataset import Dataset, DatasetWriteError
-from uwlab.experiments.plan import load_plan
-from uwlab.experiments.simrig import SimRig
-from uwlab.experiments.sweep import HardwareRig, SweepRunner, check_resumable
+from uwlab.experiments.acquisition.plan import load_plan
+from uwlab.experiments.acquisition.rigs import HardwareRig, SimRig
+from uwlab.experiments.acquisition.sweep import SweepRunner, check_resumable
 
 ROOT = Path(__file__).resolve().parents[2]
 HEADER = f"""

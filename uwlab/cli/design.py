@@ -105,7 +105,7 @@ def _table(result: dict) -> str:
 
 
 def run(args) -> int:
-    from uwlab.experiments.design_grid import evaluate_grid
+    from uwlab.experiments.design.grid import evaluate_grid
     from uwlab.model.design import build_design, evaluate
 
     raw = load_raw(args.config)
@@ -137,7 +137,7 @@ def run(args) -> int:
     design = build_design(raw, base)
     result = _jsonable(evaluate(design))
     if args.plot:
-        from uwlab.experiments.design_plots import write_design_plots
+        from uwlab.experiments.design.plots import write_design_plots
 
         written = write_design_plots(design, Path(args.plot))
     if args.json:

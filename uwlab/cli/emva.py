@@ -56,7 +56,7 @@ def _input_options(p) -> None:
 
 
 def _override(args):
-    from uwlab.experiments.emva_dataset import IrradianceOverride
+    from uwlab.experiments.emva.from_dataset import IrradianceOverride
 
     if args.irradiance is None:
         return None
@@ -71,7 +71,7 @@ def _override(args):
 
 def _load_dataset(args):
     from uwlab.experiments.dataset import Dataset
-    from uwlab.experiments.emva_dataset import named_profile, photon_transfer_from_points
+    from uwlab.experiments.emva.from_dataset import named_profile, photon_transfer_from_points
 
     dataset = Dataset.open(args.dataset)
     points = dataset.points()
@@ -95,7 +95,7 @@ def _jsonable(value):
 
 def _targets(out: Path, name: str, with_profile: bool) -> tuple[list[Path], tuple[Path, Path] | None]:
     """(result and plot paths, profile TOML and QE CSV paths or None); refuses if any exists."""
-    from uwlab.experiments.emva_plots import PLOT_NAMES
+    from uwlab.experiments.emva.plots import PLOT_NAMES
 
     core = [out / n for n in (RESULT_NAME, *PLOT_NAMES)]
     profile = (out / f"{name}.toml", out / f"{name}_qe.csv") if with_profile else None
@@ -110,12 +110,12 @@ def _safe_name(text: str) -> str:
 
 
 def run_characterize(args) -> int:
-    from uwlab.experiments.emva import characterize
+    from uwlab.experiments.emva.analysis import characterize
 
     if (args.dataset is None) == (args.descriptor is None):
         raise ConfigError("DATASET|--descriptor", None, "give exactly one of a dataset directory or --descriptor")
     if args.descriptor:
-        from uwlab.experiments.emva_descriptor import photon_transfer_from_descriptor
+        from uwlab.experiments.emva.descriptor import photon_transfer_from_descriptor
 
         pt, base, camera = photon_transfer_from_descriptor(args.descriptor, args.pixel_size_um), None, "descriptor"
     else:
@@ -141,8 +141,8 @@ def run_characterize(args) -> int:
 
 def _write_outputs(result, pt, out: Path, json_path: Path, profile, name: str, base, pixel_size_um,
                    document) -> None:
-    from uwlab.experiments.emva_plots import write_plots
-    from uwlab.experiments.emva_profile import profile_documents
+    from uwlab.experiments.emva.plots import write_plots
+    from uwlab.experiments.emva.profile import profile_documents
 
     out.mkdir(parents=True, exist_ok=True)
     write_plots(result, out)
@@ -186,7 +186,7 @@ def _image_size(text: str) -> tuple[int, int]:
 
 
 def run_export(args) -> int:
-    from uwlab.experiments.emva_descriptor import write_descriptor
+    from uwlab.experiments.emva.descriptor import write_descriptor
 
     shape = _image_size(args.image_size)
     pt, _, _ = _load_dataset(args)

@@ -41,7 +41,7 @@ def progress_bar(description: str):
 
 
 def run(args) -> int:
-    from uwlab.experiments.calibration import calibrate
+    from uwlab.experiments.calibration.pipeline import calibrate
 
     out = Path(args.out) if args.out else Path(args.dataset) / "fit"
     close_bar, update = progress_bar("sampling")

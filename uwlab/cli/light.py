@@ -11,7 +11,7 @@ from tqdm import tqdm
 from uwlab.drivers.serial import PROTOCOLS, open_light, open_spectrometer
 from uwlab.drivers.serial.base import check_level
 from uwlab.errors import ConfigError
-from uwlab.experiments.light_calibration import calibrate_light, calibration_levels, save_light_calibration
+from uwlab.experiments.acquisition.light_calibration import calibrate_light, calibration_levels, save_light_calibration
 
 DEFAULT_CALIBRATION = "light-calibration.csv"
 

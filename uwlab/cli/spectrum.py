@@ -8,7 +8,7 @@ from pathlib import Path
 from uwlab.drivers.serial import PROTOCOLS, open_spectrometer
 from uwlab.drivers.serial.base import check_averaging, check_integration_ms
 from uwlab.errors import ConfigError
-from uwlab.experiments.spectra import read_sekonic_csv, spectrum_summary, write_spectrum_csv
+from uwlab.experiments.acquisition.spectra import read_sekonic_csv, spectrum_summary, write_spectrum_csv
 
 
 def register(subparsers) -> None:

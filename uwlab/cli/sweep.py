@@ -8,9 +8,9 @@ from tqdm import tqdm
 
 from uwlab.errors import ConfigError
 from uwlab.experiments.dataset import Dataset, summarize
-from uwlab.experiments.plan import load_plan
-from uwlab.experiments.simrig import SimRig
-from uwlab.experiments.sweep import HardwareRig, Progress, SweepRunner, check_resumable
+from uwlab.experiments.acquisition.plan import load_plan
+from uwlab.experiments.acquisition.rigs import HardwareRig, SimRig
+from uwlab.experiments.acquisition.sweep import Progress, SweepRunner, check_resumable
 
 
 def register(subparsers) -> None:

@@ -279,7 +279,7 @@ def _remove(path: Path) -> None:
 
 def summarize(dataset: Dataset) -> dict:
     """A JSON-able summary: per sweep points done/total and saturated, time span, devices, plan hash."""
-    from uwlab.experiments.plan import point_counts
+    from uwlab.experiments.acquisition.plan import point_counts
 
     meta = dataset.metadata
     points = dataset.points()

@@ -4,7 +4,7 @@
    spectrometer as separate processes on pseudo-terminals talking to the real serial drivers — and run
    `configs/plans/tank-exposure-sweep.toml`: IMX250 and ICX285 cameras × no lens / 30 mm F2.0 / 12 mm F4.0,
    exposure sweeps, spectra at the target and at the camera.
-2. Calibrate the model against it (`uwlab.experiments.calibration`), with the cross-configuration check.
+2. Calibrate the model against it (`uwlab.experiments.calibration.pipeline`), with the cross-configuration check.
 3. Write ``report.html`` and ``summary.json`` (per parameter: truth, median, 2.5/16/84/97.5th percentiles, τ;
    converged; cross-configuration errors).
 """
@@ -15,12 +15,12 @@ from pathlib import Path
 from typing import Callable
 
 from uwlab.errors import UwlabError
-from uwlab.experiments.calibration import calibrate
+from uwlab.experiments.calibration.pipeline import calibrate
 from uwlab.experiments.dataset import Dataset
-from uwlab.experiments.plan import load_plan
+from uwlab.experiments.acquisition.plan import load_plan
 from uwlab.experiments.report import write_report
-from uwlab.experiments.simrig import SimRig
-from uwlab.experiments.sweep import SweepRunner
+from uwlab.experiments.acquisition.rigs import SimRig
+from uwlab.experiments.acquisition.sweep import SweepRunner
 from uwlab.model.data import config_dir
 
 DEMO_PLAN = "plans/tank-exposure-sweep.toml"

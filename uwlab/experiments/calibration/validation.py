@@ -17,8 +17,8 @@ from dataclasses import replace
 import numpy as np
 import pandas as pd
 
-from uwlab.experiments.fit import FitConfig, FitResult, fit_points
-from uwlab.experiments.forward import ForwardModel, build_forward_model
+from uwlab.experiments.calibration.fit import FitConfig, FitResult, fit_points
+from uwlab.experiments.calibration.forward import ForwardModel, build_forward_model
 from uwlab.model.design import stage_spectra
 
 BANDS = (2.5, 16, 50, 84, 97.5)

@@ -16,8 +16,8 @@ import numpy as np
 
 from uwlab.drivers.sim.camera import SensorConfig, SimSensor, SimTruth, flat_rate_map
 from uwlab.experiments.dataset import Dataset, spectra_frame
-from uwlab.experiments.emva import photon_irradiance
-from uwlab.experiments.emva_stream import stack_statistics
+from uwlab.experiments.emva.analysis import photon_irradiance
+from uwlab.experiments.emva.stream import stack_statistics
 
 SWEEP_ID = "sim-photon-transfer"
 

@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from uwlab.errors import ConfigError
-from uwlab.experiments.emva import PhotonTransfer, photon_irradiance, photon_irradiance_mono, photons_per_pixel
+from uwlab.experiments.emva.analysis import PhotonTransfer, photon_irradiance, photon_irradiance_mono, photons_per_pixel
 from uwlab.model.data import read_csv_columns
 from uwlab.model.sensor import SensorProfile, load_sensor_profile
 

@@ -21,8 +21,8 @@ from matplotlib.ticker import NullFormatter  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from uwlab.errors import UwlabError  # noqa: E402
-from uwlab.experiments.fit import FitResult  # noqa: E402
-from uwlab.experiments.validation import dense_sweeps, point_predictions  # noqa: E402
+from uwlab.experiments.calibration.fit import FitResult  # noqa: E402
+from uwlab.experiments.calibration.validation import dense_sweeps, point_predictions  # noqa: E402
 
 OUTPUT_FILES = ("samples.parquet", "summary.json", "predictions.parquet", "dense.parquet", "corner.png", "traces.png",
                 "response.png")

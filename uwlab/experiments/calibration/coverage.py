@@ -13,9 +13,9 @@ from typing import Callable
 
 import numpy as np
 
-from uwlab.experiments.fit import FitConfig, fit_points
-from uwlab.experiments.priors import Prior
-from uwlab.experiments.simulate import LensSetting, simulate_campaign
+from uwlab.experiments.calibration.fit import FitConfig, fit_points
+from uwlab.experiments.calibration.priors import Prior
+from uwlab.experiments.calibration.simulate import LensSetting, simulate_campaign
 
 COVERAGE_PRIORS = {"light_efficiency": Prior("lognormal", 0.8, 0.2), "attenuation_scale": Prior("lognormal", 1.0, 0.3),
                    "K_dn_per_e:imx250m": Prior("normal", 0.3473, 0.0174, lo=0.0),

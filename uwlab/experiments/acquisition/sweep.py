@@ -19,23 +19,21 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Protocol
 
 import numpy as np
 import pandas as pd
 
-from uwlab.drivers.camera import Camera, Frame, Policy, open_camera
+from uwlab.drivers.camera import Camera, Frame
 from uwlab.drivers.camera.pixels import pixel_format
-from uwlab.drivers.serial import Light, Spectrometer, open_light, open_spectrometer
 from uwlab.drivers.serial.base import AVERAGING_RANGE
 from uwlab.errors import ConfigError
 from uwlab.experiments.dataset import FRAMES_DIR, Dataset, spectra_frame
-from uwlab.experiments.light_calibration import measure_unsaturated
-from uwlab.experiments.plan import Plan, Point, SweepSpec, resolved_rig
-from uwlab.experiments.roi import Rect, aruco_roi, check_inside
-from uwlab.experiments.spectra import irradiance_w_m2
+from uwlab.experiments.acquisition.light_calibration import measure_unsaturated
+from uwlab.experiments.acquisition.plan import Plan, Point, SweepSpec, resolved_rig
+from uwlab.experiments.acquisition.rigs import Rig
+from uwlab.experiments.acquisition.roi import Rect, check_inside
+from uwlab.experiments.acquisition.spectra import irradiance_w_m2
 
-MONO16_UNUSED_LSB_MARGIN = 0x000F
 DARK_AVERAGING = 16
 
 
@@ -48,85 +46,6 @@ class Progress:
     sweep_id: str
     point_index: int
     latest: dict
-
-
-class Rig(Protocol):
-    """What the engine needs from a rig (`uwlab.experiments.simrig.SimRig` or `HardwareRig`)."""
-
-    sim: bool
-    light: Light | None
-    spectrometer: Spectrometer | None
-
-    def open_camera(self, sweep: SweepSpec) -> Camera: ...
-    def set_aperture(self, sweep: SweepSpec, f_number: float) -> None: ...
-    def place_spectrometer(self, position: str) -> None: ...
-    def board_roi(self, sweep: SweepSpec, camera: Camera, image: np.ndarray) -> Rect: ...
-    def full_scale_dn(self, camera: Camera) -> float: ...
-    def truth(self, camera: Camera) -> dict | None: ...
-
-
-Confirm = Callable[[str], None]
-
-
-class HardwareRig:
-    """The tank: a camera by backend and id, the light and spectrometer on serial ports. ``confirm(message)``
-    asks the operator to do something (set an aperture, move the spectrometer) and returns once done; None
-    (``--non-interactive``) refuses every such request."""
-
-    sim = False
-
-    def __init__(self, plan: Plan, confirm: Confirm | None = None):
-        self.plan = plan
-        self.confirm = confirm
-        self.light: Light | None = None
-        self.spectrometer: Spectrometer | None = None
-        self._position: str | None = None
-
-    def __enter__(self) -> HardwareRig:
-        ports = self.plan.instruments
-        protocol = ports.get("protocol", "uwlab-ascii")
-        try:
-            if "light_port" in ports:
-                self.light = open_light(ports["light_port"], protocol)
-            if "spectrometer_port" in ports:
-                self.spectrometer = open_spectrometer(ports["spectrometer_port"], protocol)
-        except BaseException:
-            self.__exit__()
-            raise
-        return self
-
-    def __exit__(self, *exc_info) -> None:
-        for device in (self.light, self.spectrometer):
-            if device is not None:
-                device.close()
-
-    def open_camera(self, sweep: SweepSpec) -> Camera:
-        return open_camera(sweep.camera.backend, sweep.camera.device_id, policy=Policy(timeout_s=sweep.camera.timeout_s))
-
-    def _ask(self, key: str, value: object, message: str) -> None:
-        if self.confirm is None:
-            raise ConfigError(key, value, f"needs the operator ({message}); refused under --non-interactive")
-        self.confirm(message)
-
-    def set_aperture(self, sweep: SweepSpec, f_number: float) -> None:
-        self._ask(f"sweep.{sweep.id}.values", f_number, f"set the {sweep.lens.focal_length_mm:g} mm lens to "
-                                                          f"F{f_number:g}")
-
-    def place_spectrometer(self, position: str) -> None:
-        if position != self._position:
-            self._ask("spectrometer", position, f"place the spectrometer at the {position}")
-            self._position = position
-
-    def board_roi(self, sweep: SweepSpec, camera: Camera, image: np.ndarray) -> Rect:
-        return aruco_roi(image, sweep.aruco_dictionary)
-
-    def full_scale_dn(self, camera: Camera) -> float:
-        """The output format's maximum; for Mono16 less the unused LSBs of an MSB-aligned ≥ 12-bit ADC."""
-        fmt = pixel_format(camera.pixel_format)
-        return float(fmt.max_value - (MONO16_UNUSED_LSB_MARGIN if fmt.bits == 16 else 0))
-
-    def truth(self, camera: Camera) -> dict | None:
-        return None
 
 
 @dataclass(frozen=True)

@@ -9,7 +9,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from uwlab.experiments.emva import EmvaResult  # noqa: E402
+from uwlab.experiments.emva.analysis import EmvaResult  # noqa: E402
 from uwlab.experiments.figures import save_figure  # noqa: E402
 from uwlab.model.sensor import snr  # noqa: E402
 

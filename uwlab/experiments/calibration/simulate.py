@@ -20,7 +20,7 @@ import pandas as pd
 
 from uwlab.drivers.sim.camera import SensorConfig, SimSensor, SimTruth
 from uwlab.drivers.sim.scene import RigScene
-from uwlab.experiments.emva_stream import stack_statistics
+from uwlab.experiments.emva.stream import stack_statistics
 from uwlab.model.data import config_dir, read_toml
 
 BLACK_LEVEL_DN = 16.0  # native DN, so that dark frames are not clipped at zero

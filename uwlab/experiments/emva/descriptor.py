@@ -26,8 +26,8 @@ from pathlib import Path, PureWindowsPath
 import numpy as np
 
 from uwlab.errors import ConfigError
-from uwlab.experiments.emva import QUANTISATION_VAR_DN2, PhotonTransfer, SpatialPoint, half_saturation_index
-from uwlab.experiments.emva_stream import StackStatistics, stack_statistics
+from uwlab.experiments.emva.analysis import QUANTISATION_VAR_DN2, PhotonTransfer, SpatialPoint, half_saturation_index
+from uwlab.experiments.emva.stream import StackStatistics, stack_statistics
 
 DESCRIPTOR_NAME = "EMVA1288descriptor.txt"
 SPATIAL_FRAMES = 16

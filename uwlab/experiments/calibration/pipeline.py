@@ -1,6 +1,6 @@
 """Calibrating the model against a dataset: fit, validate, write — what `uwlab fit` and `uwlab demo` run.
 
-Outputs in the calibration directory: those of `uwlab.experiments.fit_output`, plus ``cross.json`` (the
+Outputs in the calibration directory: those of `uwlab.experiments.calibration.output`, plus ``cross.json`` (the
 cross-configuration table), ``spectra.parquet`` (predicted and measured spectra) and ``calibration.json``
 (which dataset, fit config, training sweeps, and the simulated ground truth when the dataset comes from the
 simulated rig).
@@ -16,10 +16,10 @@ import pandas as pd
 
 from uwlab.errors import ConfigError
 from uwlab.experiments.dataset import Dataset
-from uwlab.experiments.fit import FitConfig, default_config_for, fit_points, load_fit_config
-from uwlab.experiments.fit_output import check_output_dir, write_fit
-from uwlab.experiments.forward import relative_flux
-from uwlab.experiments.validation import compare_spectra, cross_configuration, predicted_spectra
+from uwlab.experiments.calibration.fit import FitConfig, default_config_for, fit_points, load_fit_config
+from uwlab.experiments.calibration.output import check_output_dir, write_fit
+from uwlab.experiments.calibration.forward import relative_flux
+from uwlab.experiments.calibration.validation import compare_spectra, cross_configuration, predicted_spectra
 
 
 def truth_from_metadata(metadata: dict, points: pd.DataFrame, names) -> dict:

@@ -1,6 +1,6 @@
 """Bayesian calibration of the image-formation model with emcee.
 
-Posterior p(θ | y) ∝ p(θ) ∏ N(y_i | μ_i(θ), σ_i(θ)²) with μ from `uwlab.experiments.forward` and
+Posterior p(θ | y) ∝ p(θ) ∏ N(y_i | μ_i(θ), σ_i(θ)²) with μ from `uwlab.experiments.calibration.forward` and
 σ_i² = σ²_meas,i + (δ μ_i)² (δ: fractional model discrepancy). Saturated points are excluded.
 
 - Start: the maximum a posteriori point (scipy.optimize, Nelder–Mead then Powell), walkers drawn from the
@@ -32,8 +32,8 @@ import numpy as np
 from scipy import optimize
 
 from uwlab.errors import ConfigError, UwlabError
-from uwlab.experiments.forward import ForwardModel, build_forward_model
-from uwlab.experiments.priors import Prior, parse_prior
+from uwlab.experiments.calibration.forward import ForwardModel, build_forward_model
+from uwlab.experiments.calibration.priors import Prior, parse_prior
 from uwlab.model.data import read_toml
 
 MIN_TAU_MULTIPLE = 50

@@ -1,4 +1,9 @@
-"""The simulated rig for ``uwlab sweep --sim``: the same code paths as the tank, with simulated devices.
+"""The rigs a sweep runs on, side by side: the tank (`HardwareRig`) and the simulated rig (`SimRig`).
+
+`HardwareRig`: a camera by backend and id, the light and spectrometer on serial ports; whatever the rig cannot do
+itself (set a manual aperture, move the spectrometer) is asked of the operator.
+
+`SimRig`, for ``uwlab sweep --sim``: the same code paths as the tank, with simulated devices.
 
 - Light and spectrometer: the serial simulators (`uwlab.drivers.sim.serial_sim.SerialRig`) in their own
   processes behind real pseudo-terminals, driven through the real serial drivers;
@@ -8,15 +13,17 @@
 
 Apertures are set directly (`RigScene.set_lens` and a re-render); the spectrometer is moved between the
 target and the camera with the simulator's ``SIM:POS`` command. "No lens" gives a uniform field (a bare
-sensor sees the whole hemisphere; see `uwlab.experiments.plan`). The simulated board carries no printed
+sensor sees the whole hemisphere; see `uwlab.model.optics`). The simulated board carries no printed
 markers, so an ``aruco`` ROI is the board's footprint from the scene (what the detector would report).
 The spectrometer simulator models the rig file's geometry; per-sweep geometry overrides change the images only.
 """
 from __future__ import annotations
 
 import tempfile
+from collections.abc import Callable
 from dataclasses import asdict
 from pathlib import Path
+from typing import Protocol
 
 import numpy as np
 
@@ -27,8 +34,89 @@ from uwlab.drivers.sim.camera import SimFaults, SimSensor, SimTruth, flat_rate_m
 from uwlab.drivers.sim.rig_state import RigState
 from uwlab.drivers.sim.scene import RigScene
 from uwlab.drivers.sim.serial_sim import SerialRig, SerialSimSettings
-from uwlab.experiments.plan import SweepSpec
-from uwlab.experiments.roi import Rect
+from uwlab.errors import ConfigError
+from uwlab.experiments.acquisition.plan import Plan, SweepSpec
+from uwlab.experiments.acquisition.roi import Rect, aruco_roi
+
+
+class Rig(Protocol):
+    """What the engine needs from a rig (`SimRig` or `HardwareRig`)."""
+
+    sim: bool
+    light: Light | None
+    spectrometer: Spectrometer | None
+
+    def open_camera(self, sweep: SweepSpec) -> Camera: ...
+    def set_aperture(self, sweep: SweepSpec, f_number: float) -> None: ...
+    def place_spectrometer(self, position: str) -> None: ...
+    def board_roi(self, sweep: SweepSpec, camera: Camera, image: np.ndarray) -> Rect: ...
+    def full_scale_dn(self, camera: Camera) -> float: ...
+    def truth(self, camera: Camera) -> dict | None: ...
+
+
+Confirm = Callable[[str], None]
+MONO16_UNUSED_LSB_MARGIN = 0x000F
+
+
+class HardwareRig:
+    """The tank: a camera by backend and id, the light and spectrometer on serial ports. ``confirm(message)``
+    asks the operator to do something (set an aperture, move the spectrometer) and returns once done; None
+    (``--non-interactive``) refuses every such request."""
+
+    sim = False
+
+    def __init__(self, plan: Plan, confirm: Confirm | None = None):
+        self.plan = plan
+        self.confirm = confirm
+        self.light: Light | None = None
+        self.spectrometer: Spectrometer | None = None
+        self._position: str | None = None
+
+    def __enter__(self) -> HardwareRig:
+        ports = self.plan.instruments
+        protocol = ports.get("protocol", "uwlab-ascii")
+        try:
+            if "light_port" in ports:
+                self.light = open_light(ports["light_port"], protocol)
+            if "spectrometer_port" in ports:
+                self.spectrometer = open_spectrometer(ports["spectrometer_port"], protocol)
+        except BaseException:
+            self.__exit__()
+            raise
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        for device in (self.light, self.spectrometer):
+            if device is not None:
+                device.close()
+
+    def open_camera(self, sweep: SweepSpec) -> Camera:
+        return open_camera(sweep.camera.backend, sweep.camera.device_id, policy=Policy(timeout_s=sweep.camera.timeout_s))
+
+    def _ask(self, key: str, value: object, message: str) -> None:
+        if self.confirm is None:
+            raise ConfigError(key, value, f"needs the operator ({message}); refused under --non-interactive")
+        self.confirm(message)
+
+    def set_aperture(self, sweep: SweepSpec, f_number: float) -> None:
+        self._ask(f"sweep.{sweep.id}.values", f_number, f"set the {sweep.lens.focal_length_mm:g} mm lens to "
+                                                          f"F{f_number:g}")
+
+    def place_spectrometer(self, position: str) -> None:
+        if position != self._position:
+            self._ask("spectrometer", position, f"place the spectrometer at the {position}")
+            self._position = position
+
+    def board_roi(self, sweep: SweepSpec, camera: Camera, image: np.ndarray) -> Rect:
+        return aruco_roi(image, sweep.aruco_dictionary)
+
+    def full_scale_dn(self, camera: Camera) -> float:
+        """The output format's maximum; for Mono16 less the unused LSBs of an MSB-aligned ≥ 12-bit ADC."""
+        fmt = pixel_format(camera.pixel_format)
+        return float(fmt.max_value - (MONO16_UNUSED_LSB_MARGIN if fmt.bits == 16 else 0))
+
+    def truth(self, camera: Camera) -> dict | None:
+        return None
 
 
 class SimRig:

@@ -21,7 +21,7 @@ import pandas as pd
 
 from uwlab.drivers.serial.base import INTEGRATION_MS_RANGE, Light, Spectrometer
 from uwlab.errors import ConfigError, DeviceError
-from uwlab.experiments.spectra import illuminance_lux, irradiance_w_m2
+from uwlab.experiments.acquisition.spectra import illuminance_lux, irradiance_w_m2
 
 SPECTRAL_PREFIX = "irradiance_w_m2_nm_"
 CURVE_COLUMNS = ("level", "irradiance_w_m2", "illuminance_lux")

@@ -1,0 +1,1 @@
+"""Design workflow: evaluating designs over grids, and the paper's design figures."""
