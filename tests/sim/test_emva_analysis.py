@@ -9,12 +9,15 @@ import pytest
 
 from uwlab.errors import ConfigError
 from uwlab.experiments.emva.analysis import (
-    PhotonTransfer, characterize, fit_line, line_posterior, photon_irradiance, photon_irradiance_mono,
+    PhotonTransfer,
+    characterize,
+    fit_line,
+    line_posterior,
     photons_per_pixel,
 )
 from uwlab.experiments.emva.from_dataset import photon_transfer_from_points
 from uwlab.experiments.emva.stream import StackAccumulator, stack_statistics
-from uwlab.model.photometry import C_M_S, H_J_S
+from uwlab.model.photometry import C_M_S, H_J_S, photon_flux, photons_per_joule
 
 K, ETA, SIGMA_D, SAT_E, DARK_E_S, OFFSET = 0.5, 0.6, 3.0, 8000.0, 100.0, 40.0
 
@@ -43,8 +46,8 @@ def test_photon_irradiance_closed_forms():
     # a flat 1 W/m²/nm spectrum over 400-600 nm: ∫ λ/(hc) dλ = (600² - 400²)/2 nm² · 1e-9 / (h c)
     nm = np.linspace(400, 600, 2001)
     expected = (600**2 - 400**2) / 2 * 1e-9 / (H_J_S * C_M_S)
-    assert photon_irradiance(nm, np.ones_like(nm)) == pytest.approx(expected, rel=1e-9)
-    assert photon_irradiance_mono(1.0, 500.0) == pytest.approx(500e-9 / (H_J_S * C_M_S))
+    assert photon_flux(nm, np.ones_like(nm)) == pytest.approx(expected, rel=1e-9)
+    assert photons_per_joule(500.0) == pytest.approx(500e-9 / (H_J_S * C_M_S))
     assert photons_per_pixel(1e18, 0.01, (3.45e-6) ** 2) == pytest.approx(1e18 * 0.01 * 3.45e-6**2)
 
 
@@ -143,7 +146,7 @@ EMPTY_SPECTRA = pd.DataFrame(columns=["sweep_id", "point_index", "position", "wa
 def test_points_table_to_photons():
     pt = model_transfer()
     got = photon_transfer_from_points(_points_frame(pt), EMPTY_SPECTRA, wavelength_nm=550.0)
-    expected = photon_irradiance_mono(0.5, 550.0) * pt.exposure_s * (3.45e-6) ** 2
+    expected = 0.5 * photons_per_joule(550.0) * pt.exposure_s * (3.45e-6) ** 2
     np.testing.assert_allclose(got.photons, expected, rtol=1e-12)
     with pytest.raises(ConfigError, match="--wavelength-nm"):
         photon_transfer_from_points(_points_frame(pt), EMPTY_SPECTRA)

@@ -4,7 +4,13 @@ import numpy as np
 import pytest
 
 from uwlab.model.grid import WavelengthGrid
-from uwlab.model.photometry import K_M_LM_PER_W, luminous_flux, photon_flux, photopic_v, radiant_per_lumen
+from uwlab.model.photometry import (
+    K_M_LM_PER_W,
+    luminous_flux,
+    photon_flux,
+    photopic_v,
+    radiant_per_lumen,
+)
 from uwlab.model.spectra import NAMED_SPECTRA, generic_led, relative_spectrum
 
 GRID = WavelengthGrid()
@@ -44,7 +50,7 @@ def test_generic_led_shape():
 def test_photon_flux_of_monochromatic_irradiance():
     spectrum = np.where(GRID.nm == 500.0, 1.0, 0.0)  # 1 W/m² at 500 nm
     expected = 500e-9 / (6.62607015e-34 * 299792458.0)
-    assert photon_flux(spectrum, GRID) == pytest.approx(expected, rel=1e-12)
+    assert photon_flux(GRID.nm, spectrum) == pytest.approx(expected, rel=1e-12)
     assert K_M_LM_PER_W == 683.002
 
 

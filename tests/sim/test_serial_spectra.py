@@ -13,11 +13,11 @@ from uwlab.experiments.acquisition.spectra import (
     cct_k,
     illuminance_lux,
     irradiance_w_m2,
-    photon_flux_m2_s,
     read_sekonic_csv,
     spectrum_summary,
     write_spectrum_csv,
 )
+from uwlab.model.photometry import photon_flux
 
 H = 6.62607015e-34
 C = 299792458.0
@@ -36,7 +36,7 @@ def test_monochromatic_555_nm_is_683_lux():
     irradiance = np.where(wavelength_nm == 555.0, 1.0, 0.0)
     assert irradiance_w_m2(wavelength_nm, irradiance) == pytest.approx(1.0)
     assert illuminance_lux(wavelength_nm, irradiance) == pytest.approx(683.002, rel=1e-9)
-    assert photon_flux_m2_s(wavelength_nm, irradiance) == pytest.approx(555e-9 / (H * C), rel=1e-9)
+    assert photon_flux(wavelength_nm, irradiance) == pytest.approx(555e-9 / (H * C), rel=1e-9)
 
 
 def test_flat_spectrum_closed_forms():
@@ -44,7 +44,7 @@ def test_flat_spectrum_closed_forms():
     irradiance = np.full_like(wavelength_nm, 0.02)
     assert irradiance_w_m2(wavelength_nm, irradiance) == pytest.approx(0.02 * 300)
     expected_photons = 0.02 * 1e-9 * (700.0**2 - 400.0**2) / 2 / (H * C)
-    assert photon_flux_m2_s(wavelength_nm, irradiance) == pytest.approx(expected_photons, rel=1e-12)
+    assert photon_flux(wavelength_nm, irradiance) == pytest.approx(expected_photons, rel=1e-12)
 
 
 @pytest.mark.parametrize("temperature_k", [2700.0, 4000.0, 6500.0])

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from uwlab.errors import ConfigError
+from uwlab.jsonable import to_jsonable
 from uwlab.model.config import apply_override, load_raw, parse_value
 
 
@@ -49,18 +50,6 @@ def parse_grid_values(key: str, text: str) -> list:
     if not values:
         raise ConfigError(key, text, "no grid values")
     return values
-
-
-def _jsonable(value):
-    if isinstance(value, dict):
-        return {k: _jsonable(v) for k, v in value.items()}
-    if value is None:
-        return None
-    arr = np.asarray(value)
-    if arr.dtype == bool:
-        return bool(arr)
-    x = float(arr)
-    return x if math.isfinite(x) else None
 
 
 _TABLE = (
@@ -135,7 +124,7 @@ def run(args) -> int:
                 print(frame.to_string(max_rows=40))
         return 0
     design = build_design(raw, base)
-    result = _jsonable(evaluate(design))
+    result = to_jsonable(evaluate(design))
     if args.plot:
         from uwlab.experiments.design.plots import write_design_plots
 

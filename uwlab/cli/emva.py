@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 from uwlab.errors import ConfigError
+from uwlab.jsonable import to_jsonable
 
 RESULT_NAME = "emva.json"
 _SUMMARY = (
@@ -71,7 +72,10 @@ def _override(args):
 
 def _load_dataset(args):
     from uwlab.experiments.dataset import Dataset
-    from uwlab.experiments.emva.from_dataset import named_profile, photon_transfer_from_points
+    from uwlab.experiments.emva.from_dataset import (
+        named_profile,
+        photon_transfer_from_points,
+    )
 
     dataset = Dataset.open(args.dataset)
     points = dataset.points()
@@ -80,17 +84,6 @@ def _load_dataset(args):
                                      source=f"dataset {args.dataset}")
     camera = points["camera_model"].dropna() if "camera_model" in points else []
     return pt, named_profile(points), (str(camera.iloc[0]) if len(camera) else "camera")
-
-
-def _jsonable(value):
-    if isinstance(value, dict):
-        return {k: _jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
-    if isinstance(value, (str, bool, int)) or value is None:
-        return value
-    x = float(value)
-    return x if math.isfinite(x) else None
 
 
 def _targets(out: Path, name: str, with_profile: bool) -> tuple[list[Path], tuple[Path, Path] | None]:
@@ -125,7 +118,7 @@ def run_characterize(args) -> int:
     out = Path(args.out) if args.out else None
     core, profile = _targets(out, name, with_profile) if out else ([], None)
     result = characterize(pt, seed=args.seed)
-    document = _jsonable(result.values)
+    document = to_jsonable(result.values)
     if out:
         document["files"] = [str(p) for p in core + list(profile or ())]
         if not with_profile:

@@ -33,6 +33,7 @@ import pyarrow.parquet as pq
 
 from uwlab import __version__
 from uwlab.errors import ConfigError, UwlabError
+from uwlab.jsonable import dumps
 
 POINTS_FILE = "points.parquet"
 SPECTRA_FILE = "spectra.parquet"
@@ -142,7 +143,7 @@ def _write_parquet(path: Path, table: pa.Table) -> None:
 def _write_json(path: Path, document: dict) -> None:
     def write(tmp: str) -> None:
         with open(tmp, "w") as fh:
-            json.dump(document, fh, indent=2, default=str)
+            fh.write(dumps(document, indent=2))
             fh.write("\n")
     _write_atomic(path, write)
 

@@ -58,8 +58,3 @@ def resolve_path(value: str, base: Path | None) -> Path:
     if not path.is_absolute() and base is not None:
         path = base / path
     return path
-
-
-def interp_hold(x: np.ndarray, xp: np.ndarray, fp: np.ndarray) -> np.ndarray:
-    """Linear interpolation, holding the end values outside the table (`numpy.interp` convention)."""
-    return np.interp(x, xp, fp)

@@ -32,12 +32,13 @@ from pathlib import Path
 import numpy as np
 
 from uwlab.errors import ConfigError
-from uwlab.model import optics, port as port_model
+from uwlab.model import optics
+from uwlab.model import port as port_model
 from uwlab.model.config import apply_override, load_raw, validate
 from uwlab.model.data import resolve_path
 from uwlab.model.grid import WavelengthGrid
-from uwlab.model.photometry import radiant_per_lumen
-from uwlab.model.sensor import SensorProfile, electrons_per_joule_nm, load_sensor_profile, response_dn, snr
+from uwlab.model.photometry import photons_per_joule, radiant_per_lumen
+from uwlab.model.sensor import SensorProfile, load_sensor_profile, response_dn, snr
 from uwlab.model.spectra import NAMED_SPECTRA, relative_spectrum
 from uwlab.model.target import NAMED_REFLECTANCE, reflectance, transmittance
 from uwlab.model.water import WATER_TYPES, water_iop
@@ -179,7 +180,7 @@ def _compute_weights(d: Design) -> SpectralWeights:
     m_spec = m if _is_spectral(d, "target.reflectance") else 1.0
     t_spec = t if _is_spectral(d, "lens.transmittance") else 1.0
     base = s * grid.w_nm
-    W = np.stack([base, base * m_spec * t_spec, base * m_spec * t_spec * qe * electrons_per_joule_nm(grid)], axis=1)
+    W = np.stack([base, base * m_spec * t_spec, base * m_spec * t_spec * qe * photons_per_joule(grid.nm)], axis=1)
     return SpectralWeights(c=c, W=W, s_per_lm=s, reflectance=m, lens_transmittance=t, qe=qe)
 
 

@@ -41,6 +41,27 @@ def luminous_flux(radiant_w_per_nm: np.ndarray, grid: WavelengthGrid) -> np.ndar
     return K_M_LM_PER_W * grid.integrate(radiant_w_per_nm * photopic_v(grid))
 
 
-def photon_flux(radiant_w_per_nm: np.ndarray, grid: WavelengthGrid) -> np.ndarray:
-    """Photons per second (per m² for an irradiance): ∫ Φe(λ) λ / (h c) dλ."""
-    return grid.integrate(radiant_w_per_nm * grid.m) / (H_J_S * C_M_S)
+def photons_per_joule(wavelength_nm) -> np.ndarray:
+    """λ / (h c) [photons per J]: the number of photons in one joule of light of wavelength λ.
+
+    >>> round(float(photons_per_joule(555.0)) / 1e18, 4)
+    2.7939
+    """
+    return np.asarray(wavelength_nm, float) * 1e-9 / (H_J_S * C_M_S)
+
+
+def photon_flux(wavelength_nm, spectral_w_per_nm) -> np.ndarray:
+    """Photon flux ∫ Φe(λ) λ / (h c) dλ [photons/s], or photon irradiance [photons m⁻² s⁻¹] for a spectral
+    irradiance [W m⁻² nm⁻¹], by the trapezoidal rule over the given wavelengths (any order; the wavelength
+    axis is the last one). The one conversion from spectral energy to photons in uwlab (EMVA 1288 Release 4.0
+    Linear, eq. 3: μ_p = A t_exp E λ / (h c)).
+
+    >>> nm = np.array([550.0, 560.0])
+    >>> bool(np.isclose(photon_flux(nm, np.ones(2)), 10 * photons_per_joule(555.0)))
+    True
+    """
+    nm = np.asarray(wavelength_nm, float)
+    order = np.argsort(nm, kind="stable")
+    nm = nm[order]
+    energy = np.asarray(spectral_w_per_nm, float)[..., order]
+    return np.trapezoid(energy * photons_per_joule(nm), nm, axis=-1)

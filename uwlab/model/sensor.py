@@ -18,9 +18,7 @@ import numpy as np
 from uwlab.errors import ConfigError
 from uwlab.model.data import config_dir, read_csv_columns, read_toml
 from uwlab.model.grid import WavelengthGrid
-from uwlab.model.photometry import C_M_S, H_J_S
 
-QE_CHANNELS = ("combined", "red", "green", "blue")
 _REQUIRED = {
     "name": str, "pixel_size_um": float, "resolution_px": list, "bit_depth": int, "K_dn_per_e": float,
     "dark_offset_dn": float, "dark_noise_e": float, "saturation_e": float, "exposure_min_us": float,
@@ -81,11 +79,6 @@ class SensorProfile:
     def dark_dn(self, bit_depth=None):
         bits = self.bit_depth if bit_depth is None else bit_depth
         return self.dark_offset_dn * 2.0 ** (np.asarray(bits) - self.bit_depth)
-
-
-def electrons_per_joule_nm(grid: WavelengthGrid) -> np.ndarray:
-    """λ / (h c) [photons per J], the photon count per unit spectral energy on the grid."""
-    return grid.m / (H_J_S * C_M_S)
 
 
 def response_dn(mu_e, k_dn_per_e, dark_dn, saturation_e, bit_depth):

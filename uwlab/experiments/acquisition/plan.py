@@ -41,6 +41,7 @@ import numpy as np
 
 from uwlab.drivers.camera.pixels import PIXEL_FORMATS
 from uwlab.errors import ConfigError
+from uwlab.jsonable import to_jsonable
 from uwlab.model.data import read_toml, resolve_path
 from uwlab.model.design import Design, build_design
 
@@ -443,13 +444,6 @@ def _bool(key: str, value: Any) -> bool:
 
 def resolved_rig(design: Design) -> dict:
     """The validated design of a sweep as plain TOML-able sections (defaults filled, paths absolute)."""
-    return {section: {k: _plain(v) for k, v in body.items() if v is not None} for section, body in design.values.items()}
-
-
-def _plain(value: Any) -> Any:
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
+    return {section: {k: to_jsonable(v) for k, v in body.items() if v is not None}
+            for section, body in design.values.items()}
 

@@ -6,7 +6,7 @@ use the trapezoidal rule over the measured range.
 - irradiance E = ∫ E(λ) dλ [W/m²];
 - illuminance Ev = K_m ∫ E(λ) V(λ) dλ [lx], K_m = 683.002 lm/W, V = CIE 1924 photopic luminosity
   function (colour-science ``SDS_LEFS_PHOTOPIC``), zero outside its table (CIE 15:2018);
-- photon flux Φp = ∫ E(λ) λ / (h c) dλ [m⁻² s⁻¹] (CODATA 2018 exact h and c);
+- photon flux Φp = ∫ E(λ) λ / (h c) dλ [m⁻² s⁻¹] (`uwlab.model.photometry.photon_flux`);
 - CCT from the CIE 1931 2° chromaticity: XYZ = ∫ E x̄ȳz̄ dλ, xy → CIE 1960 uv → Ohno (2013),
   "Practical use and calculation of CCT and Duv", LEUKOS 10(1), via colour-science ``uv_to_CCT``.
 
@@ -25,7 +25,7 @@ import colour
 import numpy as np
 
 from uwlab.errors import ConfigError
-from uwlab.model.photometry import C_M_S, H_J_S, K_M_LM_PER_W
+from uwlab.model.photometry import K_M_LM_PER_W, photon_flux
 
 SEKONIC_ROW = re.compile(r"\s*Spectral Data\s+(\d+(?:\.\d+)?)\s*\[nm\]\s*")
 CSV_COLUMNS = ("wavelength_nm", "irradiance_w_m2_nm")
@@ -66,11 +66,6 @@ def illuminance_lux(wavelength_nm: np.ndarray, irradiance_w_m2_nm: np.ndarray) -
     return float(K_M_LM_PER_W * np.trapezoid(irradiance_w_m2_nm * v_at, wavelength_nm))
 
 
-def photon_flux_m2_s(wavelength_nm: np.ndarray, irradiance_w_m2_nm: np.ndarray) -> float:
-    photons_per_joule = np.asarray(wavelength_nm) * 1e-9 / (H_J_S * C_M_S)
-    return float(np.trapezoid(irradiance_w_m2_nm * photons_per_joule, wavelength_nm))
-
-
 def tristimulus(wavelength_nm: np.ndarray, irradiance_w_m2_nm: np.ndarray) -> np.ndarray:
     """Unnormalised CIE 1931 2° XYZ = ∫ E(λ) (x̄, ȳ, z̄) dλ."""
     table_nm, cmfs = _cmfs_table()
@@ -96,7 +91,7 @@ def spectrum_summary(wavelength_nm, irradiance_w_m2_nm) -> dict:
         "irradiance_w_m2_nm": irradiance.tolist(),
         "irradiance_w_m2": irradiance_w_m2(wavelength_nm, irradiance),
         "illuminance_lux": illuminance_lux(wavelength_nm, irradiance),
-        "photon_flux_m2_s": photon_flux_m2_s(wavelength_nm, irradiance),
+        "photon_flux_m2_s": float(photon_flux(wavelength_nm, irradiance)),
         "cct_k": None if math.isnan(cct) else cct,
     }
 

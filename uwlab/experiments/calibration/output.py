@@ -8,7 +8,6 @@ predicted per configuration with 68 % / 95 % bands, and residuals).
 """
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import matplotlib
@@ -17,12 +16,13 @@ matplotlib.use("Agg")
 import corner  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from matplotlib.ticker import NullFormatter  # noqa: E402
 import pandas as pd  # noqa: E402
+from matplotlib.ticker import NullFormatter  # noqa: E402
 
 from uwlab.errors import UwlabError  # noqa: E402
 from uwlab.experiments.calibration.fit import FitResult  # noqa: E402
 from uwlab.experiments.calibration.validation import dense_sweeps, point_predictions  # noqa: E402
+from uwlab.jsonable import dumps  # noqa: E402
 
 OUTPUT_FILES = ("samples.parquet", "summary.json", "predictions.parquet", "dense.parquet", "corner.png", "traces.png",
                 "response.png")
@@ -92,14 +92,6 @@ def response_plot(predictions: pd.DataFrame, dense: pd.DataFrame, path: Path) ->
     return path
 
 
-def _json_default(value):
-    if isinstance(value, (np.floating, np.integer)):
-        return value.item()
-    if isinstance(value, np.bool_):
-        return bool(value)
-    raise TypeError(type(value))
-
-
 def write_fit(result: FitResult, out: Path, truth: dict | None = None, extra: dict | None = None) -> dict:
     """Write every calibration output to `out` (refusing to overwrite); returns the summary."""
     out.mkdir(parents=True, exist_ok=True)
@@ -117,5 +109,5 @@ def write_fit(result: FitResult, out: Path, truth: dict | None = None, extra: di
     corner_plot(result, out / "corner.png", truth)
     trace_plot(result, out / "traces.png")
     response_plot(predictions, dense, out / "response.png")
-    (out / "summary.json").write_text(json.dumps(summary, indent=2, default=_json_default) + "\n")
+    (out / "summary.json").write_text(dumps(summary, indent=2) + "\n")
     return summary

@@ -39,7 +39,6 @@ import emcee
 import numpy as np
 
 from uwlab.errors import ConfigError
-from uwlab.model.photometry import C_M_S, H_J_S
 
 QUANTISATION_VAR_DN2 = 1.0 / 12.0
 MIN_DARK_VAR_DN2 = 0.24
@@ -49,19 +48,6 @@ MIN_FIT_POINTS = 3
 MCMC_WALKERS = 32
 MCMC_STEPS = 1500
 MCMC_BURN = 500
-
-
-def photon_irradiance(wavelength_nm, irradiance_w_m2_nm) -> float:
-    """∫ E(λ) λ/(h c) dλ [photons s⁻¹ m⁻²] of a spectral irradiance [W m⁻² nm⁻¹] (trapezoidal rule)."""
-    nm = np.asarray(wavelength_nm, float)
-    e = np.asarray(irradiance_w_m2_nm, float)
-    order = np.argsort(nm)
-    return float(np.trapezoid(e[order] * nm[order] * 1e-9 / (H_J_S * C_M_S), nm[order]))
-
-
-def photon_irradiance_mono(irradiance_w_m2, wavelength_nm):
-    """E λ/(h c) [photons s⁻¹ m⁻²] of monochromatic light of irradiance E [W m⁻²]."""
-    return np.asarray(irradiance_w_m2, float) * wavelength_nm * 1e-9 / (H_J_S * C_M_S)
 
 
 def photons_per_pixel(photon_irradiance_m2_s, exposure_s, pixel_area_m2):

@@ -20,8 +20,9 @@ import numpy as np
 import pandas as pd
 
 from uwlab.errors import ConfigError
-from uwlab.experiments.emva.analysis import PhotonTransfer, photon_irradiance, photon_irradiance_mono, photons_per_pixel
+from uwlab.experiments.emva.analysis import PhotonTransfer, photons_per_pixel
 from uwlab.model.data import read_csv_columns
+from uwlab.model.photometry import photon_flux, photons_per_joule
 from uwlab.model.sensor import SensorProfile, load_sensor_profile
 
 SWEEP_KINDS = ("exposure", "light-level")
@@ -48,10 +49,10 @@ class IrradianceOverride:
 
     def photon_irradiance(self) -> float:
         if self.spectrum_nm is not None:
-            return photon_irradiance(self.spectrum_nm, self.spectrum_w_m2_nm)
+            return float(photon_flux(self.spectrum_nm, self.spectrum_w_m2_nm))
         if self.wavelength_nm is None:
             raise ConfigError("--wavelength-nm", None, "required with a number for --irradiance")
-        return float(photon_irradiance_mono(self.irradiance_w_m2, self.wavelength_nm))
+        return float(self.irradiance_w_m2 * photons_per_joule(self.wavelength_nm))
 
     def mean_wavelength_nm(self) -> float | None:
         if self.spectrum_nm is not None:
@@ -115,14 +116,14 @@ def _row_photon_irradiance(row, spectra: pd.DataFrame, wavelength_nm: float | No
     spec = spectra[(spectra["sweep_id"] == row.sweep_id) & (spectra["point_index"] == row.point_index)]
     spec = spec[spec["position"] != "target"]
     if len(spec) >= 2:
-        return (photon_irradiance(spec["wavelength_nm"], spec["irradiance_w_m2_nm"]),
+        return (float(photon_flux(spec["wavelength_nm"], spec["irradiance_w_m2_nm"])),
                 photon_weighted_wavelength(spec["wavelength_nm"], spec["irradiance_w_m2_nm"]))
     irradiance = getattr(row, "irradiance_w_m2", None)
     if irradiance is None or pd.isna(irradiance):
         raise ConfigError(f"{where}: irradiance_w_m2", None, "no spectrometer reading; pass --irradiance")
     if wavelength_nm is None:
         raise ConfigError(f"{where}: spectrum", None, "integrated irradiance without a spectrum needs --wavelength-nm")
-    return float(photon_irradiance_mono(irradiance, wavelength_nm)), wavelength_nm
+    return float(irradiance * photons_per_joule(wavelength_nm)), wavelength_nm
 
 
 def _photon_irradiances(rows: pd.DataFrame, spectra: pd.DataFrame, override: IrradianceOverride | None,

@@ -16,8 +16,8 @@ import numpy as np
 
 from uwlab.drivers.sim.camera import SensorConfig, SimSensor, SimTruth, flat_rate_map
 from uwlab.experiments.dataset import Dataset, spectra_frame
-from uwlab.experiments.emva.analysis import photon_irradiance
 from uwlab.experiments.emva.stream import stack_statistics
+from uwlab.model.photometry import photon_flux
 
 SWEEP_ID = "sim-photon-transfer"
 
@@ -27,7 +27,7 @@ def line_spectrum(photon_irradiance_m2_s: float, wavelength_nm: float, fwhm_nm: 
     sigma = fwhm_nm / (2.0 * np.sqrt(2.0 * np.log(2.0)))
     nm = np.arange(wavelength_nm - 5 * sigma, wavelength_nm + 5 * sigma + 0.25, 0.25)
     shape = np.exp(-0.5 * ((nm - wavelength_nm) / sigma) ** 2)
-    return nm, shape * (photon_irradiance_m2_s / photon_irradiance(nm, shape))
+    return nm, shape * (photon_irradiance_m2_s / photon_flux(nm, shape))
 
 
 def simulate_photon_transfer(root, truth: SimTruth, *, rate_e_per_s: float, quantum_efficiency: float,
