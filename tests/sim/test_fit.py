@@ -8,11 +8,12 @@ from uwlab.experiments.calibration.coverage import interval_coverage
 from uwlab.experiments.calibration.fit import FitConfig, Posterior, fit_points
 from uwlab.experiments.calibration.forward import build_forward_model, relative_flux
 from uwlab.experiments.calibration.priors import Prior
-from uwlab.experiments.calibration.simulate import LensSetting, simulate_campaign
+from uwlab.experiments.calibration.simulate import simulate_campaign
+from uwlab.model.optics import NO_LENS, LensSetting
 from uwlab.model.design import build_design, on_axis_electron_rate
 
 TRUTH = {"light_efficiency": 0.8, "attenuation_scale": 1.2, "K_dn_per_e:imx250m": 0.36, "K_dn_per_e:icx285alm": 1.05}
-ONE_LENS = (LensSetting("30mm-F2.0", 30.0, 2.0), LensSetting("no-lens", None, None))
+ONE_LENS = (LensSetting(30.0, 2.0), NO_LENS)
 
 
 @pytest.fixture(scope="module")

@@ -7,7 +7,7 @@ import tempfile
 import threading
 
 from uwlab.cli.sim_camera import add_sim_camera_parser
-from uwlab.drivers.sim.serial_instruments import POSITIONS
+from uwlab.model.design import SPECTROMETER_POSITIONS
 from uwlab.drivers.sim.serial_sim import SerialRig, SerialSimSettings
 
 
@@ -24,7 +24,7 @@ def register_serial(sub) -> None:
                        description="Start the simulated light and spectrometer behind pseudo-terminals, print "
                                    "their ports, and run until Ctrl-C or SIGTERM.")
     p.add_argument("--config", metavar="RIG.toml", help="rig config (default: configs/rigs/sim-tank.toml)")
-    p.add_argument("--spectrometer-position", choices=POSITIONS, default="target",
+    p.add_argument("--spectrometer-position", choices=SPECTROMETER_POSITIONS, default="target",
                    help="where the spectrometer sits: facing the light at the target board, or at the camera")
     p.add_argument("--json", action="store_true",
                    help='print {"light": PORT, "spectrometer": PORT, "rig_state": FILE} as the first line')

@@ -41,7 +41,6 @@ METADATA_FILE = "metadata.json"
 FRAMES_DIR = "frames"
 DATASET_ENTRIES = (POINTS_FILE, SPECTRA_FILE, METADATA_FILE, FRAMES_DIR)
 KINDS = ("exposure", "aperture", "gain", "light-level", "dark")
-POSITIONS = ("target", "camera")
 SOFTWARE_PACKAGES = ("numpy", "scipy", "pandas", "pyarrow", "colour-science", "opencv-contrib-python-headless",
                      "harvesters", "genicam", "pyserial", "tifffile", "emcee")
 

@@ -359,6 +359,11 @@ def evaluate(d: Design) -> dict[str, np.ndarray]:
     }
 
 
+SPECTROMETER_POSITIONS = ("target", "camera")
+"""Where a rig's spectrometer reads the chain: ``target``, the irradiance on a board facing the light;
+``camera``, π L_w at the camera (the irradiance from the Lambertian target filling the meter's field)."""
+
+
 def stage_spectra(d: Design) -> dict[str, np.ndarray]:
     """Spectra along the on-axis chain for a scalar design (for plots and the simulated spectrometer).
 

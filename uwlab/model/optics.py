@@ -11,15 +11,63 @@ degrees only at the config/CLI boundary; the circle of confusion c is given on t
   2 N c f² s² / (f⁴ − N² c² s²).
 - Underwater the lens focuses on the port's virtual image (flat: s / n_w; dome: see `uwlab.model.port`), so
   near/far are computed in image space and mapped back to object distances in water.
+- No lens (a bare sensor): under a uniform Lambertian field of radiance L a sensor receives E = π L, which is
+  the camera equation with N = 1/2 and T = 1 (the f-number limit of an aplanatic lens in air; e.g. Ohta,
+  *Radiometry*; EMVA 1288 Release 4.0 Linear §3.1 uses the same relation for its disk source). `LensSetting`
+  carries this rule: a bare sensor is evaluated as a lens with `BARE_SENSOR_F_NUMBER` and
+  `BARE_SENSOR_TRANSMITTANCE`, without vignetting.
 - The minimum f-number for a required depth of field D solves far − near = D. In air-equivalent space, with
   a = f²/(N c), the total is 2 s a (s − f) / (a² − (s − f)²), so a = (s − f)(s + √(s² + D²)) / D and
   N = f² / (c a). Dome ports have no closed form: bisection on log N.
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from uwlab.model import port as port_model
+
+
+BARE_SENSOR_F_NUMBER = 0.5
+BARE_SENSOR_TRANSMITTANCE = 1.0
+
+
+@dataclass(frozen=True)
+class LensSetting:
+    """A lens on a camera at one aperture, or no lens at all (``focal_length_mm`` None: the bare sensor).
+
+    ``f_number_range`` is the lens's aperture range [lo, hi] when known; ``manual`` says the aperture is set by
+    hand (an operator has to turn the ring).
+
+    >>> LensSetting(30.0, 2.0).label, NO_LENS.label
+    ('30mm-F2.0', 'no-lens')
+    >>> NO_LENS.overrides()
+    {'lens.f_number': 0.5, 'lens.transmittance': 1.0}
+    """
+
+    focal_length_mm: float | None
+    f_number: float | None
+    f_number_range: tuple[float, float] | None = None
+    manual: bool = True
+
+    @property
+    def bare(self) -> bool:
+        return self.focal_length_mm is None
+
+    @property
+    def label(self) -> str:
+        return "no-lens" if self.bare else f"{self.focal_length_mm:g}mm-F{self.f_number:.1f}"
+
+    def overrides(self) -> dict[str, float]:
+        """Design values (``section.key``) that put this lens on a design: the bare sensor's N and T, or the
+        lens's focal length and f-number (its transmittance stays the design's)."""
+        if self.bare:
+            return {"lens.f_number": BARE_SENSOR_F_NUMBER, "lens.transmittance": BARE_SENSOR_TRANSMITTANCE}
+        return {"lens.focal_length_mm": float(self.focal_length_mm), "lens.f_number": float(self.f_number)}
+
+
+NO_LENS = LensSetting(None, None)
 
 
 def lens_irradiance_factor(f_number, cos_alpha=1.0):

@@ -24,7 +24,8 @@ from uwlab.errors import ConfigError
 from uwlab.model.config import Num
 from uwlab.model.data import config_dir, read_toml
 from uwlab.model.design import (Design, build_design, effective_focal_length_m, electron_rate_at_radius,
-                                on_axis_electron_rate, stage_spectra)
+                                on_axis_electron_rate, SPECTROMETER_POSITIONS, stage_spectra)
+from uwlab.model.optics import NO_LENS
 from uwlab.model.sensor import SensorProfile
 
 DEFAULT_RIG = "rigs/sim-tank.toml"
@@ -34,7 +35,6 @@ SIM_SCHEMA = {
     "surround_reflectance": Num(0.05, lo=0.0, hi=1.0),
     "light_efficiency": Num(1.0, lo=0.0, lo_open=True),
 }
-POSITIONS = ("target", "camera")
 POSITIVE_NUM = dict(lo=0.0, lo_open=True)
 
 
@@ -96,8 +96,8 @@ class RigScene:
 
     def remove_lens(self) -> None:
         """Take the lens off: the bare sensor sees the board's radiance field, E = π L_a (the camera equation
-        with N = 0.5 and T = 1), uniform over the sensor (the board is taken to fill the field)."""
-        self.design = self.design.with_values(**{"lens.f_number": 0.5, "lens.transmittance": 1.0})
+        `uwlab.model.optics.NO_LENS`), uniform over the sensor (the board is taken to fill the field)."""
+        self.design = self.design.with_values(**NO_LENS.overrides())
         self.no_lens = True
         self._profile = None
 
@@ -156,8 +156,8 @@ class RigScene:
 
     def spectral_irradiance(self, position: str, flux_fraction: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
         """(wavelength_nm, irradiance_w_m2_nm) a spectrometer measures at `position` ("target" or "camera")."""
-        if position not in POSITIONS:
-            raise ConfigError("position", position, f"must be one of {', '.join(POSITIONS)}")
+        if position not in SPECTROMETER_POSITIONS:
+            raise ConfigError("position", position, f"must be one of {', '.join(SPECTROMETER_POSITIONS)}")
         spectra = stage_spectra(self.design)
         if position == "target":
             cos_i = np.cos(np.radians(self.design["light.incidence_deg"]))

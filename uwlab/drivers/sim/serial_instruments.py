@@ -35,10 +35,10 @@ from uwlab.drivers.serial.protocol import (
     format_float,
 )
 from uwlab.drivers.sim.rig_state import LightState, RigState
+from uwlab.model.design import SPECTROMETER_POSITIONS
 from uwlab.model.grid import DEFAULT_GRID
 
 SpectrumSource = Callable[[str, float], tuple[np.ndarray, np.ndarray]]
-POSITIONS = ("target", "camera")
 
 
 class CommandError(Exception):
@@ -212,10 +212,10 @@ class SimSpectrometer(SimInstrument):
             return [str(self.averaging)]
         elif header == "SPEC:READ?":
             return self.read()
-        elif header == "SIM:POS" and argument.lower() in POSITIONS:
+        elif header == "SIM:POS" and argument.lower() in SPECTROMETER_POSITIONS:
             self.position = argument.lower()
         elif header == "SIM:POS":
-            raise CommandError(ERR_BAD_ARGUMENT, f"position must be one of {', '.join(POSITIONS)}")
+            raise CommandError(ERR_BAD_ARGUMENT, f"position must be one of {', '.join(SPECTROMETER_POSITIONS)}")
         elif header == "SIM:POS?":
             return [self.position]
         else:

@@ -33,13 +33,13 @@ from uwlab.drivers.serial.protocol import ERR_BUSY, ERR_HARDWARE, TERMINATOR
 from uwlab.drivers.sim.rig_state import RigState
 from uwlab.drivers.sim.scene import RigScene
 from uwlab.drivers.sim.serial_instruments import (
-    POSITIONS,
     SimInstrument,
     SimLight,
     SimSpectrometer,
     SpectrumSource,
 )
 from uwlab.errors import ConfigError, DeviceError, UwlabError
+from uwlab.model.design import SPECTROMETER_POSITIONS
 
 FAULTS = ("noreply", "garbage", "partial", "err", "busy", "reset", "vanish")
 GARBAGE = b"\x00\xff\xfe\x1b[2J\xc3(\x07garbage\x80"
@@ -253,8 +253,8 @@ class SerialSimSettings:
     @classmethod
     def from_config(cls, path: str | os.PathLike | None, spectrometer_position: str = "target") -> SerialSimSettings:
         """Load and check the rig config (None: the default rig) and take its ``[sim] light_gamma``."""
-        if spectrometer_position not in POSITIONS:
-            raise ConfigError("spectrometer_position", spectrometer_position, f"must be one of {', '.join(POSITIONS)}")
+        if spectrometer_position not in SPECTROMETER_POSITIONS:
+            raise ConfigError("spectrometer_position", spectrometer_position, f"must be one of {', '.join(SPECTROMETER_POSITIONS)}")
         scene = RigScene.from_toml(path)
         return cls(Path(path) if path is not None else None, scene.sim["light_gamma"], spectrometer_position)
 

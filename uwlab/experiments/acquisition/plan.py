@@ -22,10 +22,8 @@ sensor profile: sets the rig's ``sensor.profile``; the simulated camera uses it)
 ``[camera]``), the fixed settings ``exposure_us``, ``gain_db``, ``black_level_dn``, ``light_level``,
 ``save_frames`` (TIFFs under ``frames/``) and ``geometry`` (design overrides for this sweep only).
 
-No lens: a bare sensor under a uniform Lambertian field of radiance L receives E = π L, which is the camera
-equation E = π L T / (4 N²) with N = 1/2 and T = 1 (e.g. Ohta, *Radiometry*; the f-number limit of an
-aplanatic lens). The resolved rig of a "no lens" sweep therefore carries ``lens.f_number = 0.5`` and
-``lens.transmittance = 1``; its rows have null focal length and f-number.
+No lens: the resolved rig of a "no lens" sweep carries the bare sensor's f-number and transmittance
+(`uwlab.model.optics.NO_LENS`); its rows have null focal length and f-number.
 
 Unknown keys and impossible values raise `ConfigError` naming the key (``sweep.<id>.<key>``).
 """
@@ -42,12 +40,13 @@ import numpy as np
 from uwlab.drivers.camera.pixels import PIXEL_FORMATS
 from uwlab.errors import ConfigError
 from uwlab.jsonable import to_jsonable
+from uwlab.model.config import apply_override
 from uwlab.model.data import read_toml, resolve_path
-from uwlab.model.design import Design, build_design
+from uwlab.model.design import SPECTROMETER_POSITIONS, Design, build_design
+from uwlab.model.optics import NO_LENS, LensSetting
 
 KINDS = ("exposure", "aperture", "gain", "light-level", "dark")
 DARK_MODES = ("point", "block", "none")
-POSITIONS = ("target", "camera")
 TOP_KEYS = ("name", "description", "rig", "geometry", "camera", "instruments", "defaults", "sweep")
 CAMERA_KEYS = ("backend", "id", "pixel_format", "window", "timeout_s")
 INSTRUMENT_KEYS = ("light_port", "spectrometer_port", "protocol")
@@ -61,24 +60,7 @@ SWEEP_DEFAULTS: dict[str, Any] = {
     "geometry": {},
 }
 SWEEP_KEYS = ("id", "kind", "values", *SWEEP_DEFAULTS)
-NO_LENS_F_NUMBER = 0.5
 MAX_POINTS = 10000
-
-
-@dataclass(frozen=True)
-class LensSetting:
-    """A lens setting; ``focal_length_mm`` None means no lens."""
-
-    focal_length_mm: float | None
-    f_number: float | None
-    f_number_range: tuple[float, float] | None = None
-    manual: bool = True
-
-    @property
-    def label(self) -> str:
-        if self.focal_length_mm is None:
-            return "no-lens"
-        return f"{self.focal_length_mm:g}mm-F{self.f_number:.1f}"
 
 
 @dataclass(frozen=True)
@@ -299,11 +281,8 @@ def _apply_sweep(prefix: str, rig: dict, opts: dict, lens: LensSetting) -> None:
         if not isinstance(opts["sensor"], str):
             raise ConfigError(f"{prefix}.sensor", opts["sensor"], "must be a sensor profile name")
         rig.setdefault("sensor", {})["profile"] = opts["sensor"]
-    lens_section = rig.setdefault("lens", {})
-    if lens.focal_length_mm is None:
-        lens_section.update(f_number=NO_LENS_F_NUMBER, transmittance=1.0)
-    else:
-        lens_section.update(focal_length_mm=lens.focal_length_mm, f_number=lens.f_number)
+    for key, value in lens.overrides().items():
+        apply_override(rig, key, value)
     exposure = opts["exposure_us"]
     if _is_number(exposure) and exposure > 0:
         rig.setdefault("operation", {})["exposure_s"] = exposure * 1e-6
@@ -311,7 +290,7 @@ def _apply_sweep(prefix: str, rig: dict, opts: dict, lens: LensSetting) -> None:
 
 def _lens(key: str, spec: Any, rig: dict) -> LensSetting:
     if spec == "none":
-        return LensSetting(None, None)
+        return NO_LENS
     if spec is None:
         section = rig.get("lens", {})
         spec = {k: section[k] for k in ("focal_length_mm", "f_number") if k in section}
@@ -340,7 +319,7 @@ def _check_values(spec: SweepSpec, sensor) -> None:
         _within(key, arr, sensor.gain_min_db, sensor.gain_max_db, f"{sensor.name}'s gain range [dB]")
     elif spec.kind == "light-level":
         _within(key, arr, 0.0, 1.0, "the light level range")
-    elif spec.lens.focal_length_mm is None:
+    elif spec.lens.bare:
         raise ConfigError(f"sweep.{spec.id}.lens", "none", "an aperture sweep needs a lens")
     else:
         lo, hi = spec.lens.f_number_range or (np.nextafter(0.0, 1.0), np.inf)
@@ -395,8 +374,8 @@ def _aruco_name(key: str, value: Any) -> str:
 
 
 def _positions(key: str, value: Any) -> tuple[str, ...]:
-    if not isinstance(value, list) or any(v not in POSITIONS for v in value) or len(set(value)) != len(value):
-        raise ConfigError(key, value, f"must be a list of distinct positions from {', '.join(POSITIONS)}")
+    if not isinstance(value, list) or any(v not in SPECTROMETER_POSITIONS for v in value) or len(set(value)) != len(value):
+        raise ConfigError(key, value, f"must be a list of distinct positions from {', '.join(SPECTROMETER_POSITIONS)}")
     return tuple(value)
 
 

@@ -173,7 +173,7 @@ class SimRig:
 
     def _rate_map(self):
         scene = self._scene
-        if self._sweep.lens.focal_length_mm is None:
+        if self._sweep.lens.bare:
             return flat_rate_map(scene.on_axis_rate_e_per_s())
         return lambda shape: scene.electron_rate_map(shape, 1.0)
 

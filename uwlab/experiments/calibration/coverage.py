@@ -15,12 +15,13 @@ import numpy as np
 
 from uwlab.experiments.calibration.fit import FitConfig, fit_points
 from uwlab.experiments.calibration.priors import Prior
-from uwlab.experiments.calibration.simulate import LensSetting, simulate_campaign
+from uwlab.experiments.calibration.simulate import simulate_campaign
+from uwlab.model.optics import NO_LENS, LensSetting
 
 COVERAGE_PRIORS = {"light_efficiency": Prior("lognormal", 0.8, 0.2), "attenuation_scale": Prior("lognormal", 1.0, 0.3),
                    "K_dn_per_e:imx250m": Prior("normal", 0.3473, 0.0174, lo=0.0),
                    "discrepancy": Prior("halfnormal", 0.05)}
-COVERAGE_LENSES = (LensSetting("30mm-F2.0", 30.0, 2.0), LensSetting("no-lens", None, None))
+COVERAGE_LENSES = (LensSetting(30.0, 2.0), NO_LENS)
 
 
 @dataclass

@@ -13,7 +13,7 @@ with ε the light efficiency (true/rated flux), β the beam half-angle (Ω = 2π
 attenuation scale over the light→target→camera path D_k, K the camera's system gain, and v_k the mean
 vignetting over the ROI (an ROI centred on the axis). Points taken with the light dimmed are scaled by the
 light's measured relative output (`relative_flux`). A "no lens" point (f_number null) is a bare sensor in the
-board's radiance field: N = 0.5, T = 1, no vignetting (see `uwlab.drivers.sim.scene.RigScene.remove_lens`).
+board's radiance field: N = 0.5, T = 1, no vignetting (`uwlab.model.optics.NO_LENS`).
 """
 from __future__ import annotations
 
@@ -24,8 +24,10 @@ import numpy as np
 import pandas as pd
 
 from uwlab.errors import ConfigError
+from uwlab.model.config import apply_override
 from uwlab.model.design import (Design, beam_half_angle_rad, build_design, electron_rate_at_radius, light_distance_m,
                                 on_axis_electron_rate, path_integrals, spectral_weights)
+from uwlab.model.optics import NO_LENS, LensSetting
 
 SHARED = ("light_efficiency", "beam_half_angle_deg", "attenuation_scale", "reflectance", "lens_transmittance",
           "discrepancy")
@@ -116,10 +118,9 @@ def _configuration_design(rig: dict, base_dir: Path | None, sensor: str, focal_l
     raw = {s: dict(v) for s, v in rig.items() if s != "sim"}
     raw.setdefault("sensor", {})["profile"] = sensor
     has_lens = f_number is not None and np.isfinite(f_number)
-    if has_lens:
-        raw.setdefault("lens", {}).update(f_number=float(f_number), focal_length_mm=float(focal_length_mm))
-    else:
-        raw.setdefault("lens", {}).update(f_number=0.5, transmittance=1.0)
+    lens = LensSetting(float(focal_length_mm), float(f_number)) if has_lens else NO_LENS
+    for key, value in lens.overrides().items():
+        apply_override(raw, key, value)
     raw.setdefault("operation", {}).pop("exposure_s", None)
     return build_design(raw, base_dir), has_lens
 

@@ -12,7 +12,6 @@ and ``K_dn_per_e:<profile>``.
 from __future__ import annotations
 
 import copy
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -22,22 +21,14 @@ from uwlab.drivers.sim.camera import SensorConfig, SimSensor, SimTruth
 from uwlab.drivers.sim.scene import RigScene
 from uwlab.experiments.emva.stream import stack_statistics
 from uwlab.model.data import config_dir, read_toml
+from uwlab.model.optics import NO_LENS, LensSetting
 
 BLACK_LEVEL_DN = 16.0  # native DN, so that dark frames are not clipped at zero
 _DESIGN_KEYS = {"attenuation_scale": ("water", "attenuation_scale"), "beam_half_angle_deg": ("light", "beam_half_angle_deg"),
                 "reflectance": ("target", "reflectance"), "lens_transmittance": ("lens", "transmittance")}
 
 
-@dataclass(frozen=True)
-class LensSetting:
-    """A lens configuration; focal_length_mm = f_number = None is the bare sensor."""
-
-    label: str
-    focal_length_mm: float | None
-    f_number: float | None
-
-
-PAPER_LENSES = (LensSetting("no-lens", None, None), LensSetting("30mm-F2.0", 30.0, 2.0), LensSetting("12mm-F4.0", 12.0, 4.0))
+PAPER_LENSES = (NO_LENS, LensSetting(30.0, 2.0), LensSetting(12.0, 4.0))
 
 
 def _true_scene(raw: dict, base_dir: Path, sensor: str, lens: LensSetting, truth: dict) -> RigScene:
@@ -49,7 +40,7 @@ def _true_scene(raw: dict, base_dir: Path, sensor: str, lens: LensSetting, truth
     raw.setdefault("sim", {})["light_efficiency"] = float(truth.get("light_efficiency", raw.get("sim", {}).get(
         "light_efficiency", 1.0)))
     scene = RigScene.from_dict(raw, base_dir)
-    if lens.f_number is None:
+    if lens.bare:
         scene.remove_lens()
     else:
         scene.set_lens(lens.focal_length_mm, lens.f_number)
