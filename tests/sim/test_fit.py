@@ -9,6 +9,7 @@ from uwlab.experiments.calibration.fit import FitConfig, Posterior, fit_points
 from uwlab.experiments.calibration.forward import build_forward_model, relative_flux
 from uwlab.experiments.calibration.priors import Prior
 from uwlab.experiments.calibration.simulate import simulate_campaign
+from uwlab.experiments.calibration.validation import point_predictions
 from uwlab.model.optics import NO_LENS, LensSetting
 from uwlab.model.design import build_design, on_axis_electron_rate
 
@@ -58,6 +59,9 @@ def test_saturated_points_are_excluded_and_all_saturated_is_an_error(campaign):
     assert points["saturated"].any()
     result = fit_points(points, rigs)
     assert result.model.y.size == int((~points["saturated"]).sum())
+    shown = point_predictions(result)  # the left-out points are reported, marked, not dropped
+    assert int(shown["saturated"].sum()) == int(points["saturated"].sum())
+    assert shown.loc[shown["saturated"], "predicted_median"].isna().all()
     with pytest.raises(UwlabError, match="no unsaturated points"):
         fit_points(points.assign(saturated=True), rigs)
 

@@ -4,13 +4,10 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
-
 from uwlab.drivers.camera import BACKENDS, Camera, Frame, Policy, open_camera
-from uwlab.drivers.camera.pixels import pixel_format
 from uwlab.errors import ConfigError
-
-SATURATION_MARGIN_MONO16 = 0x000F
+from uwlab.experiments.saturation import clip_level, sensor_clip_dn
+from uwlab.model.sensor import SensorProfile, load_sensor_profile
 
 
 def register(subparsers) -> None:
@@ -20,6 +17,8 @@ def register(subparsers) -> None:
     p.add_argument("--device", metavar="ID", help="device id (aravis: id or IP address); default: first found")
     p.add_argument("--cti", action="append", default=[], metavar="PATH", help="GenTL producer (harvesters)")
     p.add_argument("--config", metavar="RIG.toml", help="rig of the simulated camera")
+    p.add_argument("--sensor", metavar="PROFILE", help="sensor profile (name or TOML) giving the clip level of "
+                   "saturated pixels (default for --backend sim: the rig's; else detected from the frames)")
     p.add_argument("--exposure-us", type=float)
     p.add_argument("--gain-db", type=float)
     p.add_argument("--pixel-format", metavar="F", help="Mono8, Mono10, Mono10p, Mono12, Mono12p, Mono12Packed, Mono16")
@@ -41,16 +40,17 @@ def parse_roi(text: str) -> tuple[int, int, int, int]:
     return x, y, w, h
 
 
-def saturation_threshold(fmt_name: str) -> int:
-    """Codes at or above this are saturated: the format's full scale, less the unused LSBs of an
-    MSB-aligned ADC of 12 bits or more for Mono16."""
-    fmt = pixel_format(fmt_name)
-    return fmt.max_value - (SATURATION_MARGIN_MONO16 if fmt.bits == 16 else 0)
-
-
-def frame_stats(frame: Frame) -> dict:
+def frame_stats(frame: Frame, sensor: SensorProfile | None) -> dict:
+    """Statistics of one frame; saturated pixels by the one rule (`uwlab.experiments.saturation`)."""
     img = frame.image
     s = frame.settings
+    profile_dn = None
+    if sensor is not None:
+        offset = sensor.dark_offset_dn + (s.black_level or 0.0)
+        profile_dn = sensor_clip_dn(sensor.gain_k(s.gain_db or 0.0), sensor.saturation_e, offset, sensor.bit_depth,
+                                    frame.pixel_format)
+    clip = clip_level(frame.pixel_format, native_bits=sensor.bit_depth if sensor else None, profile_dn=profile_dn,
+                      image=img)
     return {
         "frame_id": frame.frame_id,
         "timestamp_ns": frame.timestamp_ns,
@@ -63,7 +63,9 @@ def frame_stats(frame: Frame) -> dict:
         "std": float(img.std()),
         "min": int(img.min()),
         "max": int(img.max()),
-        "saturated_fraction": float(np.count_nonzero(img >= saturation_threshold(frame.pixel_format)) / img.size),
+        "saturated_fraction": clip.fraction(img),
+        "clip_level_dn": clip.dn,
+        "clip_source": clip.source,
     }
 
 
@@ -108,14 +110,19 @@ def run(args) -> int:
     if save_dir is not None:
         save_dir.mkdir(parents=True, exist_ok=True)
     options = {"cti": args.cti} if args.backend == "harvesters" else {}
+    sensor = load_sensor_profile(args.sensor) if args.sensor else None
     if args.backend == "sim":
         options["config"] = args.config
+        if sensor is None:
+            from uwlab.drivers.sim.scene import RigScene
+
+            sensor = RigScene.from_toml(args.config).sensor
     with open_camera(args.backend, args.device, policy=Policy(timeout_s=args.timeout_s), **options) as cam:
         apply_settings(cam, args)
         device = {k: v for k, v in vars(cam.info).items()}
         rows = []
         for frame in cam.stream(args.frames):
-            rows.append(frame_stats(frame))
+            rows.append(frame_stats(frame, sensor))
             if save_dir is not None:
                 save_tiff(save_dir, frame, device)
         device["discarded_frames"] = cam.stats.discarded
@@ -126,5 +133,5 @@ def run(args) -> int:
     for r in rows:
         print(f"frame {r['frame_id']}: {r['width']}x{r['height']} {r['pixel_format']} exposure {r['exposure_us']} us "
               f"gain {r['gain_db']} dB  mean {r['mean']:.2f} std {r['std']:.2f} min {r['min']} max {r['max']} "
-              f"saturated {100 * r['saturated_fraction']:.3f} %")
+              f"saturated {100 * r['saturated_fraction']:.3f} % (clip {r['clip_level_dn']:g} DN, {r['clip_source']})")
     return 0

@@ -33,6 +33,8 @@ import pyarrow.parquet as pq
 
 from uwlab import __version__
 from uwlab.errors import ConfigError, UwlabError
+from uwlab.experiments.emva.stream import StackStatistics
+from uwlab.experiments.saturation import POINT_SATURATED_FRACTION, ClipLevel, point_saturated
 from uwlab.jsonable import dumps
 
 POINTS_FILE = "points.parquet"
@@ -57,6 +59,7 @@ POINT_SCHEMA = pa.schema([
     ("dark_mean_dn", pa.float64()), ("dark_temporal_var_dn2", pa.float64()), ("dark_spatial_var_dn2", pa.float64()),
     ("dark_frames", pa.int64()), ("signal_dn", pa.float64()),
     ("saturated_fraction", pa.float64()), ("saturated", pa.bool_()),
+    ("clip_level_dn", pa.float64()), ("clip_source", pa.string()),
     ("exposure_us_readback", pa.float64()), ("gain_db_readback", pa.float64()), ("temperature_c", pa.float64()),
     ("irradiance_w_m2", pa.float64()), ("irradiance_position", pa.string()),
     ("t_start_ns", pa.int64()), ("t_end_ns", pa.int64()), ("frame_ids", pa.list_(pa.int64())),
@@ -102,6 +105,35 @@ def check_point_row(row: dict) -> dict:
     if int(row["frames"]) < 2:
         raise ConfigError("point.frames", row["frames"], "must be >= 2 (temporal variance needs frame pairs)")
     return {name: row.get(name) for name in POINT_SCHEMA.names}
+
+
+def point_row(*, sweep_id: str, point_index: int, kind: str, bright: StackStatistics, dark: StackStatistics | None,
+              clip: ClipLevel, saturation_threshold: float = POINT_SATURATED_FRACTION, **columns: Any) -> dict:
+    """The dataset row of one measured point — the one place a row is built.
+
+    From the point's bright and dark stacks (`uwlab.experiments.emva.stream`) come ``frames``, ``mean_dn``,
+    ``temporal_var_dn2``, ``spatial_var_dn2``, the ``dark_*`` columns and ``signal_dn = mean_dn − dark_mean_dn``
+    (null without dark frames); from the clip level and the one saturation rule (`uwlab.experiments.saturation`)
+    ``saturated_fraction``, ``saturated``, ``clip_level_dn`` and ``clip_source``. ``columns`` are the settings and
+    identity columns of `POINT_SCHEMA` (camera, lens, exposure, read-backs, irradiance, times, ...); a column
+    given twice, an unknown column or a missing required one raises `ConfigError` naming it.
+    """
+    derived = {
+        "frames": bright.frames, "mean_dn": bright.mean_dn, "temporal_var_dn2": bright.temporal_var_dn2,
+        "spatial_var_dn2": bright.spatial_var_dn2,
+        "dark_mean_dn": dark.mean_dn if dark else None,
+        "dark_temporal_var_dn2": dark.temporal_var_dn2 if dark else None,
+        "dark_spatial_var_dn2": dark.spatial_var_dn2 if dark else None,
+        "dark_frames": dark.frames if dark else 0,
+        "signal_dn": bright.mean_dn - dark.mean_dn if dark else None,
+        "saturated_fraction": bright.saturated_fraction,
+        "saturated": point_saturated(bright.saturated_fraction, saturation_threshold),
+        "clip_level_dn": clip.dn, "clip_source": clip.source,
+    }
+    twice = sorted(set(derived) & set(columns))
+    if twice:
+        raise ConfigError(f"point.{twice[0]}", columns[twice[0]], "derived from the frame statistics; do not pass it")
+    return check_point_row({"sweep_id": sweep_id, "point_index": point_index, "kind": kind, **derived, **columns})
 
 
 def spectra_frame(sweep_id: str, point_index: int, readings: list[tuple[str, Any, Any]]) -> pd.DataFrame:

@@ -374,9 +374,14 @@ class Camera:
 
     def acquire(self, n: int) -> list[Frame]:
         """Acquire ``n`` complete frames (starting and stopping the stream if it was idle)."""
+        return list(self.frames(n))
+
+    def frames(self, n: int) -> Iterator[Frame]:
+        """``n`` complete frames, one at a time (memory of one frame), starting and stopping the stream if it was
+        idle."""
         was_streaming = self._state.streaming
         try:
-            return list(self.stream(n))
+            yield from self.stream(n)
         finally:
             if not was_streaming:
                 self.stop()

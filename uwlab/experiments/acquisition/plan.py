@@ -16,7 +16,7 @@ a dark sweep steps exposure_us with the light off), ``frames_per_point`` (≥ 2)
 ``dark_frames`` (≥ 2), ``spectrometer`` (positions read at each point: "target", "camera"; the first gives the
 point's ``irradiance_w_m2``), ``spectrometer_integration_ms``, ``spectrometer_averaging``, ``roi`` ([x, y, w, h]
 within the acquired image, or "aruco"), ``aruco_dictionary``, ``saturation_threshold`` (fraction of ROI pixels
-at full scale above which a point is flagged), ``full_scale_dn`` (default: the pixel format's maximum),
+at the camera's clip level above which a point is flagged; `uwlab.experiments.saturation`),
 ``lens`` ("none", or ``{focal_length_mm, f_number, f_number_range = [lo, hi], manual = true}``), ``sensor`` (the
 sensor profile: sets the rig's ``sensor.profile``; the simulated camera uses it), ``camera`` (a table overriding
 ``[camera]``), the fixed settings ``exposure_us``, ``gain_db``, ``black_level_dn``, ``light_level``,
@@ -39,6 +39,7 @@ import numpy as np
 
 from uwlab.drivers.camera.pixels import PIXEL_FORMATS
 from uwlab.errors import ConfigError
+from uwlab.experiments.saturation import POINT_SATURATED_FRACTION
 from uwlab.jsonable import to_jsonable
 from uwlab.model.config import apply_override
 from uwlab.model.data import read_toml, resolve_path
@@ -55,7 +56,7 @@ RANGE_KEYS = ("start", "stop", "num", "spacing")
 SWEEP_DEFAULTS: dict[str, Any] = {
     "frames_per_point": 2, "settle_s": 0.0, "dark": "point", "dark_frames": None, "spectrometer": [],
     "spectrometer_integration_ms": 10.0, "spectrometer_averaging": 1, "roi": None, "aruco_dictionary": "DICT_4X4_50",
-    "saturation_threshold": 1e-3, "full_scale_dn": None, "lens": None, "sensor": None, "camera": {},
+    "saturation_threshold": POINT_SATURATED_FRACTION, "lens": None, "sensor": None, "camera": {},
     "exposure_us": None, "gain_db": 0.0, "black_level_dn": None, "light_level": 1.0, "save_frames": False,
     "geometry": {},
 }
@@ -99,7 +100,6 @@ class SweepSpec:
     roi: tuple[int, int, int, int] | str | None
     aruco_dictionary: str
     saturation_threshold: float
-    full_scale_dn: float | None
     lens: LensSetting
     sensor_profile: str
     camera: CameraSpec
@@ -247,8 +247,6 @@ def _sweep(body: dict, number: int, rig_raw: dict, rig_dir: Path, geometry: dict
         roi=_roi(f"{prefix}.roi", opts["roi"]), aruco_dictionary=_aruco_name(f"{prefix}.aruco_dictionary",
                                                                             opts["aruco_dictionary"]),
         saturation_threshold=_number(f"{prefix}.saturation_threshold", opts["saturation_threshold"], 0.0, 1.0),
-        full_scale_dn=None if opts["full_scale_dn"] is None else _number(f"{prefix}.full_scale_dn",
-                                                                          opts["full_scale_dn"], 1.0, 2.0**32),
         lens=lens, sensor_profile=str(rig["sensor"]["profile"]),
         camera=_camera(f"{prefix}.camera", {**camera, **_table(f"{prefix}.camera", opts["camera"])}),
         exposure_us=_number(f"{prefix}.exposure_us", exposure_us, sensor.exposure_min_us, sensor.exposure_max_us),

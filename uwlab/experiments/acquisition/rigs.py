@@ -37,6 +37,7 @@ from uwlab.drivers.sim.serial_sim import SerialRig, SerialSimSettings
 from uwlab.errors import ConfigError
 from uwlab.experiments.acquisition.plan import Plan, SweepSpec
 from uwlab.experiments.acquisition.roi import Rect, aruco_roi
+from uwlab.experiments.saturation import sensor_clip_dn
 
 
 class Rig(Protocol):
@@ -50,12 +51,10 @@ class Rig(Protocol):
     def set_aperture(self, sweep: SweepSpec, f_number: float) -> None: ...
     def place_spectrometer(self, position: str) -> None: ...
     def board_roi(self, sweep: SweepSpec, camera: Camera, image: np.ndarray) -> Rect: ...
-    def full_scale_dn(self, camera: Camera) -> float: ...
     def truth(self, camera: Camera) -> dict | None: ...
 
 
 Confirm = Callable[[str], None]
-MONO16_UNUSED_LSB_MARGIN = 0x000F
 
 
 class HardwareRig:
@@ -109,11 +108,6 @@ class HardwareRig:
 
     def board_roi(self, sweep: SweepSpec, camera: Camera, image: np.ndarray) -> Rect:
         return aruco_roi(image, sweep.aruco_dictionary)
-
-    def full_scale_dn(self, camera: Camera) -> float:
-        """The output format's maximum; for Mono16 less the unused LSBs of an MSB-aligned ≥ 12-bit ADC."""
-        fmt = pixel_format(camera.pixel_format)
-        return float(fmt.max_value - (MONO16_UNUSED_LSB_MARGIN if fmt.bits == 16 else 0))
 
     def truth(self, camera: Camera) -> dict | None:
         return None
@@ -194,16 +188,6 @@ class SimRig:
         x1, y1 = min(bx + bw - s.offset_x, image.shape[1]), min(by + bh - s.offset_y, image.shape[0])
         return x0, y0, max(x1 - x0, 0), max(y1 - y0, 0)
 
-    def full_scale_dn(self, camera: Camera) -> float:
-        """The code of a saturated pixel in the output format: the full well or the ADC range, whichever
-        is reached first (`SimSensor` clips at both), shifted to the output format's bit depth."""
-        truth = self._sensor.truth
-        s = camera.read_settings()
-        cap = truth.system_gain(s.gain_db) * truth.saturation_e + truth.dark_offset_dn + (s.black_level or 0.0)
-        native = min(int(np.floor(cap + 0.5)), (1 << truth.bit_depth) - 1)
-        shift = pixel_format(s.pixel_format).bits - truth.bit_depth
-        return float(native << shift if shift >= 0 else native >> -shift)
-
     def truth(self, camera: Camera) -> dict:
         """Ground truth of the sweep's simulated sensor and light, for checking an EMVA characterisation."""
         truth = self._sensor.truth
@@ -215,7 +199,9 @@ class SimRig:
             "dn_scale": 2.0 ** (fmt_bits - truth.bit_depth),
             "K_dn_per_e_output": truth.system_gain(s.gain_db or 0.0) * 2.0 ** (fmt_bits - truth.bit_depth),
             "black_level_dn": s.black_level,
-            "full_scale_dn": self.full_scale_dn(camera),
+            "clip_level_dn": sensor_clip_dn(truth.system_gain(s.gain_db or 0.0), truth.saturation_e,
+                                            truth.dark_offset_dn + (s.black_level or 0.0), truth.bit_depth,
+                                            s.pixel_format),
             "light_gamma": self._scene.sim["light_gamma"],
             "light_curve": "flux_fraction = level ** light_gamma",
             "on_axis_rate_e_per_s": self._scene.on_axis_rate_e_per_s(),

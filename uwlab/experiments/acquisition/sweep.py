@@ -6,8 +6,10 @@ frame pairs (0,1), (2,3), …: half the variance of the difference image, ``σ²
 standard's 1/(2NM)·Σ(y_A − y_B)² − (μ_A − μ_B)²/2, averaged over pairs) and ``spatial_var_dn2`` (sample
 variance over the ROI of the L-frame mean image, *not* corrected for its residual temporal variance σ²/L).
 The same statistics of dark frames (light off) at the point — or once per sweep ("block") — give the dark
-columns and ``signal_dn = mean_dn − dark_mean_dn``. ``saturated_fraction`` is the fraction of ROI pixels at
-full scale in any frame; the point is flagged ``saturated`` above the sweep's threshold (not dropped).
+columns and ``signal_dn = mean_dn − dark_mean_dn``. Frames are streamed through
+`uwlab.experiments.emva.stream` (one frame in memory at a time). ``saturated_fraction`` is the fraction of ROI
+pixels at the camera's clip level in any frame and the point is flagged ``saturated`` (never dropped), both by the
+one rule of `uwlab.experiments.saturation`; the row is built by `uwlab.experiments.dataset.point_row`.
 
 Resume: points already in the dataset are skipped. Every point is flushed before the next starts, so
 Ctrl-C or a crash loses at most the point in progress. A device that disappears is reconnected by the
@@ -17,7 +19,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -27,12 +29,14 @@ from uwlab.drivers.camera import Camera, Frame
 from uwlab.drivers.camera.pixels import pixel_format
 from uwlab.drivers.serial.base import AVERAGING_RANGE
 from uwlab.errors import ConfigError
-from uwlab.experiments.dataset import FRAMES_DIR, Dataset, spectra_frame
+from uwlab.experiments.dataset import FRAMES_DIR, Dataset, point_row, spectra_frame
 from uwlab.experiments.acquisition.light_calibration import measure_unsaturated
 from uwlab.experiments.acquisition.plan import Plan, Point, SweepSpec, resolved_rig
 from uwlab.experiments.acquisition.rigs import Rig
 from uwlab.experiments.acquisition.roi import Rect, check_inside
 from uwlab.experiments.acquisition.spectra import irradiance_w_m2
+from uwlab.experiments.emva.stream import StackAccumulator, StackStatistics
+from uwlab.experiments.saturation import ClipLevel, clip_level, sensor_clip_dn
 
 DARK_AVERAGING = 16
 
@@ -46,26 +50,6 @@ class Progress:
     sweep_id: str
     point_index: int
     latest: dict
-
-
-@dataclass(frozen=True)
-class StackStats:
-    mean_dn: float
-    temporal_var_dn2: float
-    spatial_var_dn2: float
-    saturated_fraction: float
-
-
-def stack_stats(images: list[np.ndarray], full_scale_dn: float) -> StackStats:
-    """EMVA 1288 statistics of L ≥ 2 ROI images (see the module docstring)."""
-    if len(images) < 2:
-        raise ConfigError("frames", len(images), "temporal variance needs at least 2 frames")
-    stack = np.stack([np.asarray(img, np.float64) for img in images])
-    pairs = [np.var(stack[i] - stack[i + 1]) / 2.0 for i in range(0, len(stack) - 1, 2)]
-    mean_image = stack.mean(axis=0)
-    saturated = np.any(stack >= full_scale_dn, axis=0)
-    return StackStats(float(stack.mean()), float(np.mean(pairs)), float(np.var(mean_image, ddof=1)),
-                      float(np.count_nonzero(saturated) / saturated.size))
 
 
 def _crop(image: np.ndarray, roi: Rect) -> np.ndarray:
@@ -159,12 +143,39 @@ class SweepRunner:
             return check_inside(f"sweep.{sweep.id}.roi", self.rig.board_roi(sweep, camera, image), image.shape)
         return check_inside(f"sweep.{sweep.id}.roi", sweep.roi, image.shape)
 
-    def _dark(self, sweep: SweepSpec, camera: Camera, roi: Rect) -> tuple[StackStats, int]:
+    def _dark(self, sweep: SweepSpec, camera: Camera, roi: Rect) -> StackStatistics:
         """Statistics of dark frames (light off), leaving the light as the sweep wants it."""
         self._set_light(False, sweep.light_level, sweep.settle_s)
-        frames = camera.acquire(sweep.dark_frames)
+        stats = self._stack(sweep, camera, roi, sweep.dark_frames)[0]
         self._set_light(sweep.kind != "dark", sweep.light_level, 0.0)
-        return stack_stats([_crop(f.image, roi) for f in frames], self.rig.full_scale_dn(camera)), len(frames)
+        return stats
+
+    def _stack(self, sweep: SweepSpec, camera: Camera, roi: Rect, count: int,
+               save_as: Point | None = None) -> tuple[StackStatistics, ClipLevel, list[Frame]]:
+        """Streaming statistics of ``count`` frames over the ROI (one frame in memory at a time), the clip level
+        (from the sweep's sensor profile and the first frame, `uwlab.experiments.saturation`) and the frames'
+        metadata (images dropped); with ``save_as``, every frame is also written to ``frames/``."""
+        accumulator, clip, kept = None, None, []
+        for number, frame in enumerate(camera.frames(count)):
+            image = _crop(frame.image, roi)
+            if accumulator is None:
+                clip = self._clip_level(sweep, frame, image)
+                accumulator = StackAccumulator(clip.dn)
+            accumulator.add(image)
+            if save_as is not None:
+                self._save_frame(sweep, save_as, number, frame)
+            kept.append(replace(frame, image=None))
+        return accumulator.result(), clip, kept
+
+    @staticmethod
+    def _clip_level(sweep: SweepSpec, frame: Frame, image: np.ndarray) -> ClipLevel:
+        """The camera's clip level in this frame's format, from the sweep's sensor profile at the settings in
+        force (gain, black level) and the frame's data."""
+        sensor, settings = sweep.design.sensor, frame.settings
+        offset = sensor.dark_offset_dn + (settings.black_level or 0.0)
+        profile_dn = sensor_clip_dn(sensor.gain_k(settings.gain_db or 0.0), sensor.saturation_e, offset,
+                                    sensor.bit_depth, frame.pixel_format)
+        return clip_level(frame.pixel_format, native_bits=sensor.bit_depth, profile_dn=profile_dn, image=image)
 
     def _apply(self, sweep: SweepSpec, camera: Camera, point: Point) -> None:
         camera.exposure_us = point.exposure_us
@@ -175,18 +186,32 @@ class SweepRunner:
             self.rig.light.set_level(point.light_level)
         self.sleep(sweep.settle_s)
 
-    def _measure(self, sweep: SweepSpec, camera: Camera, roi: Rect, point: Point, block) -> tuple[dict, pd.DataFrame]:
+    def _measure(self, sweep: SweepSpec, camera: Camera, roi: Rect, point: Point,
+                 block: StackStatistics | None) -> tuple[dict, pd.DataFrame]:
         t_start = time.time_ns()
         self._apply(sweep, camera, point)
-        frames = camera.acquire(sweep.frames_per_point)
-        full_scale = self.rig.full_scale_dn(camera)
-        stats = stack_stats([_crop(f.image, roi) for f in frames], full_scale)
+        bright, clip, frames = self._stack(sweep, camera, roi, sweep.frames_per_point,
+                                           save_as=point if sweep.save_frames else None)
         readings = [self._spectrum(sweep, position) for position in sweep.spectrometer]
         dark = block if block is not None else (self._dark(sweep, camera, roi) if sweep.dark == "point" else None)
-        if sweep.save_frames:
-            self._save_frames(sweep, point, frames)
-        row = self._row(sweep, camera, roi, point, frames, stats, dark, readings, full_scale)
-        row.update(t_start_ns=t_start, t_end_ns=time.time_ns())
+        settings = frames[-1].settings
+        lens = replace(sweep.lens, f_number=point.f_number)
+        row = point_row(
+            sweep_id=sweep.id, point_index=point.index, kind=sweep.kind, bright=bright, dark=dark, clip=clip,
+            saturation_threshold=sweep.saturation_threshold,
+            camera_backend=camera.info.backend, camera_id=camera.info.device_id, camera_model=camera.info.model,
+            sensor_profile=sweep.sensor_profile, lens_label=lens.label, focal_length_mm=lens.focal_length_mm,
+            f_number=point.f_number, exposure_us=point.exposure_us, gain_db=point.gain_db,
+            black_level_dn=settings.black_level,
+            light_level=point.light_level if self.rig.light is not None else None, light_on=point.light_on,
+            bit_depth=pixel_format(settings.pixel_format).bits,
+            roi_x=roi[0], roi_y=roi[1], roi_w=roi[2], roi_h=roi[3],
+            exposure_us_readback=settings.exposure_us, gain_db_readback=settings.gain_db,
+            temperature_c=camera.temperature_c,
+            irradiance_w_m2=irradiance_w_m2(readings[0][1], readings[0][2]) if readings else None,
+            irradiance_position=readings[0][0] if readings else None,
+            frame_ids=[f.frame_id for f in frames], t_start_ns=t_start, t_end_ns=time.time_ns(),
+        )
         return row, spectra_frame(sweep.id, point.index, readings)
 
     def _spectrum(self, sweep: SweepSpec, position: str) -> tuple[str, np.ndarray, np.ndarray]:
@@ -214,46 +239,13 @@ class SweepRunner:
             self._set_light(sweep.kind != "dark", sweep.light_level, sweep.settle_s)
         return self._spectrometer_darks[key]
 
-    def _row(self, sweep, camera, roi, point, frames: list[Frame], stats: StackStats, dark, readings,
-             full_scale: float) -> dict:
-        settings = frames[-1].settings
-        lens = sweep.lens
-        dark_stats, dark_frames = dark if dark is not None else (None, 0)
-        return {
-            "sweep_id": sweep.id, "point_index": point.index, "kind": sweep.kind,
-            "camera_backend": camera.info.backend, "camera_id": camera.info.device_id, "camera_model": camera.info.model,
-            "sensor_profile": sweep.sensor_profile, "lens_label": lens.label if sweep.kind != "aperture" else
-            f"{lens.focal_length_mm:g}mm-F{point.f_number:.1f}",
-            "focal_length_mm": lens.focal_length_mm, "f_number": point.f_number,
-            "exposure_us": point.exposure_us, "gain_db": point.gain_db, "black_level_dn": settings.black_level,
-            "light_level": point.light_level if self.rig.light is not None else None, "light_on": point.light_on,
-            "frames": len(frames), "bit_depth": pixel_format(settings.pixel_format).bits,
-            "roi_x": roi[0], "roi_y": roi[1], "roi_w": roi[2], "roi_h": roi[3],
-            "mean_dn": stats.mean_dn, "temporal_var_dn2": stats.temporal_var_dn2,
-            "spatial_var_dn2": stats.spatial_var_dn2,
-            "dark_mean_dn": dark_stats.mean_dn if dark_stats else None,
-            "dark_temporal_var_dn2": dark_stats.temporal_var_dn2 if dark_stats else None,
-            "dark_spatial_var_dn2": dark_stats.spatial_var_dn2 if dark_stats else None,
-            "dark_frames": dark_frames,
-            "signal_dn": stats.mean_dn - dark_stats.mean_dn if dark_stats else None,
-            "saturated_fraction": stats.saturated_fraction,
-            "saturated": stats.saturated_fraction > sweep.saturation_threshold,
-            "exposure_us_readback": settings.exposure_us, "gain_db_readback": settings.gain_db,
-            "temperature_c": camera.temperature_c,
-            "irradiance_w_m2": irradiance_w_m2(readings[0][1], readings[0][2]) if readings else None,
-            "irradiance_position": readings[0][0] if readings else None,
-            "frame_ids": [f.frame_id for f in frames],
-        }
-
-    def _save_frames(self, sweep: SweepSpec, point: Point, frames: list[Frame]) -> None:
+    def _save_frame(self, sweep: SweepSpec, point: Point, number: int, frame: Frame) -> None:
         import tifffile
 
         directory = self.dataset.root / FRAMES_DIR / sweep.id
         directory.mkdir(parents=True, exist_ok=True)
-        for number, frame in enumerate(frames):
-            path = Path(directory, f"point{point.index:05d}-frame{number:03d}.tiff")
-            tifffile.imwrite(path, frame.image, metadata={"frame_id": frame.frame_id,
-                                                          "settings": frame.settings.to_dict()})
+        tifffile.imwrite(directory / f"point{point.index:05d}-frame{number:03d}.tiff", frame.image,
+                         metadata={"frame_id": frame.frame_id, "settings": frame.settings.to_dict()})
 
 
 def check_resumable(dataset: Dataset, plan: Plan, sim: bool) -> None:

@@ -29,6 +29,7 @@ from typing import Callable
 
 import emcee
 import numpy as np
+import pandas as pd
 from scipy import optimize
 
 from uwlab.errors import ConfigError, UwlabError
@@ -257,6 +258,7 @@ class FitResult:
     steps: int
     model: ForwardModel = field(repr=False)
     priors: dict = field(repr=False, default_factory=dict)
+    saturated: pd.DataFrame | None = field(repr=False, default=None)  # points left out of the fit (saturated)
 
     def correlations(self) -> np.ndarray:
         return np.corrcoef(self.samples.T) if len(self.names) > 1 else np.ones((1, 1))
@@ -344,4 +346,6 @@ def fit_points(points, rigs: dict, config: FitConfig | None = None, base_dir: Pa
     model = build_forward_model(used, rigs, config.names, base_dir)
     if model.y.size <= len(config.names):
         raise UwlabError(f"{model.y.size} unsaturated points cannot constrain {len(config.names)} free parameters")
-    return run_fit(model, config, progress)
+    result = run_fit(model, config, progress)
+    result.saturated = points[points["saturated"].astype(bool)].reset_index(drop=True)
+    return result

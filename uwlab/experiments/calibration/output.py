@@ -66,13 +66,16 @@ def response_plot(predictions: pd.DataFrame, dense: pd.DataFrame, path: Path) ->
     for j, sweep_id in enumerate(sweeps):
         ax, res = axes[0, j], axes[1, j]
         band = dense[dense["sweep_id"] == sweep_id]
-        pts = predictions[predictions["sweep_id"] == sweep_id]
+        here = predictions[predictions["sweep_id"] == sweep_id]
+        pts, clipped = here[~here["saturated"]], here[here["saturated"]]
         ax.fill_between(band["exposure_us"], band["predicted_p2_5"], band["predicted_p97_5"], color="C0", alpha=0.2,
                         label="95 %")
         ax.fill_between(band["exposure_us"], band["predicted_p16"], band["predicted_p84"], color="C0", alpha=0.4,
                         label="68 %")
         ax.plot(band["exposure_us"], band["predicted_median"], color="C0", linewidth=1, label="predicted")
         ax.plot(pts["exposure_us"], pts["measured_dn"], "k.", label="measured")
+        if len(clipped):
+            ax.plot(clipped["exposure_us"], clipped["measured_dn"], "x", color="C3", label="saturated (not fitted)")
         ax.set_title(sweep_id, fontsize=8)
         res.axhline(0, color="C0")
         res.plot(pts["exposure_us"], pts["residual_dn"] / pts["predicted_median"] * 100, "k.")

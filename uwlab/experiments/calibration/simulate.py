@@ -19,11 +19,14 @@ import pandas as pd
 
 from uwlab.drivers.sim.camera import SensorConfig, SimSensor, SimTruth
 from uwlab.drivers.sim.scene import RigScene
+from uwlab.experiments.dataset import point_row
 from uwlab.experiments.emva.stream import stack_statistics
+from uwlab.experiments.saturation import clip_level, sensor_clip_dn
 from uwlab.model.data import config_dir, read_toml
 from uwlab.model.optics import NO_LENS, LensSetting
 
 BLACK_LEVEL_DN = 16.0  # native DN, so that dark frames are not clipped at zero
+FORMAT = "Mono16"  # frames are read as Mono16 (MSB-aligned)
 _DESIGN_KEYS = {"attenuation_scale": ("water", "attenuation_scale"), "beam_half_angle_deg": ("light", "beam_half_angle_deg"),
                 "reflectance": ("target", "reflectance"), "lens_transmittance": ("lens", "transmittance")}
 
@@ -74,28 +77,24 @@ def simulate_campaign(truth: dict, sensors=("imx250m", "icx285alm"), lenses=PAPE
             t_sat = sim_truth.saturation_e / rate * 1e6
             lo = max(sim_truth.exposure_min_us, 0.02 * t_sat)
             exposures = np.geomspace(lo, max(lo * 1.01, min(max_fraction * t_sat, sim_truth.exposure_max_us)), points_per_sweep)
-            shift = 16 - sim_truth.bit_depth  # frames are read as Mono16 (MSB-aligned)
-            full_scale = ((1 << sim_truth.bit_depth) - 1) << shift
-            sat_dn = (1 << shift) * min(sim_truth.K_dn_per_e * sim_truth.saturation_e, (1 << sim_truth.bit_depth) - 1)
+            profile = scene.sensor  # what the experimenter knows (the truth's K may differ)
+            profile_dn = sensor_clip_dn(profile.K_dn_per_e, profile.saturation_e,
+                                        profile.dark_offset_dn + BLACK_LEVEL_DN, profile.bit_depth, FORMAT)
             rigs[sweep_id] = nominal
             for index, exposure in enumerate(exposures):
-                cfg = SensorConfig(float(exposure), 0.0, BLACK_LEVEL_DN, "Mono16", *window)
+                cfg = SensorConfig(float(exposure), 0.0, BLACK_LEVEL_DN, FORMAT, *window)
                 light["on"] = 1.0
-                bright = stack_statistics((sensor_sim.render(cfg) for _ in range(frames)), full_scale)
+                images = [sensor_sim.render(cfg) for _ in range(frames)]
+                clip = clip_level(FORMAT, native_bits=profile.bit_depth, profile_dn=profile_dn, image=images[0])
+                bright = stack_statistics(images, clip.dn)
                 light["on"] = 0.0
-                dark = stack_statistics((sensor_sim.render(cfg) for _ in range(frames)), full_scale)
-                rows.append({
-                    "sweep_id": sweep_id, "point_index": index, "kind": "exposure", "sensor_profile": sensor,
-                    "lens_label": lens.label, "focal_length_mm": lens.focal_length_mm, "f_number": lens.f_number,
-                    "exposure_us": float(exposure), "gain_db": 0.0, "black_level_dn": BLACK_LEVEL_DN, "bit_depth": 16, "frames": frames,
-                    "roi_x": 0, "roi_y": 0, "roi_w": roi_px, "roi_h": roi_px,
-                    "mean_dn": bright.mean_dn, "temporal_var_dn2": bright.temporal_var_dn2,
-                    "spatial_var_dn2": bright.spatial_var_dn2, "dark_mean_dn": dark.mean_dn,
-                    "dark_temporal_var_dn2": dark.temporal_var_dn2, "dark_spatial_var_dn2": dark.spatial_var_dn2,
-                    "dark_frames": frames, "signal_dn": bright.mean_dn - dark.mean_dn,
-                    "saturated_fraction": bright.saturated_fraction,
-                    "saturated": bright.saturated_fraction > 0.0 or bright.mean_dn > 0.98 * sat_dn,
-                })
+                dark = stack_statistics((sensor_sim.render(cfg) for _ in range(frames)), clip.dn)
+                rows.append(point_row(
+                    sweep_id=sweep_id, point_index=index, kind="exposure", bright=bright, dark=dark, clip=clip,
+                    sensor_profile=sensor, lens_label=lens.label, focal_length_mm=lens.focal_length_mm,
+                    f_number=lens.f_number, exposure_us=float(exposure), gain_db=0.0, black_level_dn=BLACK_LEVEL_DN,
+                    light_level=1.0, light_on=True, bit_depth=16, roi_x=0, roi_y=0, roi_w=roi_px, roi_h=roi_px,
+                ))
     return pd.DataFrame(rows), rigs
 
 

@@ -42,7 +42,8 @@ def predictive_bands(model: ForwardModel, samples: np.ndarray, observed: bool = 
 
 
 def point_predictions(result: FitResult) -> pd.DataFrame:
-    """Measured against predicted at every fitted point, with bands and residuals."""
+    """Measured against predicted at every fitted point, with bands and residuals; the saturated points the fit
+    left out follow with ``saturated`` true, their measured value and no prediction."""
     model = result.model
     bands = predictive_bands(model, result.samples)
     observed = predictive_bands(model, result.samples, observed=True)
@@ -57,6 +58,12 @@ def point_predictions(result: FitResult) -> pd.DataFrame:
     sigma = model.sigma(median_theta, model.predict(median_theta))[0]
     frame["residual_dn"] = model.y - bands["median"]
     frame["residual_sigma"] = frame["residual_dn"] / sigma
+    frame["saturated"] = False
+    if result.saturated is not None and len(result.saturated):
+        left_out = result.saturated[[c for c in columns if c in result.saturated]].copy()
+        left_out["measured_dn"] = result.saturated["signal_dn"].to_numpy(float)
+        left_out["saturated"] = True
+        frame = pd.concat([frame, left_out], ignore_index=True)
     return frame
 
 

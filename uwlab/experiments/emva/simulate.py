@@ -15,8 +15,9 @@ from pathlib import Path
 import numpy as np
 
 from uwlab.drivers.sim.camera import SensorConfig, SimSensor, SimTruth, flat_rate_map
-from uwlab.experiments.dataset import Dataset, spectra_frame
+from uwlab.experiments.dataset import Dataset, point_row, spectra_frame
 from uwlab.experiments.emva.stream import stack_statistics
+from uwlab.experiments.saturation import clip_level, sensor_clip_dn
 from uwlab.model.photometry import photon_flux
 
 SWEEP_ID = "sim-photon-transfer"
@@ -46,28 +47,24 @@ def simulate_photon_transfer(root, truth: SimTruth, *, rate_e_per_s: float, quan
                  "wavelength_nm": wavelength_nm}
     dataset = Dataset.create(root, plan, plan_sha256=hashlib.sha256(json.dumps(plan).encode()).hexdigest(),
                              sim=True, sim_truth={SWEEP_ID: sim_truth}, force=force)
-    full = (1 << truth.bit_depth) - 1
+    fmt = f"Mono{truth.bit_depth}"
+    clip = clip_level(fmt, native_bits=truth.bit_depth, profile_dn=sensor_clip_dn(
+        truth.K_dn_per_e, truth.saturation_e, truth.dark_offset_dn + black_level_dn, truth.bit_depth, fmt))
     for index, exposure_us in enumerate(exposures_us):
-        cfg = SensorConfig(float(exposure_us), 0.0, black_level_dn, f"Mono{truth.bit_depth}", 0, 0, width, height)
+        cfg = SensorConfig(float(exposure_us), 0.0, black_level_dn, fmt, 0, 0, width, height)
         light["on"] = 1.0
-        bright = stack_statistics((sensor.render(cfg) for _ in range(frames)), full)
+        bright = stack_statistics((sensor.render(cfg) for _ in range(frames)), clip.dn)
         light["on"] = 0.0
-        dark = stack_statistics((sensor.render(cfg) for _ in range(frames)), full)
-        row = {
-            "sweep_id": SWEEP_ID, "point_index": index, "kind": "exposure", "camera_backend": "sim",
-            "camera_id": "sim0", "camera_model": f"SimCam-{truth.name}", "sensor_profile": truth.name.lower(),
-            "exposure_us": float(exposure_us), "gain_db": 0.0, "black_level_dn": black_level_dn,
-            "light_level": 1.0, "light_on": True, "frames": frames, "bit_depth": truth.bit_depth,
-            "roi_x": 0, "roi_y": 0, "roi_w": width, "roi_h": height,
-            "mean_dn": bright.mean_dn, "temporal_var_dn2": bright.temporal_var_dn2,
-            "spatial_var_dn2": bright.spatial_var_dn2, "dark_mean_dn": dark.mean_dn,
-            "dark_temporal_var_dn2": dark.temporal_var_dn2, "dark_spatial_var_dn2": dark.spatial_var_dn2,
-            "dark_frames": frames, "signal_dn": bright.mean_dn - dark.mean_dn,
-            "saturated_fraction": bright.saturated_fraction, "saturated": bright.saturated_fraction > 0.001,
-            "exposure_us_readback": float(exposure_us), "gain_db_readback": 0.0,
-            "temperature_c": truth.temperature_c, "irradiance_w_m2": float(np.trapezoid(spectrum, nm)),
-            "irradiance_position": "camera",
-        }
+        dark = stack_statistics((sensor.render(cfg) for _ in range(frames)), clip.dn)
+        row = point_row(
+            sweep_id=SWEEP_ID, point_index=index, kind="exposure", bright=bright, dark=dark, clip=clip,
+            camera_backend="sim", camera_id="sim0", camera_model=f"SimCam-{truth.name}",
+            sensor_profile=truth.name.lower(), exposure_us=float(exposure_us), gain_db=0.0,
+            black_level_dn=black_level_dn, light_level=1.0, light_on=True, bit_depth=truth.bit_depth,
+            roi_x=0, roi_y=0, roi_w=width, roi_h=height, exposure_us_readback=float(exposure_us),
+            gain_db_readback=0.0, temperature_c=truth.temperature_c,
+            irradiance_w_m2=float(np.trapezoid(spectrum, nm)), irradiance_position="camera",
+        )
         dataset.append_point(row, spectra_frame(SWEEP_ID, index, [("camera", nm, spectrum)]))
     dataset.finish()
     return dataset

@@ -26,7 +26,8 @@ CHUNK_PIXELS = 1 << 18
 
 @dataclass(frozen=True)
 class StackStatistics:
-    """EMVA statistics of one stack (DN, DN²); ``saturated_fraction``: pixels at full scale in any frame."""
+    """EMVA statistics of one stack (DN, DN²); ``saturated_fraction``: pixels at or above the clip level in any
+    frame (`uwlab.experiments.saturation`)."""
 
     frames: int
     mean_dn: float
@@ -36,10 +37,11 @@ class StackStatistics:
 
 
 class StackAccumulator:
-    """Accumulates frames (2-D integer arrays of one shape) for `StackStatistics`."""
+    """Accumulates frames (2-D integer arrays of one shape) for `StackStatistics`; ``clip_dn`` is the camera's
+    clip level (`uwlab.experiments.saturation.ClipLevel.dn`)."""
 
-    def __init__(self, full_scale_dn: int):
-        self.full_scale_dn = int(full_scale_dn)
+    def __init__(self, clip_dn: float):
+        self.clip_dn = float(clip_dn)
         self._sum: np.ndarray | None = None
         self._saturated: np.ndarray | None = None
         self._pending: np.ndarray | None = None
@@ -57,7 +59,7 @@ class StackAccumulator:
         elif frame.shape != self._sum.shape:
             raise ConfigError("frame", frame.shape, f"shape differs from the first frame {self._sum.shape}")
         np.add(self._sum, frame, out=self._sum, casting="unsafe")
-        self._saturated |= frame >= self.full_scale_dn
+        self._saturated |= frame >= self.clip_dn
         if self._pending is None:
             self._pending = frame.copy()
         else:
@@ -102,9 +104,9 @@ def _difference_variance(a: np.ndarray, b: np.ndarray) -> float:
     return (squares - total * total / n) / n
 
 
-def stack_statistics(frames: Iterable[np.ndarray], full_scale_dn: int) -> StackStatistics:
+def stack_statistics(frames: Iterable[np.ndarray], clip_dn: float) -> StackStatistics:
     """`StackStatistics` of an iterable of frames, consumed one at a time (a generator keeps memory flat)."""
-    acc = StackAccumulator(full_scale_dn)
+    acc = StackAccumulator(clip_dn)
     for frame in frames:
         acc.add(frame)
     return acc.result()
