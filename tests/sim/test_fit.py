@@ -37,7 +37,7 @@ def test_forward_rescaling_equals_the_full_model(campaign):
     raw["lens"].update(transmittance=0.6, focal_length_mm=30.0, f_number=2.0)
     rate = float(on_axis_electron_rate(build_design(raw)))
     row = lens_points.iloc[0]
-    vignetting = model.rate0[0] / float(on_axis_electron_rate(model.designs[0]))
+    vignetting = model.nominal_rate_e_per_s[0] / float(on_axis_electron_rate(model.designs[0]))
     expected = 0.5 * 2.0 ** (16 - 12) * rate * vignetting * row["exposure_us"] * 1e-6
     assert model.predict(theta)[0, 0] == pytest.approx(expected, rel=1e-9)
 

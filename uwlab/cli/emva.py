@@ -8,9 +8,7 @@ import sys
 from pathlib import Path
 
 from uwlab.errors import ConfigError
-from uwlab.jsonable import to_jsonable
 
-RESULT_NAME = "emva.json"
 _SUMMARY = (
     ("K_dn_per_e", "system gain K", "DN/e-", "{:.5g}"),
     ("quantum_efficiency", "quantum efficiency η", "", "{:.4f}"),
@@ -86,24 +84,9 @@ def _load_dataset(args):
     return pt, named_profile(points), (str(camera.iloc[0]) if len(camera) else "camera")
 
 
-def _targets(out: Path, name: str, with_profile: bool) -> tuple[list[Path], tuple[Path, Path] | None]:
-    """(result and plot paths, profile TOML and QE CSV paths or None); refuses if any exists."""
-    from uwlab.experiments.emva.plots import PLOT_NAMES
-
-    core = [out / n for n in (RESULT_NAME, *PLOT_NAMES)]
-    profile = (out / f"{name}.toml", out / f"{name}_qe.csv") if with_profile else None
-    for path in core + list(profile or ()):
-        if path.exists():
-            raise ConfigError("--out", str(path), "exists; refusing to overwrite")
-    return core, profile
-
-
-def _safe_name(text: str) -> str:
-    return "".join(ch if ch.isalnum() or ch in "-_" else "-" for ch in text.lower()).strip("-") or "camera"
-
-
 def run_characterize(args) -> int:
     from uwlab.experiments.emva.analysis import characterize
+    from uwlab.experiments.emva.output import output_paths, profile_name, result_document, write_characterization
 
     if (args.dataset is None) == (args.descriptor is None):
         raise ConfigError("DATASET|--descriptor", None, "give exactly one of a dataset directory or --descriptor")
@@ -113,40 +96,19 @@ def run_characterize(args) -> int:
         pt, base, camera = photon_transfer_from_descriptor(args.descriptor, args.pixel_size_um), None, "descriptor"
     else:
         pt, base, camera = _load_dataset(args)
-    name = _safe_name(args.name or f"measured-{camera}")
-    with_profile = bool(args.pixel_size_um or base)
-    out = Path(args.out) if args.out else None
-    core, profile = _targets(out, name, with_profile) if out else ([], None)
+    name = profile_name(args.name or f"measured-{camera}")
+    paths = output_paths(Path(args.out), name, bool(args.pixel_size_um or base)) if args.out else None
     result = characterize(pt, seed=args.seed)
-    document = to_jsonable(result.values)
-    if out:
-        document["files"] = [str(p) for p in core + list(profile or ())]
-        if not with_profile:
-            document["notes"] = document["notes"] + ["no sensor profile written: pixel size unknown (--pixel-size-um)"]
-        _write_outputs(result, pt, out, core[0], profile, name, base, args.pixel_size_um, document)
+    if paths is not None:
+        document = write_characterization(result, pt, paths, name=name, base=base, pixel_size_um=args.pixel_size_um)
+    else:
+        document = result_document(result)
     if args.json:
         json.dump(document, sys.stdout, indent=2)
         sys.stdout.write("\n")
     else:
         print(_summary(document))
     return 0
-
-
-def _write_outputs(result, pt, out: Path, json_path: Path, profile, name: str, base, pixel_size_um,
-                   document) -> None:
-    from uwlab.experiments.emva.plots import write_plots
-    from uwlab.experiments.emva.profile import profile_documents
-
-    out.mkdir(parents=True, exist_ok=True)
-    write_plots(result, out)
-    if profile:
-        exposure_us = (float(pt.exposure_s.min() * 1e6), float(pt.exposure_s.max() * 1e6))
-        toml_text, csv_text = profile_documents(result.values, name=name, width_px=pt.width_px,
-                                                height_px=pt.height_px, exposure_range_us=exposure_us,
-                                                pixel_size_um=pixel_size_um, base=base)
-        profile[0].write_text(toml_text)
-        profile[1].write_text(csv_text)
-    json_path.write_text(json.dumps(document, indent=2) + "\n")
 
 
 def _summary(doc: dict) -> str:

@@ -44,17 +44,17 @@ class ForwardModel:
     nominal: dict[str, float]
     y: np.ndarray
     sigma_meas: np.ndarray
-    scale: np.ndarray            # K₀-free per-point factor: 10^(g/20) 2^(b − b_profile) t
+    effective_exposure_s: np.ndarray  # per point: t · relative light output · 10^(g/20) 2^(b − b_profile) [s]
     config: np.ndarray           # configuration index per point
     camera: np.ndarray           # camera (sensor profile) index per point
     cameras: tuple[str, ...]
-    rate0: np.ndarray            # nominal on-axis rate × vignetting per configuration [e⁻/s]
+    nominal_rate_e_per_s: np.ndarray  # per configuration: on-axis rate × ROI vignetting at nominal θ [e⁻/s]
     has_lens: np.ndarray         # per configuration
     omega_cone: bool
     weights_e: np.ndarray        # (n_config, n_λ)
-    c: np.ndarray                # (n_config, n_λ), unscaled attenuation
-    path_m: np.ndarray           # (n_config,)
-    g0: np.ndarray               # G_k(s₀)
+    attenuation_per_m: np.ndarray  # (n_config, n_λ): beam attenuation c(λ) before the attenuation scale
+    path_length_m: np.ndarray    # (n_config,): light → target → camera
+    nominal_transmission: np.ndarray  # (n_config,): G_k(s₀)
     designs: list[Design] = field(repr=False, default_factory=list)
     points: pd.DataFrame = field(repr=False, default=None)
 
@@ -79,12 +79,12 @@ class ForwardModel:
         else:
             beam = np.tan(beta0) ** 2 / np.tan(beta) ** 2
         s = self.parameter(theta, "attenuation_scale")[:, None, None]
-        g = np.einsum("wkl,kl->wk", np.exp(-s * (self.path_m[:, None] * self.c)[None]), self.weights_e)
-        return beam * g / self.g0[None, :]
+        g = np.einsum("wkl,kl->wk", np.exp(-s * (self.path_length_m[:, None] * self.attenuation_per_m)[None]), self.weights_e)
+        return beam * g / self.nominal_transmission[None, :]
 
     def mean_log(self, shape: np.ndarray) -> np.ndarray:
         """ln of a `shape` averaged over the points (each configuration weighted by its points), (n_walkers,)."""
-        share = np.bincount(self.config, minlength=self.g0.size) / self.config.size
+        share = np.bincount(self.config, minlength=self.nominal_transmission.size) / self.config.size
         return np.log(shape) @ share
 
     def predict(self, theta: np.ndarray, shape: np.ndarray | None = None) -> np.ndarray:
@@ -94,10 +94,10 @@ class ForwardModel:
         shape = self.shape(theta) if shape is None else shape
         p = lambda name: self.parameter(theta, name)[:, None]  # noqa: E731
         lens = np.where(self.has_lens[None, :], p("lens_transmittance") / self.nominal["lens_transmittance"], 1.0)
-        rate = (self.rate0[None, :] * p("light_efficiency") * p("reflectance") / self.nominal["reflectance"]
+        rate = (self.nominal_rate_e_per_s[None, :] * p("light_efficiency") * p("reflectance") / self.nominal["reflectance"]
                 * lens * shape)
         k = np.stack([self.parameter(theta, f"K_dn_per_e:{cam}") for cam in self.cameras], axis=1)
-        return k[:, self.camera] * self.scale[None, :] * rate[:, self.config]
+        return k[:, self.camera] * self.effective_exposure_s[None, :] * rate[:, self.config]
 
     def sigma(self, theta: np.ndarray, prediction: np.ndarray) -> np.ndarray:
         """Per-point standard deviation: measurement noise of the ROI mean ⊕ fractional model discrepancy."""
@@ -184,10 +184,11 @@ def build_forward_model(points: pd.DataFrame, rigs: dict[str, dict], names: tupl
         raise ConfigError("light.beam_model", sorted(beam_model), "all sweeps of one fit must share a beam model")
     return ForwardModel(
         names=tuple(names), nominal=nominal, y=points["signal_dn"].to_numpy(float), sigma_meas=np.sqrt(var_mean),
-        scale=10 ** (points["gain_db"].to_numpy(float) / 20) * 2.0 ** (points["bit_depth"].to_numpy(float) - profile_bits)
+        effective_exposure_s=10 ** (points["gain_db"].to_numpy(float) / 20) * 2.0 ** (points["bit_depth"].to_numpy(float) - profile_bits)
         * points["exposure_us"].to_numpy(float) * 1e-6 * flux,
-        config=config, camera=camera, cameras=cameras, rate0=np.array(rate0), has_lens=np.array(has_lens),
-        omega_cone=beam_model == {"cone"}, weights_e=np.array(w_e), c=np.array(c), path_m=np.array(path), g0=np.array(g0),
+        config=config, camera=camera, cameras=cameras, nominal_rate_e_per_s=np.array(rate0), has_lens=np.array(has_lens),
+        omega_cone=beam_model == {"cone"}, weights_e=np.array(w_e), attenuation_per_m=np.array(c), path_length_m=np.array(path),
+        nominal_transmission=np.array(g0),
         designs=designs, points=points.reset_index(drop=True),
     )
 

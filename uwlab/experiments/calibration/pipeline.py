@@ -1,9 +1,9 @@
 """Calibrating the model against a dataset: fit, validate, write — what `uwlab fit` and `uwlab demo` run.
 
 Outputs in the calibration directory: those of `uwlab.experiments.calibration.output`, plus ``cross.json`` (the
-cross-configuration table), ``spectra.parquet`` (predicted and measured spectra) and ``calibration.json``
-(which dataset, fit config, training sweeps, and the simulated ground truth when the dataset comes from the
-simulated rig).
+cross-configuration table) and ``spectra.parquet`` (predicted and measured spectra). ``summary.json`` also
+records which dataset (path, plan hash), the training sweeps, the cross-configuration table, the spectra
+comparison and, per parameter, the simulated ground truth when the dataset comes from the simulated rig.
 """
 from __future__ import annotations
 

@@ -75,8 +75,8 @@ def dense_sweeps(result: FitResult, n: int = 60) -> pd.DataFrame:
         sel = model.config == k
         exposures = np.geomspace(model.points.loc[sel, "exposure_us"].min(), model.points.loc[sel, "exposure_us"].max(), n)
         first = np.flatnonzero(sel)[0]
-        per_point = model.scale[first] / (model.points.loc[first, "exposure_us"])
-        dense = replace(model, scale=per_point * exposures, config=np.full(n, k), camera=np.full(n, model.camera[first]),
+        per_point = model.effective_exposure_s[first] / (model.points.loc[first, "exposure_us"])
+        dense = replace(model, effective_exposure_s=per_point * exposures, config=np.full(n, k), camera=np.full(n, model.camera[first]),
                         y=np.zeros(n), sigma_meas=np.zeros(n))
         bands = predictive_bands(dense, result.samples)
         frame = pd.DataFrame({"sweep_id": model.points.loc[first, "sweep_id"], "configuration": k, "exposure_us": exposures,
