@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from uwlab.drivers.sim.camera import SensorConfig, SimSensor, SimTruth, flat_rate_map, sensor_from_rig
+from uwlab.drivers.sim.scene import RigScene
 from uwlab.drivers.sim.rig_state import LightState, RigState
 from uwlab.model.sensor import load_sensor_profile
 
@@ -105,8 +106,19 @@ def test_truth_from_model_sensor_profile():
 
 
 def test_rig_scene_drives_the_sensor():
-    pytest.importorskip("uwlab.drivers.sim.scene")
+    """The default rig's board, seen on axis, reads the scene's on-axis electron rate through the EMVA model
+    (μ_y = μ_y,dark + K μ_e, MSB-aligned in Mono16); the darker surround reads less by the reflectance ratio."""
+    scene = RigScene.from_toml(None)
     sensor = sensor_from_rig(None, seed=0)
-    width, height = sensor.truth.resolution_px
-    image = sensor.render(cfg(width=width, height=height, pixel_format="Mono16", exposure_us=5000.0))
-    assert image.shape == (height, width) and image.max() > image.min()
+    truth = sensor.truth
+    t = 0.4 * truth.saturation_e / scene.on_axis_rate_e_per_s()  # 40 % of the full well on the board
+    width, height = truth.resolution_px
+    image = sensor.render(cfg(width=width, height=height, pixel_format="Mono16", exposure_us=t * 1e6))
+    assert image.shape == (height, width)
+    native = image.astype(float) / 2 ** (16 - truth.bit_depth)
+    centre = native[height // 2 - 16: height // 2 + 16, width // 2 - 16: width // 2 + 16].mean()
+    electrons = scene.on_axis_rate_e_per_s() * t + truth.dark_current_e_per_s * t
+    assert centre == pytest.approx(truth.dark_offset_dn + truth.K_dn_per_e * electrons, rel=0.01)
+    corner = native[:32, :32].mean() - truth.dark_offset_dn
+    ratio = scene.sim["surround_reflectance"] / scene.design["target.reflectance"]
+    assert corner < 1.2 * ratio * (centre - truth.dark_offset_dn)

@@ -6,6 +6,7 @@ from dataclasses import replace
 import numpy as np
 import pandas as pd
 import pytest
+from scipy.optimize import brentq
 
 from uwlab.errors import ConfigError
 from uwlab.experiments.emva.analysis import (
@@ -103,8 +104,11 @@ def test_exact_model_is_recovered():
     photons = 1.0e6 * np.linspace(0.001, 0.02, 40)
     assert v["saturation_e"] == pytest.approx(ETA * photons[ETA * photons <= SAT_E].max())
     assert v["snr_max_db"] == pytest.approx(10 * math.log10(v["saturation_e"]))
-    mu_p_min = (math.sqrt(v["dark_var_dn2"] / K**2 + 0.25) + 0.5) / ETA
-    assert v["dynamic_range_db"] == pytest.approx(20 * math.log10(v["saturation_photons"] / mu_p_min))
+    # μ_p,min: where the linear model's SNR (Release 4.0 Linear eq. 21) of the true camera reaches 1
+    snr = lambda mu_p: ETA * mu_p / math.sqrt(SIGMA_D**2 + (1 / 12) / K**2 + ETA * mu_p) - 1.0  # noqa: E731
+    mu_p_min = brentq(snr, 1e-3, 1e3, xtol=1e-12)
+    assert v["sensitivity_threshold_photons"] == pytest.approx(mu_p_min, rel=1e-9)
+    assert v["dynamic_range_db"] == pytest.approx(20 * math.log10(v["saturation_photons"] / mu_p_min), rel=1e-9)
     assert v["K_dn_per_e_std"] == pytest.approx(0.0, abs=1e-9)
 
 

@@ -50,7 +50,8 @@ def test_uncertainties_cover_the_truth(sim_dataset, result):
     truth = sim_truth_of(sim_dataset)
     for key in ("K_dn_per_e", "quantum_efficiency", "dark_noise_e"):
         assert result[f"{key}_std"] > 0
-        assert result[f"{key}_std_mcmc"] == pytest.approx(result[f"{key}_std"], rel=0.5)
+        # the posterior of the same straight lines (flat priors, unknown noise scale) has the least-squares width
+        assert result[f"{key}_std_mcmc"] == pytest.approx(result[f"{key}_std"], rel=0.15)
         assert abs(result[key] - truth[key]) < 5 * result[f"{key}_std"] + 0.005 * truth[key]
 
 

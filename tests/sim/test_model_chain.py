@@ -5,6 +5,7 @@ import pytest
 from uwlab.experiments.design.grid import evaluate_grid
 from uwlab.model.design import build_design, evaluate, stage_spectra
 from uwlab.model.grid import WavelengthGrid
+from uwlab.model.photometry import photon_flux
 from uwlab.model.port import port_transmittance
 from uwlab.model.sensor import load_sensor_profile, response_dn, snr
 from uwlab.model.water import water_iop
@@ -77,9 +78,12 @@ def test_sensor_electrons_closed_form(example_raw, mono555):
 
 
 def test_photon_count_for_known_irradiance():
-    """EMVA 1288 eq. (3): μ_p = A E t λ / (h c); 1 W/m² at 555 nm on a 3.45 µm pixel for 1 ms ≈ 33 256 photons."""
-    mu_p = (3.45e-6) ** 2 * 1.0 * 1e-3 * 555e-9 / (H * C)
-    assert mu_p == pytest.approx(33256, rel=1e-3)
+    """EMVA 1288 Release 4.0 Linear eq. (4), the standard's handy-unit form of eq. (3):
+    μ_p = 50.34 · A[µm²] · t_exp[ms] · λ[µm] · E[µW/cm²]. 1 W/m² (100 µW/cm²) in a 1 nm band at 555 nm on a
+    3.45 µm pixel for 1 ms: 50.34 · 11.9025 · 1 · 0.555 · 100 ≈ 33 254 photons."""
+    nm = np.array([554.5, 555.5])
+    mu_p = photon_flux(nm, np.ones(2)) * (3.45e-6) ** 2 * 1e-3
+    assert mu_p == pytest.approx(50.34 * 3.45**2 * 1.0 * 0.555 * 100, rel=2e-4)
 
 
 def test_response_clipping_and_snr():

@@ -9,7 +9,7 @@ from uwlab.model.grid import WavelengthGrid
 from uwlab.model.water import JERLOV_TYPES, pure_water_scattering, water_iop
 
 GRID = WavelengthGrid(300.0, 800.0, 1.0)
-REF = ROOT.parent / "shared" / "reference-data"
+DATA = ROOT / "tests" / "sim" / "data"  # reference copies with their provenance (README.md there)
 
 
 @pytest.mark.parametrize("kind", JERLOV_TYPES)
@@ -23,7 +23,7 @@ def test_jerlov_values_at_table_wavelengths(kind):
 
 
 def test_jerlov_anchor_cells_are_unchanged_from_the_reference():
-    ref = pd.read_csv(REF / "jerlov_iops_anchor.csv").dropna()
+    ref = pd.read_csv(DATA / "jerlov_iops_anchor.csv", comment="#").dropna()
     ours = pd.read_csv(ROOT / "configs/water/jerlov.csv", comment="#")
     merged = ref.merge(ours, on=["water_type", "wavelength_nm"], suffixes=("_ref", ""))
     assert len(merged) == len(ref)
@@ -40,7 +40,7 @@ def test_red_extension_is_continuous_and_rises_with_water_absorption():
 
 
 def test_pure_fresh_matches_pope_and_fry_and_morel():
-    ref = pd.read_csv(REF / "pure_water_absorption_pope_fry_1997.csv")
+    ref = pd.read_csv(DATA / "pure_water_absorption_pope_fry_1997.csv", comment="#")
     iop = water_iop("pure-fresh", WavelengthGrid(380.0, 727.5, 2.5))
     assert iop.a_per_m == pytest.approx(ref["a_per_m"].to_numpy(), rel=1e-12)
     assert pure_water_scattering(500.0) == pytest.approx(0.0022)
