@@ -139,7 +139,7 @@ def test_sim_serial_subprocess_ports_work_and_sigterm_cleans_up():
             light.set_output(False)
             dark = irradiance_w_m2(*spectrometer.read_spectrum())
         assert full - dark == pytest.approx(expected, rel=0.01)
-        assert (half - dark) / (full - dark) == pytest.approx(0.5 ** scene.sim["light_gamma"], rel=0.02)
+        assert (half - dark) / (full - dark) == pytest.approx(0.5 ** scene.sim.light_gamma, rel=0.02)
         process.send_signal(signal.SIGTERM)
         assert process.wait(timeout=30) == 0
         assert not any(os.path.lexists(info[key]) for key in ("light", "spectrometer", "rig_state"))

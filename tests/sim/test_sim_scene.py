@@ -17,8 +17,8 @@ def test_centre_pixel_follows_the_model(scene):
     out = evaluate(scene.design)
     rate = scene.electron_rate_map((205, 245))
     centre = rate[102, 122]
-    expected = scene.sim["light_efficiency"] * float(out["mean_electrons"]) / float(out["exposure_s"])
-    assert not out["saturated"] and scene.sim["light_efficiency"] == 0.8
+    expected = scene.sim.light_efficiency * float(out["mean_electrons"]) / float(out["exposure_s"])
+    assert not out["saturated"] and scene.sim.light_efficiency == 0.8
     assert centre == pytest.approx(expected, rel=1e-3)  # the centre pixel is 0.3 pixel off axis
 
 
@@ -35,7 +35,7 @@ def test_rate_is_linear_in_flux_and_board_is_brighter(scene):
 def test_spectra_integrate_to_model_irradiance(scene):
     nm, target = scene.spectral_irradiance("target", 0.25)
     out = evaluate(scene.design)
-    efficiency = scene.sim["light_efficiency"]
+    efficiency = scene.sim.light_efficiency
     assert scene.design.grid.integrate(target) == pytest.approx(0.25 * efficiency * float(out["target_irradiance_w_m2"]))
     nm, camera = scene.spectral_irradiance("camera")
     assert 0 < scene.design.grid.integrate(camera) < scene.design.grid.integrate(target / 0.25)

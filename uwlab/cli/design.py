@@ -40,6 +40,8 @@ def parse_grid_values(key: str, text: str) -> list:
             start, stop, step = (float(x) for x in text.split(":"))
         except ValueError:
             raise ConfigError(key, text, "grid range must be START:STOP:STEP numbers") from None
+        if not all(math.isfinite(x) for x in (start, stop, step)):
+            raise ConfigError(key, text, "grid range must be finite START:STOP:STEP numbers")
         if step <= 0 or stop < start:
             raise ConfigError(key, text, "grid range needs step > 0 and stop >= start")
         count = int(math.floor((stop - start) / step + 1e-9)) + 1

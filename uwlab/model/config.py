@@ -1,165 +1,171 @@
-"""The design configuration: schema, defaults, validation and overrides.
+"""The design configuration: its schema (one pydantic model per section), overrides and loading.
 
 A design config is TOML with sections [spectral], [light], [water], [target], [housing], [lens], [sensor],
-[operation]. Every key carries its unit in its name. Numeric keys may hold a number or, for grid evaluation, a
-1-D numpy array of numbers; each element is validated. Validation errors are `ConfigError`s naming
-``section.key`` and the offending value.
+[operation]. Every key carries its unit in its name and its meaning in its field's description. Numeric keys
+that `uwlab design --grid` can vary are `Grid` quantities: a number or a numpy array (an open mesh), validated
+element-wise. Physical plausibility limits (`uwlab.model.schema`) refuse values in a wrong unit. Errors are
+`ConfigError`s naming ``section.key`` and the offending value.
+
+>>> validate({"light": {"luminous_flux_lm": 25000, "beam_half_angle_deg": 40}, "water": {"type": "jerlov-I"},
+...           "target": {"reflectance": 0.2}, "lens": {"focal_length_mm": 8, "f_number": 2.8},
+...           "sensor": {"profile": "imx250m"}, "operation": {"altitude_m": 2}})["lens"]
+{'focal_length_mm': 8.0, 'f_number': 2.8, 'transmittance': 1.0}
 """
 from __future__ import annotations
 
-import math
 import tomllib
-from dataclasses import dataclass
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
+from pydantic import Field, model_validator
 
 from uwlab.errors import ConfigError
 from uwlab.model.data import read_toml
+from uwlab.model.schema import (BitDepth, BlurPx, CircleOfConfusionMm, DistanceM, ExposureS, FNumber, FocalLengthMm,
+                                Fraction, GainDb, Grid, HalfAngleDeg, HousingMm, IncidenceDeg, LuminousFluxLm,
+                                NonEmptyText, RefractiveIndex, Schema, SpectralStepNm, SpeedMS, Transmittance,
+                                WavelengthNm, invalid, number_or, parse, quantity)
 
-REQUIRED = object()
-
-
-@dataclass(frozen=True)
-class Num:
-    """A number in an interval; `integer` demands integral values."""
-
-    default: object = REQUIRED
-    lo: float = -math.inf
-    hi: float = math.inf
-    lo_open: bool = False
-    hi_open: bool = False
-    integer: bool = False
-    words: tuple[str, ...] = ()  # words accepted instead of a number
-
-    def describe(self) -> str:
-        left = "(" if self.lo_open else "["
-        right = ")" if self.hi_open else "]"
-        kind = "an integer" if self.integer else "a number"
-        alts = "".join(f' or "{w}"' for w in self.words)
-        return f"must be {kind} in {left}{self.lo:g}, {self.hi:g}{right}{alts}"
-
-    def check(self, key: str, value):
-        if isinstance(value, str):
-            if value in self.words:
-                return value
-            raise ConfigError(key, value, self.describe())
-        if isinstance(value, bool) or not isinstance(value, (int, float, np.ndarray, list)):
-            raise ConfigError(key, value, self.describe())
-        arr = np.asarray(value, dtype=float) if not isinstance(value, np.ndarray) else value.astype(float)
-        bad = ~np.isfinite(arr) | (arr < self.lo) | (arr > self.hi)
-        bad |= (arr == self.lo) & self.lo_open
-        bad |= (arr == self.hi) & self.hi_open
-        if self.integer:
-            bad |= arr != np.round(arr)
-        if np.any(bad):
-            offending = arr[bad].flat[0] if arr.ndim else value
-            raise ConfigError(key, float(offending) if not self.integer else int(offending), self.describe())
-        return arr if arr.ndim else float(arr)
+# Light count: one to a thousand lights of the same kind.
+LightCount = quantity(1, 1000, "lights", hint="", integer=True)
+# A factor on the tabulated beam attenuation c(λ): 0 (clear) to 100 times the water type's.
+AttenuationScale = quantity(0.0, 100.0, "", hint="a factor on the water type's attenuation")
+# Image overlap between frames along the motion: a fraction below 1 (1 would need an infinite framerate).
+Overlap = quantity(0.0, 1.0, "", hint="a fraction, not a percentage", hi_open=True)
+NAME_OR_FILE = "must be a number or a name or file path"
 
 
-@dataclass(frozen=True)
-class Choice:
-    options: tuple[str, ...]
-    default: object = REQUIRED
-
-    def check(self, key: str, value):
-        if value not in self.options:
-            raise ConfigError(key, value, f"must be one of {', '.join(self.options)}")
-        return value
+def _section(model):
+    """A section field: absent in the file means all its defaults (its required keys are then reported)."""
+    return Field(default={}, validate_default=True, description=model.__doc__.splitlines()[0])
 
 
-@dataclass(frozen=True)
-class Text:
-    """A name or a path (numbers are accepted where `number` is a Num to try first)."""
+class Spectral(Schema):
+    """The wavelength grid every spectrum is sampled on [nm]."""
 
-    default: object = REQUIRED
-    number: Num | None = None
+    start_nm: WavelengthNm = Field(380.0, description="first wavelength of the grid [nm]")
+    stop_nm: WavelengthNm = Field(780.0, description="last wavelength of the grid [nm]")
+    step_nm: SpectralStepNm = Field(1.0, description="wavelength step [nm]")
 
-    def check(self, key: str, value):
-        if self.number is not None and not isinstance(value, str):
-            return self.number.check(key, value)
-        if not isinstance(value, str) or not value:
-            raise ConfigError(key, value, "must be a non-empty string" + (" or a number" if self.number else ""))
-        return value
+    @model_validator(mode="after")
+    def _ordered(self):
+        if self.stop_nm <= self.start_nm:
+            raise invalid("stop_nm", self.stop_nm, "must exceed start_nm")
+        return self
 
 
-FRACTION = Num(lo=0.0, hi=1.0)
-POSITIVE = dict(lo=0.0, lo_open=True)
+class Light(Schema):
+    """The artificial light(s): spectrum, flux, beam and placement."""
 
-SCHEMA: dict[str, dict[str, Num | Choice | Text]] = {
-    "spectral": {
-        "start_nm": Num(380.0, **POSITIVE), "stop_nm": Num(780.0, **POSITIVE), "step_nm": Num(1.0, **POSITIVE),
-    },
-    "light": {
-        "spectrum": Text("generic-led"),
-        "luminous_flux_lm": Num(REQUIRED, **POSITIVE),
-        "beam_half_angle_deg": Num(None, lo=0.0, hi=90.0, lo_open=True, hi_open=True),
-        "beam_half_angle_in_air_deg": Num(None, lo=0.0, hi=90.0, lo_open=True, hi_open=True),
-        "beam_model": Choice(("cone", "disk"), "cone"),
-        "count": Num(1, lo=1, integer=True),
-        "distance_m": Num(None, **POSITIVE),
-        "incidence_deg": Num(0.0, lo=0.0, hi=90.0, hi_open=True),
-    },
-    "water": {"type": Text(REQUIRED), "attenuation_scale": Num(1.0, lo=0.0)},
-    "target": {"reflectance": Text(REQUIRED, number=FRACTION)},
-    "housing": {
-        "port": Choice(("flat", "dome"), "flat"),
-        "water_index": Num(1.333, lo=1.0),
-        "port_index": Num(1.49, lo=1.0),
-        "port_transmittance": Num("fresnel", lo=0.0, hi=1.0, lo_open=True, words=("fresnel",)),
-        "dome_radius_mm": Num(None, **POSITIVE),
-        "dome_thickness_mm": Num(None, **POSITIVE),
-    },
-    "lens": {
-        "focal_length_mm": Num(REQUIRED, **POSITIVE),
-        "f_number": Num(REQUIRED, **POSITIVE),
-        "transmittance": Text(1.0, number=Num(lo=0.0, hi=1.0, lo_open=True)),
-    },
-    "sensor": {
-        "profile": Text(REQUIRED),
-        "gain_db": Num(0.0),
-        "bit_depth": Num(None, lo=1, hi=32, integer=True),
-        "channel": Choice(("combined", "red", "green", "blue"), "combined"),
-    },
-    "operation": {
-        "altitude_m": Num(REQUIRED, **POSITIVE),
-        "speed_m_s": Num(0.0, lo=0.0),
-        "overlap": Num(0.0, lo=0.0, hi=1.0, hi_open=True),
-        "max_blur_px": Num(1.0, **POSITIVE),
-        "exposure_s": Num("max-blur", **POSITIVE, words=("max-blur",)),
-        "motion_axis": Choice(("x", "y"), "y"),
-        "min_dof_m": Num(None, **POSITIVE),
-        "circle_of_confusion_mm": Num(None, **POSITIVE),
-    },
-}
+    spectrum: NonEmptyText = Field("generic-led", description="relative spectrum: a named spectrum or a CSV file")
+    luminous_flux_lm: Grid[LuminousFluxLm] = Field(description="rated luminous flux of one light [lm]")
+    beam_half_angle_deg: Grid[HalfAngleDeg] | None = Field(
+        None, description="beam half-angle in water [deg] (give this or beam_half_angle_in_air_deg)")
+    beam_half_angle_in_air_deg: Grid[HalfAngleDeg] | None = Field(
+        None, description="beam half-angle as specified in air [deg], refracted into the water by the port")
+    beam_model: Literal["cone", "disk"] = Field(
+        "cone", description="cone: uniform intensity in the beam; disk: flux spread over the beam's footprint")
+    count: Grid[LightCount] = Field(1, description="number of identical lights")
+    distance_m: Grid[DistanceM] | None = Field(
+        None, description="light → target distance [m] (default: the altitude)")
+    incidence_deg: Grid[IncidenceDeg] = Field(0.0, description="angle of incidence of the light on the target [deg]")
+
+    @model_validator(mode="after")
+    def _one_beam_angle(self):
+        if (self.beam_half_angle_deg is None) == (self.beam_half_angle_in_air_deg is None):
+            raise invalid("beam_half_angle_deg", self.beam_half_angle_deg,
+                          "give exactly one of beam_half_angle_deg (in water) and beam_half_angle_in_air_deg")
+        return self
+
+
+class Water(Schema):
+    """The water: its optical type and a scale on its attenuation."""
+
+    type: NonEmptyText = Field(description="water type (pure-fresh, pure-sea, jerlov-I … jerlov-9C) or a CSV file")
+    attenuation_scale: Grid[AttenuationScale] = Field(1.0, description="factor on the beam attenuation c(λ)")
+
+
+class Target(Schema):
+    """The Lambertian target (seafloor, test board)."""
+
+    reflectance: number_or(Grid[Fraction], NonEmptyText, NAME_OR_FILE) = Field(
+        description="diffuse reflectance: a fraction, a named material or a CSV file")
+
+
+class Housing(Schema):
+    """The camera housing's port and the refractive indices."""
+
+    port: Literal["flat", "dome"] = Field("flat", description="port shape")
+    water_index: Grid[RefractiveIndex] = Field(1.333, description="refractive index of the water")
+    port_index: Grid[RefractiveIndex] = Field(1.49, description="refractive index of the port material")
+    port_transmittance: number_or(Grid[Transmittance], Literal["fresnel"], 'must be a number or "fresnel"') = Field(
+        "fresnel", description='port transmittance: a fraction, or "fresnel" (two interfaces at normal incidence)')
+    dome_radius_mm: Grid[HousingMm] | None = Field(None, description="dome outer radius [mm] (dome ports)")
+    dome_thickness_mm: Grid[HousingMm] | None = Field(None, description="dome wall thickness [mm] (dome ports)")
+
+    @model_validator(mode="after")
+    def _dome(self):
+        if self.port == "dome":
+            for key in ("dome_radius_mm", "dome_thickness_mm"):
+                if getattr(self, key) is None:
+                    raise invalid(key, None, "required for a dome port")
+            if np.any(np.asarray(self.dome_thickness_mm) >= np.asarray(self.dome_radius_mm)):
+                raise invalid("dome_thickness_mm", self.dome_thickness_mm, "must be less than dome_radius_mm")
+        return self
+
+
+class Lens(Schema):
+    """The lens: focal length, aperture and transmittance."""
+
+    focal_length_mm: Grid[FocalLengthMm] = Field(description="focal length (in air) [mm]")
+    f_number: Grid[FNumber] = Field(description="f-number N = f / D")
+    transmittance: number_or(Grid[Transmittance], NonEmptyText, NAME_OR_FILE) = Field(
+        1.0, description="lens transmittance: a fraction or a CSV file")
+
+
+class Sensor(Schema):
+    """The image sensor and its settings."""
+
+    profile: NonEmptyText = Field(description="sensor profile: a name in configs/sensors or a TOML file")
+    gain_db: Grid[GainDb] = Field(0.0, description="analog gain [dB]")
+    bit_depth: Grid[BitDepth] | None = Field(None, description="output bit depth [bit] (default: the profile's)")
+    channel: Literal["combined", "red", "green", "blue"] = Field(
+        "combined", description="colour channel of a colour sensor")
+
+
+class Operation(Schema):
+    """How the camera is used: altitude, speed, exposure and depth-of-field needs."""
+
+    altitude_m: Grid[DistanceM] = Field(description="camera → target distance [m]")
+    speed_m_s: Grid[SpeedMS] = Field(0.0, description="vehicle speed over the target [m/s]")
+    overlap: Grid[Overlap] = Field(0.0, description="overlap between consecutive frames along the motion")
+    max_blur_px: Grid[BlurPx] = Field(1.0, description="largest acceptable motion blur [px]")
+    exposure_s: number_or(Grid[ExposureS], Literal["max-blur"], 'must be a number or "max-blur"') = Field(
+        "max-blur", description='exposure time [s], or "max-blur": the longest exposure within max_blur_px')
+    motion_axis: Literal["x", "y"] = Field("y", description="sensor axis along the motion")
+    min_dof_m: Grid[DistanceM] | None = Field(None, description="required depth of field [m]")
+    circle_of_confusion_mm: Grid[CircleOfConfusionMm] | None = Field(
+        None, description="acceptable circle of confusion on the sensor [mm] (default: the sensor diagonal / 1500)")
+
+
+class DesignConfig(Schema):
+    """A design config: one table per section."""
+
+    spectral: Spectral = _section(Spectral)
+    light: Light = _section(Light)
+    water: Water = _section(Water)
+    target: Target = _section(Target)
+    housing: Housing = _section(Housing)
+    lens: Lens = _section(Lens)
+    sensor: Sensor = _section(Sensor)
+    operation: Operation = _section(Operation)
 
 
 def validate(raw: dict) -> dict[str, dict]:
-    """Check every section and key against SCHEMA, fill defaults; returns {section: {key: value}}."""
-    if not isinstance(raw, dict):
-        raise ConfigError("config", raw, "must be a table of sections")
-    for section, body in raw.items():
-        if section not in SCHEMA:
-            raise ConfigError(section, "...", f"unknown section; expected one of {', '.join(SCHEMA)}")
-        if not isinstance(body, dict):
-            raise ConfigError(section, body, "must be a table")
-        for key in body:
-            if key not in SCHEMA[section]:
-                raise ConfigError(f"{section}.{key}", body[key], f"unknown key; {section} has {', '.join(SCHEMA[section])}")
-    out: dict[str, dict] = {}
-    for section, fields in SCHEMA.items():
-        body = raw.get(section, {})
-        out[section] = {}
-        for key, spec in fields.items():
-            name = f"{section}.{key}"
-            if key in body:
-                out[section][key] = spec.check(name, body[key])
-            elif spec.default is REQUIRED:
-                raise ConfigError(name, None, "missing (required)")
-            else:
-                out[section][key] = spec.default
-    return out
+    """Validate a raw config against `DesignConfig`, fill defaults; returns {section: {key: value}}."""
+    config = parse(DesignConfig, raw)
+    return {name: dict(section) for name, section in config}
 
 
 def parse_value(text: str):

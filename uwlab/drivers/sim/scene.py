@@ -18,42 +18,35 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from pydantic import Field
 
 from uwlab.drivers.sim.rig_state import RigState
 from uwlab.errors import ConfigError
-from uwlab.model.config import Num
 from uwlab.model.data import config_dir, read_toml
 from uwlab.model.design import (Design, build_design, effective_focal_length_m, electron_rate_at_radius,
                                 on_axis_electron_rate, SPECTROMETER_POSITIONS, stage_spectra)
 from uwlab.model.optics import NO_LENS
+from uwlab.model.schema import DistanceM, FNumber, FocalLengthMm, Fraction, Schema, check, parse, quantity
 from uwlab.model.sensor import SensorProfile
 
 DEFAULT_RIG = "rigs/sim-tank.toml"
-SIM_SCHEMA = {
-    "seed": Num(1288, lo=0, integer=True),
-    "light_gamma": Num(2.2, lo=0.0, lo_open=True),
-    "surround_reflectance": Num(0.05, lo=0.0, hi=1.0),
-    "light_efficiency": Num(1.0, lo=0.0, lo_open=True),
-}
-POSITIVE_NUM = dict(lo=0.0, lo_open=True)
+Seed = quantity(0, 2**32 - 1, "", hint="", integer=True)
+# The light's dimming curve exponent: flux fraction = level^γ; 1 is linear, 2.2 a typical dimmer.
+Gamma = quantity(0.0, 10.0, "", hint="", lo_open=True)
+# True flux over rated flux: a manufacturer's rating is rarely off by more than a factor of a few.
+Efficiency = quantity(0.0, 10.0, "", hint="a factor on the rated flux", lo_open=True)
 
 
-def _sim_values(raw: dict) -> dict:
-    body = raw.get("sim", {})
-    if not isinstance(body, dict):
-        raise ConfigError("sim", body, "must be a table")
-    out = {}
-    for key, value in body.items():
-        if key not in (*SIM_SCHEMA, "board_size_m"):
-            raise ConfigError(f"sim.{key}", value, f"unknown key; sim has {', '.join([*SIM_SCHEMA, 'board_size_m'])}")
-    for key, spec in SIM_SCHEMA.items():
-        out[key] = spec.check(f"sim.{key}", body[key]) if key in body else spec.default
-    board = body.get("board_size_m", [0.15, 0.12])
-    if not (isinstance(board, list) and len(board) == 2 and all(isinstance(v, (int, float)) and v > 0 for v in board)):
-        raise ConfigError("sim.board_size_m", board, "must be [x, y] with positive sizes in metres")
-    out["board_size_m"] = (float(board[0]), float(board[1]))
-    out["seed"] = int(out["seed"])
-    return out
+class SimSettings(Schema):
+    """The rig config's [sim] section: what only the simulated rig needs."""
+
+    seed: Seed = Field(1288, description="seed of the fixed-pattern noise maps")
+    light_gamma: Gamma = Field(2.2, description="light output flux fraction = level ** light_gamma")
+    board_size_m: tuple[DistanceM, DistanceM] = Field(
+        (0.15, 0.12), description="the target board's size [x, y] on the target plane, centred on the axis [m]")
+    surround_reflectance: Fraction = Field(0.05, description="reflectance around the board")
+    light_efficiency: Efficiency = Field(
+        1.0, description="true emitted flux / rated luminous flux (the ground truth a fit should recover)")
 
 
 @dataclass(eq=False)
@@ -61,7 +54,7 @@ class RigScene:
     """The simulated rig: a scalar design, simulation settings and the shared light state."""
 
     design: Design
-    sim: dict
+    sim: SimSettings
     state: RigState = field(default_factory=RigState)
     no_lens: bool = False
     _profile: tuple | None = field(default=None, repr=False)
@@ -75,7 +68,7 @@ class RigScene:
     @classmethod
     def from_dict(cls, raw: dict, base_dir: Path | None = None, state: RigState | None = None) -> "RigScene":
         """A rig from its config dict (design sections + [sim]); relative paths resolve against base_dir."""
-        sim = _sim_values(raw)
+        sim = parse(SimSettings, raw.get("sim", {}), "sim")
         design = build_design({k: v for k, v in raw.items() if k != "sim"}, base_dir)
         return cls(design=design, sim=sim, state=state or RigState())
 
@@ -87,9 +80,9 @@ class RigScene:
         """Change the simulated lens (as an operator would on a manual lens); cached images are re-rendered."""
         changes = {}
         if focal_length_mm is not None:
-            changes["lens.focal_length_mm"] = Num(**POSITIVE_NUM).check("lens.focal_length_mm", focal_length_mm)
+            changes["lens.focal_length_mm"] = check(FocalLengthMm, focal_length_mm, "lens.focal_length_mm")
         if f_number is not None:
-            changes["lens.f_number"] = Num(**POSITIVE_NUM).check("lens.f_number", f_number)
+            changes["lens.f_number"] = check(FNumber, f_number, "lens.f_number")
         self.design = self.design.with_values(**changes)
         self.no_lens = False
         self._profile = None
@@ -106,11 +99,11 @@ class RigScene:
         return self.state.light.effective_fraction
 
     def level_to_flux_fraction(self, level: float) -> float:
-        return float(level) ** self.sim["light_gamma"]
+        return float(level) ** self.sim.light_gamma
 
     def on_axis_rate_e_per_s(self, flux_fraction: float = 1.0) -> float:
         """The model's on-axis electron rate of a board pixel [e⁻/s] at this flux fraction."""
-        return flux_fraction * self.sim["light_efficiency"] * float(on_axis_electron_rate(self.design))
+        return flux_fraction * self.sim.light_efficiency * float(on_axis_electron_rate(self.design))
 
     def _magnification(self) -> float:
         """Object size on the target plane per unit image size (pinhole with the effective focal length)."""
@@ -135,12 +128,12 @@ class RigScene:
         profile = electron_rate_at_radius(d, radii)
         relative = np.interp(r, radii, profile / profile[0])
         magnification = self._magnification()
-        half_x, half_y = (s / 2 / magnification for s in self.sim["board_size_m"])
+        half_x, half_y = (s / 2 / magnification for s in self.sim.board_size_m)
         board = (np.abs(x)[None, :] <= half_x) & (np.abs(y)[:, None] <= half_y)
         board_reflectance = d["target.reflectance"]
         if isinstance(board_reflectance, str):
             raise ConfigError("target.reflectance", board_reflectance, "the simulated rig needs a number")
-        surround = self.sim["surround_reflectance"] / board_reflectance if board_reflectance > 0 else 0.0
+        surround = self.sim.surround_reflectance / board_reflectance if board_reflectance > 0 else 0.0
         contrast = np.where(board, 1.0, surround)
         return (self.on_axis_rate_e_per_s() * relative * contrast).astype(np.float32)
 
@@ -150,8 +143,8 @@ class RigScene:
         ny, nx = shape_yx
         size_x, size_y = d.sensor.size_m
         magnification = self._magnification()
-        w = min(nx, int(self.sim["board_size_m"][0] / magnification / size_x * nx))
-        h = min(ny, int(self.sim["board_size_m"][1] / magnification / size_y * ny))
+        w = min(nx, int(self.sim.board_size_m[0] / magnification / size_x * nx))
+        h = min(ny, int(self.sim.board_size_m[1] / magnification / size_y * ny))
         return ((nx - w) // 2, (ny - h) // 2, w, h)
 
     def spectral_irradiance(self, position: str, flux_fraction: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
@@ -164,4 +157,4 @@ class RigScene:
             irradiance = spectra["target_irradiance_w_m2_nm"] / cos_i
         else:
             irradiance = np.pi * spectra["return_radiance_w_m2_sr_nm"]
-        return spectra["wavelength_nm"], flux_fraction * self.sim["light_efficiency"] * irradiance
+        return spectra["wavelength_nm"], flux_fraction * self.sim.light_efficiency * irradiance

@@ -256,7 +256,7 @@ class SerialSimSettings:
         if spectrometer_position not in SPECTROMETER_POSITIONS:
             raise ConfigError("spectrometer_position", spectrometer_position, f"must be one of {', '.join(SPECTROMETER_POSITIONS)}")
         scene = RigScene.from_toml(path)
-        return cls(Path(path) if path is not None else None, scene.sim["light_gamma"], spectrometer_position)
+        return cls(Path(path) if path is not None else None, scene.sim.light_gamma, spectrometer_position)
 
 
 class SceneSpectrum:

@@ -161,7 +161,7 @@ class SimRig:
         truth = SimTruth.from_sensor_profile(scene.sensor)
         self._scene, self._sweep = scene, sweep
         self._sensor = SimSensor(truth, self._rate_map(), lambda: scene.state.light.effective_fraction,
-                                 seed=scene.sim["seed"] + self.seed)
+                                 seed=scene.sim.seed + self.seed)
         return open_camera("sim", "sim0", policy=Policy(timeout_s=sweep.camera.timeout_s), sensor=self._sensor,
                            faults=self.faults)
 
@@ -202,12 +202,12 @@ class SimRig:
             "clip_level_dn": sensor_clip_dn(truth.system_gain(s.gain_db or 0.0), truth.saturation_e,
                                             truth.dark_offset_dn + (s.black_level or 0.0), truth.bit_depth,
                                             s.pixel_format),
-            "light_gamma": self._scene.sim["light_gamma"],
+            "light_gamma": self._scene.sim.light_gamma,
             "light_curve": "flux_fraction = level ** light_gamma",
             "on_axis_rate_e_per_s": self._scene.on_axis_rate_e_per_s(),
             "window_mean_rate_e_per_s": float(self._window_rate(s).mean()),
             "f_number": self._scene.design["lens.f_number"],
-            "light_efficiency": self._scene.sim["light_efficiency"],
+            "light_efficiency": self._scene.sim.light_efficiency,
             "attenuation_scale": float(self._scene.design["water.attenuation_scale"]),
             "beam_half_angle_deg": float(self._scene.design["light.beam_half_angle_deg"]),
             "reflectance": float(self._scene.design["target.reflectance"]),

@@ -1,0 +1,385 @@
+"""The config-schema layer: what every configuration file and numeric option of uwlab is validated with.
+
+Schemas are pydantic v2 models (`Schema`: unknown keys are refused) that live next to what they configure
+(`uwlab.model.config`, `uwlab.model.sensor`, `uwlab.drivers.sim.scene`, `uwlab.experiments.acquisition.plan`,
+`uwlab.experiments.calibration`). This module holds what they share:
+
+- `Limits`: an interval with a unit, checked on numbers (strictly: no strings, no booleans, finite) and, for
+  grid-able design keys (``Grid[...]``), element-wise on numpy arrays, vectorised.
+- The named physical quantities below, each with plausibility limits chosen so that a value outside them is
+  almost certainly a unit mistake (a focal length in metres, a wavelength in µm, a pixel pitch in nm) rather
+  than an unusual design. Every input of that quantity (design keys, sensor profiles, plans, CLI options) uses
+  the same type, so the same mistake is caught everywhere with the same words.
+- `parse` and `check`: validate a mapping against a model, or one value against a type, and turn pydantic's
+  `ValidationError` into the one-line `ConfigError` ``key = value: reason`` naming the dotted key
+  (``lens.focal_length_mm``, ``sweep.<id>.frames_per_point``, ``parameters.K_dn_per_e:imx250m.sigma``) and
+  the offending value (for arrays and lists: the first offending element).
+
+>>> check(FocalLengthMm, 30, "lens.focal_length_mm")
+30.0
+>>> check(FocalLengthMm, 0.03, "lens.focal_length_mm")
+Traceback (most recent call last):
+...
+uwlab.errors.ConfigError: lens.focal_length_mm = 0.03: must be in [1, 2000] mm — is the unit right?
+"""
+from __future__ import annotations
+
+import types
+import typing
+from dataclasses import dataclass, replace
+from functools import lru_cache
+from typing import Annotated, Any, Literal, TypeVar, Union
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Discriminator, StringConstraints, Tag, TypeAdapter, ValidationError
+from pydantic_core import PydanticCustomError, core_schema
+
+from uwlab.errors import ConfigError
+
+M = TypeVar("M", bound=BaseModel)
+UNIT_HINT = "is the unit right?"
+
+
+class Schema(BaseModel):
+    """Base of every config schema: unknown keys are errors, validated objects are immutable; numpy arrays may
+    appear as (grid) values."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, arbitrary_types_allowed=True)
+
+
+@dataclass(frozen=True)
+class Limits:
+    """A number in [lo, hi] (``lo_open``/``hi_open``: excluded) with its unit; ``integer`` demands integral
+    values (given as int or float) and returns an int; ``hint`` follows the range in the error (the likely
+    mistake). As pydantic metadata: ``Annotated[float, Limits(...)]``.
+
+    Numbers are strict: a string, a boolean, inf or nan is refused. With ``grid`` a numpy array is accepted
+    too and checked element-wise (`Grid`).
+    """
+
+    lo: float
+    hi: float
+    unit: str = ""
+    hint: str = ""
+    lo_open: bool = False
+    hi_open: bool = False
+    integer: bool = False
+    grid: bool = False
+
+    def describe(self) -> str:
+        """The error reason, e.g. ``must be in [1, 2000] mm — is the unit right?``."""
+        kind = "an integer in" if self.integer else "in"
+        interval = f"{'(' if self.lo_open else '['}{self.lo:g}, {self.hi:g}{')' if self.hi_open else ']'}"
+        unit = f" {self.unit}" if self.unit else ""
+        return f"must be {kind} {interval}{unit}" + (f" — {self.hint}" if self.hint else "")
+
+    def _bad(self, x: np.ndarray) -> np.ndarray:
+        bad = ~np.isfinite(x) | (x < self.lo) | (x > self.hi)
+        if self.lo_open:
+            bad |= x == self.lo
+        if self.hi_open:
+            bad |= x == self.hi
+        if self.integer:
+            bad |= x != np.round(x)
+        return bad
+
+    def check(self, value):
+        """The value as float (int when ``integer``) or float array, or `PydanticCustomError` with the reason."""
+        if isinstance(value, np.ndarray):
+            if value.dtype.kind not in "iuf":
+                raise PydanticCustomError("number_type", "must be numbers")
+            arr = value.astype(float)
+            bad = self._bad(arr)
+            if bad.any():
+                raise PydanticCustomError("limits", self.describe(), {"value": arr[bad].flat[0].item()})
+            return arr
+        if self._bad(np.float64(value)):
+            raise PydanticCustomError("limits", self.describe())
+        return int(value) if self.integer else float(value)
+
+    def __get_pydantic_core_schema__(self, source, handler) -> core_schema.CoreSchema:
+        number = core_schema.float_schema(strict=True, allow_inf_nan=False)
+        if self.grid:
+            return core_schema.no_info_wrap_validator_function(self._check_grid, number)
+        return core_schema.no_info_after_validator_function(self.check, number)
+
+    def _check_grid(self, value, number):
+        return self.check(value if isinstance(value, np.ndarray) else number(value))
+
+    def __get_pydantic_json_schema__(self, schema, handler) -> dict:
+        out = {"type": "integer" if self.integer else "number",
+               "exclusiveMinimum" if self.lo_open else "minimum": self.lo,
+               "exclusiveMaximum" if self.hi_open else "maximum": self.hi}
+        if self.unit:
+            out["unit"] = self.unit
+        return out
+
+
+def limits_of(named) -> Limits:
+    """The `Limits` of a named quantity type (``Annotated[float, Limits(...)]``)."""
+    found = [m for m in getattr(named, "__metadata__", ()) if isinstance(m, Limits)]
+    if len(found) != 1:
+        raise TypeError(f"{named!r} is not a quantity with one Limits")
+    return found[0]
+
+
+class Grid:
+    """``Grid[Quantity]``: the quantity as a number or, for grid evaluation (`uwlab design --grid`), a numpy
+    array of any shape (an open mesh) checked element-wise in one vectorised pass."""
+
+    def __class_getitem__(cls, named):
+        limits = limits_of(named)
+        return Annotated[Union[float, np.ndarray], replace(limits, grid=True)]
+
+
+def quantity(lo: float, hi: float, unit: str = "", hint: str = UNIT_HINT, **options):
+    """A named quantity type: ``Annotated[float, Limits(lo, hi, unit, hint, ...)]`` (int when integer=True)."""
+    return Annotated[int if options.get("integer") else float, Limits(lo, hi, unit, hint, **options)]
+
+
+NonEmptyText = Annotated[str, StringConstraints(strict=True, min_length=1)]
+Text = Annotated[str, StringConstraints(strict=True)]
+
+
+def number_or(number, alternative, reason: str):
+    """A number (of type `number`, arrays included when it is a `Grid`) or, for strings, `alternative` (a
+    ``Literal`` of words or `NonEmptyText` for a name or path); anything else fails with `reason`."""
+
+    def which(value):
+        if isinstance(value, str):
+            return "text"
+        if isinstance(value, (int, float, np.ndarray)) and not isinstance(value, bool):
+            return "number"
+        return None
+
+    return Annotated[Union[Annotated[number, Tag("number")], Annotated[alternative, Tag("text")]],
+                     Discriminator(which, custom_error_type="number_or_text", custom_error_message=reason)]
+
+
+# --- Named physical quantities. Each docstring-comment gives the reason for its limits. -----------------------
+
+# Wavelength [nm]: 200–2500 nm spans every silicon, InGaAs and UV sensor and every light source uwlab models;
+# 0.55 (µm) or 550e-9 (m) is outside.
+WavelengthNm = quantity(200.0, 2500.0, "nm")
+# Spectral sampling step [nm]: tabulated spectra are 1–10 nm apart; a step in m or µm is far below 0.01 nm.
+SpectralStepNm = quantity(0.01, 100.0, "nm")
+# Focal length [mm]: 1 mm (fisheye board lenses) to 2000 mm (super-telephoto); 0.03 (m) is outside.
+FocalLengthMm = quantity(1.0, 2000.0, "mm")
+# f-number N = f/D: 0.5 is the aplanatic limit in air (and the bare sensor's N, `uwlab.model.optics`), 128 the
+# smallest apertures of large-format lenses; an aperture diameter in mm or an f-stop index would fall outside.
+FNumber = quantity(0.5, 128.0, "")
+# Pixel pitch [µm]: 0.5 µm (smallest smartphone pixels) to 50 µm (large scientific CCD/CMOS pixels);
+# 3450 (nm) or 0.00345 (mm) is outside.
+PixelSizeUm = quantity(0.5, 50.0, "µm")
+# Distances in water [m] (altitude, light distance, depth of field): up to 12 km, the deepest ocean; 1e308 or a
+# distance in mm beyond that is outside.
+DistanceM = quantity(0.0, 12000.0, "m", lo_open=True)
+# Luminous flux [lm]: a single LED gives tens, the brightest subsea lights ~1e5; 1e7 lm allows many lights.
+LuminousFluxLm = quantity(0.0, 1e7, "lm", lo_open=True)
+# Exposure time: 1 µs (shortest global-shutter exposures) to 1 h (long dark-current frames).
+ExposureS = quantity(1e-6, 3600.0, "s")
+ExposureUs = quantity(1.0, 3.6e9, "µs")
+# Camera gain [dB]: machine-vision cameras span 0–48 dB; a linear gain factor written as dB (e.g. 1000) or a
+# gain in centi-dB is outside [-20, 80] dB.
+GainDb = quantity(-20.0, 80.0, "dB")
+# Angles from an axis [deg], e.g. a beam half-angle or an incidence: radians would be accepted silently, so
+# these only refuse the impossible.
+HalfAngleDeg = quantity(0.0, 90.0, "deg", hint="", lo_open=True, hi_open=True)
+IncidenceDeg = quantity(0.0, 90.0, "deg", hint="", hi_open=True)
+# Refractive index: 1 (vacuum) to 4 (germanium, the highest of optical materials).
+RefractiveIndex = quantity(1.0, 4.0, "")
+# A fraction (reflectance, transmittance, overlap, light level): a percentage (e.g. 90) is outside.
+Fraction = quantity(0.0, 1.0, "", hint="a fraction, not a percentage")
+# A transmittance: as a fraction, but zero transmits nothing (the response would be zero).
+Transmittance = quantity(0.0, 1.0, "", hint="a fraction, not a percentage", lo_open=True)
+# Vehicle speed [m/s]: the fastest underwater vehicles make ~50 m/s; km/h or mm/s values beyond are outside.
+SpeedMS = quantity(0.0, 50.0, "m/s")
+# Port and dome dimensions [mm]: housings are 1 mm to 1 m; a size in m (0.1) is below, in µm above.
+HousingMm = quantity(0.1, 1000.0, "mm")
+# Circle of confusion on the sensor [mm]: typically 0.002–0.03 mm (one or two pixels); a value in µm is above.
+CircleOfConfusionMm = quantity(1e-4, 1.0, "mm")
+# Motion blur budget [px]: a fraction of a pixel to hundreds of pixels.
+BlurPx = quantity(0.0, 1000.0, "px", hint="", lo_open=True)
+# ADC resolution [bit]: 1–32 bits.
+BitDepth = quantity(1, 32, "bit", hint="", integer=True)
+# Frames per point (and dark frames): EMVA 1288 needs 2 for the photon transfer and ≥ 16 for nonuniformities
+# (Release 4.0 Linear, §8); more than 10,000 would be hours per point and, stacked, hundreds of GB — refused
+# before anything is allocated.
+FrameCount = quantity(2, 10000, "frames", hint="", integer=True)
+# Waiting times [s] (settling): up to an hour.
+DurationS = quantity(0.0, 3600.0, "s")
+
+
+# --- From ValidationError to ConfigError. ---------------------------------------------------------------------
+
+_TYPE_REASONS = {
+    "missing": "missing (required)", "union_tag_not_found": "missing (required)",
+    "float_type": "must be a number", "float_parsing": "must be a number", "int_type": "must be an integer",
+    "int_from_float": "must be an integer", "finite_number": "must be a finite number",
+    "string_type": "must be a string", "string_too_short": "must be a non-empty string",
+    "bool_type": "must be true or false", "dict_type": "must be a table", "model_type": "must be a table",
+    "model_attributes_type": "must be a table", "list_type": "must be a list", "tuple_type": "must be a list",
+}
+_NUMBER_ERRORS = ("float_type", "int_type", "number_type")
+
+
+def parse(model: type[M], data: Any, prefix: str = "") -> M:
+    """``model.model_validate(data)``; a `ValidationError` becomes the `ConfigError` of its first error, the
+    key prefixed with `prefix` (e.g. ``sweep.<id>``)."""
+    try:
+        return model.model_validate(data)
+    except ValidationError as exc:
+        raise config_error(exc, data, model, prefix) from None
+
+
+@lru_cache(maxsize=None)
+def _adapter(type_) -> TypeAdapter:
+    return TypeAdapter(type_)
+
+
+def check(type_, value: Any, key: str):
+    """One value validated against a type (e.g. a named quantity for a CLI option), or `ConfigError` on `key`."""
+    try:
+        return _adapter(type_).validate_python(value)
+    except ValidationError as exc:
+        raise config_error(exc, value, type_, key) from None
+
+
+def within(key: str, value, lo: float, hi: float, what: str):
+    """`value` (number or array) inside [lo, hi] of a configured device (e.g. a sensor profile's exposure range,
+    ``what`` = "IMX250M's exposure range [µs]"), or `ConfigError` on `key` naming the first value outside."""
+    arr = np.asarray(value, float)
+    bad = (arr < lo) | (arr > hi)
+    if np.any(bad):
+        raise ConfigError(key, float(arr[bad].flat[0]), f"outside {what} [{lo:g}, {hi:g}]")
+    return value
+
+
+def invalid(key: str, value: Any, reason: str) -> PydanticCustomError:
+    """An error for a model validator: `key` (a field of the model, or dotted below it) and `value` are what the
+    `ConfigError` names. Raise it from ``@model_validator(mode="after")``."""
+    return PydanticCustomError("invalid", reason, {"key": key, "value": value})
+
+
+def config_error(exc: ValidationError, data: Any, model: Any, prefix: str = "") -> ConfigError:
+    """The one-line `ConfigError` of the first error of `exc` (validating `data` against `model`); the key is
+    `prefix` followed by the error's location."""
+    err = exc.errors()[0]
+    ctx = err.get("ctx") or {}
+    parts = _key_parts(model, data, err["loc"], err["type"])
+    if "key" in ctx:
+        parts += str(ctx["key"]).split(".")
+    if err["type"] in ("union_tag_not_found", "union_tag_invalid"):
+        parts.append(str(ctx.get("discriminator", "kind")).strip("'"))
+    key = ".".join(([prefix] if prefix else []) + parts) or "config"
+    if "value" in ctx:
+        value = ctx["value"]
+    elif err["type"] == "union_tag_invalid":
+        value = ctx.get("tag")
+    elif err["type"] in ("missing", "union_tag_not_found"):
+        value = None
+    else:
+        value = err["input"]
+    return ConfigError(key, _plain(value), _reason(err, model, parts, data))
+
+
+def _plain(value):
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def _reason(err: dict, model, parts: list[str], data) -> str:
+    kind, ctx = err["type"], err.get("ctx") or {}
+    if kind in _NUMBER_ERRORS and isinstance(err["input"], np.ndarray):
+        return "cannot be varied in a grid"
+    if kind == "extra_forbidden":
+        names = _field_names(model, data, parts[:-1])
+        return "unknown key" + (f"; allowed: {', '.join(names)}" if names else "")
+    if kind == "literal_error":
+        return f"must be one of {ctx['expected']}"
+    if kind == "union_tag_invalid":
+        return f"must be one of {ctx['expected_tags']}"
+    if kind in _TYPE_REASONS:
+        return _TYPE_REASONS[kind]
+    message = err["msg"].removeprefix("Value error, ")
+    return message[:1].lower() + message[1:]
+
+
+def _unwrap(annotation):
+    """(origin type, args) with Annotated and Optional removed."""
+    while typing.get_origin(annotation) is Annotated:
+        annotation = typing.get_args(annotation)[0]
+    origin = typing.get_origin(annotation)
+    if origin in (Union, types.UnionType):
+        members = [a for a in typing.get_args(annotation) if a is not type(None)]
+        if len(members) == 1:
+            return _unwrap(members[0])
+    return annotation
+
+
+def _model_for(annotation, node):
+    """The model class an annotation validates `node` with (a union of models: the member whose Literal fields
+    match the node, e.g. a prior's ``kind``), or None."""
+    annotation = _unwrap(annotation)
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        return annotation
+    if typing.get_origin(annotation) in (Union, types.UnionType):
+        for member in typing.get_args(annotation):
+            found = _model_for(member, node)
+            if found is not None and _matches(found, node):
+                return found
+    return None
+
+
+def _matches(model: type[BaseModel], node) -> bool:
+    if not isinstance(node, dict):
+        return False
+    for name, field in model.model_fields.items():
+        if typing.get_origin(_unwrap(field.annotation)) is Literal and name in node:
+            if node[name] not in typing.get_args(_unwrap(field.annotation)):
+                return False
+    return True
+
+
+def _child(annotation, node, part):
+    """(annotation, node) one level down: a model's field, a dict's value or a sequence's element."""
+    model = _model_for(annotation, node)
+    sub = node.get(part) if isinstance(node, dict) else None
+    if model is not None:
+        field = model.model_fields.get(part)
+        return (field.annotation if field else Any), sub
+    origin = _unwrap(annotation)
+    args = typing.get_args(origin)
+    if typing.get_origin(origin) is dict and len(args) == 2:
+        return args[1], sub
+    if isinstance(part, int) and isinstance(node, (list, tuple)) and part < len(node):
+        return (args[0] if args else Any), node[part]
+    return Any, sub
+
+
+def _key_parts(model, data, loc: tuple, kind: str) -> list[str]:
+    """The config key of an error location: field and table names kept; list indices (the key names the list,
+    the value is the element) and union members' tags dropped."""
+    parts, annotation, node = [], model, data
+    for i, part in enumerate(loc):
+        if isinstance(part, int):
+            annotation, node = _child(annotation, node, part)
+            continue
+        fields = _model_for(annotation, node)
+        known = part in (fields.model_fields if fields else ())
+        present = isinstance(node, dict) and part in node
+        if known or present or (i == len(loc) - 1 and kind == "missing"):
+            parts.append(str(part))
+            annotation, node = _child(annotation, node, part)
+    return parts
+
+
+def _field_names(model, data, parts: list[str]) -> list[str]:
+    annotation, node = model, data
+    for part in parts:
+        annotation, node = _child(annotation, node, part)
+    found = _model_for(annotation, node)
+    return list(found.model_fields) if found else []
