@@ -225,7 +225,7 @@ _NUMBER_ERRORS = ("float_type", "int_type", "number_type")
 
 def parse(model: type[M], data: Any, prefix: str = "") -> M:
     """``model.model_validate(data)``; a `ValidationError` becomes the `ConfigError` of its first error, the
-    key prefixed with `prefix` (e.g. ``sweep.<id>``)."""
+    key prefixed with `prefix` (``sweep.<id>`` gives ``sweep.<id>.key``, ``file.toml:`` gives ``file.toml: key``)."""
     try:
         return model.model_validate(data)
     except ValidationError as exc:
@@ -271,7 +271,8 @@ def config_error(exc: ValidationError, data: Any, model: Any, prefix: str = "") 
         parts += str(ctx["key"]).split(".")
     if err["type"] in ("union_tag_not_found", "union_tag_invalid"):
         parts.append(str(ctx.get("discriminator", "kind")).strip("'"))
-    key = ".".join(([prefix] if prefix else []) + parts) or "config"
+    rest = ".".join(parts)
+    key = f"{prefix}{' ' if prefix.endswith(':') else '.'}{rest}" if prefix and rest else (prefix or rest or "config")
     if "value" in ctx:
         value = ctx["value"]
     elif err["type"] == "union_tag_invalid":

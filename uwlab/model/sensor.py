@@ -9,47 +9,94 @@ output bit depth. μ_e is clipped at the saturation capacity and μ_y at the ful
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
+from pydantic import Field, PrivateAttr, StrictBool, model_validator
 
 from uwlab.errors import ConfigError
 from uwlab.model.data import config_dir, read_csv_columns, read_toml
 from uwlab.model.grid import WavelengthGrid
+from uwlab.model.schema import (BitDepth, ExposureUs, GainDb, NonEmptyText, PixelSizeUm, Schema, Text, invalid, parse,
+                                quantity)
 
-_REQUIRED = {
-    "name": str, "pixel_size_um": float, "resolution_px": list, "bit_depth": int, "K_dn_per_e": float,
-    "dark_offset_dn": float, "dark_noise_e": float, "saturation_e": float, "exposure_min_us": float,
-    "exposure_max_us": float, "gain_min_db": float, "gain_max_db": float, "qe_csv": str,
-}
+# Limits of the profile's EMVA 1288 quantities, wide enough for any area-scan sensor: outside them a value is in
+# another unit (K in e⁻/DN or at another bit depth by orders of magnitude, σ_d in DN, …) or a typing error.
+SystemGain = quantity(0.0, 100.0, "DN/e-", lo_open=True)
+Electrons = quantity(0.0, 1e8, "e-", hint="")
+ResolutionPx = quantity(1, 100000, "px", hint="", integer=True)
+DarkOffsetDn = quantity(0.0, 2.0**32, "DN", hint="")
+DarkCurrent = quantity(0.0, 1e6, "e-/s", hint="")
+Percent = quantity(0.0, 100.0, "%", hint="a percentage")
 
 
-@dataclass(frozen=True, eq=False)
-class SensorProfile:
-    """EMVA 1288 description of a sensor (values at 0 dB gain and `bit_depth` bits)."""
+class SensorProfile(Schema):
+    """EMVA 1288 description of a sensor (values at 0 dB gain and `bit_depth` bits): the schema of
+    ``configs/sensors/*.toml``. The QE curve (``qe_csv``, relative to the file) is loaded with the profile
+    (`qe_nm`, `qe`). Profiles compare and hash by identity."""
 
-    name: str
-    pixel_size_um: float
-    resolution_px: tuple[int, int]
-    bit_depth: int
-    K_dn_per_e: float
-    dark_offset_dn: float
-    dark_noise_e: float
-    saturation_e: float
-    exposure_min_us: float
-    exposure_max_us: float
-    gain_min_db: float
-    gain_max_db: float
-    qe_nm: np.ndarray = field(repr=False)
-    qe: dict = field(repr=False)
-    color: bool = False
-    dark_current_e_per_s: float = 0.0
-    dsnu_e: float = 0.0
-    prnu_percent: float = 0.0
-    description: str = ""
-    source: str = ""
+    name: NonEmptyText = Field(description="sensor name")
+    description: Text = Field("", description="what the sensor is, cameras using it")
+    color: StrictBool = Field(False, description="colour (Bayer) sensor: the QE CSV has red, green, blue, combined")
+    pixel_size_um: PixelSizeUm = Field(description="pixel pitch [µm]")
+    resolution_px: tuple[ResolutionPx, ResolutionPx] = Field(description="active pixels [x, y]")
+    bit_depth: BitDepth = Field(description="ADC bit depth the values refer to [bit]")
+    K_dn_per_e: SystemGain = Field(description="system gain K at 0 dB [DN/e⁻]")
+    dark_offset_dn: DarkOffsetDn = Field(description="mean dark level [DN]")
+    dark_noise_e: Electrons = Field(description="temporal dark noise σ_d [e⁻]")
+    saturation_e: Electrons = Field(description="saturation capacity μ_e,sat [e⁻]")
+    exposure_min_us: ExposureUs = Field(description="shortest exposure [µs]")
+    exposure_max_us: ExposureUs = Field(description="longest exposure [µs]")
+    gain_min_db: GainDb = Field(description="lowest analog gain [dB]")
+    gain_max_db: GainDb = Field(description="highest analog gain [dB]")
+    qe_csv: NonEmptyText = Field(description="quantum efficiency CSV beside the profile")
+    dark_current_e_per_s: DarkCurrent = Field(0.0, description="dark current [e⁻/s]")
+    dsnu_e: Electrons = Field(0.0, description="dark signal nonuniformity DSNU [e⁻]")
+    prnu_percent: Percent = Field(0.0, description="photo-response nonuniformity PRNU [%]")
+    provenance: dict[str, str] = Field({}, description="where each value comes from")
+    flags: dict[str, list[str]] = Field({}, description="keys that are corrected, assumed or measured")
+    _qe_nm: np.ndarray = PrivateAttr()
+    _qe: dict = PrivateAttr()
+    _source: str = PrivateAttr("")
+
+    __eq__ = object.__eq__
+    __hash__ = object.__hash__
+
+    @model_validator(mode="after")
+    def _ranges(self):
+        if self.exposure_max_us <= self.exposure_min_us:
+            raise invalid("exposure_max_us", self.exposure_max_us, "must exceed exposure_min_us")
+        if self.gain_max_db < self.gain_min_db:
+            raise invalid("gain_max_db", self.gain_max_db, "must be at least gain_min_db")
+        return self
+
+    @classmethod
+    def from_toml(cls, path: Path) -> "SensorProfile":
+        """Read and validate a profile TOML and its QE CSV."""
+        label = f"sensor profile {path.name}:"
+        profile = parse(cls, read_toml(path, "sensor.profile"), label)
+        columns = ("wavelength_nm", "red", "green", "blue", "combined") if profile.color else ("wavelength_nm", "qe")
+        table = read_csv_columns(path.parent / profile.qe_csv, columns, f"{label} qe_csv")
+        profile._qe_nm = table["wavelength_nm"]
+        profile._qe = {c: table[c] for c in columns[1:]} if profile.color else {"combined": table["qe"]}
+        profile._source = str(path)
+        return profile
+
+    @property
+    def qe_nm(self) -> np.ndarray:
+        """Wavelengths of the QE table [nm]."""
+        return self._qe_nm
+
+    @property
+    def qe(self) -> dict[str, np.ndarray]:
+        """η per channel ("combined"; colour sensors also "red", "green", "blue") on `qe_nm`."""
+        return self._qe
+
+    @property
+    def source(self) -> str:
+        """The profile file."""
+        return self._source
 
     @property
     def pixel_area_m2(self) -> float:
@@ -96,36 +143,9 @@ def snr(mu_e, dark_noise_e, k_dn_per_e):
     return mu_e / np.sqrt(dark_noise_e**2 + (1.0 / 12.0) / np.asarray(k_dn_per_e, float) ** 2 + mu_e)
 
 
-def _check(data: dict, path: Path) -> None:
-    for key, kind in _REQUIRED.items():
-        if key not in data:
-            raise ConfigError(f"sensor profile {path.name}: {key}", None, "missing")
-        if kind is float and not isinstance(data[key], (int, float)) or kind is int and not isinstance(data[key], int):
-            raise ConfigError(f"sensor profile {path.name}: {key}", data[key], f"must be a {kind.__name__}")
-    for key in ("pixel_size_um", "K_dn_per_e", "saturation_e", "bit_depth"):
-        if not data[key] > 0:
-            raise ConfigError(f"sensor profile {path.name}: {key}", data[key], "must be > 0")
-
-
 @lru_cache(maxsize=64)
 def _load(path: Path) -> SensorProfile:
-    data = read_toml(path, "sensor.profile")
-    _check(data, path)
-    color = bool(data.get("color", False))
-    columns = ("wavelength_nm", "red", "green", "blue", "combined") if color else ("wavelength_nm", "qe")
-    table = read_csv_columns(path.parent / data["qe_csv"], columns, f"sensor profile {path.name}: qe_csv")
-    qe = {c: table[c] for c in columns[1:]} if color else {"combined": table["qe"]}
-    optional = ("dark_current_e_per_s", "dsnu_e", "prnu_percent", "description")
-    return SensorProfile(
-        name=data["name"], pixel_size_um=float(data["pixel_size_um"]),
-        resolution_px=(int(data["resolution_px"][0]), int(data["resolution_px"][1])),
-        bit_depth=int(data["bit_depth"]), K_dn_per_e=float(data["K_dn_per_e"]),
-        dark_offset_dn=float(data["dark_offset_dn"]), dark_noise_e=float(data["dark_noise_e"]),
-        saturation_e=float(data["saturation_e"]), exposure_min_us=float(data["exposure_min_us"]),
-        exposure_max_us=float(data["exposure_max_us"]), gain_min_db=float(data["gain_min_db"]),
-        gain_max_db=float(data["gain_max_db"]), qe_nm=table["wavelength_nm"], qe=qe, color=color,
-        source=str(path), **{k: data[k] for k in optional if k in data},
-    )
+    return SensorProfile.from_toml(path)
 
 
 def available_profiles() -> list[str]:
