@@ -7,7 +7,7 @@ from uwlab.errors import ConfigError, UwlabError
 from uwlab.experiments.calibration.coverage import interval_coverage
 from uwlab.experiments.calibration.fit import FitConfig, Posterior, fit_points
 from uwlab.experiments.calibration.forward import build_forward_model, relative_flux
-from uwlab.experiments.calibration.priors import Prior
+from uwlab.experiments.calibration.priors import HalfNormal, Normal, Uniform
 from uwlab.experiments.calibration.simulate import simulate_campaign
 from uwlab.experiments.calibration.validation import point_predictions
 from uwlab.model.optics import NO_LENS, LensSetting
@@ -80,9 +80,9 @@ def test_a_wrong_prior_is_reported(campaign):
     """A prior that excludes what the data need is not hidden: the discrepancy absorbs the misfit and the
     summary says the model does not fit."""
     points, rigs = campaign
-    priors = {"light_efficiency": Prior("normal", 2.0, 0.02, lo=0.0), "K_dn_per_e:imx250m": Prior("normal", 0.36, 0.001),
-              "K_dn_per_e:icx285alm": Prior("normal", 1.05, 0.003), "discrepancy": Prior("halfnormal", 0.05)}
-    result = fit_points(points, rigs, FitConfig(priors))
+    priors = {"light_efficiency": Normal(mean=2.0, sigma=0.02, lo=0.0), "K_dn_per_e:imx250m": Normal(mean=0.36, sigma=0.001),
+              "K_dn_per_e:icx285alm": Normal(mean=1.05, sigma=0.003), "discrepancy": HalfNormal(sigma=0.05)}
+    result = fit_points(points, rigs, FitConfig(priors=priors))
     notes = " ".join(result.summary()["warnings"])
     assert "poor fit" in notes
     assert result.summary()["parameters"]["discrepancy"]["median"] > 0.2
@@ -102,7 +102,7 @@ def test_sampling_coordinates_round_trip_with_the_stated_jacobian(campaign):
     """u ↔ θ round trips, and log_u − log p(θ) equals ln|det ∂θ/∂u| computed by central differences."""
     points, rigs = campaign
     names = ("light_efficiency", "beam_half_angle_deg", "attenuation_scale", "K_dn_per_e:imx250m", "discrepancy")
-    priors = {n: Prior("uniform", 0.001, 100.0) for n in names}
+    priors = {n: Uniform(lo=0.001, hi=100.0) for n in names}
     post = Posterior(build_forward_model(points[~points["saturated"]], rigs, names), priors)
     assert post.anchor == 0
     theta = np.array([[0.7, 25.0, 1.6, 0.33, 0.01], [1.3, 15.0, 0.6, 0.38, 0.02]])

@@ -28,10 +28,11 @@ import types
 import typing
 from dataclasses import dataclass, replace
 from functools import lru_cache
-from typing import Annotated, Any, Literal, TypeVar, Union
+from typing import Annotated, Any, Callable, Literal, TypeVar, Union
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Discriminator, StringConstraints, Tag, TypeAdapter, ValidationError
+from pydantic import (BaseModel, ConfigDict, Discriminator, Field, StringConstraints, Tag, TypeAdapter, ValidationError,
+                      WrapValidator)
 from pydantic_core import PydanticCustomError, core_schema
 
 from uwlab.errors import ConfigError
@@ -98,13 +99,15 @@ class Limits:
         return int(value) if self.integer else float(value)
 
     def __get_pydantic_core_schema__(self, source, handler) -> core_schema.CoreSchema:
-        number = core_schema.float_schema(strict=True, allow_inf_nan=False)
-        if self.grid:
-            return core_schema.no_info_wrap_validator_function(self._check_grid, number)
-        return core_schema.no_info_after_validator_function(self.check, number)
+        return core_schema.no_info_wrap_validator_function(
+            self._validate, core_schema.float_schema(strict=True, allow_inf_nan=False))
 
-    def _check_grid(self, value, number):
-        return self.check(value if isinstance(value, np.ndarray) else number(value))
+    def _validate(self, value, number):
+        if isinstance(value, np.ndarray) and self.grid:
+            return self.check(value)
+        if isinstance(value, (np.integer, np.floating)):
+            value = value.item()
+        return self.check(number(value))
 
     def __get_pydantic_json_schema__(self, schema, handler) -> dict:
         out = {"type": "integer" if self.integer else "number",
@@ -139,21 +142,48 @@ def quantity(lo: float, hi: float, unit: str = "", hint: str = UNIT_HINT, **opti
 
 NonEmptyText = Annotated[str, StringConstraints(strict=True, min_length=1)]
 Text = Annotated[str, StringConstraints(strict=True)]
+# Any finite number (strict: no strings, no booleans); for quantities with limits use `quantity`.
+Number = Annotated[float, Field(strict=True, allow_inf_nan=False)]
+
+
+def either(reason: str, *members: tuple[Callable[[Any], bool], Any]):
+    """A value validated by the first member whose test accepts it, e.g. ``either("…", (is_text, Literal["none"]),
+    (is_table, LensTable))``; a value no test accepts fails with `reason`."""
+
+    def which(value):
+        return next((str(i) for i, (test, _) in enumerate(members) if test(value)), None)
+
+    def words(value, handler):  # a word that is not one of a Literal's: the whole choice is the reason
+        try:
+            return handler(value)
+        except ValidationError:
+            raise PydanticCustomError("either", reason) from None
+
+    tagged = [Annotated[type_, WrapValidator(words), Tag(str(i))] if typing.get_origin(type_) is Literal
+              else Annotated[type_, Tag(str(i))] for i, (_, type_) in enumerate(members)]
+    return Annotated[Union[tuple(tagged)], Discriminator(which, custom_error_type="either", custom_error_message=reason)]
+
+
+def is_text(value) -> bool:
+    return isinstance(value, str)
+
+
+def is_number(value) -> bool:
+    return isinstance(value, (int, float, np.number, np.ndarray)) and not isinstance(value, (bool, np.bool_))
+
+
+def is_table(value) -> bool:
+    return isinstance(value, dict)
+
+
+def is_list(value) -> bool:
+    return isinstance(value, (list, tuple))
 
 
 def number_or(number, alternative, reason: str):
     """A number (of type `number`, arrays included when it is a `Grid`) or, for strings, `alternative` (a
     ``Literal`` of words or `NonEmptyText` for a name or path); anything else fails with `reason`."""
-
-    def which(value):
-        if isinstance(value, str):
-            return "text"
-        if isinstance(value, (int, float, np.ndarray)) and not isinstance(value, bool):
-            return "number"
-        return None
-
-    return Annotated[Union[Annotated[number, Tag("number")], Annotated[alternative, Tag("text")]],
-                     Discriminator(which, custom_error_type="number_or_text", custom_error_message=reason)]
+    return either(reason, (is_number, number), (is_text, alternative))
 
 
 # --- Named physical quantities. Each docstring-comment gives the reason for its limits. -----------------------
@@ -220,6 +250,8 @@ _TYPE_REASONS = {
     "bool_type": "must be true or false", "dict_type": "must be a table", "model_type": "must be a table",
     "model_attributes_type": "must be a table", "list_type": "must be a list", "tuple_type": "must be a list",
 }
+_COMPARISONS = {"greater_than": (">", "gt"), "greater_than_equal": (">=", "ge"), "less_than": ("<", "lt"),
+                "less_than_equal": ("<=", "le")}
 _NUMBER_ERRORS = ("float_type", "int_type", "number_type")
 
 
@@ -305,6 +337,13 @@ def _reason(err: dict, model, parts: list[str], data) -> str:
         return f"must be one of {ctx['expected_tags']}"
     if kind in _TYPE_REASONS:
         return _TYPE_REASONS[kind]
+    if kind in ("too_short", "too_long"):
+        bound = ctx.get("min_length") if kind == "too_short" else ctx.get("max_length")
+        items = "item" if bound == 1 else "items"
+        return f"must have {'at least' if kind == 'too_short' else 'at most'} {bound} {items} (has {ctx.get('actual_length')})"
+    if kind in _COMPARISONS:
+        symbol, name = _COMPARISONS[kind]
+        return f"must be {symbol} {ctx[name]}"
     message = err["msg"].removeprefix("Value error, ")
     return message[:1].lower() + message[1:]
 

@@ -8,41 +8,29 @@ spectral irradiance in W/m²/nm.
 """
 from __future__ import annotations
 
-import math
 from abc import ABC, abstractmethod
 
 import numpy as np
 
-from uwlab.errors import ConfigError
+from uwlab.model.schema import Fraction, check, quantity
 
-LEVEL_RANGE = (0.0, 1.0)
 INTEGRATION_MS_RANGE = (1.0, 10000.0)
 AVERAGING_RANGE = (1, 100)
+IntegrationMs = quantity(*INTEGRATION_MS_RANGE, "ms", hint="the spectrometer's range")
+Averaging = quantity(*AVERAGING_RANGE, "spectra", hint="the spectrometer's range", integer=True)
 
 
 def check_level(level: float) -> float:
     """The light level as a float in [0, 1], or `ConfigError` on ``level``."""
-    return _check_range("level", level, *LEVEL_RANGE)
+    return check(Fraction, level, "level")
 
 
 def check_integration_ms(integration_ms: float) -> float:
-    return _check_range("integration_ms", integration_ms, *INTEGRATION_MS_RANGE)
+    return check(IntegrationMs, integration_ms, "integration_ms")
 
 
 def check_averaging(averaging: int) -> int:
-    if isinstance(averaging, bool) or not isinstance(averaging, (int, np.integer)):
-        raise ConfigError("averaging", averaging, "must be an integer")
-    return int(_check_range("averaging", averaging, *AVERAGING_RANGE))
-
-
-def _check_range(key: str, value: float, low: float, high: float) -> float:
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise ConfigError(key, value, "must be a number") from None
-    if not (math.isfinite(number) and low <= number <= high):
-        raise ConfigError(key, value, f"must be within [{low:g}, {high:g}]")
-    return number
+    return check(Averaging, averaging, "averaging")
 
 
 class _Instrument(ABC):

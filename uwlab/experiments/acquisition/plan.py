@@ -33,11 +33,16 @@ import copy
 import hashlib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any, Literal
 
 import numpy as np
+from pydantic import AfterValidator, BeforeValidator, ConfigDict, Field, StrictBool, field_validator, model_validator
+from pydantic_core import PydanticCustomError
 
+from uwlab.drivers.camera import BACKENDS
 from uwlab.drivers.camera.pixels import PIXEL_FORMATS
+from uwlab.drivers.serial import PROTOCOLS
+from uwlab.drivers.serial.base import Averaging, IntegrationMs
 from uwlab.errors import ConfigError
 from uwlab.experiments.saturation import POINT_SATURATED_FRACTION
 from uwlab.jsonable import to_jsonable
@@ -45,32 +50,180 @@ from uwlab.model.config import apply_override
 from uwlab.model.data import read_toml, resolve_path
 from uwlab.model.design import SPECTROMETER_POSITIONS, Design, build_design
 from uwlab.model.optics import NO_LENS, LensSetting
+from uwlab.model.schema import (DurationS, ExposureUs, FNumber, FocalLengthMm, Fraction, FrameCount, GainDb,
+                                NonEmptyText, Number, Schema, Text, check, either, invalid, is_list, is_table,
+                                is_text, limits_of, parse, quantity, within)
 
 KINDS = ("exposure", "aperture", "gain", "light-level", "dark")
 DARK_MODES = ("point", "block", "none")
-TOP_KEYS = ("name", "description", "rig", "geometry", "camera", "instruments", "defaults", "sweep")
-CAMERA_KEYS = ("backend", "id", "pixel_format", "window", "timeout_s")
-INSTRUMENT_KEYS = ("light_port", "spectrometer_port", "protocol")
-LENS_KEYS = ("focal_length_mm", "f_number", "f_number_range", "manual")
-RANGE_KEYS = ("start", "stop", "num", "spacing")
-SWEEP_DEFAULTS: dict[str, Any] = {
-    "frames_per_point": 2, "settle_s": 0.0, "dark": "point", "dark_frames": None, "spectrometer": [],
-    "spectrometer_integration_ms": 10.0, "spectrometer_averaging": 1, "roi": None, "aruco_dictionary": "DICT_4X4_50",
-    "saturation_threshold": POINT_SATURATED_FRACTION, "lens": None, "sensor": None, "camera": {},
-    "exposure_us": None, "gain_db": 0.0, "black_level_dn": None, "light_level": 1.0, "save_frames": False,
-    "geometry": {},
-}
-SWEEP_KEYS = ("id", "kind", "values", *SWEEP_DEFAULTS)
 MAX_POINTS = 10000
+# Pixel coordinates of a window or ROI: offsets from 0, sizes from 2 (a variance needs two pixels).
+OffsetPx = quantity(0, 100000, "px", hint="", integer=True)
+SizePx = quantity(2, 100000, "px", hint="", integer=True)
+TimeoutS = quantity(0.0, 600.0, "s", lo_open=True)
+DigitalNumber = quantity(0.0, 2.0**32, "DN", hint="")
+PointCount = quantity(1, MAX_POINTS, "points", hint="", integer=True)
 
 
-@dataclass(frozen=True)
-class CameraSpec:
-    backend: str = "sim"
-    device_id: str | None = None
-    pixel_format: str | None = None
-    window: tuple[int, int, int, int] | None = None
-    timeout_s: float = 5.0
+def _four(value):
+    if isinstance(value, (list, tuple)) and len(value) != 4:
+        raise PydanticCustomError("rectangle", "must be [x, y, width, height] in pixels")
+    return value
+
+
+Rectangle = Annotated[tuple[OffsetPx, OffsetPx, SizePx, SizePx], BeforeValidator(_four)]
+
+
+def _aruco(name: str) -> str:
+    import cv2
+
+    if not name.startswith("DICT_") or not hasattr(cv2.aruco, name):
+        raise PydanticCustomError("aruco", "must name a cv2.aruco predefined dictionary, e.g. DICT_4X4_50")
+    return name
+
+
+class CameraSpec(Schema):
+    """[camera], and a sweep's ``camera`` table overriding it."""
+
+    model_config = ConfigDict(populate_by_name=True)
+
+    backend: Literal[tuple(BACKENDS)] = Field("sim", description="camera backend")
+    device_id: NonEmptyText | None = Field(None, alias="id", description="device id (default: the first found)")
+    pixel_format: Literal[tuple(PIXEL_FORMATS)] | None = Field(None, description="pixel format (default: the camera's)")
+    window: Rectangle | None = Field(None, description="device region of interest [x, y, width, height] [px]")
+    timeout_s: TimeoutS = Field(5.0, description="per-frame acquisition timeout [s]")
+
+
+class Instruments(Schema):
+    """[instruments]: the serial instruments of the real rig (``--sim`` replaces them)."""
+
+    light_port: NonEmptyText | None = Field(None, description="serial port of the light controller")
+    spectrometer_port: NonEmptyText | None = Field(None, description="serial port of the spectrometer")
+    protocol: Literal[PROTOCOLS] = Field(PROTOCOLS[0], description="instrument protocol")
+
+
+class LensTable(Schema):
+    """A sweep's ``lens`` table."""
+
+    focal_length_mm: FocalLengthMm = Field(description="focal length [mm]")
+    f_number: FNumber = Field(description="f-number set for the sweep")
+    f_number_range: tuple[FNumber, FNumber] | None = Field(None, description="the lens's [lowest, highest] f-number")
+    manual: StrictBool = Field(True, description="the aperture is set by hand (the operator is asked)")
+
+    @model_validator(mode="after")
+    def _in_range(self):
+        if self.f_number_range is not None:
+            lo, hi = self.f_number_range
+            if lo > hi:
+                raise invalid("f_number_range", list(self.f_number_range), "must be [lowest, highest]")
+            if not lo <= self.f_number <= hi:
+                raise invalid("f_number", self.f_number, f"outside the lens's range [{lo:g}, {hi:g}]")
+        return self
+
+    def setting(self) -> LensSetting:
+        return LensSetting(self.focal_length_mm, self.f_number, self.f_number_range, self.manual)
+
+
+class ValueRange(Schema):
+    """A sweep's ``values`` as a range: ``num`` values from ``start`` to ``stop`` (both included)."""
+
+    start: Number = Field(description="first value")
+    stop: Number = Field(description="last value")
+    num: PointCount = Field(description="number of values")
+    spacing: Literal["linear", "log"] = Field("linear", description="linear or logarithmic steps")
+
+    @model_validator(mode="after")
+    def _log_positive(self):
+        if self.spacing == "log" and (self.start <= 0 or self.stop <= 0):
+            raise invalid("start", self.start, "log spacing needs positive start and stop")
+        return self
+
+    def expand(self) -> tuple[float, ...]:
+        space = np.geomspace if self.spacing == "log" else np.linspace
+        return tuple(float(v) for v in space(self.start, self.stop, self.num))
+
+
+SweepValues = either("must be a list of numbers or {start, stop, num, spacing}",
+                     (is_list, Annotated[list[Number], Field(min_length=1, max_length=MAX_POINTS)]),
+                     (is_table, ValueRange))
+LensSpec = either('must be "none" or {focal_length_mm, f_number, f_number_range, manual}',
+                  (is_text, Literal["none"]), (is_table, LensTable))
+Roi = either('must be [x, y, width, height] in pixels or "aruco"', (is_text, Literal["aruco"]), (is_list, Rectangle))
+DesignSections = dict[str, dict[str, Any]]
+
+
+class SweepTable(Schema):
+    """A ``[[sweep]]`` table (with the plan's [defaults] filled in), as written."""
+
+    id: NonEmptyText = Field(description="unique name of the sweep")
+    kind: Literal[KINDS] = Field(description="what the sweep steps")
+    values: SweepValues = Field(description="exposure_us, f-number, gain_db or light level of each point")
+    frames_per_point: FrameCount = Field(2, description="frames averaged per point")
+    settle_s: DurationS = Field(0.0, description="wait after changing the light [s]")
+    dark: Literal[DARK_MODES] = Field("point", description="dark frames at every point, once per sweep, or none")
+    dark_frames: FrameCount | None = Field(None, description="dark frames per dark point (default: frames_per_point)")
+    spectrometer: list[Literal[SPECTROMETER_POSITIONS]] = Field([], description="positions read at each point")
+    spectrometer_integration_ms: IntegrationMs = Field(10.0, description="spectrometer integration time [ms]")
+    spectrometer_averaging: Averaging = Field(1, description="spectra averaged per reading")
+    roi: Roi | None = Field(None, description='[x, y, width, height] within the image [px], or "aruco"')
+    aruco_dictionary: Annotated[NonEmptyText, AfterValidator(_aruco)] = Field(
+        "DICT_4X4_50", description="cv2.aruco dictionary of the ROI markers")
+    saturation_threshold: Fraction = Field(POINT_SATURATED_FRACTION,
+                                           description="fraction of saturated ROI pixels flagging a point")
+    lens: LensSpec | None = Field(None, description='"none", or the lens table (default: the rig\'s lens)')
+    sensor: NonEmptyText | None = Field(None, description="sensor profile (sets the rig's sensor.profile)")
+    camera: dict[str, Any] = Field({}, description="keys overriding [camera]")
+    exposure_us: ExposureUs | None = Field(None, description="fixed exposure [µs] (default: the values' median)")
+    gain_db: GainDb = Field(0.0, description="fixed gain [dB]")
+    black_level_dn: DigitalNumber | None = Field(None, description="camera black level [DN]")
+    light_level: Fraction = Field(1.0, description="fixed light level")
+    save_frames: StrictBool = Field(False, description="write each point's frames as TIFF under frames/")
+    geometry: DesignSections = Field({}, description="design sections overriding the rig for this sweep")
+
+    @field_validator("spectrometer")
+    @classmethod
+    def _distinct(cls, value):
+        if len(set(value)) != len(value):
+            raise PydanticCustomError("distinct", "positions must be distinct")
+        return value
+
+    @field_validator("geometry")
+    @classmethod
+    def _no_sim(cls, value):
+        return _design_sections(value)
+
+
+def _design_sections(value: dict) -> dict:
+    if "sim" in value:
+        raise invalid("sim", value["sim"], "the simulation settings belong to the rig, not the geometry")
+    return value
+
+
+class PlanFile(Schema):
+    """A plan file's top level."""
+
+    name: NonEmptyText | None = Field(None, description="plan name (default: the file name)")
+    description: Text = Field("", description="what the plan measures")
+    rig: NonEmptyText = Field(description="the rig's design config, relative to the plan (e.g. ../rigs/sim-tank.toml)")
+    geometry: DesignSections = Field({}, description="design sections overriding the rig for every sweep")
+    camera: CameraSpec = Field(CameraSpec(), description=CameraSpec.__doc__)
+    instruments: Instruments = Field(Instruments(), description=Instruments.__doc__)
+    defaults: dict[str, Any] = Field({}, description="sweep keys applied to every sweep that does not set them")
+    sweep: list[dict[str, Any]] = Field(min_length=1, description="the [[sweep]] tables")
+
+    @field_validator("defaults")
+    @classmethod
+    def _sweep_keys(cls, value):
+        allowed = [k for k in SweepTable.model_fields if k != "id"]
+        for key in value:
+            if key not in allowed:
+                raise invalid(key, value[key], f"unknown key; allowed: {', '.join(allowed)}")
+        return value
+
+    @field_validator("geometry")
+    @classmethod
+    def _no_sim(cls, value):
+        return _design_sections(value)
 
 
 @dataclass(frozen=True)
@@ -132,7 +285,7 @@ class Plan:
     name: str
     rig_path: Path
     sweeps: tuple[SweepSpec, ...]
-    instruments: dict
+    instruments: Instruments
 
     def total_points(self) -> int:
         return sum(len(s.values) for s in self.sweeps)
@@ -150,32 +303,18 @@ def load_plan(path: str | Path) -> Plan:
 
 
 def parse_plan(raw: dict, path: Path, sha256: str) -> Plan:
-    _unknown("", raw, TOP_KEYS)
-    if "rig" not in raw or not isinstance(raw["rig"], str):
-        raise ConfigError("rig", raw.get("rig"), "required: path of the rig's design config (e.g. ../rigs/sim-tank.toml)")
-    base = path.resolve().parent
-    rig_path = resolve_path(raw["rig"], base)
+    plan = parse(PlanFile, raw)
+    rig_path = resolve_path(plan.rig, path.resolve().parent)
     rig_raw = read_toml(rig_path, "rig")
-    geometry = _table("geometry", raw.get("geometry", {}))
-    camera = _table("camera", raw.get("camera", {}))
-    _unknown("camera", camera, CAMERA_KEYS)
-    instruments = _table("instruments", raw.get("instruments", {}))
-    _unknown("instruments", instruments, INSTRUMENT_KEYS)
-    defaults = _table("defaults", raw.get("defaults", {}))
-    _unknown("defaults", defaults, tuple(k for k in SWEEP_KEYS if k != "id"))
-    tables = raw.get("sweep")
-    if not isinstance(tables, list) or not tables:
-        raise ConfigError("sweep", tables, "at least one [[sweep]] table is required")
-    sweeps = []
-    for number, table in enumerate(tables):
-        body = _table(f"sweep[{number}]", table)
-        sweeps.append(_sweep({**defaults, **body}, number, rig_raw, rig_path.parent, geometry, camera))
+    camera = raw.get("camera", {})
+    sweeps = [_sweep({**plan.defaults, **body}, number, rig_raw, rig_path.parent, plan.geometry, camera)
+              for number, body in enumerate(plan.sweep)]
     ids = [s.id for s in sweeps]
     duplicated = sorted({i for i in ids if ids.count(i) > 1})
     if duplicated:
         raise ConfigError("sweep.id", duplicated[0], "sweep ids must be unique within the plan")
-    return Plan(path=path, sha256=sha256, raw=raw, name=str(raw.get("name", path.stem)), rig_path=rig_path,
-                sweeps=tuple(sweeps), instruments=instruments)
+    return Plan(path=path, sha256=sha256, raw=raw, name=plan.name or path.stem, rig_path=rig_path,
+                sweeps=tuple(sweeps), instruments=plan.instruments)
 
 
 def point_counts(raw: dict) -> dict[str, int]:
@@ -190,233 +329,97 @@ def point_counts(raw: dict) -> dict[str, int]:
 
 def expand_values(key: str, spec: Any) -> tuple[float, ...]:
     """A sweep's values: a non-empty list of numbers, or ``{start, stop, num, spacing}`` (both ends included)."""
-    if isinstance(spec, list):
-        if not spec or len(spec) > MAX_POINTS or not all(_is_number(v) for v in spec):
-            raise ConfigError(key, spec, f"must be a list of 1 to {MAX_POINTS} numbers or a range table")
-        return tuple(float(v) for v in spec)
-    if not isinstance(spec, dict):
-        raise ConfigError(key, spec, "must be a list of numbers or {start, stop, num, spacing}")
-    _unknown(key, spec, RANGE_KEYS)
-    for name in ("start", "stop", "num"):
-        if not _is_number(spec.get(name)):
-            raise ConfigError(f"{key}.{name}", spec.get(name), "required number")
-    num, spacing = spec["num"], spec.get("spacing", "linear")
-    if not isinstance(num, int) or not 1 <= num <= MAX_POINTS:
-        raise ConfigError(f"{key}.num", num, f"must be an integer in [1, {MAX_POINTS}]")
-    if spacing == "linear":
-        return tuple(float(v) for v in np.linspace(spec["start"], spec["stop"], num))
-    if spacing == "log":
-        if spec["start"] <= 0 or spec["stop"] <= 0:
-            raise ConfigError(f"{key}.start", spec["start"], "log spacing needs positive start and stop")
-        return tuple(float(v) for v in np.geomspace(spec["start"], spec["stop"], num))
-    raise ConfigError(f"{key}.spacing", spacing, "must be 'linear' or 'log'")
+    return _expand(check(SweepValues, spec, key))
+
+
+def _expand(values: list[float] | ValueRange) -> tuple[float, ...]:
+    return values.expand() if isinstance(values, ValueRange) else tuple(float(v) for v in values)
 
 
 def _sweep(body: dict, number: int, rig_raw: dict, rig_dir: Path, geometry: dict, camera: dict) -> SweepSpec:
     sweep_id = body.get("id")
-    if not isinstance(sweep_id, str) or not sweep_id.strip():
-        raise ConfigError(f"sweep[{number}].id", sweep_id, "required non-empty string")
-    prefix = f"sweep.{sweep_id}"
-    _unknown(prefix, body, SWEEP_KEYS)
-    opts = {**SWEEP_DEFAULTS, **body}
-    kind = opts.get("kind")
-    if kind not in KINDS:
-        raise ConfigError(f"{prefix}.kind", kind, f"must be one of {', '.join(KINDS)}")
-    values = expand_values(f"{prefix}.values", body.get("values"))
-    rig = _merged(prefix, rig_raw, geometry, opts)
-    lens = _lens(f"{prefix}.lens", opts["lens"], rig)
-    _apply_sweep(prefix, rig, opts, lens)
+    prefix = f"sweep.{sweep_id}" if isinstance(sweep_id, str) and sweep_id.strip() else f"sweep[{number}]"
+    table = parse(SweepTable, body, prefix)
+    values = _expand(table.values)
+    rig = _merged(rig_raw, geometry, table.geometry)
+    lens = _lens(f"{prefix}.lens", table.lens, rig)
+    _apply_sweep(rig, table, lens)
     try:
         design = build_design({k: v for k, v in rig.items() if k != "sim"}, rig_dir)
     except ConfigError as exc:
         raise ConfigError(f"{prefix}.rig.{exc.key}", exc.value, exc.reason) from None
     sensor = design.sensor
-    frames = _integer(f"{prefix}.frames_per_point", opts["frames_per_point"], 2)
-    dark_frames = _integer(f"{prefix}.dark_frames", frames if opts["dark_frames"] is None else opts["dark_frames"], 2)
-    exposure_us = opts["exposure_us"]
+    exposure_us = table.exposure_us
     if exposure_us is None:
-        exposure_us = float(np.median(values)) if kind in ("exposure", "dark") else 1000.0
+        exposure_us = float(np.median(values)) if table.kind in ("exposure", "dark") else 1000.0
+    within(f"{prefix}.exposure_us", exposure_us, sensor.exposure_min_us, sensor.exposure_max_us,
+           f"{sensor.name}'s exposure range [µs]")
+    within(f"{prefix}.gain_db", table.gain_db, sensor.gain_min_db, sensor.gain_max_db, f"{sensor.name}'s gain range [dB]")
     spec = SweepSpec(
-        id=sweep_id, kind=kind, values=values, frames_per_point=frames,
-        settle_s=_number(f"{prefix}.settle_s", opts["settle_s"], 0.0, 3600.0),
-        dark=_choice(f"{prefix}.dark", opts["dark"], DARK_MODES), dark_frames=dark_frames,
-        spectrometer=_positions(f"{prefix}.spectrometer", opts["spectrometer"]),
-        spectrometer_integration_ms=_number(f"{prefix}.spectrometer_integration_ms",
-                                            opts["spectrometer_integration_ms"], 1.0, 10000.0),
-        spectrometer_averaging=_integer(f"{prefix}.spectrometer_averaging", opts["spectrometer_averaging"], 1, 100),
-        roi=_roi(f"{prefix}.roi", opts["roi"]), aruco_dictionary=_aruco_name(f"{prefix}.aruco_dictionary",
-                                                                            opts["aruco_dictionary"]),
-        saturation_threshold=_number(f"{prefix}.saturation_threshold", opts["saturation_threshold"], 0.0, 1.0),
+        id=table.id, kind=table.kind, values=values, frames_per_point=table.frames_per_point,
+        settle_s=table.settle_s, dark=table.dark,
+        dark_frames=table.frames_per_point if table.dark_frames is None else table.dark_frames,
+        spectrometer=tuple(table.spectrometer), spectrometer_integration_ms=table.spectrometer_integration_ms,
+        spectrometer_averaging=table.spectrometer_averaging, roi=table.roi, aruco_dictionary=table.aruco_dictionary,
+        saturation_threshold=table.saturation_threshold,
         lens=lens, sensor_profile=str(rig["sensor"]["profile"]),
-        camera=_camera(f"{prefix}.camera", {**camera, **_table(f"{prefix}.camera", opts["camera"])}),
-        exposure_us=_number(f"{prefix}.exposure_us", exposure_us, sensor.exposure_min_us, sensor.exposure_max_us),
-        gain_db=_number(f"{prefix}.gain_db", opts["gain_db"], sensor.gain_min_db, sensor.gain_max_db),
-        black_level_dn=None if opts["black_level_dn"] is None else _number(f"{prefix}.black_level_dn",
-                                                                            opts["black_level_dn"], 0.0, 2.0**32),
-        light_level=_number(f"{prefix}.light_level", opts["light_level"], 0.0, 1.0),
-        save_frames=_bool(f"{prefix}.save_frames", opts["save_frames"]),
-        rig_raw=rig, design=design,
+        camera=parse(CameraSpec, {**camera, **table.camera}, f"{prefix}.camera"),
+        exposure_us=float(exposure_us), gain_db=table.gain_db, black_level_dn=table.black_level_dn,
+        light_level=table.light_level, save_frames=table.save_frames, rig_raw=rig, design=design,
     )
     _check_values(spec, sensor)
     _check_dark_mode(spec)
     return spec
 
 
-def _merged(prefix: str, rig_raw: dict, geometry: dict, opts: dict) -> dict:
+def _merged(rig_raw: dict, geometry: dict, sweep_geometry: dict) -> dict:
     """The rig file overridden by the plan's geometry, then by the sweep's."""
     rig = copy.deepcopy(rig_raw)
-    for source, table in (("geometry", geometry), (f"{prefix}.geometry", _table(f"{prefix}.geometry", opts["geometry"]))):
+    for table in (geometry, sweep_geometry):
         for section, body in table.items():
-            if section == "sim" or not isinstance(body, dict):
-                raise ConfigError(f"{source}.{section}", body, "must be a design section table ([geometry.<section>])")
             rig.setdefault(section, {}).update(body)
     return rig
 
 
-def _apply_sweep(prefix: str, rig: dict, opts: dict, lens: LensSetting) -> None:
+def _apply_sweep(rig: dict, table: SweepTable, lens: LensSetting) -> None:
     """The sweep's sensor, lens and fixed exposure, written into its rig config."""
-    if opts["sensor"] is not None:
-        if not isinstance(opts["sensor"], str):
-            raise ConfigError(f"{prefix}.sensor", opts["sensor"], "must be a sensor profile name")
-        rig.setdefault("sensor", {})["profile"] = opts["sensor"]
+    if table.sensor is not None:
+        rig.setdefault("sensor", {})["profile"] = table.sensor
     for key, value in lens.overrides().items():
         apply_override(rig, key, value)
-    exposure = opts["exposure_us"]
-    if _is_number(exposure) and exposure > 0:
-        rig.setdefault("operation", {})["exposure_s"] = exposure * 1e-6
+    if table.exposure_us is not None:
+        rig.setdefault("operation", {})["exposure_s"] = table.exposure_us * 1e-6
 
 
-def _lens(key: str, spec: Any, rig: dict) -> LensSetting:
+def _lens(key: str, spec: LensTable | str | None, rig: dict) -> LensSetting:
+    """The sweep's lens: none, its table, or (not given) the rig's lens."""
     if spec == "none":
         return NO_LENS
     if spec is None:
         section = rig.get("lens", {})
-        spec = {k: section[k] for k in ("focal_length_mm", "f_number") if k in section}
-    if not isinstance(spec, dict):
-        raise ConfigError(key, spec, 'must be "none" or {focal_length_mm, f_number, f_number_range, manual}')
-    _unknown(key, spec, LENS_KEYS)
-    focal = _number(f"{key}.focal_length_mm", spec.get("focal_length_mm"), 0.0, 10000.0, lo_open=True)
-    f_number = _number(f"{key}.f_number", spec.get("f_number"), 0.0, 1000.0, lo_open=True)
-    bounds = spec.get("f_number_range")
-    if bounds is not None:
-        if not (isinstance(bounds, list) and len(bounds) == 2 and all(_is_number(v) and v > 0 for v in bounds)
-                and bounds[0] <= bounds[1]):
-            raise ConfigError(f"{key}.f_number_range", bounds, "must be [lowest, highest] positive f-numbers")
-        bounds = (float(bounds[0]), float(bounds[1]))
-        if not bounds[0] <= f_number <= bounds[1]:
-            raise ConfigError(f"{key}.f_number", f_number, f"outside the lens's range [{bounds[0]:g}, {bounds[1]:g}]")
-    return LensSetting(focal, f_number, bounds, _bool(f"{key}.manual", spec.get("manual", True)))
+        spec = parse(LensTable, {k: section[k] for k in ("focal_length_mm", "f_number") if k in section}, key)
+    return spec.setting()
 
 
 def _check_values(spec: SweepSpec, sensor) -> None:
     key = f"sweep.{spec.id}.values"
-    arr = np.asarray(spec.values)
     if spec.kind in ("exposure", "dark"):
-        _within(key, arr, sensor.exposure_min_us, sensor.exposure_max_us, f"{sensor.name}'s exposure range [µs]")
+        within(key, spec.values, sensor.exposure_min_us, sensor.exposure_max_us, f"{sensor.name}'s exposure range [µs]")
     elif spec.kind == "gain":
-        _within(key, arr, sensor.gain_min_db, sensor.gain_max_db, f"{sensor.name}'s gain range [dB]")
+        within(key, spec.values, sensor.gain_min_db, sensor.gain_max_db, f"{sensor.name}'s gain range [dB]")
     elif spec.kind == "light-level":
-        _within(key, arr, 0.0, 1.0, "the light level range")
+        within(key, spec.values, 0.0, 1.0, "the light level range")
     elif spec.lens.bare:
         raise ConfigError(f"sweep.{spec.id}.lens", "none", "an aperture sweep needs a lens")
     else:
-        lo, hi = spec.lens.f_number_range or (np.nextafter(0.0, 1.0), np.inf)
-        _within(key, arr, lo, hi, "the lens's f-number range")
+        lo, hi = spec.lens.f_number_range or (limits_of(FNumber).lo, limits_of(FNumber).hi)
+        within(key, spec.values, lo, hi, "the lens's f-number range")
 
 
 def _check_dark_mode(spec: SweepSpec) -> None:
     if spec.dark == "block" and spec.kind in ("exposure", "gain"):
         raise ConfigError(f"sweep.{spec.id}.dark", "block",
                           f"an {spec.kind} sweep changes the camera settings at every point: use 'point'")
-
-
-def _within(key: str, arr: np.ndarray, lo: float, hi: float, what: str) -> None:
-    bad = (arr < lo) | (arr > hi)
-    if np.any(bad):
-        raise ConfigError(key, float(arr[bad][0]), f"outside {what} [{lo:g}, {hi:g}]")
-
-
-def _camera(key: str, body: dict) -> CameraSpec:
-    _unknown(key, body, CAMERA_KEYS)
-    fmt = body.get("pixel_format")
-    if fmt is not None and fmt not in PIXEL_FORMATS:
-        raise ConfigError(f"{key}.pixel_format", fmt, f"must be one of {', '.join(PIXEL_FORMATS)}")
-    for name in ("backend", "id"):
-        if name in body and not isinstance(body[name], str):
-            raise ConfigError(f"{key}.{name}", body[name], "must be a string")
-    return CameraSpec(backend=body.get("backend", "sim"), device_id=body.get("id"), pixel_format=fmt,
-                      window=_rectangle(f"{key}.window", body["window"]) if "window" in body else None,
-                      timeout_s=_number(f"{key}.timeout_s", body.get("timeout_s", 5.0), 0.0, 600.0, lo_open=True))
-
-
-def _roi(key: str, value: Any) -> tuple[int, int, int, int] | str | None:
-    if value is None or value == "aruco":
-        return value
-    return _rectangle(key, value)
-
-
-def _rectangle(key: str, value: Any) -> tuple[int, int, int, int]:
-    ok = isinstance(value, list) and len(value) == 4 and all(isinstance(v, int) and not isinstance(v, bool) for v in value)
-    if not ok or value[0] < 0 or value[1] < 0 or value[2] < 2 or value[3] < 2:
-        raise ConfigError(key, value, 'must be [x, y, width, height] in pixels (offsets >= 0, sizes >= 2) or "aruco"'
-                          if key.endswith("roi") else "must be [x, y, width, height] in pixels")
-    return tuple(value)
-
-
-def _aruco_name(key: str, value: Any) -> str:
-    import cv2
-
-    if not isinstance(value, str) or not value.startswith("DICT_") or not hasattr(cv2.aruco, value):
-        raise ConfigError(key, value, "must name a cv2.aruco predefined dictionary, e.g. DICT_4X4_50")
-    return value
-
-
-def _positions(key: str, value: Any) -> tuple[str, ...]:
-    if not isinstance(value, list) or any(v not in SPECTROMETER_POSITIONS for v in value) or len(set(value)) != len(value):
-        raise ConfigError(key, value, f"must be a list of distinct positions from {', '.join(SPECTROMETER_POSITIONS)}")
-    return tuple(value)
-
-
-def _unknown(prefix: str, body: dict, allowed: tuple[str, ...]) -> None:
-    for key in body:
-        if key not in allowed:
-            name = f"{prefix}.{key}" if prefix else key
-            raise ConfigError(name, body[key], f"unknown key; allowed: {', '.join(allowed)}")
-
-
-def _table(key: str, value: Any) -> dict:
-    if not isinstance(value, dict):
-        raise ConfigError(key, value, "must be a table")
-    return value
-
-
-def _is_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and np.isfinite(value)
-
-
-def _number(key: str, value: Any, lo: float, hi: float, lo_open: bool = False) -> float:
-    if not _is_number(value) or value < lo or value > hi or (lo_open and value == lo):
-        left = "(" if lo_open else "["
-        raise ConfigError(key, value, f"must be a number in {left}{lo:g}, {hi:g}]")
-    return float(value)
-
-
-def _integer(key: str, value: Any, lo: int, hi: int = 1_000_000) -> int:
-    if not isinstance(value, int) or isinstance(value, bool) or not lo <= value <= hi:
-        raise ConfigError(key, value, f"must be an integer in [{lo}, {hi}]")
-    return value
-
-
-def _choice(key: str, value: Any, options: tuple[str, ...]) -> str:
-    if value not in options:
-        raise ConfigError(key, value, f"must be one of {', '.join(options)}")
-    return value
-
-
-def _bool(key: str, value: Any) -> bool:
-    if not isinstance(value, bool):
-        raise ConfigError(key, value, "must be true or false")
-    return value
 
 
 def resolved_rig(design: Design) -> dict:

@@ -73,12 +73,11 @@ class HardwareRig:
 
     def __enter__(self) -> HardwareRig:
         ports = self.plan.instruments
-        protocol = ports.get("protocol", "uwlab-ascii")
         try:
-            if "light_port" in ports:
-                self.light = open_light(ports["light_port"], protocol)
-            if "spectrometer_port" in ports:
-                self.spectrometer = open_spectrometer(ports["spectrometer_port"], protocol)
+            if ports.light_port is not None:
+                self.light = open_light(ports.light_port, ports.protocol)
+            if ports.spectrometer_port is not None:
+                self.spectrometer = open_spectrometer(ports.spectrometer_port, ports.protocol)
         except BaseException:
             self.__exit__()
             raise

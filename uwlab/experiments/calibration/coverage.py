@@ -13,14 +13,14 @@ from typing import Callable
 
 import numpy as np
 
-from uwlab.experiments.calibration.fit import FitConfig, fit_points
-from uwlab.experiments.calibration.priors import Prior
+from uwlab.experiments.calibration.fit import FitConfig, Sampler, fit_points
+from uwlab.experiments.calibration.priors import HalfNormal, LogNormal, Normal, Prior
 from uwlab.experiments.calibration.simulate import simulate_campaign
 from uwlab.model.optics import NO_LENS, LensSetting
 
-COVERAGE_PRIORS = {"light_efficiency": Prior("lognormal", 0.8, 0.2), "attenuation_scale": Prior("lognormal", 1.0, 0.3),
-                   "K_dn_per_e:imx250m": Prior("normal", 0.3473, 0.0174, lo=0.0),
-                   "discrepancy": Prior("halfnormal", 0.05)}
+COVERAGE_PRIORS = {"light_efficiency": LogNormal(median=0.8, sigma=0.2), "attenuation_scale": LogNormal(median=1.0, sigma=0.3),
+                   "K_dn_per_e:imx250m": Normal(mean=0.3473, sigma=0.0174, lo=0.0),
+                   "discrepancy": HalfNormal(sigma=0.05)}
 COVERAGE_LENSES = (LensSetting(30.0, 2.0), NO_LENS)
 
 
@@ -45,7 +45,7 @@ def interval_coverage(seeds: int, priors: dict[str, Prior] = COVERAGE_PRIORS, le
         truth = {name: prior.sample(rng) for name, prior in priors.items() if name != "discrepancy"}
         points, rigs = simulate_campaign(truth, sensors=sensors, lenses=lenses, points_per_sweep=points_per_sweep,
                                          seed=seed)
-        summary = fit_points(points, rigs, FitConfig(priors, seed=seed)).summary()
+        summary = fit_points(points, rigs, FitConfig(priors=priors, sampler=Sampler(seed=seed))).summary()
         for name, value in truth.items():
             p = summary["parameters"][name]
             inside = p["p2_5"] <= value <= p["p97_5"]

@@ -30,12 +30,14 @@ from typing import Callable
 import emcee
 import numpy as np
 import pandas as pd
+from pydantic import ConfigDict, Field, model_validator
 from scipy import optimize
 
-from uwlab.errors import ConfigError, UwlabError
+from uwlab.errors import UwlabError
 from uwlab.experiments.calibration.forward import ForwardModel, build_forward_model
-from uwlab.experiments.calibration.priors import Prior, parse_prior
+from uwlab.experiments.calibration.priors import HalfNormal, LogNormal, Normal, Prior, PriorSpec
 from uwlab.model.data import read_toml
+from uwlab.model.schema import NonEmptyText, Schema, invalid, parse, quantity
 
 MIN_TAU_MULTIPLE = 50
 CORRELATED = 0.9
@@ -45,29 +47,65 @@ SHAPE_PARAMETERS = ("attenuation_scale", "beam_half_angle_deg")
 ANCHORS = ("light_efficiency", "reflectance")
 
 
-@dataclass
-class FitConfig:
-    priors: dict[str, Prior]
-    walkers: int = 32
-    chunk_steps: int = 1000
-    max_steps: int = 60000
-    seed: int = 0
-    holdout: dict = field(default_factory=dict)
+# Sampler sizes: emcee needs at least twice as many walkers as parameters; fewer than 100 steps per chunk make
+# the autocorrelation estimate meaningless; the bounds above keep a typo from allocating chains of terabytes.
+Walkers = quantity(8, 10000, "walkers", hint="", integer=True)
+ChunkSteps = quantity(100, 10_000_000, "steps", hint="", integer=True)
+MaxSteps = quantity(1000, 100_000_000, "steps", hint="", integer=True)
+Seed = quantity(0, 2**32 - 1, "", hint="", integer=True)
+
+
+class Sampler(Schema):
+    """A fit config's [sampler] section."""
+
+    walkers: Walkers | None = Field(None, description="ensemble size (default: max(32, 4 × parameters))")
+    chunk_steps: ChunkSteps = Field(1000, description="steps between convergence checks")
+    max_steps: MaxSteps = Field(60000, description="stop (unconverged) after this many steps")
+    seed: Seed = Field(0, description="seed of the walkers' start and of the sampler")
+
+
+class Holdout(Schema):
+    """A fit config's [holdout] section."""
+
+    train: list[NonEmptyText] = Field([], description="sweeps the cross-configuration check fits (it predicts the rest)")
+
+
+class FitConfig(Schema):
+    """A fit config (``configs/fit/*.toml``): [parameters.NAME] prior tables (`uwlab.experiments.calibration.
+    priors`) for the free parameters, [sampler] and [holdout]."""
+
+    model_config = ConfigDict(populate_by_name=True)
+
+    priors: dict[str, PriorSpec] = Field(alias="parameters", min_length=1, description="free parameters and priors")
+    sampler: Sampler = Field(Sampler(), description=Sampler.__doc__)
+    holdout: Holdout = Field(Holdout(), description=Holdout.__doc__)
+
+    @model_validator(mode="after")
+    def _enough_walkers(self):
+        walkers = self.sampler.walkers
+        if walkers is not None and (walkers < 2 * len(self.priors) or walkers % 2):
+            raise invalid("sampler.walkers", walkers,
+                          f"must be even and >= {2 * len(self.priors)} (twice the free parameters)")
+        return self
 
     @property
     def names(self) -> tuple[str, ...]:
         return tuple(self.priors)
 
+    @property
+    def walkers(self) -> int:
+        return self.sampler.walkers or max(32, 4 * len(self.priors))
+
 
 def default_fit_config(cameras: tuple[str, ...], nominal_k: dict[str, float]) -> FitConfig:
     """Light efficiency (broad), attenuation scale, each camera's K (5 % around its profile) and discrepancy."""
     priors = {
-        "light_efficiency": Prior("lognormal", 1.0, 0.5),
-        "attenuation_scale": Prior("lognormal", 1.0, 0.3),
-        **{f"K_dn_per_e:{c}": Prior("normal", nominal_k[c], 0.05 * nominal_k[c], lo=0.0) for c in cameras},
-        "discrepancy": Prior("halfnormal", 0.05),
+        "light_efficiency": LogNormal(median=1.0, sigma=0.5),
+        "attenuation_scale": LogNormal(median=1.0, sigma=0.3),
+        **{f"K_dn_per_e:{c}": Normal(mean=nominal_k[c], sigma=0.05 * nominal_k[c], lo=0.0) for c in cameras},
+        "discrepancy": HalfNormal(sigma=0.05),
     }
-    return FitConfig(priors)
+    return FitConfig(priors=priors)
 
 
 def default_config_for(points, rigs: dict, base_dir: Path | None = None) -> FitConfig:
@@ -77,27 +115,8 @@ def default_config_for(points, rigs: dict, base_dir: Path | None = None) -> FitC
 
 
 def load_fit_config(path: str | Path) -> FitConfig:
-    """[parameters.NAME] prior tables, and an optional [sampler] (walkers, chunk_steps, max_steps, seed)."""
-    raw = read_toml(Path(path), "--config")
-    for section in raw:
-        if section not in ("parameters", "sampler", "holdout"):
-            raise ConfigError(section, "...", "unknown section; expected parameters, sampler, holdout")
-    params = raw.get("parameters", {})
-    if not params:
-        raise ConfigError("parameters", None, "no free parameters declared")
-    priors = {name: parse_prior(f"parameters.{name}", spec) for name, spec in params.items()}
-    sampler = raw.get("sampler", {})
-    allowed = {"walkers": 8, "chunk_steps": 100, "max_steps": 1000, "seed": 0}
-    for key, value in sampler.items():
-        if key not in allowed:
-            raise ConfigError(f"sampler.{key}", value, f"unknown key; sampler has {', '.join(allowed)}")
-        if isinstance(value, bool) or not isinstance(value, int) or value < allowed[key]:
-            raise ConfigError(f"sampler.{key}", value, f"must be an integer >= {allowed[key]}")
-    walkers = sampler.get("walkers", max(32, 4 * len(priors)))
-    if walkers < 2 * len(priors) or walkers % 2:
-        raise ConfigError("sampler.walkers", walkers, f"must be even and >= {2 * len(priors)} (twice the free parameters)")
-    return FitConfig(priors, walkers=walkers, chunk_steps=sampler.get("chunk_steps", 1000),
-                     max_steps=sampler.get("max_steps", 60000), seed=sampler.get("seed", 0), holdout=raw.get("holdout", {}))
+    """A fit config file, validated (`ConfigError` naming the key)."""
+    return parse(FitConfig, read_toml(Path(path), "--config"))
 
 
 class Posterior:
@@ -270,8 +289,7 @@ class FitResult:
             notes.append(f"not converged: {self.steps} steps are {self.steps / np.max(self.tau):.0f} τ (< {MIN_TAU_MULTIPLE})")
         for i, name in enumerate(self.names):
             prior = self.priors[name]
-            draws = prior.sample(np.random.default_rng(0), (4000,))
-            tail = np.mean(draws < q[2, i])
+            tail = float(prior.cdf(q[2, i]))
             if min(tail, 1 - tail) < 0.005 and name != "discrepancy":
                 notes.append(f"prior tension: {name} posterior median {q[2, i]:.4g} lies in the outer 1 % of its prior")
         if "discrepancy" in self.names:
@@ -304,8 +322,8 @@ class FitResult:
 def run_fit(model: ForwardModel, config: FitConfig, progress: Callable[[int, float], None] | None = None) -> FitResult:
     """MAP, then emcee until ≥ 50 τ (or max_steps, then converged = False)."""
     post = Posterior(model, config.priors)
-    rng = np.random.default_rng(config.seed)
-    start = np.array([config.priors[n].median() if n != "discrepancy" else max(config.priors[n].median(), 1e-3)
+    rng = np.random.default_rng(config.sampler.seed)
+    start = np.array([config.priors[n].quantile(0.5) if n != "discrepancy" else max(config.priors[n].quantile(0.5), 1e-3)
                       for n in model.names])
     u_map = find_map(post.log_u, post.to_u(start))
     p0 = initial_walkers(post.log_u, u_map, config.walkers, rng)
@@ -313,8 +331,8 @@ def run_fit(model: ForwardModel, config: FitConfig, progress: Callable[[int, flo
     sampler = emcee.EnsembleSampler(config.walkers, len(model.names), post.log_u, vectorize=True, moves=moves)
     sampler.random_state = np.random.RandomState(int(rng.integers(2**31))).get_state()
     state, old_tau, converged = p0, None, False
-    while sampler.iteration < config.max_steps:
-        state = sampler.run_mcmc(state, config.chunk_steps, progress=False)
+    while sampler.iteration < config.sampler.max_steps:
+        state = sampler.run_mcmc(state, config.sampler.chunk_steps, progress=False)
         tau = sampler.get_autocorr_time(tol=0)
         steady = old_tau is not None and np.all(np.abs(old_tau - tau) / tau < 0.05)
         if progress:

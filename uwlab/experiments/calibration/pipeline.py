@@ -69,7 +69,7 @@ def calibrate(dataset_dir: str | Path, config_path: str | Path | None, out: str 
     truth = truth_from_metadata(metadata, points, result.names)
     sweeps = list(dict.fromkeys(points["sweep_id"]))
     with_lens = list(dict.fromkeys(points.loc[points["f_number"].notna(), "sweep_id"]))
-    train = train_sweeps or list(config.holdout.get("train", [])) or (with_lens or sweeps)[:1]
+    train = train_sweeps or config.holdout.train or (with_lens or sweeps)[:1]
     unknown = sorted(set(train) - set(sweeps))
     if unknown:
         raise ConfigError("--train", ", ".join(unknown), f"not a sweep of this dataset ({', '.join(sweeps)})")

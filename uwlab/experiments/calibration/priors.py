@@ -1,97 +1,117 @@
-"""Prior distributions for model calibration, with vectorised log densities.
+"""Prior distributions for model calibration: thin wrappers of `scipy.stats` random variables, optionally truncated.
 
 A prior is declared in a fit config as a table, e.g. ``{ kind = "lognormal", median = 1.0, sigma = 0.5 }``:
-- ``normal``: mean, sigma;  ``lognormal``: median, sigma (of the natural log);  ``uniform``: lo, hi;
-  ``halfnormal``: sigma (support x ≥ 0).
-Optional ``lo``/``hi`` truncate any prior (log density −inf outside; the normalisation constant of a truncated
-prior is omitted, which does not change the posterior).
+
+- ``normal``: mean, sigma — ``stats.Normal(mu=mean, sigma=sigma)``;
+- ``lognormal``: median, sigma (of ln x) — ``stats.exp(stats.Normal(mu=ln median, sigma=sigma))``;
+- ``uniform``: lo, hi — ``stats.Uniform(a=lo, b=hi)``;
+- ``halfnormal``: sigma — ``stats.truncate(stats.Normal(mu=0, sigma=sigma), 0)`` (|N(0, σ²)|, support x > 0).
+
+Optional ``lo``/``hi`` truncate a normal, lognormal or halfnormal prior (``stats.truncate``: the density is
+renormalised on [lo, hi], 0 outside). Densities, CDFs, quantiles and draws (with the caller's generator) are
+scipy's; log densities are vectorised over walkers.
+
+>>> p = LogNormal(median=2.0, sigma=0.5)
+>>> round(p.quantile(0.5), 12), round(p.quantile(0.8413447460685429), 6)   # median, median · e^σ
+(2.0, 3.297443)
+>>> round(Normal(mean=0.0, sigma=1.0, lo=0.0).quantile(0.5), 9)   # the half-normal median σ · Φ⁻¹(3/4)
+0.67448975
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from typing import Annotated, Literal, Union
 
 import numpy as np
+from pydantic import Field, PrivateAttr, StrictFloat, model_validator
+from scipy import stats
 
-from uwlab.errors import ConfigError
+from uwlab.model.schema import Schema, check, invalid
 
-_PARAMS = {"normal": ("mean", "sigma"), "lognormal": ("median", "sigma"), "uniform": ("lo", "hi"), "halfnormal": ("sigma",)}
+Finite = Annotated[float, Field(strict=True, allow_inf_nan=False)]
+Positive = Annotated[float, Field(strict=True, allow_inf_nan=False, gt=0.0)]
 
 
-@dataclass(frozen=True)
-class Prior:
-    kind: str
-    a: float = 0.0
-    b: float = 1.0
-    lo: float = -np.inf
-    hi: float = np.inf
+class Prior(Schema):
+    """A prior: a scipy.stats random variable (`distribution`), truncated to [lo, hi] when they are given."""
 
-    def logpdf(self, x: np.ndarray) -> np.ndarray:
-        x = np.asarray(x, float)
+    lo: StrictFloat = Field(-math.inf, description="lower truncation bound")
+    hi: StrictFloat = Field(math.inf, description="upper truncation bound")
+    _dist: object = PrivateAttr()
+
+    def model_post_init(self, context) -> None:
+        dist = self.distribution()
+        lo, hi = dist.support()
+        self._dist = dist if (self.lo <= lo and self.hi >= hi) else stats.truncate(dist, self.lo, self.hi)
+
+    @model_validator(mode="after")
+    def _bounds(self):
+        if not self.lo < self.hi:
+            raise invalid("hi", self.hi, "must exceed lo")
+        return self
+
+    def distribution(self):
+        """The untruncated scipy.stats random variable."""
+        raise NotImplementedError
+
+    def logpdf(self, x) -> np.ndarray:
+        """ln p(x), vectorised; −inf outside the support."""
         with np.errstate(divide="ignore", invalid="ignore"):
-            if self.kind == "normal":
-                out = -0.5 * ((x - self.a) / self.b) ** 2
-            elif self.kind == "lognormal":
-                safe = np.where(x > 0, x, 1.0)
-                out = np.where(x > 0, -0.5 * (np.log(safe / self.a) / self.b) ** 2 - np.log(safe), -np.inf)
-            elif self.kind == "uniform":
-                out = np.where((x >= self.a) & (x <= self.b), 0.0, -np.inf)
-            else:
-                out = np.where(x >= 0, -0.5 * (x / self.a) ** 2, -np.inf)
-        return np.where((x >= self.lo) & (x <= self.hi), out, -np.inf)
+            out = self._dist.logpdf(np.asarray(x, float))
+        return np.where(np.isnan(out), -np.inf, out)
 
-    def sample(self, rng: np.random.Generator, size=None) -> np.ndarray:
-        """Draws from the (truncated) prior by rejection."""
-        n = 1 if size is None else int(np.prod(size))
-        out = np.empty(0)
-        while out.size < n:
-            if self.kind == "normal":
-                draw = rng.normal(self.a, self.b, 4 * n)
-            elif self.kind == "lognormal":
-                draw = self.a * np.exp(rng.normal(0.0, self.b, 4 * n))
-            elif self.kind == "uniform":
-                draw = rng.uniform(self.a, self.b, 4 * n)
-            else:
-                draw = np.abs(rng.normal(0.0, self.a, 4 * n))
-            out = np.concatenate([out, draw[(draw >= self.lo) & (draw <= self.hi)]])
-        return out[0] if size is None else out[:n].reshape(size)
+    def cdf(self, x):
+        return self._dist.cdf(np.asarray(x, float))
 
-    def median(self) -> float:
-        if self.kind == "normal":
-            return float(np.clip(self.a, self.lo, self.hi))
-        if self.kind == "lognormal":
-            return float(np.clip(self.a, self.lo, self.hi))
-        if self.kind == "uniform":
-            return 0.5 * (self.a + self.b)
-        return float(np.clip(0.6745 * self.a, self.lo, self.hi))
+    def quantile(self, q):
+        """The q-quantile(s) (a float for a scalar q)."""
+        out = self._dist.icdf(np.asarray(q, float))
+        return float(out) if np.ndim(out) == 0 else out
+
+    def sample(self, rng: np.random.Generator, size=None):
+        """Draws from the prior with `rng` (a float for size None)."""
+        out = self._dist.sample(() if size is None else size, rng=rng)
+        return float(out) if size is None else out
+
+
+class Normal(Prior):
+    kind: Literal["normal"] = "normal"
+    mean: Finite = Field(description="mean")
+    sigma: Positive = Field(description="standard deviation")
+
+    def distribution(self):
+        return stats.Normal(mu=self.mean, sigma=self.sigma)
+
+
+class LogNormal(Prior):
+    kind: Literal["lognormal"] = "lognormal"
+    median: Positive = Field(description="median e^μ")
+    sigma: Positive = Field(description="standard deviation of ln x")
+
+    def distribution(self):
+        return stats.exp(stats.Normal(mu=math.log(self.median), sigma=self.sigma))
+
+
+class Uniform(Prior):
+    kind: Literal["uniform"] = "uniform"
+    lo: Finite = Field(description="lower bound")
+    hi: Finite = Field(description="upper bound")
+
+    def distribution(self):
+        return stats.Uniform(a=self.lo, b=self.hi)
+
+
+class HalfNormal(Prior):
+    kind: Literal["halfnormal"] = "halfnormal"
+    sigma: Positive = Field(description="scale σ of |N(0, σ²)|")
+
+    def distribution(self):
+        return stats.truncate(stats.Normal(mu=0.0, sigma=self.sigma), 0.0)
+
+
+PriorSpec = Annotated[Union[Normal, LogNormal, Uniform, HalfNormal], Field(discriminator="kind")]
 
 
 def parse_prior(key: str, spec) -> Prior:
-    """A prior from its config table; ConfigError names the key."""
-    if not isinstance(spec, dict) or "kind" not in spec:
-        raise ConfigError(key, spec, 'must be a table with kind = "normal"|"lognormal"|"uniform"|"halfnormal"')
-    kind = spec["kind"]
-    if kind not in _PARAMS:
-        raise ConfigError(f"{key}.kind", kind, f"must be one of {', '.join(_PARAMS)}")
-    allowed = set(_PARAMS[kind]) | {"kind", "lo", "hi"}
-    for name, value in spec.items():
-        if name not in allowed:
-            raise ConfigError(f"{key}.{name}", value, f"unknown for a {kind} prior; expected {', '.join(sorted(allowed))}")
-        if name != "kind" and (isinstance(value, bool) or not isinstance(value, (int, float))):
-            raise ConfigError(f"{key}.{name}", value, "must be a number")
-    names = _PARAMS[kind]
-    for name in names:
-        if name not in spec:
-            raise ConfigError(f"{key}.{name}", None, f"missing for a {kind} prior")
-    values = [float(spec[n]) for n in names]
-    if kind in ("normal", "lognormal", "halfnormal") and values[-1] <= 0:
-        raise ConfigError(f"{key}.sigma", values[-1], "must be > 0")
-    if kind == "lognormal" and values[0] <= 0:
-        raise ConfigError(f"{key}.median", values[0], "must be > 0")
-    if kind == "uniform" and values[1] <= values[0]:
-        raise ConfigError(f"{key}.hi", values[1], "must exceed lo")
-    lo, hi = float(spec.get("lo", -np.inf)), float(spec.get("hi", np.inf))
-    if kind == "uniform":
-        lo, hi = max(lo, values[0]), min(hi, values[1])
-    if not lo < hi:
-        raise ConfigError(f"{key}.hi", hi, "must exceed lo")
-    return Prior(kind, *(values + [1.0] * (2 - len(values))), lo=lo, hi=hi)
+    """A prior from its config table; `ConfigError` names the key (e.g. ``parameters.x.sigma``)."""
+    return check(PriorSpec, spec, key)

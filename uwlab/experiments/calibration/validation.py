@@ -103,15 +103,15 @@ def cross_configuration(points: pd.DataFrame, rigs: dict, config: FitConfig, tra
     train = usable[usable["sweep_id"].isin(train_sweeps)]
     test = usable[~usable["sweep_id"].isin(train_sweeps)]
     cameras = tuple(sorted(train["sensor_profile"].astype(str).unique()))
-    train_config = replace(config, priors={n: p for n, p in config.priors.items()
-                                           if not n.startswith("K_dn_per_e:") or n.split(":", 1)[1] in cameras})
+    train_config = config.model_copy(update={"priors": {n: p for n, p in config.priors.items()
+                                                       if not n.startswith("K_dn_per_e:") or n.split(":", 1)[1] in cameras}})
     result = fit_points(train, rigs, train_config, progress=progress)
     rows = []
     if not test.empty:
         model = build_forward_model(test, rigs, config.names)
-        theta = _prior_columns(config, model.names, _thinned(result.samples), result.names, np.random.default_rng(config.seed))
+        theta = _prior_columns(config, model.names, _thinned(result.samples), result.names, np.random.default_rng(config.sampler.seed))
         predicted = model.predict(theta)
-        observed = predicted + model.sigma(theta, predicted) * np.random.default_rng(config.seed).standard_normal(predicted.shape)
+        observed = predicted + model.sigma(theta, predicted) * np.random.default_rng(config.sampler.seed).standard_normal(predicted.shape)
         q = np.percentile(predicted, [2.5, 50, 97.5], axis=0)
         q[[0, 2]] = np.percentile(observed, [2.5, 97.5], axis=0)
         frame = test.reset_index(drop=True).assign(median=q[1], lo=q[0], hi=q[2])
