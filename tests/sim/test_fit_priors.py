@@ -1,34 +1,60 @@
-"""Priors against scipy.stats, and the split-chain R-hat on known chains."""
+"""Priors against closed forms (scipy is what they wrap, so scipy is not the reference), their keys in errors,
+and the split-chain R-hat on known chains."""
+import math
+
 import numpy as np
 import pytest
-from scipy import stats
 
 from uwlab.errors import ConfigError
 from uwlab.experiments.calibration.fit import split_rhat
-from uwlab.experiments.calibration.priors import parse_prior
+from uwlab.experiments.calibration.priors import HalfNormal, LogNormal, Normal, Uniform, parse_prior
 
-X = np.array([0.2, 0.7, 1.0, 1.9, 3.5])
-
-
-@pytest.mark.parametrize("spec, reference", [
-    ({"kind": "normal", "mean": 1.0, "sigma": 0.5}, stats.norm(1.0, 0.5)),
-    ({"kind": "lognormal", "median": 1.2, "sigma": 0.4}, stats.lognorm(0.4, scale=1.2)),
-    ({"kind": "uniform", "lo": 0.1, "hi": 4.0}, stats.uniform(0.1, 3.9)),
-    ({"kind": "halfnormal", "sigma": 2.0}, stats.halfnorm(scale=2.0)),
-])
-def test_log_density_differs_from_scipy_by_a_constant(spec, reference):
-    prior = parse_prior("parameters.x", spec)
-    diff = prior.logpdf(X) - reference.logpdf(X)
-    assert np.ptp(diff) == pytest.approx(0.0, abs=1e-12)
-    draws = prior.sample(np.random.default_rng(1), (20000,))
-    assert np.median(draws) == pytest.approx(reference.median(), rel=0.03)
+PHI_1 = 0.8413447460685429      # Φ(1), the standard normal CDF at one sigma
+PHI_INV_3_4 = 0.6744897501960817  # Φ⁻¹(3/4): the median of |N(0, 1)|
 
 
-def test_truncation_and_support():
+def test_lognormal_median_quantiles_and_density_are_the_closed_forms():
+    median, sigma = 1.2, 0.4
+    prior = parse_prior("parameters.x", {"kind": "lognormal", "median": median, "sigma": sigma})
+    assert prior.quantile(0.5) == pytest.approx(median, rel=1e-12)
+    assert prior.quantile([1 - PHI_1, PHI_1]) == pytest.approx([median * math.exp(-sigma), median * math.exp(sigma)])
+    x = np.array([0.2, 0.7, 1.0, 1.9, 3.5])
+    closed = -np.log(x * sigma * math.sqrt(2 * math.pi)) - (np.log(x / median)) ** 2 / (2 * sigma**2)
+    assert prior.logpdf(x) == pytest.approx(closed, rel=1e-12)
+    assert np.isneginf(prior.logpdf(np.array([-1.0, 0.0]))).all()
+
+
+def test_normal_uniform_and_halfnormal_closed_forms():
+    normal = Normal(mean=1.0, sigma=0.5)
+    assert normal.logpdf(2.0) == pytest.approx(-math.log(0.5 * math.sqrt(2 * math.pi)) - 2.0, rel=1e-12)
+    assert normal.quantile(PHI_1) == pytest.approx(1.5, rel=1e-12)
+    uniform = Uniform(lo=0.1, hi=4.0)
+    assert uniform.logpdf(np.array([0.5, 3.9])) == pytest.approx([-math.log(3.9)] * 2)
+    assert np.isneginf(uniform.logpdf(np.array([0.05, 4.1]))).all()
+    assert uniform.quantile(0.25) == pytest.approx(0.1 + 0.25 * 3.9)
+    half = HalfNormal(sigma=2.0)
+    assert half.quantile(0.5) == pytest.approx(2.0 * PHI_INV_3_4, rel=1e-12)
+    assert half.logpdf(1.0) == pytest.approx(math.log(2) - math.log(2.0 * math.sqrt(2 * math.pi)) - 0.125, rel=1e-12)
+    assert np.isneginf(half.logpdf(-0.1))
+
+
+def test_truncation_respects_the_support():
     prior = parse_prior("p", {"kind": "normal", "mean": 0.0, "sigma": 1.0, "lo": 0.0, "hi": 2.0})
     assert np.isneginf(prior.logpdf(np.array([-0.1, 2.1]))).all()
-    assert np.all((prior.sample(np.random.default_rng(0), (1000,)) >= 0) & (prior.sample(np.random.default_rng(0), (1000,)) <= 2))
-    assert np.isneginf(parse_prior("p", {"kind": "lognormal", "median": 1, "sigma": 1}).logpdf(np.array([-1.0, 0.0]))).all()
+    draws = prior.sample(np.random.default_rng(0), (5000,))
+    assert draws.min() >= 0.0 and draws.max() <= 2.0
+    one_sided = Normal(mean=0.0, sigma=1.0, lo=0.0)  # N(0, 1) on x ≥ 0 is |N(0, 1)|
+    assert one_sided.quantile(0.5) == pytest.approx(PHI_INV_3_4, rel=1e-9)
+    assert one_sided.cdf(PHI_INV_3_4) == pytest.approx(0.5, rel=1e-9)
+
+
+def test_draws_follow_the_seed_and_the_distribution():
+    prior = LogNormal(median=0.8, sigma=0.2)
+    a = prior.sample(np.random.default_rng(7), (20000,))
+    assert np.array_equal(a, prior.sample(np.random.default_rng(7), (20000,)))
+    assert isinstance(prior.sample(np.random.default_rng(7)), float)
+    # E[x] = median · e^(σ²/2); the sample mean's standard error is sd/√n ≈ 0.16/141
+    assert a.mean() == pytest.approx(0.8 * math.exp(0.02), abs=5 * 0.8 * 0.2 / math.sqrt(20000))
 
 
 @pytest.mark.parametrize("spec, key", [

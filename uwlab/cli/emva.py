@@ -3,7 +3,6 @@ EMVA 1288 descriptor format."""
 from __future__ import annotations
 
 import json
-import math
 import sys
 from pathlib import Path
 
@@ -54,8 +53,19 @@ def _input_options(p) -> None:
     p.add_argument("--pixel-size-um", type=float, help="pixel pitch (default: from the dataset's sensor profile)")
 
 
+def _check_inputs(args) -> None:
+    """The numeric options through the quantities of `uwlab.model.schema` (plausibility limits included)."""
+    from uwlab.model.schema import PixelSizeUm, WavelengthNm, check
+
+    if args.wavelength_nm is not None:
+        check(WavelengthNm, args.wavelength_nm, "--wavelength-nm")
+    if args.pixel_size_um is not None:
+        check(PixelSizeUm, args.pixel_size_um, "--pixel-size-um")
+
+
 def _override(args):
     from uwlab.experiments.emva.from_dataset import IrradianceOverride
+    from uwlab.model.schema import IrradianceWM2, check
 
     if args.irradiance is None:
         return None
@@ -63,9 +73,7 @@ def _override(args):
         value = float(args.irradiance)
     except ValueError:
         return IrradianceOverride.from_csv(args.irradiance)
-    if not value > 0 or not math.isfinite(value):
-        raise ConfigError("--irradiance", args.irradiance, "must be > 0")
-    return IrradianceOverride(irradiance_w_m2=value, wavelength_nm=args.wavelength_nm)
+    return IrradianceOverride(irradiance_w_m2=check(IrradianceWM2, value, "--irradiance"), wavelength_nm=args.wavelength_nm)
 
 
 def _load_dataset(args):
@@ -90,6 +98,7 @@ def run_characterize(args) -> int:
 
     if (args.dataset is None) == (args.descriptor is None):
         raise ConfigError("DATASET|--descriptor", None, "give exactly one of a dataset directory or --descriptor")
+    _check_inputs(args)
     if args.descriptor:
         from uwlab.experiments.emva.descriptor import photon_transfer_from_descriptor
 
@@ -144,6 +153,7 @@ def run_export(args) -> int:
     from uwlab.experiments.emva.descriptor import write_descriptor
 
     shape = _image_size(args.image_size)
+    _check_inputs(args)
     pt, _, _ = _load_dataset(args)
     path = write_descriptor(pt, args.out, shape=shape, source=pt.source)
     if args.json:

@@ -104,8 +104,14 @@ def save_tiff(directory: Path, frame: Frame, device: dict) -> Path:
 
 
 def run(args) -> int:
+    from uwlab.model.schema import ExposureUs, GainDb, check
+
     if args.frames < 1:
         raise ConfigError("frames", args.frames, "must be >= 1")
+    if args.exposure_us is not None:
+        check(ExposureUs, args.exposure_us, "--exposure-us")
+    if args.gain_db is not None:
+        check(GainDb, args.gain_db, "--gain-db")
     save_dir = Path(args.save) if args.save else None
     if save_dir is not None:
         save_dir.mkdir(parents=True, exist_ok=True)

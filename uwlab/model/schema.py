@@ -204,6 +204,8 @@ PixelSizeUm = quantity(0.5, 50.0, "µm")
 # Distances in water [m] (altitude, light distance, depth of field): up to 12 km, the deepest ocean; 1e308 or a
 # distance in mm beyond that is outside.
 DistanceM = quantity(0.0, 12000.0, "m", lo_open=True)
+# Irradiance [W/m²]: full sunlight is ~1000 W/m²; beyond 100 suns the value is in another unit.
+IrradianceWM2 = quantity(0.0, 1e5, "W/m²", lo_open=True)
 # Luminous flux [lm]: a single LED gives tens, the brightest subsea lights ~1e5; 1e7 lm allows many lights.
 LuminousFluxLm = quantity(0.0, 1e7, "lm", lo_open=True)
 # Exposure time: 1 µs (shortest global-shutter exposures) to 1 h (long dark-current frames).
@@ -305,15 +307,27 @@ def config_error(exc: ValidationError, data: Any, model: Any, prefix: str = "") 
         parts.append(str(ctx.get("discriminator", "kind")).strip("'"))
     rest = ".".join(parts)
     key = f"{prefix}{' ' if prefix.endswith(':') else '.'}{rest}" if prefix and rest else (prefix or rest or "config")
+    short = err["type"] == "missing" and err["loc"] and isinstance(err["loc"][-1], int)  # a too short tuple
     if "value" in ctx:
         value = ctx["value"]
     elif err["type"] == "union_tag_invalid":
         value = ctx.get("tag")
+    elif short:
+        value = _data_at(data, err["loc"][:-1])
     elif err["type"] in ("missing", "union_tag_not_found"):
         value = None
     else:
         value = err["input"]
-    return ConfigError(key, _plain(value), _reason(err, model, parts, data))
+    reason = "has too few items" if short else _reason(err, model, parts, data)
+    return ConfigError(key, _plain(value), reason)
+
+
+def _data_at(data, loc: tuple):
+    """The input at an error location (union tags, which are not in the data, skipped)."""
+    for part in loc:
+        if isinstance(data, dict) and part in data or isinstance(data, (list, tuple)) and isinstance(part, int):
+            data = data[part]
+    return data
 
 
 def _plain(value):
@@ -389,7 +403,7 @@ def _child(annotation, node, part):
     model = _model_for(annotation, node)
     sub = node.get(part) if isinstance(node, dict) else None
     if model is not None:
-        field = model.model_fields.get(part)
+        field = next((f for name, f in model.model_fields.items() if part in (name, f.alias)), None)
         return (field.annotation if field else Any), sub
     origin = _unwrap(annotation)
     args = typing.get_args(origin)
@@ -409,7 +423,7 @@ def _key_parts(model, data, loc: tuple, kind: str) -> list[str]:
             annotation, node = _child(annotation, node, part)
             continue
         fields = _model_for(annotation, node)
-        known = part in (fields.model_fields if fields else ())
+        known = fields is not None and any(part in (name, f.alias) for name, f in fields.model_fields.items())
         present = isinstance(node, dict) and part in node
         if known or present or (i == len(loc) - 1 and kind == "missing"):
             parts.append(str(part))
@@ -422,4 +436,4 @@ def _field_names(model, data, parts: list[str]) -> list[str]:
     for part in parts:
         annotation, node = _child(annotation, node, part)
     found = _model_for(annotation, node)
-    return list(found.model_fields) if found else []
+    return [field.alias or name for name, field in found.model_fields.items()] if found else []

@@ -39,15 +39,13 @@ class Prior(Schema):
     hi: StrictFloat = Field(math.inf, description="upper truncation bound")
     _dist: object = PrivateAttr()
 
-    def model_post_init(self, context) -> None:
+    @model_validator(mode="after")
+    def _random_variable(self):
+        if not self.lo < self.hi:
+            raise invalid("hi", self.hi, "must exceed lo")
         dist = self.distribution()
         lo, hi = dist.support()
         self._dist = dist if (self.lo <= lo and self.hi >= hi) else stats.truncate(dist, self.lo, self.hi)
-
-    @model_validator(mode="after")
-    def _bounds(self):
-        if not self.lo < self.hi:
-            raise invalid("hi", self.hi, "must exceed lo")
         return self
 
     def distribution(self):

@@ -88,8 +88,6 @@ def select_sweep(points: pd.DataFrame, sweep_id: str | None) -> str:
 
 def pixel_area_m2(rows: pd.DataFrame, pixel_size_um: float | None) -> float:
     if pixel_size_um is not None:
-        if not pixel_size_um > 0:
-            raise ConfigError("--pixel-size-um", pixel_size_um, "must be > 0")
         return (pixel_size_um * 1e-6) ** 2
     names = rows["sensor_profile"].dropna().unique() if "sensor_profile" in rows else []
     if len(names) != 1:
