@@ -14,6 +14,7 @@ from uwlab.drivers.sim.scene import RigScene
 from uwlab.errors import ConfigError
 from uwlab.experiments.acquisition.plan import load_plan
 from uwlab.experiments.calibration.fit import load_fit_config
+from uwlab.experiments.saturation import POINT_SATURATED_FRACTION
 from uwlab.model.config import apply_override, validate
 from uwlab.model.design import build_design
 from uwlab.model.schema import (ExposureUs, FocalLengthMm, FrameCount, GainDb, PixelSizeUm, WavelengthNm, check,
@@ -249,7 +250,7 @@ SIM_DEFAULTS = {"seed": 1288, "light_gamma": 2.2, "surround_reflectance": 0.05, 
                 "board_size_m": (0.15, 0.12)}
 SWEEP_DEFAULTS = {"frames_per_point": 2, "settle_s": 0.0, "dark": "point", "spectrometer": (),
                   "spectrometer_integration_ms": 10.0, "spectrometer_averaging": 1, "roi": None,
-                  "aruco_dictionary": "DICT_4X4_50", "saturation_threshold": 1e-3, "full_scale_dn": None,
+                  "aruco_dictionary": "DICT_4X4_50", "saturation_threshold": POINT_SATURATED_FRACTION,
                   "gain_db": 0.0, "black_level_dn": None, "light_level": 1.0, "save_frames": False}
 SENSOR_OPTIONAL = {"dark_current_e_per_s": 0.0, "dsnu_e": 0.0, "prnu_percent": 0.0, "description": "", "color": False}
 

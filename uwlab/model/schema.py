@@ -15,6 +15,30 @@ Schemas are pydantic v2 models (`Schema`: unknown keys are refused) that live ne
   (``lens.focal_length_mm``, ``sweep.<id>.frames_per_point``, ``parameters.K_dn_per_e:imx250m.sigma``) and
   the offending value (for arrays and lists: the first offending element).
 
+Plausibility limits of the named quantities (a value outside is refused; the reason says what it likely is):
+
+- `WavelengthNm` 200–2500 nm: every silicon, InGaAs and UV sensor and light source uwlab models; 0.55 (µm) or
+  5.5e-7 (m) is outside. `SpectralStepNm` 0.01–100 nm (tabulated spectra are 1–10 nm apart).
+- `FocalLengthMm` 1–2000 mm: fisheye board lenses to super-telephoto; 0.03 (m) is outside (it gave FOV 179°).
+- `FNumber` 0.5–128: 0.5 is the aplanatic limit in air (the bare sensor's N, `uwlab.model.optics`), 128 the
+  smallest apertures of large-format lenses; an aperture diameter or an f-stop index falls outside.
+- `PixelSizeUm` 0.5–50 µm: smallest phone pixels to large scientific pixels; 3450 (nm) gave η > 1.
+- `DistanceM` (0, 12000] m (altitude, light distance, depth of field): the deepest ocean; 1e308 is outside.
+- `LuminousFluxLm` (0, 1e7] lm: the brightest subsea lights give ~1e5 lm; `IrradianceWM2` (0, 1e5] W/m²: 100
+  suns.
+- `ExposureS` 1 µs–1 h (`ExposureUs` the same in µs): the shortest global-shutter exposure to long dark frames.
+- `GainDb` −20–80 dB: cameras span 0–48 dB; a linear factor (1000) or centi-dB is outside.
+- `HalfAngleDeg` (0, 90), `IncidenceDeg` [0, 90) deg: only the impossible (radians cannot be told apart).
+- `RefractiveIndex` 1–4: vacuum to germanium. `Fraction` [0, 1], `Transmittance` (0, 1]: a percentage (90) is
+  outside.
+- `SpeedMS` 0–50 m/s: the fastest underwater vehicles; km/h or mm/s beyond.
+- `HousingMm` 0.5–1000 mm (port and dome sizes): a size in m (0.1) is below, in µm above.
+- `CircleOfConfusionMm` 1e-4–1 mm: typically 0.002–0.03 mm (a pixel or two); a value in µm is above.
+- `BlurPx` (0, 1000] px; `BitDepth` 1–32 bit; `DurationS` 0–1 h (settling times).
+- `FrameCount` 2–10,000 frames per point (and dark frames): EMVA 1288 needs 2 for the photon transfer and ≥ 16
+  for nonuniformities (Release 4.0 Linear, §8); more than 10,000 is hours per point at usual frame rates — a
+  typo, refused before a sweep starts or anything is allocated.
+
 >>> check(FocalLengthMm, 30, "lens.focal_length_mm")
 30.0
 >>> check(FocalLengthMm, 0.03, "lens.focal_length_mm")
@@ -186,59 +210,30 @@ def number_or(number, alternative, reason: str):
     return either(reason, (is_number, number), (is_text, alternative))
 
 
-# --- Named physical quantities. Each docstring-comment gives the reason for its limits. -----------------------
+# --- Named physical quantities (limits and their reasons: the module docstring). ---------------------------------
 
-# Wavelength [nm]: 200–2500 nm spans every silicon, InGaAs and UV sensor and every light source uwlab models;
-# 0.55 (µm) or 550e-9 (m) is outside.
 WavelengthNm = quantity(200.0, 2500.0, "nm")
-# Spectral sampling step [nm]: tabulated spectra are 1–10 nm apart; a step in m or µm is far below 0.01 nm.
 SpectralStepNm = quantity(0.01, 100.0, "nm")
-# Focal length [mm]: 1 mm (fisheye board lenses) to 2000 mm (super-telephoto); 0.03 (m) is outside.
 FocalLengthMm = quantity(1.0, 2000.0, "mm")
-# f-number N = f/D: 0.5 is the aplanatic limit in air (and the bare sensor's N, `uwlab.model.optics`), 128 the
-# smallest apertures of large-format lenses; an aperture diameter in mm or an f-stop index would fall outside.
 FNumber = quantity(0.5, 128.0, "")
-# Pixel pitch [µm]: 0.5 µm (smallest smartphone pixels) to 50 µm (large scientific CCD/CMOS pixels);
-# 3450 (nm) or 0.00345 (mm) is outside.
 PixelSizeUm = quantity(0.5, 50.0, "µm")
-# Distances in water [m] (altitude, light distance, depth of field): up to 12 km, the deepest ocean; 1e308 or a
-# distance in mm beyond that is outside.
 DistanceM = quantity(0.0, 12000.0, "m", lo_open=True)
-# Irradiance [W/m²]: full sunlight is ~1000 W/m²; beyond 100 suns the value is in another unit.
 IrradianceWM2 = quantity(0.0, 1e5, "W/m²", lo_open=True)
-# Luminous flux [lm]: a single LED gives tens, the brightest subsea lights ~1e5; 1e7 lm allows many lights.
 LuminousFluxLm = quantity(0.0, 1e7, "lm", lo_open=True)
-# Exposure time: 1 µs (shortest global-shutter exposures) to 1 h (long dark-current frames).
 ExposureS = quantity(1e-6, 3600.0, "s")
 ExposureUs = quantity(1.0, 3.6e9, "µs")
-# Camera gain [dB]: machine-vision cameras span 0–48 dB; a linear gain factor written as dB (e.g. 1000) or a
-# gain in centi-dB is outside [-20, 80] dB.
 GainDb = quantity(-20.0, 80.0, "dB")
-# Angles from an axis [deg], e.g. a beam half-angle or an incidence: radians would be accepted silently, so
-# these only refuse the impossible.
 HalfAngleDeg = quantity(0.0, 90.0, "deg", hint="", lo_open=True, hi_open=True)
 IncidenceDeg = quantity(0.0, 90.0, "deg", hint="", hi_open=True)
-# Refractive index: 1 (vacuum) to 4 (germanium, the highest of optical materials).
 RefractiveIndex = quantity(1.0, 4.0, "")
-# A fraction (reflectance, transmittance, overlap, light level): a percentage (e.g. 90) is outside.
 Fraction = quantity(0.0, 1.0, "", hint="a fraction, not a percentage")
-# A transmittance: as a fraction, but zero transmits nothing (the response would be zero).
 Transmittance = quantity(0.0, 1.0, "", hint="a fraction, not a percentage", lo_open=True)
-# Vehicle speed [m/s]: the fastest underwater vehicles make ~50 m/s; km/h or mm/s values beyond are outside.
 SpeedMS = quantity(0.0, 50.0, "m/s")
-# Port and dome dimensions [mm]: housings are 1 mm to 1 m; a size in m (0.1) is below, in µm above.
-HousingMm = quantity(0.1, 1000.0, "mm")
-# Circle of confusion on the sensor [mm]: typically 0.002–0.03 mm (one or two pixels); a value in µm is above.
+HousingMm = quantity(0.5, 1000.0, "mm")
 CircleOfConfusionMm = quantity(1e-4, 1.0, "mm")
-# Motion blur budget [px]: a fraction of a pixel to hundreds of pixels.
 BlurPx = quantity(0.0, 1000.0, "px", hint="", lo_open=True)
-# ADC resolution [bit]: 1–32 bits.
 BitDepth = quantity(1, 32, "bit", hint="", integer=True)
-# Frames per point (and dark frames): EMVA 1288 needs 2 for the photon transfer and ≥ 16 for nonuniformities
-# (Release 4.0 Linear, §8); more than 10,000 would be hours per point and, stacked, hundreds of GB — refused
-# before anything is allocated.
 FrameCount = quantity(2, 10000, "frames", hint="", integer=True)
-# Waiting times [s] (settling): up to an hour.
 DurationS = quantity(0.0, 3600.0, "s")
 
 
