@@ -73,7 +73,8 @@ def _override(args):
         value = float(args.irradiance)
     except ValueError:
         return IrradianceOverride.from_csv(args.irradiance)
-    return IrradianceOverride(irradiance_w_m2=check(IrradianceWM2, value, "--irradiance"), wavelength_nm=args.wavelength_nm)
+    return IrradianceOverride(irradiance_w_m2=check(IrradianceWM2, value, "--irradiance"),
+                              wavelength_nm=args.wavelength_nm)
 
 
 def _load_dataset(args):

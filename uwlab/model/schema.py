@@ -51,8 +51,9 @@ from __future__ import annotations
 import types
 import typing
 from dataclasses import dataclass, replace
-from functools import lru_cache
-from typing import Annotated, Any, Callable, Literal, TypeVar, Union
+from functools import cache
+from collections.abc import Callable
+from typing import Annotated, Any, Literal, TypeVar, Union
 
 import numpy as np
 from pydantic import (BaseModel, ConfigDict, Discriminator, Field, StringConstraints, Tag, TypeAdapter, ValidationError,
@@ -156,7 +157,7 @@ class Grid:
 
     def __class_getitem__(cls, named):
         limits = limits_of(named)
-        return Annotated[Union[float, np.ndarray], replace(limits, grid=True)]
+        return Annotated[float | np.ndarray, replace(limits, grid=True)]
 
 
 def quantity(lo: float, hi: float, unit: str = "", hint: str = UNIT_HINT, **options):
@@ -185,7 +186,8 @@ def either(reason: str, *members: tuple[Callable[[Any], bool], Any]):
 
     tagged = [Annotated[type_, WrapValidator(words), Tag(str(i))] if typing.get_origin(type_) is Literal
               else Annotated[type_, Tag(str(i))] for i, (_, type_) in enumerate(members)]
-    return Annotated[Union[tuple(tagged)], Discriminator(which, custom_error_type="either", custom_error_message=reason)]
+    choice = Discriminator(which, custom_error_type="either", custom_error_message=reason)
+    return Annotated[Union[tuple(tagged)], choice]  # noqa: UP007 (a union of a computed tuple of types)
 
 
 def is_text(value) -> bool:
@@ -261,7 +263,7 @@ def parse(model: type[M], data: Any, prefix: str = "") -> M:
         raise config_error(exc, data, model, prefix) from None
 
 
-@lru_cache(maxsize=None)
+@cache
 def _adapter(type_) -> TypeAdapter:
     return TypeAdapter(type_)
 
@@ -349,7 +351,8 @@ def _reason(err: dict, model, parts: list[str], data) -> str:
     if kind in ("too_short", "too_long"):
         bound = ctx.get("min_length") if kind == "too_short" else ctx.get("max_length")
         items = "item" if bound == 1 else "items"
-        return f"must have {'at least' if kind == 'too_short' else 'at most'} {bound} {items} (has {ctx.get('actual_length')})"
+        which = "at least" if kind == "too_short" else "at most"
+        return f"must have {which} {bound} {items} (has {ctx.get('actual_length')})"
     if kind in _COMPARISONS:
         symbol, name = _COMPARISONS[kind]
         return f"must be {symbol} {ctx[name]}"

@@ -72,7 +72,7 @@ class SensorProfile(Schema):
         return self
 
     @classmethod
-    def from_toml(cls, path: Path) -> "SensorProfile":
+    def from_toml(cls, path: Path) -> SensorProfile:
         """Read and validate a profile TOML and its QE CSV."""
         label = f"sensor profile {path.name}:"
         profile = parse(cls, read_toml(path, "sensor.profile"), label)

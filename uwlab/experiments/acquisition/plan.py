@@ -323,7 +323,8 @@ def point_counts(raw: dict) -> dict[str, int]:
     counts = {}
     for number, table in enumerate(raw.get("sweep", [])):
         body = {**defaults, **table}
-        counts[str(body.get("id", number))] = len(expand_values(f"sweep.{body.get('id', number)}.values", body.get("values")))
+        sweep_id = body.get("id", number)
+        counts[str(sweep_id)] = len(expand_values(f"sweep.{sweep_id}.values", body.get("values")))
     return counts
 
 
@@ -354,7 +355,8 @@ def _sweep(body: dict, number: int, rig_raw: dict, rig_dir: Path, geometry: dict
         exposure_us = float(np.median(values)) if table.kind in ("exposure", "dark") else 1000.0
     within(f"{prefix}.exposure_us", exposure_us, sensor.exposure_min_us, sensor.exposure_max_us,
            f"{sensor.name}'s exposure range [µs]")
-    within(f"{prefix}.gain_db", table.gain_db, sensor.gain_min_db, sensor.gain_max_db, f"{sensor.name}'s gain range [dB]")
+    within(f"{prefix}.gain_db", table.gain_db, sensor.gain_min_db, sensor.gain_max_db,
+           f"{sensor.name}'s gain range [dB]")
     spec = SweepSpec(
         id=table.id, kind=table.kind, values=values, frames_per_point=table.frames_per_point,
         settle_s=table.settle_s, dark=table.dark,

@@ -67,7 +67,8 @@ class Sampler(Schema):
 class Holdout(Schema):
     """A fit config's [holdout] section."""
 
-    train: list[NonEmptyText] = Field([], description="sweeps the cross-configuration check fits (it predicts the rest)")
+    train: list[NonEmptyText] = Field(
+        [], description="sweeps the cross-configuration check fits (it predicts the others)")
 
 
 class FitConfig(Schema):
@@ -323,8 +324,8 @@ def run_fit(model: ForwardModel, config: FitConfig, progress: Callable[[int, flo
     """MAP, then emcee until ≥ 50 τ (or max_steps, then converged = False)."""
     post = Posterior(model, config.priors)
     rng = np.random.default_rng(config.sampler.seed)
-    start = np.array([config.priors[n].quantile(0.5) if n != "discrepancy" else max(config.priors[n].quantile(0.5), 1e-3)
-                      for n in model.names])
+    medians = {n: config.priors[n].quantile(0.5) for n in model.names}
+    start = np.array([medians[n] if n != "discrepancy" else max(medians[n], 1e-3) for n in model.names])
     u_map = find_map(post.log_u, post.to_u(start))
     p0 = initial_walkers(post.log_u, u_map, config.walkers, rng)
     moves = [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]

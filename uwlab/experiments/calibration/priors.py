@@ -20,7 +20,7 @@ scipy's; log densities are vectorised over walkers.
 from __future__ import annotations
 
 import math
-from typing import Annotated, Literal, Union
+from typing import Annotated, Literal
 
 import numpy as np
 from pydantic import Field, PrivateAttr, StrictFloat, model_validator
@@ -107,7 +107,7 @@ class HalfNormal(Prior):
         return stats.truncate(stats.Normal(mu=0.0, sigma=self.sigma), 0.0)
 
 
-PriorSpec = Annotated[Union[Normal, LogNormal, Uniform, HalfNormal], Field(discriminator="kind")]
+PriorSpec = Annotated[Normal | LogNormal | Uniform | HalfNormal, Field(discriminator="kind")]
 
 
 def parse_prior(key: str, spec) -> Prior:
