@@ -120,5 +120,5 @@ def test_rig_scene_drives_the_sensor():
     electrons = scene.on_axis_rate_e_per_s() * t + truth.dark_current_e_per_s * t
     assert centre == pytest.approx(truth.dark_offset_dn + truth.K_dn_per_e * electrons, rel=0.01)
     corner = native[:32, :32].mean() - truth.dark_offset_dn
-    ratio = scene.sim["surround_reflectance"] / scene.design["target.reflectance"]
+    ratio = scene.sim.surround_reflectance / scene.design["target.reflectance"]
     assert corner < 1.2 * ratio * (centre - truth.dark_offset_dn)
