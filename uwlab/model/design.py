@@ -27,6 +27,7 @@ and the lens adds cos⁴α_air. The average is taken over a 16 × 16 midpoint gr
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -40,6 +41,7 @@ from uwlab.model.photometry import photons_per_joule, radiant_per_lumen
 from uwlab.model.schema import within
 from uwlab.model.sensor import SensorProfile, load_sensor_profile, response_dn, snr
 from uwlab.model.spectra import NAMED_SPECTRA, relative_spectrum
+from uwlab.model.spectral_table import LogHermiteTable, SpectralTable, image_table
 from uwlab.model.target import NAMED_REFLECTANCE, reflectance, transmittance
 from uwlab.model.water import WATER_TYPES, water_iop
 
@@ -115,7 +117,8 @@ def _spectral_key(d: Design):
 
 
 def _hashable(value):
-    return value if isinstance(value, (str, float, int)) else None
+    """Spectral inputs are named by their file; a broadband number (or grid array) is not part of the weights."""
+    return value if isinstance(value, str) else "broadband"
 
 
 @dataclass(frozen=True)
@@ -124,25 +127,36 @@ class SpectralWeights:
 
     c: beam attenuation [1/m] (unscaled). W: columns (target irradiance, sensor irradiance, electron rate) per
     unit luminous flux, with the spectral (tabulated) reflectance and lens transmittance folded in and
-    trapezoidal weights applied, so that exp(−D c) @ W integrates over wavelength.
+    trapezoidal weights applied, so that exp(−D c) @ W integrates over wavelength. `reflectance` and
+    `lens_transmittance` are the spectral curves when given as files, else ones (broadband numbers stay outside).
     """
 
     c: np.ndarray
     W: np.ndarray
     s_per_lm: np.ndarray
-    reflectance: object
-    lens_transmittance: object
+    reflectance: np.ndarray
+    lens_transmittance: np.ndarray
     qe: np.ndarray
+
+    @cached_property
+    def table(self) -> SpectralTable:
+        """G(D) = exp(−D c) @ W at any path lengths, without a sum over wavelength per point."""
+        return SpectralTable(self.c, self.W)
+
+    @cached_property
+    def image_tables(self) -> dict:
+        """Image-average sample geometries and tables by lens/port geometry (`_image_geometry`), a small cache."""
+        return {}
 
 
 _WEIGHTS_CACHE: dict = {}
+IMAGE_TABLES_PER_WEIGHTS = 32
+IMAGE_DIRECT_PATHS = 512
 
 
 def spectral_weights(d: Design) -> SpectralWeights:
-    """The design's spectral weights, cached by its categorical inputs (numbers given as arrays are not cached)."""
+    """The design's spectral weights, cached by its categorical inputs (spectral files, water, sensor)."""
     key = _spectral_key(d)
-    if None in key:
-        return _compute_weights(d)
     if key not in _WEIGHTS_CACHE:
         if len(_WEIGHTS_CACHE) > 64:
             _WEIGHTS_CACHE.clear()
@@ -157,11 +171,11 @@ def _compute_weights(d: Design) -> SpectralWeights:
     m = reflectance(d["target.reflectance"], grid)
     t = transmittance(d["lens.transmittance"], grid)
     qe = d.sensor.qe_on(grid, d["sensor.channel"])
-    m_spec = m if _is_spectral(d, "target.reflectance") else 1.0
-    t_spec = t if _is_spectral(d, "lens.transmittance") else 1.0
+    m_spec = m if _is_spectral(d, "target.reflectance") else np.ones_like(grid.nm)
+    t_spec = t if _is_spectral(d, "lens.transmittance") else np.ones_like(grid.nm)
     base = s * grid.w_nm
     W = np.stack([base, base * m_spec * t_spec, base * m_spec * t_spec * qe * photons_per_joule(grid.nm)], axis=1)
-    return SpectralWeights(c=c, W=W, s_per_lm=s, reflectance=m, lens_transmittance=t, qe=qe)
+    return SpectralWeights(c=c, W=W, s_per_lm=s, reflectance=m_spec, lens_transmittance=t_spec, qe=qe)
 
 
 def _is_spectral(d: Design, dotted: str) -> bool:
@@ -175,7 +189,9 @@ def _broadband(d: Design, dotted: str):
 
 
 def path_integrals(weights: SpectralWeights, path_m) -> np.ndarray:
-    """∫ W(λ) exp(−c(λ) D) dλ for attenuating path lengths D (any shape) → shape D.shape + (3,)."""
+    """∫ W(λ) exp(−c(λ) D) dλ for attenuating path lengths D (any shape) → shape D.shape + (3,), summed over
+    the wavelength grid (the reference the chain's interpolation table, `SpectralWeights.table`, is tested
+    against)."""
     path = np.asarray(path_m, float)
     return np.exp(-path[..., None] * weights.c) @ weights.W
 
@@ -223,11 +239,9 @@ def effective_focal_length_m(d: Design):
     return f * d["housing.water_index"] if d["housing.port"] == "flat" else f * np.ones_like(d["housing.water_index"])
 
 
-def electron_rate_at_radius(d: Design, r_m, weights: SpectralWeights | None = None):
-    """Electron rate [e⁻/s] of pixels at image radius r_m (any shape, trailing axis broadcast against the
-    design's arrays) under the image-average geometry of the module docstring: light beside the camera,
-    target plane perpendicular to the axis at d_C, cos⁴ lens falloff, beam cut-off at α_w > β."""
-    weights = spectral_weights(d) if weights is None else weights
+def _field_terms(d: Design, r_m):
+    """(angular weight, path secant) of pixels at image radius r_m (trailing axis): cos⁴α_air · [α_w ≤ β] ·
+    cos³α_w (cone model; 1 for the disk) and 1/cos α_w, broadcast against the design's arrays."""
     beta = beam_half_angle_rad(d)
     f = np.asarray(d["lens.focal_length_mm"] * 1e-3, float)[..., None]
     tan_air = np.asarray(r_m, float) / f
@@ -235,21 +249,111 @@ def electron_rate_at_radius(d: Design, r_m, weights: SpectralWeights | None = No
     cos_air = 1 / np.sqrt(1 + tan_air**2)
     cos_w = 1 / np.sqrt(1 + tan_w**2)
     in_beam = np.arctan(tan_w) <= np.asarray(beta)[..., None]
-    d_l = np.asarray(light_distance_m(d))[..., None]
-    d_c = np.asarray(d["operation.altitude_m"])[..., None]
-    path = np.asarray(d["water.attenuation_scale"])[..., None] * (d_l + d_c) / cos_w
-    angular = cos_air**4 * in_beam * (cos_w**3 if d["light.beam_model"] == "cone" else 1.0)
-    prefactor = d["light.luminous_flux_lm"] * _irradiance_geometry(d, beta, 1.0) * _radiance_to_sensor_factor(d, weights)
-    return np.asarray(prefactor)[..., None] * d.sensor.pixel_area_m2 * angular * path_integrals(weights, path)[..., 2]
+    return cos_air**4 * in_beam * (cos_w**3 if d["light.beam_model"] == "cone" else 1.0), 1 / cos_w
+
+
+def _attenuating_path_m(d: Design):
+    """Attenuating path of the on-axis pixel, light → target → camera: scale · (d_L + d_C) [m]."""
+    return np.asarray(d["water.attenuation_scale"]) * (np.asarray(light_distance_m(d)) + d["operation.altitude_m"])
+
+
+def _image_prefactor(d: Design, weights: SpectralWeights):
+    """Electron rate per unit (angular weight × spectral integral) of the off-axis pixels: flux, beam
+    concentration without incidence, broadband factors to the sensor, pixel area."""
+    beta = beam_half_angle_rad(d)
+    return (d["light.luminous_flux_lm"] * _irradiance_geometry(d, beta, 1.0) * _radiance_to_sensor_factor(d, weights)
+            * d.sensor.pixel_area_m2)
+
+
+def electron_rate_at_radius(d: Design, r_m, weights: SpectralWeights | None = None):
+    """Electron rate [e⁻/s] of pixels at image radius r_m (any shape, trailing axis broadcast against the
+    design's arrays) under the image-average geometry of the module docstring: light beside the camera,
+    target plane perpendicular to the axis at d_C, cos⁴ lens falloff, beam cut-off at α_w > β. Summed over the
+    wavelength grid (`path_integrals`): the reference for the image average."""
+    weights = spectral_weights(d) if weights is None else weights
+    angular, secant = _field_terms(d, r_m)
+    path = _attenuating_path_m(d)[..., None] * secant
+    return np.asarray(_image_prefactor(d, weights))[..., None] * angular * path_integrals(weights, path)[..., 2]
+
+
+def image_radii_m(sensor: SensorProfile) -> np.ndarray:
+    """Image radii of the image-average samples: a midpoint grid on one sensor quadrant, sorted."""
+    n = IMAGE_SAMPLES_PER_AXIS
+    u = (np.arange(n) + 0.5) / n
+    size_x, size_y = sensor.size_m
+    return np.sort(np.hypot.outer(u * size_x / 2, u * size_y / 2).ravel())
+
+
+@dataclass(frozen=True)
+class _ImageGeometry:
+    """The image-average samples of one lens/port geometry, sorted by field angle α_w, and the table of
+    H_k(D) = Σ_{i<k} cos⁴α_air,i · cos³α_w,i [cone] · G_e(D / cos α_w,i) (`image_table`)."""
+
+    alpha_w: np.ndarray
+    table: LogHermiteTable
+
+
+def _image_geometry(d: Design, weights: SpectralWeights, focal_m: float, water_index: float) -> _ImageGeometry:
+    flat = d["housing.port"] == "flat"
+    model = d["light.beam_model"]
+    key = (id(d.sensor), focal_m, water_index if flat else None, model)
+    cache = weights.image_tables
+    if key not in cache:
+        tan_air = image_radii_m(d.sensor) / focal_m
+        tan_w = tan_air / water_index if flat else tan_air
+        cos_air = 1 / np.sqrt(1 + tan_air**2)
+        cos_w = 1 / np.sqrt(1 + tan_w**2)
+        if len(cache) >= IMAGE_TABLES_PER_WEIGHTS:
+            del cache[next(iter(cache))]
+        angular = cos_air**4 * (cos_w**3 if model == "cone" else 1.0)
+        cache[key] = _ImageGeometry(np.arctan(tan_w), image_table(weights.table, 1 / cos_w, angular))
+    return cache[key]
 
 
 def _image_average_rate(d: Design, weights: SpectralWeights):
-    """Mean electron rate per pixel over the sensor [e⁻/s]: midpoint rule on one quadrant."""
-    n = IMAGE_SAMPLES_PER_AXIS
-    u = (np.arange(n) + 0.5) / n
-    size_x, size_y = d.sensor.size_m
-    r = np.hypot.outer(u * size_x / 2, u * size_y / 2).ravel()
-    return electron_rate_at_radius(d, r, weights).mean(axis=-1)
+    """Mean electron rate per pixel over the sensor [e⁻/s]: the mean of `electron_rate_at_radius` over the
+    image samples (`image_radii_m`), with the spectral integral from the interpolation table.
+
+    When the grid has few path lengths per lens/port geometry (a single design, or grids over focal length,
+    f-number, exposure...), the samples are summed directly (one table lookup per sample and path). When it
+    has many, each geometry gets a table of the cumulative sums over the samples sorted by field angle
+    (`uwlab.model.spectral_table.image_table`): the samples inside a beam are a prefix, and a point costs one
+    lookup. Both agree with the wavelength sum to the table tolerance."""
+    radii = image_radii_m(d.sensor)
+    path = _attenuating_path_m(d)
+    focal = np.asarray(d["lens.focal_length_mm"] * 1e-3, float)
+    water = np.asarray(d["housing.water_index"], float) if d["housing.port"] == "flat" else np.asarray(1.0)
+    geometries = np.broadcast_shapes(focal.shape, water.shape)
+    pairs = int(np.prod(np.broadcast_shapes(path.shape, geometries)))
+    if pairs <= IMAGE_DIRECT_PATHS * int(np.prod(geometries)):
+        angular, secant = _field_terms(d, radii)
+        g = weights.table(path[..., None] * secant, 2)
+        total = np.einsum("...i,...i->...", g, angular)
+    else:
+        beta = np.asarray(beam_half_angle_rad(d))
+        total = np.empty(np.broadcast_shapes(beta.shape, path.shape, geometries))
+        for index in np.ndindex(geometries):
+            where = _mesh_index(index, geometries, total.ndim)
+            geometry = _image_geometry(d, weights, _pick(focal, where).item(), _pick(water, where).item())
+            in_beam = np.searchsorted(geometry.alpha_w, _pick(beta, where), side="right")
+            total[where] = geometry.table.at_columns(_pick(path, where), in_beam)
+        total *= weights.table.nonzero[2]
+    return _image_prefactor(d, weights) * total / radii.size
+
+
+def _mesh_index(index: tuple, axes: tuple, ndim: int) -> tuple:
+    """An index of the full grid (`ndim` axes) selecting point `index` of the `axes` shape (right-aligned):
+    length-1 slices on the axes longer than 1, whole axes elsewhere."""
+    pad = ndim - len(index)
+    return (slice(None),) * pad + tuple(slice(i, i + 1) if n > 1 else slice(None) for i, n in zip(index, axes))
+
+
+def _pick(array: np.ndarray, where: tuple) -> np.ndarray:
+    """`array` at the mesh index `where`, along the axes where the array is not broadcast (length > 1)."""
+    if array.ndim == 0:
+        return array
+    where = where[len(where) - array.ndim:]
+    return array[tuple(w if n > 1 else slice(None) for w, n in zip(where, array.shape))]
 
 
 def _on_axis(d: Design, weights: SpectralWeights):
@@ -258,10 +362,10 @@ def _on_axis(d: Design, weights: SpectralWeights):
     geometry = d["light.luminous_flux_lm"] * _irradiance_geometry(d, beta, np.cos(np.radians(d["light.incidence_deg"])))
     scale = np.asarray(d["water.attenuation_scale"])
     d_l = np.asarray(light_distance_m(d))
-    target = geometry * path_integrals(weights, scale * d_l)[..., 0]
+    target = geometry * weights.table(scale * d_l, 0)
     to_sensor = geometry * _radiance_to_sensor_factor(d, weights)
-    integrals = path_integrals(weights, scale * (d_l + d["operation.altitude_m"]))
-    return target, to_sensor * integrals[..., 1], to_sensor * integrals[..., 2] * d.sensor.pixel_area_m2
+    path = scale * (d_l + d["operation.altitude_m"])
+    return target, to_sensor * weights.table(path, 1), to_sensor * weights.table(path, 2) * d.sensor.pixel_area_m2
 
 
 def on_axis_electron_rate(d: Design):
@@ -359,9 +463,9 @@ def stage_spectra(d: Design) -> dict[str, np.ndarray]:
     geometry = flux * _irradiance_geometry(d, beta, np.cos(np.radians(d["light.incidence_deg"])))
     d_l, d_c = light_distance_m(d), d["operation.altitude_m"]
     e_t = geometry * w.s_per_lm * np.exp(-c * d_l)
-    l_w = e_t * w.reflectance / np.pi * np.exp(-c * d_c)
-    e_s = l_w * _port_transmittance(d) / d["housing.water_index"] ** 2 * w.lens_transmittance * optics.lens_irradiance_factor(
-        d["lens.f_number"])
+    l_w = e_t * w.reflectance * _broadband(d, "target.reflectance") / np.pi * np.exp(-c * d_c)
+    e_s = (l_w * _port_transmittance(d) / d["housing.water_index"] ** 2 * w.lens_transmittance
+           * _broadband(d, "lens.transmittance") * optics.lens_irradiance_factor(d["lens.f_number"]))
     return {
         "wavelength_nm": grid.nm,
         "source_w_nm": source,
