@@ -14,15 +14,23 @@ from uwlab.model.config import apply_override, load_raw, parse_value
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("design", help="predict FOV, exposure, framerate, DoF, response and SNR of a design",
-                              description="Evaluate an underwater camera design (TOML) with the image-formation model.")
-    p.add_argument("config", help="design TOML (see configs/design/example.toml)")
+    p = subparsers.add_parser(
+        "design", help="predict FOV, exposure, framerate, DoF, response and SNR of a design; grids; inverse design",
+        description="Evaluate an underwater camera design (TOML) with the image-formation model: one design, a grid "
+                    "of designs (--grid), or the inverse problem `uwlab design solve CONFIG --free ... --require ...`.")
+    p.add_argument("config", help="design TOML (see configs/design/example.toml), or `solve` followed by the TOML")
+    p.add_argument("solve_config", nargs="?", metavar="CONFIG", help="with `solve`: the design TOML")
     p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE", help="override one value")
-    p.add_argument("--grid", action="append", default=[], metavar="SECTION.KEY=START:STOP:STEP|V1,V2,...",
-                   help="evaluate the Cartesian grid of these values (repeatable)")
-    p.add_argument("--out", metavar="FILE", help="grid results to FILE (.parquet or .csv)")
-    p.add_argument("--plot", metavar="DIR", help="write the design figures (PNG) to DIR")
+    p.add_argument("--out", metavar="FILE", help="results to FILE: .parquet (a directory of parts) or .csv; without "
+                   "--grid the single design's row; with solve and two objectives the Pareto front")
+    p.add_argument("--plot", metavar="DIR", help="write the design figures (PNG) to DIR (solve: the Pareto front)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    grid = p.add_argument_group("grids")
+    grid.add_argument("--grid", action="append", default=[], metavar="SECTION.KEY=START:STOP:STEP|V1,V2,...",
+                      help="evaluate the Cartesian grid of these values (repeatable)")
+    grid.add_argument("--columns", metavar="OUT1,OUT2,...", help="grid outputs to keep (default: all)")
+    grid.add_argument("--dask", metavar="local|tcp://HOST:PORT",
+                      help="evaluate the grid on a Dask cluster (a LocalCluster, or a scheduler address) into --out")
     p.set_defaults(func=run)
 
 
@@ -52,6 +60,9 @@ def parse_grid_values(key: str, text: str) -> list:
     if not values:
         raise ConfigError(key, text, "no grid values")
     return values
+
+
+JSON_POINTS = 10_000
 
 
 _TABLE = (
@@ -95,47 +106,111 @@ def _table(result: dict) -> str:
     return "\n".join(lines)
 
 
-def run(args) -> int:
-    from uwlab.experiments.design.grid import evaluate_grid
-    from uwlab.model.design import build_design, evaluate
-
-    raw = load_raw(args.config)
-    for item in args.set:
+def _raw_config(path: str, sets: list[str]) -> dict:
+    raw = load_raw(path)
+    for item in sets:
         key, value = _assignment(item, "--set")
         apply_override(raw, key, parse_value(value))
-    base = Path(args.config).resolve().parent
-    if args.grid:
-        axes = {}
-        for item in args.grid:
-            key, value = _assignment(item, "--grid")
-            axes[key] = parse_grid_values(key, value)
-        if args.out and Path(args.out).suffix.lower() not in (".parquet", ".csv"):
-            raise ConfigError("--out", args.out, "must end in .parquet or .csv")
-        if args.out and Path(args.out).exists():
-            raise ConfigError("--out", args.out, "exists; refusing to overwrite")
-        frame = evaluate_grid(raw, axes, base)
-        if args.out:
-            Path(args.out).parent.mkdir(parents=True, exist_ok=True)
-            (frame.to_parquet if args.out.lower().endswith(".parquet") else frame.to_csv)(args.out, index=False)
-        if args.json:
-            json.dump({"points": len(frame), "out": args.out, "columns": list(frame.columns)}, sys.stdout)
-            sys.stdout.write("\n")
+    return raw
+
+
+def _grid_axes(items: list[str]) -> dict[str, list]:
+    axes = {}
+    for item in items:
+        key, value = _assignment(item, "--grid")
+        axes[key] = parse_grid_values(key, value)
+    return axes
+
+
+def _progress(total: int, enabled: bool):
+    from tqdm import tqdm
+
+    return tqdm(total=total, unit="point", unit_scale=True, file=sys.stderr, leave=False,
+                disable=not (enabled and sys.stderr.isatty()))
+
+
+def _print_grid_summary(summary: dict, as_json: bool) -> None:
+    if as_json:
+        json.dump(summary, sys.stdout)
+        sys.stdout.write("\n")
+    else:
+        where = f" on {summary['workers']} Dask workers" if "workers" in summary else ""
+        print(f"{summary['points']} design points written to {summary['out']} ({summary['chunks']} chunks{where})")
+
+
+def run_grid(args, raw: dict, base: Path) -> int:
+    from uwlab.experiments.design.grid import DesignGrid, in_memory_frame
+
+    outputs = tuple(c.strip() for c in args.columns.split(",") if c.strip()) if args.columns else None
+    grid = DesignGrid(raw, _grid_axes(args.grid), base, outputs=outputs)
+    if args.dask and not args.out:
+        raise ConfigError("--dask", args.dask, "a grid on Dask streams to disk: give --out FILE.parquet")
+    if args.out:
+        if args.dask:
+            from uwlab.experiments.design.distributed import write_grid_dask
+
+            with _progress(grid.points, not args.json) as bar:
+                summary = write_grid_dask(grid, args.out, args.dask, bar.update)
         else:
-            print(f"{len(frame)} design points" + (f" written to {args.out}" if args.out else ""))
-            if not args.out:
-                print(frame.to_string(max_rows=40))
+            from uwlab.experiments.design.grid import write_grid
+
+            with _progress(grid.points, not args.json) as bar:
+                summary = write_grid(grid, args.out, bar.update)
+        _print_grid_summary(summary, args.json)
         return 0
+    if args.json and grid.points > JSON_POINTS:
+        raise ConfigError("--json", f"{grid.points} points", f"more than {JSON_POINTS} points are not printed; "
+                          "write them with --out FILE.parquet")
+    frame = in_memory_frame(grid)
+    if args.json:
+        rows = to_jsonable(frame.to_dict(orient="records"))
+        json.dump({"points": len(frame), "columns": list(frame.columns), "rows": rows}, sys.stdout)
+        sys.stdout.write("\n")
+    else:
+        print(f"{len(frame)} design points")
+        print(frame.to_string(max_rows=40))
+    return 0
+
+
+def run(args) -> int:
+    if args.config == "solve":
+        return run_solve(args)
+    if args.solve_config is not None:
+        raise ConfigError("design", args.solve_config, "one config file expected (did you mean `uwlab design solve`?)")
+    raw = _raw_config(args.config, args.set)
+    base = Path(args.config).resolve().parent
+    if args.plot:
+        from uwlab.experiments.design.plots import prepare_plot_dir
+
+        prepare_plot_dir(args.plot)
+    if args.grid:
+        return run_grid(args, raw, base)
+    for option in ("columns", "dask"):
+        if getattr(args, option):
+            raise ConfigError(f"--{option}", getattr(args, option), "only applies to a grid (--grid)")
+    from uwlab.model.design import build_design, evaluate
+
     design = build_design(raw, base)
+    if args.out:
+        from uwlab.experiments.design.grid import DesignGrid, write_grid
+
+        written = write_grid(DesignGrid(raw, {}, base), args.out)
     result = to_jsonable(evaluate(design))
     if args.plot:
         from uwlab.experiments.design.plots import write_design_plots
 
-        written = write_design_plots(design, Path(args.plot))
+        plots = write_design_plots(design, Path(args.plot))
     if args.json:
         json.dump(result, sys.stdout, indent=2)
         sys.stdout.write("\n")
     else:
         print(_table(result))
+        if args.out:
+            print(f"design row written to {written['out']}")
         if args.plot:
-            print(f"plots: {', '.join(str(p) for p in written)}")
+            print(f"plots: {', '.join(str(p) for p in plots)}")
     return 0
+
+
+def run_solve(args) -> int:
+    raise ConfigError("design solve", args.solve_config, "not implemented")

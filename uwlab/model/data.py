@@ -27,6 +27,10 @@ def read_toml(path: Path, key: str = "config") -> dict:
             return tomllib.load(fh)
     except FileNotFoundError:
         raise ConfigError(key, str(path), "file not found") from None
+    except IsADirectoryError:
+        raise ConfigError(key, str(path), "is a directory, not a TOML file") from None
+    except PermissionError:
+        raise ConfigError(key, str(path), "cannot be read (permission denied)") from None
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(key, str(path), f"invalid TOML ({exc})") from None
 

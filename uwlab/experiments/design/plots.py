@@ -2,6 +2,7 @@
 exposure limits, water attenuation, quantum efficiency."""
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import matplotlib
@@ -10,6 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from uwlab.errors import ConfigError  # noqa: E402
 from uwlab.experiments.figures import save_figure  # noqa: E402
 from uwlab.model.design import Design, evaluate, stage_spectra  # noqa: E402
 from uwlab.model.sensor import available_profiles, load_sensor_profile  # noqa: E402
@@ -83,13 +85,28 @@ def plot_qe(design: Design, path: Path) -> Path:
     return save_figure(fig, path)
 
 
+def prepare_plot_dir(out_dir: str | Path) -> Path:
+    """Create the figure directory, or fail in one line naming it when it cannot be created or written."""
+    out_dir = Path(out_dir)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError("--plot", str(out_dir), f"cannot create the directory ({exc.strerror})") from None
+    if not os.access(out_dir, os.W_OK | os.X_OK):
+        raise ConfigError("--plot", str(out_dir), "directory is not writable")
+    return out_dir
+
+
 def write_design_plots(design: Design, out_dir: Path) -> list[Path]:
     """Write all design figures for a scalar design into out_dir; returns the files."""
-    out_dir.mkdir(parents=True, exist_ok=True)
-    return [
-        plot_dof(design, out_dir / "dof.png"),
-        plot_stages(design, out_dir / "spectra.png"),
-        plot_operation(design, out_dir / "operation.png"),
-        plot_water(design, out_dir / "water.png"),
-        plot_qe(design, out_dir / "qe.png"),
-    ]
+    out_dir = prepare_plot_dir(out_dir)
+    try:
+        return [
+            plot_dof(design, out_dir / "dof.png"),
+            plot_stages(design, out_dir / "spectra.png"),
+            plot_operation(design, out_dir / "operation.png"),
+            plot_water(design, out_dir / "water.png"),
+            plot_qe(design, out_dir / "qe.png"),
+        ]
+    except OSError as exc:
+        raise ConfigError("--plot", str(out_dir), f"cannot write a figure ({exc.strerror})") from None
