@@ -25,6 +25,21 @@ def register(subparsers) -> None:
                    "--grid the single design's row; with solve and two objectives the Pareto front")
     p.add_argument("--plot", metavar="DIR", help="write the design figures (PNG) to DIR (solve: the Pareto front)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--posterior", metavar="FIT_DIR", help="a `uwlab fit` output: carry its posterior into the "
+                   "design (credible band on response and SNR) or into solve (requirements met with probability)")
+    solve = p.add_argument_group("solve (uwlab design solve CONFIG ...)")
+    solve.add_argument("--free", action="append", default=[], metavar="SECTION.KEY=LO:HI",
+                       help="a key the solver may choose within [LO, HI] (repeatable)")
+    solve.add_argument("--require", action="append", default=[], metavar='"OUTPUT OP VALUE"',
+                       help='a requirement on an output of `uwlab design --json`, OP >= or <= (repeatable), '
+                            'e.g. "snr_db >= 30", "dof_m.near <= 1.7"')
+    solve.add_argument("--minimize", dest="objectives", action="append", default=[], metavar="SECTION.KEY",
+                       type=lambda key: ("minimize", key), help="a free key to make as small as possible")
+    solve.add_argument("--maximize", dest="objectives", action="append", metavar="SECTION.KEY",
+                       type=lambda key: ("maximize", key), help="a free key to make as large as possible (with a "
+                       "second objective: the Pareto front)")
+    solve.add_argument("--confidence", type=float, metavar="P",
+                       help="with --posterior: the probability the requirements must hold with (default 0.9)")
     grid = p.add_argument_group("grids")
     grid.add_argument("--grid", action="append", default=[], metavar="SECTION.KEY=START:STOP:STEP|V1,V2,...",
                       help="evaluate the Cartesian grid of these values (repeatable)")
@@ -63,6 +78,7 @@ def parse_grid_values(key: str, text: str) -> list:
 
 
 JSON_POINTS = 10_000
+SOLVE_SAMPLES = 500
 
 
 _TABLE = (
@@ -97,12 +113,48 @@ def _format(value, fmt: str) -> str:
     return "inf" if value is None or (isinstance(value, float) and math.isinf(value)) else fmt.format(value)
 
 
+_STAGES = {
+    "beam_to_view": "beam → field of view", "water_to_target": "water, light → target", "reflectance": "target reflectance",
+    "water_to_camera": "water, target → camera", "port": "port", "aperture": "aperture (pupil / distance)",
+    "lens_transmittance": "lens transmittance", "quantum_efficiency": "quantum efficiency",
+}
+
+
+def _budget(stops: dict) -> list[str]:
+    """The "what limits me" readout: stops lost per stage, the largest marked."""
+    worst = max(stops, key=lambda k: -math.inf if stops[k] is None else stops[k])
+    lines = ["light lost per stage (stops)"]
+    for key, label in _STAGES.items():
+        mark = "  ← limits the signal most" if key == worst else ""
+        lines.append(f"  {label:<30} {_format(stops[key], '{:.2f}')}{mark}")
+    total = sum(v for v in stops.values() if v is not None)
+    lines.append(f"  {'total (lights → electrons)':<30} {total:.2f}")
+    return lines
+
+
 def _table(result: dict) -> str:
     lines = []
     for key, label, unit, fmt in _TABLE:
         value = result[key]
         text = _format(value, fmt) if value is not None else "n/a"
         lines.append(f"{label:<32} {text} {unit}".rstrip())
+    lines += _budget(result["light_budget_stops"])
+    return "\n".join(lines)
+
+
+_BAND = (("mean_dn", "mean response (on axis)", "DN", "{:.1f}"), ("mean_fraction", "fraction of full scale", "", "{:.3f}"),
+         ("snr_db", "SNR", "dB", "{:.1f}"), ("image_average_mean_dn", "image average response", "DN", "{:.1f}"))
+
+
+def _band_text(band: dict) -> str:
+    lines = [f"calibrated uncertainty ({band['samples']} posterior samples of {band['fit']}: "
+             f"{', '.join(band['carried']) or 'nothing carried'})",
+             f"  {'':<30} {'median':>9} {'68 % interval':>22} {'95 % interval':>22}"]
+    for key, label, unit, fmt in _BAND:
+        q = band[key]
+        pair = lambda a, b: f"[{fmt.format(q[a])}, {fmt.format(q[b])}]"  # noqa: E731
+        lines.append(f"  {label:<30} {fmt.format(q['median']):>9} {pair('p16', 'p84'):>22} {pair('p2_5', 'p97_5'):>22} {unit}")
+    lines.append(f"  saturated in {100 * band['saturated_fraction']:.1f} % of the samples")
     return "\n".join(lines)
 
 
@@ -177,6 +229,9 @@ def run(args) -> int:
         return run_solve(args)
     if args.solve_config is not None:
         raise ConfigError("design", args.solve_config, "one config file expected (did you mean `uwlab design solve`?)")
+    for option in SOLVE_ONLY:
+        if getattr(args, option):
+            raise ConfigError(f"--{option}", getattr(args, option), "only applies to `uwlab design solve`")
     raw = _raw_config(args.config, args.set)
     base = Path(args.config).resolve().parent
     if args.plot:
@@ -196,6 +251,10 @@ def run(args) -> int:
 
         written = write_grid(DesignGrid(raw, {}, base), args.out)
     result = to_jsonable(evaluate(design))
+    if args.posterior:
+        from uwlab.experiments.design.posterior import credible_band, load_posterior
+
+        result["posterior"] = to_jsonable(credible_band(design, load_posterior(args.posterior, design)))
     if args.plot:
         from uwlab.experiments.design.plots import write_design_plots
 
@@ -205,6 +264,8 @@ def run(args) -> int:
         sys.stdout.write("\n")
     else:
         print(_table(result))
+        if args.posterior:
+            print(_band_text(result["posterior"]))
         if args.out:
             print(f"design row written to {written['out']}")
         if args.plot:
@@ -212,5 +273,99 @@ def run(args) -> int:
     return 0
 
 
+SOLVE_ONLY = ("free", "require", "objectives", "confidence")
+
+
 def run_solve(args) -> int:
-    raise ConfigError("design solve", args.solve_config, "not implemented")
+    from uwlab.experiments.design.solve import (Objective, Problem, front_frame, parse_free, parse_requirement,
+                                                result_dict, solve)
+
+    if args.solve_config is None:
+        raise ConfigError("design solve", None, "give the design TOML: uwlab design solve CONFIG --free ... --require ...")
+    for option in ("grid", "columns", "dask"):
+        if getattr(args, option):
+            raise ConfigError(f"--{option}", getattr(args, option), "not an option of solve")
+    if args.confidence is not None and not args.posterior:
+        raise ConfigError("--confidence", args.confidence, "needs --posterior FIT_DIR")
+    raw = _raw_config(args.solve_config, args.set)
+    base = Path(args.solve_config).resolve().parent
+    objectives = [Objective(key, sense) for sense, key in args.objectives]
+    two = len(objectives) == 2
+    out = None
+    if args.out:
+        from uwlab.experiments.design.grid import check_output_path
+
+        if not two:
+            raise ConfigError("--out", args.out, "solve writes the Pareto front of two objectives")
+        out = check_output_path(args.out)
+    if args.plot:
+        from uwlab.experiments.design.plots import prepare_plot_dir
+
+        if not two:
+            raise ConfigError("--plot", args.plot, "solve plots the Pareto front of two objectives")
+        prepare_plot_dir(args.plot)
+    loader = None
+    if args.posterior:
+        from uwlab.experiments.design.posterior import load_posterior
+
+        loader = lambda design: load_posterior(args.posterior, design, max_samples=SOLVE_SAMPLES)  # noqa: E731
+    problem = Problem(raw, base, [parse_free(f) for f in args.free], [parse_requirement(r) for r in args.require],
+                      objectives, loader, 0.9 if args.confidence is None and args.posterior else args.confidence or 1.0)
+    result = solve(problem)
+    answer = result_dict(result, problem)
+    if result.feasible and two:
+        frame = front_frame(result, problem)
+        if out is not None:
+            out.parent.mkdir(parents=True, exist_ok=True)
+            (frame.to_parquet if out.suffix.lower() == ".parquet" else frame.to_csv)(out, index=False)
+            answer["out"] = str(out)
+        if args.plot:
+            from uwlab.experiments.design.plots import plot_front
+
+            y, x = (f for f in problem.free[:2])
+            answer["plot"] = str(plot_front(frame, x.key, y.key, (objectives[1].sense, objectives[0].sense),
+                                            answer["requirements"], Path(args.plot) / "front.png", x.log, y.log))
+    if args.json:
+        json.dump(to_jsonable(answer), sys.stdout, indent=2)
+        sys.stdout.write("\n")
+    else:
+        print(_solve_text(answer))
+    return 0
+
+
+def _solve_text(answer: dict) -> str:
+    lines = ["requirements: " + ", ".join(answer["requirements"])]
+    objectives = ", ".join(f"{o['sense']} {o['key']}" for o in answer["objectives"])
+    lines.append(f"objectives: {objectives}")
+    if "posterior" in answer:
+        post = answer["posterior"]
+        lines.append(f"posterior: {post['samples']} samples of {post['fit']} ({', '.join(post['carried'])}); "
+                     f"requirements must hold together with probability >= {answer['confidence']:g}")
+    if not answer["feasible"]:
+        lines.append("infeasible within the bounds")
+        for entry in answer["unmet"]:
+            best = (f"best {entry['best']:.4g}" if "best" in entry
+                    else f"best probability {entry['best_probability']:.3f}")
+            where = ", ".join(f"{k} = {v:.4g}" for k, v in entry["at"].items())
+            lines.append(f"  cannot be met even at the bounds: {entry['requirement']} ({best}, at {where})")
+        for group in answer["conflicting"]:
+            lines.append(f"  cannot be met together: {'; '.join(group)}")
+        return "\n".join(lines)
+    points = [answer] if "front" not in answer else answer["front"]
+    if "front" in answer:
+        lines.append(f"Pareto front: {len(points)} points")
+    for point in points:
+        values = ", ".join(f"{k} = {v:.5g}" for k, v in point["solution"].items())
+        extra = f"; probability {point['probability']:.3f}" if "probability" in point else ""
+        lines.append(f"  {values}   active: {'; '.join(point['active']) or 'none'}{extra}"
+                     + ("" if point["minimal"] else "   (not minimal)"))
+    if "front" not in answer:
+        lines.append("minimal: " + ("yes" if answer["minimal"] else "no") + " (1 % better objective breaks a requirement)")
+        if answer["at_bounds"]:
+            lines.append(f"at a bound: {', '.join(answer['at_bounds'])}")
+        lines.append("design at the solution:")
+        lines.append(_table(answer["outputs"]))
+    for key in ("out", "plot"):
+        if key in answer:
+            lines.append(f"{key}: {answer[key]}")
+    return "\n".join(lines)

@@ -127,7 +127,8 @@ class SpectralWeights:
 
     c: beam attenuation [1/m] (unscaled). W: columns (target irradiance, sensor irradiance, electron rate) per
     unit luminous flux, with the spectral (tabulated) reflectance and lens transmittance folded in and
-    trapezoidal weights applied, so that exp(−D c) @ W integrates over wavelength. `reflectance` and
+    trapezoidal weights applied, so that exp(−D c) @ W integrates over wavelength; then the photon rate of the
+    source alone, × reflectance, × reflectance × lens transmittance (the light budget's stages, `light_budget`). `reflectance` and
     `lens_transmittance` are the spectral curves when given as files, else ones (broadband numbers stay outside).
     """
 
@@ -174,7 +175,9 @@ def _compute_weights(d: Design) -> SpectralWeights:
     m_spec = m if _is_spectral(d, "target.reflectance") else np.ones_like(grid.nm)
     t_spec = t if _is_spectral(d, "lens.transmittance") else np.ones_like(grid.nm)
     base = s * grid.w_nm
-    W = np.stack([base, base * m_spec * t_spec, base * m_spec * t_spec * qe * photons_per_joule(grid.nm)], axis=1)
+    photons = base * photons_per_joule(grid.nm)
+    W = np.stack([base, base * m_spec * t_spec, photons * m_spec * t_spec * qe, photons, photons * m_spec,
+                  photons * m_spec * t_spec], axis=1)
     return SpectralWeights(c=c, W=W, s_per_lm=s, reflectance=m_spec, lens_transmittance=t_spec, qe=qe)
 
 
@@ -440,12 +443,54 @@ def evaluate(d: Design) -> dict[str, np.ndarray]:
         "snr": snr_value,
         "snr_db": snr_db,
         "image_average": {"mean_electrons": image_e, "mean_dn": image_y, "snr": snr(image_e, sensor.dark_noise_e, k)},
+        "light_budget_stops": light_budget(d, weights, fov_m),
     }
 
 
 SPECTROMETER_POSITIONS = ("target", "camera")
 """Where a rig's spectrometer reads the chain: ``target``, the irradiance on a board facing the light;
 ``camera``, π L_w at the camera (the irradiance from the Lambertian target filling the meter's field)."""
+
+
+LIGHT_BUDGET_STAGES = ("beam_to_view", "water_to_target", "reflectance", "water_to_camera", "port", "aperture",
+                       "lens_transmittance", "quantum_efficiency")
+
+
+def light_budget(d: Design, weights: SpectralWeights, fov_m: dict) -> dict[str, np.ndarray]:
+    """Light lost at each stage of the on-axis chain, in stops (−log₂ of the fraction passed on).
+
+    The fractions multiply to R / Q: R the electron rate of the whole sensor at the on-axis rate (rate × pixels),
+    Q the photon rate emitted by the lights. Stages: the beam's on-axis irradiance × the imaged footprint / the
+    flux (negative when a beam narrower than the view concentrates more than the footprint's share); water on
+    the light path and on the return path, the reflectance and the lens transmittance, each weighted by the
+    photon spectrum reaching it; the port, T_port/n_w² · (f_eff/f)² (flat: T_port; the n_w² of the radiance is
+    won back by the longer focal length); the aperture, the share of the target's Lambertian radiance entering
+    the pupil, f²/(4 N² d_C²); the quantum efficiency, electrons per photon reaching the sensor.
+    """
+    scale = np.asarray(d["water.attenuation_scale"])
+    d_l = np.asarray(light_distance_m(d))
+    d_c = np.asarray(d["operation.altitude_m"])
+    near, far = scale * d_l, scale * (d_l + d_c)
+    table = weights.table
+    source = table(np.zeros(1), 3)[0]
+    lit, reflected = table(near, 3), table(near, 4)
+    returned, transmitted = table(far, 4), table(far, 5)
+    beta = beam_half_angle_rad(d)
+    beam = (_irradiance_geometry(d, beta, np.cos(np.radians(d["light.incidence_deg"]))) / d["light.count"]
+            * fov_m["x"] * fov_m["y"])
+    focal = d["lens.focal_length_mm"] * 1e-3
+    fractions = {
+        "beam_to_view": beam,
+        "water_to_target": lit / source,
+        "reflectance": reflected / lit * _broadband(d, "target.reflectance"),
+        "water_to_camera": returned / reflected,
+        "port": _port_transmittance(d) / d["housing.water_index"] ** 2 * (effective_focal_length_m(d) / focal) ** 2,
+        "aperture": focal**2 / (4 * np.asarray(d["lens.f_number"]) ** 2 * d_c**2),
+        "lens_transmittance": transmitted / returned * _broadband(d, "lens.transmittance"),
+        "quantum_efficiency": table(far, 2) / transmitted,
+    }
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return {k: -np.log2(np.asarray(v, float)) for k, v in fractions.items()}
 
 
 def stage_spectra(d: Design) -> dict[str, np.ndarray]:

@@ -10,6 +10,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
+from matplotlib.ticker import ScalarFormatter  # noqa: E402
 
 from uwlab.errors import ConfigError  # noqa: E402
 from uwlab.experiments.figures import save_figure  # noqa: E402
@@ -110,3 +111,39 @@ def write_design_plots(design: Design, out_dir: Path) -> list[Path]:
         ]
     except OSError as exc:
         raise ConfigError("--plot", str(out_dir), f"cannot write a figure ({exc.strerror})") from None
+
+
+def _axis_label(key: str) -> str:
+    """"light.luminous_flux_lm" → "light.luminous_flux [lm]" (the unit from the key's suffix)."""
+    units = {"lm": "lm", "m": "m", "mm": "mm", "s": "s", "db": "dB", "deg": "°", "hz": "Hz", "m_s": "m/s", "nm": "nm"}
+    for suffix in sorted(units, key=len, reverse=True):
+        if key.lower().endswith("_" + suffix):
+            return f"{key[:-len(suffix) - 1]} [{units[suffix]}]"
+    return key
+
+
+def plot_front(front, x_key: str, y_key: str, senses: tuple[str, str], requirements: list[str], path: Path,
+               log_x: bool, log_y: bool) -> Path:
+    """The Pareto front of two objectives, points coloured by the requirements that bind there."""
+    fig, ax = plt.subplots(figsize=(7.5, 5))
+    x, y = front[x_key].to_numpy(), front[y_key].to_numpy()
+    ax.plot(x, y, color="0.4", linewidth=1, zorder=1)
+    for label, rows in front.groupby(front["active"].where(front["active"] != "", "none"), sort=False):
+        ax.scatter(rows[x_key], rows[y_key], s=28, zorder=2, label=f"active: {label}")
+    ax.set(xscale="log" if log_x else "linear", yscale="log" if log_y else "linear",
+           xlabel=f"{_axis_label(x_key)} ({senses[0]})", ylabel=f"{_axis_label(y_key)} ({senses[1]})")
+    for axis in (ax.xaxis, ax.yaxis):
+        axis.set_major_formatter(ScalarFormatter())
+        axis.set_minor_formatter(ScalarFormatter())
+        axis.get_major_formatter().set_scientific(False)
+        axis.get_minor_formatter().set_scientific(False)
+    number = lambda v: f"{v:,.0f}" if abs(v) >= 1000 else f"{v:.3g}"  # noqa: E731
+    for i, align in ((0, "left"), (len(x) - 1, "right")):
+        ax.annotate(f"({number(x[i])}, {number(y[i])})", (x[i], y[i]), textcoords="offset points",
+                    xytext=(8, -4) if i == 0 else (-8, -4), ha=align, va="top", fontsize=8)
+    ax.set_title("Pareto front: each point is the optimum of the first objective for that value of the second\n"
+                 "requirements: " + ", ".join(requirements), fontsize=8)
+    ax.tick_params(which="minor", labelsize=7)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7, loc="upper left")
+    return save_figure(fig, path)
