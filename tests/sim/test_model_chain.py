@@ -3,11 +3,12 @@ import numpy as np
 import pytest
 
 from uwlab.experiments.design.grid import evaluate_grid
-from uwlab.model.design import build_design, evaluate, stage_spectra
+from uwlab.model.design import build_design, evaluate, on_axis_electron_rate, stage_spectra
 from uwlab.model.grid import WavelengthGrid
-from uwlab.model.photometry import photon_flux
+from uwlab.model.photometry import photon_flux, radiant_per_lumen
 from uwlab.model.port import port_transmittance
 from uwlab.model.sensor import load_sensor_profile, response_dn, snr
+from uwlab.model.spectra import relative_spectrum
 from uwlab.model.water import water_iop
 
 H, C = 6.62607015e-34, 299792458.0
@@ -180,3 +181,42 @@ def test_dome_port_keeps_fov_and_reports_virtual_image(example_raw):
     out = evaluate(build_design(example_raw))
     assert out["effective_focal_length_mm"] == pytest.approx(30.0)
     assert 0.1 < out["dome_virtual_image_m"] < 1.333 * 0.1 / 0.333 * 1.01
+
+
+@pytest.mark.parametrize("override", [{}, {"housing": {"port": "dome", "dome_radius_mm": 100.0, "dome_thickness_mm": 10.0}},
+                                      {"light": {"beam_model": "disk", "count": 3, "incidence_deg": 20.0}},
+                                      {"water": {"type": "jerlov-5C", "attenuation_scale": 1.7},
+                                       "target": {"reflectance": "sand"}}])
+def test_light_budget_adds_up_to_source_photons_over_sensor_electrons(example_raw, override):
+    """Σ stops = log₂(photons emitted per second / electrons per second over the sensor at the on-axis rate)."""
+    for section, values in override.items():
+        example_raw[section].update(values)
+    design = build_design(example_raw)
+    stops = evaluate(design)["light_budget_stops"]
+    grid = design.grid
+    spectrum = relative_spectrum(design["light.spectrum"], grid)
+    photons_per_lm = grid.integrate(radiant_per_lumen(spectrum, grid) * grid.m) / (H * C)
+    emitted = design["light.count"] * design["light.luminous_flux_lm"] * photons_per_lm
+    collected = float(on_axis_electron_rate(design)) * np.prod(design.sensor.resolution_px)
+    assert sum(stops.values()) == pytest.approx(np.log2(emitted / collected), rel=1e-9)
+
+
+def test_light_budget_stages_closed_forms(example_raw, mono555):
+    raw = clear_water(example_raw, mono555)
+    raw["target"]["reflectance"] = 0.5
+    raw["lens"].update(f_number=4.0, transmittance=0.8, focal_length_mm=25.0)
+    raw["operation"]["altitude_m"] = 2.0
+    design = build_design(raw)
+    stops = evaluate(design)["light_budget_stops"]
+    n_w = raw["housing"]["water_index"]
+    eta = np.interp(555.0, design.sensor.qe_nm, design.sensor.qe["combined"])
+    assert stops["water_to_target"] == pytest.approx(0.0, abs=1e-12) and stops["water_to_camera"] == pytest.approx(0.0, abs=1e-12)
+    assert stops["reflectance"] == pytest.approx(1.0, rel=1e-12)
+    assert stops["lens_transmittance"] == pytest.approx(-np.log2(0.8), rel=1e-12)
+    assert stops["port"] == pytest.approx(-np.log2(port_transmittance(n_w, raw["housing"]["port_index"])), rel=1e-12)
+    assert stops["aperture"] == pytest.approx(-np.log2(0.025**2 / (4 * 16 * 4.0)), rel=1e-12)
+    assert stops["quantum_efficiency"] == pytest.approx(-np.log2(eta), rel=1e-9)
+    raw["water"].update(type="jerlov-III", attenuation_scale=1.0)
+    c555 = water_iop("jerlov-III", WavelengthGrid()).c_per_m[555 - 380]
+    murky = evaluate(build_design(raw))["light_budget_stops"]
+    assert murky["water_to_camera"] == pytest.approx(c555 * 2.0 / np.log(2), rel=1e-9)
