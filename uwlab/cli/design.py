@@ -355,7 +355,7 @@ def _solve_text(answer: dict) -> str:
     if "front" in answer:
         lines.append(f"Pareto front: {len(points)} points")
     for point in points:
-        values = ", ".join(f"{k} = {v:.5g}" for k, v in point["solution"].items())
+        values = ", ".join(f"{k} = {v:.6g}" for k, v in point["solution"].items())
         extra = f"; probability {point['probability']:.3f}" if "probability" in point else ""
         lines.append(f"  {values}   active: {'; '.join(point['active']) or 'none'}{extra}"
                      + ("" if point["minimal"] else "   (not minimal)"))
