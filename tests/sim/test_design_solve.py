@@ -279,3 +279,16 @@ def test_parse_free_and_requirement():
     assert parse_free("lens.f_number=1.4:22") == FreeKey("lens.f_number", 1.4, 22.0)
     r = parse_requirement(" dof_m.far>=2.3 ")
     assert (r.output, r.op, r.value) == ("dof_m.far", ">=", 2.3)
+
+
+def test_cli_design_posterior_band_and_solve_needs_a_config(capsys, tmp_path):
+    fit = write_fit(tmp_path, np.random.default_rng(4).lognormal(np.log(0.8), 0.2, 500))
+    code = main(["design", str(EXAMPLE), "--posterior", str(fit), "--json"])
+    band = json.loads(capsys.readouterr().out)["posterior"]
+    assert code == 0 and band["samples"] == 500
+    for key in ("mean_dn", "mean_fraction", "snr_db"):
+        q = band[key]
+        assert q["p2_5"] < q["p16"] < q["median"] < q["p84"] < q["p97_5"]
+    code = main(["design", "solve"])
+    captured = capsys.readouterr()
+    assert code == 2 and "CONFIG" in captured.err and captured.err.count("\n") == 1
