@@ -52,7 +52,8 @@ def test_parquet_and_csv_stream_the_same_rows_as_in_memory(example_raw, tmp_path
     grid = DesignGrid(example_raw, AXES, chunk_points=7)
     memory = pd.concat([grid.chunk(i) for i in range(grid.chunks)], ignore_index=True)
     summary = write_grid(grid, tmp_path / "g.parquet")
-    assert summary["points"] == 120 and summary["chunks"] == grid.chunks == len(list((tmp_path / "g.parquet").iterdir()))
+    parts = list((tmp_path / "g.parquet").iterdir())
+    assert summary["points"] == 120 and summary["chunks"] == grid.chunks == len(parts)
     pd.testing.assert_frame_equal(pd.read_parquet(tmp_path / "g.parquet"), memory, check_exact=True)
     write_grid(grid, tmp_path / "g.csv")
     csv = pd.read_csv(tmp_path / "g.csv")
@@ -81,7 +82,7 @@ def test_output_columns_can_be_chosen_and_unknown_ones_are_named(example_raw):
     grid = DesignGrid(example_raw, {"lens.f_number": [2.0, 4.0]}, outputs=("snr_db", "mean_fraction"))
     assert grid.schema.names == ["lens.f_number", "snr_db", "mean_fraction"]
     with pytest.raises(UwlabError, match="nope"):
-        DesignGrid(example_raw, {"lens.f_number": [2.0]}, outputs=("nope",)).schema
+        DesignGrid(example_raw, {"lens.f_number": [2.0]}, outputs=("nope",)).check()
 
 
 def test_a_grid_too_large_for_memory_is_refused_before_evaluation(capsys, monkeypatch):
@@ -171,7 +172,8 @@ def test_scheduler_and_worker_processes_on_localhost(tmp_path):
             assert remote.returncode == 0, remote.stderr
             summary = json.loads(remote.stdout)
             assert summary["points"] == 60 and summary["workers"] == 2
-            here = subprocess.run([sys.executable, "-m", "uwlab.cli.main", *args, "--out", str(tmp_path / "here.parquet")],
+            here = subprocess.run([sys.executable, "-m", "uwlab.cli.main", *args, "--out",
+                                   str(tmp_path / "here.parquet")],
                                   capture_output=True, text=True, env=env, timeout=300)
             assert here.returncode == 0, here.stderr
             assert parts_bytes(tmp_path / "remote.parquet") == parts_bytes(tmp_path / "here.parquet")

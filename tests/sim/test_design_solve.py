@@ -172,7 +172,8 @@ def test_joint_probability_with_discrepancy_and_gain(auv_raw, tmp_path):
     auv_raw["lens"]["f_number"] = 4.0
     rng = np.random.default_rng(5)
     n = 3000
-    efficiency, delta, k = rng.lognormal(np.log(0.9), 0.1, n), np.abs(rng.normal(0.05, 0.02, n)), rng.normal(0.35, 0.02, n)
+    efficiency = rng.lognormal(np.log(0.9), 0.1, n)
+    delta, k = np.abs(rng.normal(0.05, 0.02, n)), rng.normal(0.35, 0.02, n)
     fit = write_fit(tmp_path, efficiency, delta, k)
     loader = lambda design: load_posterior(fit, design, max_samples=n, seed=3)  # noqa: E731
     requirements = ["mean_fraction >= 0.25", "mean_fraction <= 0.6"]

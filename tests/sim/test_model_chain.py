@@ -183,10 +183,12 @@ def test_dome_port_keeps_fov_and_reports_virtual_image(example_raw):
     assert 0.1 < out["dome_virtual_image_m"] < 1.333 * 0.1 / 0.333 * 1.01
 
 
-@pytest.mark.parametrize("override", [{}, {"housing": {"port": "dome", "dome_radius_mm": 100.0, "dome_thickness_mm": 10.0}},
-                                      {"light": {"beam_model": "disk", "count": 3, "incidence_deg": 20.0}},
-                                      {"water": {"type": "jerlov-5C", "attenuation_scale": 1.7},
-                                       "target": {"reflectance": "sand"}}])
+@pytest.mark.parametrize("override", [
+    {},
+    {"housing": {"port": "dome", "dome_radius_mm": 100.0, "dome_thickness_mm": 10.0}},
+    {"light": {"beam_model": "disk", "count": 3, "incidence_deg": 20.0}},
+    {"water": {"type": "jerlov-5C", "attenuation_scale": 1.7}, "target": {"reflectance": "sand"}},
+])
 def test_light_budget_adds_up_to_source_photons_over_sensor_electrons(example_raw, override):
     """Σ stops = log₂(photons emitted per second / electrons per second over the sensor at the on-axis rate)."""
     for section, values in override.items():
@@ -210,7 +212,8 @@ def test_light_budget_stages_closed_forms(example_raw, mono555):
     stops = evaluate(design)["light_budget_stops"]
     n_w = raw["housing"]["water_index"]
     eta = np.interp(555.0, design.sensor.qe_nm, design.sensor.qe["combined"])
-    assert stops["water_to_target"] == pytest.approx(0.0, abs=1e-12) and stops["water_to_camera"] == pytest.approx(0.0, abs=1e-12)
+    assert stops["water_to_target"] == pytest.approx(0.0, abs=1e-12)
+    assert stops["water_to_camera"] == pytest.approx(0.0, abs=1e-12)
     assert stops["reflectance"] == pytest.approx(1.0, rel=1e-12)
     assert stops["lens_transmittance"] == pytest.approx(-np.log2(0.8), rel=1e-12)
     assert stops["port"] == pytest.approx(-np.log2(port_transmittance(n_w, raw["housing"]["port_index"])), rel=1e-12)

@@ -34,7 +34,8 @@ def test_a_line_spectrum_is_exactly_exponential_at_any_length():
     for column in range(3):
         log_g = np.log(table.table(paths, column))
         assert log_g == pytest.approx(np.log(W[1, column]) - 0.05 * paths, rel=1e-12, abs=1e-9)
-        assert table.table.log(np.array([20000.0]), column)[0] == pytest.approx(np.log(W[1, column]) - 1000.0, rel=1e-12)
+        far = table.table.log(np.array([20000.0]), column)[0]
+        assert far == pytest.approx(np.log(W[1, column]) - 1000.0, rel=1e-12)
 
 
 def test_zero_weight_columns_stay_zero():
@@ -79,7 +80,8 @@ def test_image_average_through_the_cumulative_table_matches_the_wavelength_sum(e
     reference = _image_reference(grid)
     assert np.all(table[:, 0] == 0) and np.all(reference[:, 0] == 0)
     assert table[:, 1:] == pytest.approx(reference[:, 1:], rel=ACCURACY)
-    direct = design_module._image_average_rate(grid.with_values(**{"operation.altitude_m": altitudes[:50, None]}), weights)
+    few_paths = grid.with_values(**{"operation.altitude_m": altitudes[:50, None]})
+    direct = design_module._image_average_rate(few_paths, weights)
     assert direct == pytest.approx(table[:50], rel=ACCURACY)
 
 
@@ -102,8 +104,8 @@ def test_grid_evaluation_equals_point_by_point(example_raw):
     shaped = {k: v.reshape([-1 if i == j else 1 for j in range(3)]) for i, (k, v) in enumerate(axes.items())}
     out = evaluate(base.with_values(**shaped))
     rng = np.random.default_rng(3)
-    for index in zip(*(rng.integers(0, v.size, 6) for v in axes.values())):
-        point = evaluate(base.with_values(**{k: float(v[i]) for (k, v), i in zip(axes.items(), index)}))
+    for index in zip(*(rng.integers(0, v.size, 6) for v in axes.values()), strict=True):
+        point = evaluate(base.with_values(**{k: float(v[i]) for (k, v), i in zip(axes.items(), index, strict=True)}))
         assert out["mean_electrons"][index] == pytest.approx(float(point["mean_electrons"]), rel=1e-12)
         assert out["image_average"]["mean_electrons"][index] == pytest.approx(
             float(point["image_average"]["mean_electrons"]), rel=ACCURACY)

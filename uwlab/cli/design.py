@@ -114,7 +114,8 @@ def _format(value, fmt: str) -> str:
 
 
 _STAGES = {
-    "beam_to_view": "beam → field of view", "water_to_target": "water, light → target", "reflectance": "target reflectance",
+    "beam_to_view": "beam → field of view", "water_to_target": "water, light → target",
+    "reflectance": "target reflectance",
     "water_to_camera": "water, target → camera", "port": "port", "aperture": "aperture (pupil / distance)",
     "lens_transmittance": "lens transmittance", "quantum_efficiency": "quantum efficiency",
 }
@@ -142,8 +143,10 @@ def _table(result: dict) -> str:
     return "\n".join(lines)
 
 
-_BAND = (("mean_dn", "mean response (on axis)", "DN", "{:.1f}"), ("mean_fraction", "fraction of full scale", "", "{:.3f}"),
-         ("snr_db", "SNR", "dB", "{:.1f}"), ("image_average_mean_dn", "image average response", "DN", "{:.1f}"))
+_BAND = (("mean_dn", "mean response (on axis)", "DN", "{:.1f}"),
+         ("mean_fraction", "fraction of full scale", "", "{:.3f}"),
+         ("snr_db", "SNR", "dB", "{:.1f}"),
+         ("image_average_mean_dn", "image average response", "DN", "{:.1f}"))
 
 
 def _band_text(band: dict) -> str:
@@ -152,8 +155,9 @@ def _band_text(band: dict) -> str:
              f"  {'':<30} {'median':>9} {'68 % interval':>22} {'95 % interval':>22}"]
     for key, label, unit, fmt in _BAND:
         q = band[key]
-        pair = lambda a, b: f"[{fmt.format(q[a])}, {fmt.format(q[b])}]"  # noqa: E731
-        lines.append(f"  {label:<30} {fmt.format(q['median']):>9} {pair('p16', 'p84'):>22} {pair('p2_5', 'p97_5'):>22} {unit}")
+        inner = f"[{fmt.format(q['p16'])}, {fmt.format(q['p84'])}]"
+        outer = f"[{fmt.format(q['p2_5'])}, {fmt.format(q['p97_5'])}]"
+        lines.append(f"  {label:<30} {fmt.format(q['median']):>9} {inner:>22} {outer:>22} {unit}")
     lines.append(f"  saturated in {100 * band['saturated_fraction']:.1f} % of the samples")
     return "\n".join(lines)
 
@@ -281,7 +285,8 @@ def run_solve(args) -> int:
                                                 result_dict, solve)
 
     if args.solve_config is None:
-        raise ConfigError("design solve", None, "give the design TOML: uwlab design solve CONFIG --free ... --require ...")
+        raise ConfigError("design solve", None,
+                          "give the design TOML: uwlab design solve CONFIG --free ... --require ...")
     for option in ("grid", "columns", "dask"):
         if getattr(args, option):
             raise ConfigError(f"--{option}", getattr(args, option), "not an option of solve")
@@ -360,7 +365,8 @@ def _solve_text(answer: dict) -> str:
         lines.append(f"  {values}   active: {'; '.join(point['active']) or 'none'}{extra}"
                      + ("" if point["minimal"] else "   (not minimal)"))
     if "front" not in answer:
-        lines.append("minimal: " + ("yes" if answer["minimal"] else "no") + " (1 % better objective breaks a requirement)")
+        verdict = "yes" if answer["minimal"] else "no"
+        lines.append(f"minimal: {verdict} (1 % better objective breaks a requirement)")
         if answer["at_bounds"]:
             lines.append(f"at a bound: {', '.join(answer['at_bounds'])}")
         lines.append("design at the solution:")

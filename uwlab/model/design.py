@@ -128,8 +128,9 @@ class SpectralWeights:
     c: beam attenuation [1/m] (unscaled). W: columns (target irradiance, sensor irradiance, electron rate) per
     unit luminous flux, with the spectral (tabulated) reflectance and lens transmittance folded in and
     trapezoidal weights applied, so that exp(−D c) @ W integrates over wavelength; then the photon rate of the
-    source alone, × reflectance, × reflectance × lens transmittance (the light budget's stages, `light_budget`). `reflectance` and
-    `lens_transmittance` are the spectral curves when given as files, else ones (broadband numbers stay outside).
+    source alone, × reflectance, × reflectance × lens transmittance (the stages of `light_budget`).
+    `reflectance` and `lens_transmittance` are the spectral curves when given as files, else ones (broadband
+    numbers stay outside).
     """
 
     c: np.ndarray
@@ -348,7 +349,8 @@ def _mesh_index(index: tuple, axes: tuple, ndim: int) -> tuple:
     """An index of the full grid (`ndim` axes) selecting point `index` of the `axes` shape (right-aligned):
     length-1 slices on the axes longer than 1, whole axes elsewhere."""
     pad = ndim - len(index)
-    return (slice(None),) * pad + tuple(slice(i, i + 1) if n > 1 else slice(None) for i, n in zip(index, axes))
+    return (slice(None),) * pad + tuple(slice(i, i + 1) if n > 1 else slice(None)
+                                        for i, n in zip(index, axes, strict=True))
 
 
 def _pick(array: np.ndarray, where: tuple) -> np.ndarray:
@@ -356,7 +358,7 @@ def _pick(array: np.ndarray, where: tuple) -> np.ndarray:
     if array.ndim == 0:
         return array
     where = where[len(where) - array.ndim:]
-    return array[tuple(w if n > 1 else slice(None) for w, n in zip(where, array.shape))]
+    return array[tuple(w if n > 1 else slice(None) for w, n in zip(where, array.shape, strict=True))]
 
 
 def _on_axis(d: Design, weights: SpectralWeights):

@@ -48,7 +48,8 @@ def dask_client(address: str):
         try:
             client.wait_for_workers(1, timeout=WORKER_TIMEOUT_S)
         except TimeoutError:
-            raise UwlabError(f"--dask: no worker joined the scheduler at {address} within {WORKER_TIMEOUT_S} s") from None
+            raise UwlabError(f"--dask: no worker joined the scheduler at {address} "
+                             f"within {WORKER_TIMEOUT_S} s") from None
         yield client
 
 
@@ -61,7 +62,7 @@ def write_grid_dask(grid: DesignGrid, out: str | Path, address: str, progress=No
     if out.suffix.lower() != ".parquet":
         raise ConfigError("--out", str(out), "a Dask grid writes Parquet: use a .parquet name")
     grid.check()
-    grid.schema  # computed here, shipped with the grid
+    schema = grid.schema  # computed here, shipped with the grid
     rows = 0
     with dask_client(address) as client, staged(out, directory=True) as stage:
         threads = sum(client.nthreads().values())
@@ -82,4 +83,4 @@ def write_grid_dask(grid: DesignGrid, out: str | Path, address: str, progress=No
             if index is not None:
                 pending.add(client.submit(write_part, remote, index, str(stage), pure=False))
         workers = len(client.nthreads())
-    return {"points": rows, "out": str(out), "chunks": grid.chunks, "columns": grid.schema.names, "workers": workers}
+    return {"points": rows, "out": str(out), "chunks": grid.chunks, "columns": schema.names, "workers": workers}

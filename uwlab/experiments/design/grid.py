@@ -114,10 +114,10 @@ class DesignGrid:
 
     def _config(self, combination: tuple, ranges: list[tuple[int, int]]) -> dict:
         config = {s: dict(b) if isinstance(b, dict) else b for s, b in self.raw.items()}
-        for key, value in zip(self.categorical, combination):
+        for key, value in zip(self.categorical, combination, strict=True):
             apply_override(config, key, value)
         n = len(ranges)
-        for axis, ((key, values), (lo, hi)) in enumerate(zip(self.numeric.items(), ranges)):
+        for axis, ((key, values), (lo, hi)) in enumerate(zip(self.numeric.items(), ranges, strict=True)):
             apply_override(config, key, values[lo:hi].reshape([-1 if i == axis else 1 for i in range(n)]))
         return config
 
@@ -133,10 +133,12 @@ class DesignGrid:
         ranges += [(0, n) for n in shape[s + 1:]]
         return self.combinations[combination], ranges
 
-    def check(self) -> None:
-        """Validate every value of every axis (for each categorical combination) before anything is evaluated."""
+    def check(self) -> list[str]:
+        """Validate every value of every axis (for each categorical combination) and the chosen outputs before
+        the grid is evaluated; returns the output columns."""
         for combination in self.combinations:
             build_design(self._config(combination, [(0, n) for n in self.shape]), self.base_dir)
+        return list(self.output_types)
 
     def chunk(self, index: int) -> pd.DataFrame:
         """Rows of chunk `index` with every column of `schema`."""

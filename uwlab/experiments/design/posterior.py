@@ -72,7 +72,8 @@ def _arrays(design: Design) -> dict[str, np.ndarray]:
     return {f"{s}.{k}": v for s, body in design.values.items() for k, v in body.items() if isinstance(v, np.ndarray)}
 
 
-def load_posterior(fit_dir: str | Path, design: Design, max_samples: int = MAX_SAMPLES, seed: int = 0) -> DesignPosterior:
+def load_posterior(fit_dir: str | Path, design: Design, max_samples: int = MAX_SAMPLES,
+                   seed: int = 0) -> DesignPosterior:
     """The posterior of the fit in `fit_dir` (its ``samples.parquet``) as factors for `design`; at most
     `max_samples` samples, evenly thinned from the chain order."""
     fit_dir = Path(fit_dir)
@@ -116,10 +117,9 @@ def credible_band(design: Design, posterior: DesignPosterior) -> dict:
     the share of samples that saturate."""
     out = evaluate(posterior.apply(design))
     band = {}
-    for key in BAND_OUTPUTS:
-        values = np.broadcast_to(out[key], (posterior.size,))
-        band[key] = dict(zip(PERCENTILES, np.percentile(values, list(PERCENTILES.values())).tolist()))
-    image = np.broadcast_to(out["image_average"]["mean_dn"], (posterior.size,))
-    band["image_average_mean_dn"] = dict(zip(PERCENTILES, np.percentile(image, list(PERCENTILES.values())).tolist()))
+    columns = {key: out[key] for key in BAND_OUTPUTS} | {"image_average_mean_dn": out["image_average"]["mean_dn"]}
+    for key, value in columns.items():
+        q = np.percentile(np.broadcast_to(value, (posterior.size,)), list(PERCENTILES.values()))
+        band[key] = dict(zip(PERCENTILES, q.tolist(), strict=True))
     return {"fit": str(posterior.fit_dir), "samples": posterior.size, "carried": list(posterior.carried),
             "saturated_fraction": float(np.mean(np.broadcast_to(out["saturated"], (posterior.size,)))), **band}

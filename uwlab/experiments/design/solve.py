@@ -405,7 +405,7 @@ def _active(problem: Problem, t: np.ndarray) -> list[str]:
         return []
     _, each = problem.probabilities(np.array(moved))
     broken = (each < problem.confidence * (1 - 1e-12)).any(axis=0)
-    return [str(r) for r, b in zip(problem.requirements, broken) if b]
+    return [str(r) for r, b in zip(problem.requirements, broken, strict=True) if b]
 
 
 def _improvement_infeasible(problem: Problem, solver: Solver, t: np.ndarray, index: int) -> bool:
