@@ -15,10 +15,10 @@ from __future__ import annotations
 
 import tomllib
 from pathlib import Path
-from typing import Literal
+from typing import Annotated, Literal
 
 import numpy as np
-from pydantic import Field, model_validator
+from pydantic import BeforeValidator, Field, model_validator
 
 from uwlab.errors import ConfigError
 from uwlab.model.data import read_toml
@@ -34,6 +34,28 @@ AttenuationScale = quantity(0.0, 100.0, "", hint="a factor on the water type's a
 # Image overlap between frames along the motion: a fraction below 1 (1 would need an infinite framerate).
 Overlap = quantity(0.0, 1.0, "", hint="a fraction, not a percentage", hi_open=True)
 NAME_OR_FILE = "must be a number or a name or file path"
+# A flat window's thickness: 0 (the thin window of the paraxial rule) to 200 mm.
+WindowMm = quantity(0.0, 200.0, "mm")
+# Entrance pupil → inner face of a flat window: 0 to 1000 mm.
+AirGapMm = quantity(0.0, 1000.0, "mm")
+# Tilt of a flat window's normal from the optical axis: ±45°.
+TiltDeg = quantity(-45.0, 45.0, "deg", hint="")
+# The entrance pupil's offset from a dome's centre: ±100 mm per axis (and inside the dome, `Housing`).
+DecenterMm = quantity(-100.0, 100.0, "mm")
+
+
+def _comma_list(value):
+    """``"1,0,-2"`` (a `--set` value that is not TOML) as a list of numbers; anything else unchanged."""
+    if isinstance(value, str):
+        try:
+            return [float(v) for v in value.split(",")]
+        except ValueError:
+            return value
+    return value
+
+
+Vector2Deg = Annotated[tuple[TiltDeg, TiltDeg], BeforeValidator(_comma_list)]
+Vector3Mm = Annotated[tuple[DecenterMm, DecenterMm, DecenterMm], BeforeValidator(_comma_list)]
 
 
 def _section(model):
@@ -103,6 +125,15 @@ class Housing(Schema):
         "fresnel", description='port transmittance: a fraction, or "fresnel" (two interfaces at normal incidence)')
     dome_radius_mm: Grid[HousingMm] | None = Field(None, description="dome outer radius [mm] (dome ports)")
     dome_thickness_mm: Grid[HousingMm] | None = Field(None, description="dome wall thickness [mm] (dome ports)")
+    dome_decenter_mm: Vector3Mm = Field(
+        (0.0, 0.0, 0.0), description="[x, y, z] of the entrance pupil from the dome's centre, camera axes "
+                                     "(x right, y down, z forward) [mm] (dome ports; `uwlab port`)")
+    flat_thickness_mm: Grid[WindowMm] = Field(0.0, description="flat window thickness [mm] (0: a thin window)")
+    flat_air_gap_mm: Grid[AirGapMm] = Field(
+        0.0, description="entrance pupil → inner face of the flat window, along its normal [mm]")
+    flat_tilt_deg: Vector2Deg = Field(
+        (0.0, 0.0), description="[x, y] angles of the flat window's normal from the optical axis in the x–z and "
+                                "y–z planes [deg] (`uwlab port`)")
 
     @model_validator(mode="after")
     def _dome(self):
@@ -112,6 +143,10 @@ class Housing(Schema):
                     raise invalid(key, None, "required for a dome port")
             if np.any(np.asarray(self.dome_thickness_mm) >= np.asarray(self.dome_radius_mm)):
                 raise invalid("dome_thickness_mm", self.dome_thickness_mm, "must be less than dome_radius_mm")
+            inner = np.asarray(self.dome_radius_mm) - np.asarray(self.dome_thickness_mm)
+            if np.any(np.linalg.norm(self.dome_decenter_mm) >= 0.5 * inner):
+                raise invalid("dome_decenter_mm", list(self.dome_decenter_mm),
+                              "must be well inside the dome (less than half its inner radius)")
         return self
 
 
@@ -122,6 +157,8 @@ class Lens(Schema):
     f_number: Grid[FNumber] = Field(description="f-number N = f / D")
     transmittance: number_or(Grid[Transmittance], NonEmptyText, NAME_OR_FILE) = Field(
         1.0, description="lens transmittance: a fraction or a CSV file")
+    min_focus_distance_m: Grid[DistanceM] | None = Field(
+        None, description="the lens's closest focus [m] (for the close-up lens of the focusing aids)")
 
 
 class Sensor(Schema):
@@ -174,6 +211,14 @@ def parse_value(text: str):
         return tomllib.loads(f"v = {text}")["v"]
     except tomllib.TOMLDecodeError:
         return text
+
+
+def split_assignment(text: str, option: str) -> tuple[str, str]:
+    """``SECTION.KEY=VALUE`` (a `--set` or `--grid` argument) → (key, value text)."""
+    key, eq, value = text.partition("=")
+    if not eq or not key:
+        raise ConfigError(option, text, "expected SECTION.KEY=VALUE")
+    return key.strip(), value.strip()
 
 
 def apply_override(raw: dict, dotted: str, value) -> None:

@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from uwlab.model import optics
+from uwlab.model import focus, optics
 from uwlab.model import port as port_model
 from uwlab.model.config import apply_override, load_raw, validate
 from uwlab.model.data import resolve_path
@@ -378,6 +378,25 @@ def on_axis_electron_rate(d: Design):
     return _on_axis(d, spectral_weights(d))[2]
 
 
+def circle_of_confusion_m(d: Design):
+    """The acceptable circle of confusion on the sensor [m]: `operation.circle_of_confusion_mm`, by default the
+    sensor diagonal / 1500."""
+    coc = d["operation.circle_of_confusion_mm"]
+    return d.sensor.diagonal_m / 1500 if coc is None else np.asarray(coc) * 1e-3
+
+
+def port_geometry(d: Design):
+    """(port, n_w, flat, dome, decenter_z_m) for the paraxial formulas of `uwlab.model.optics` and
+    `uwlab.model.focus`: flat = (air_gap_m, thickness_m, port_index); dome = (radius_m, thickness_m, port_index)
+    or None for a flat port; decenter_z_m the pupil's axial offset from the dome's centre."""
+    h = d.values["housing"]
+    flat = (h["flat_air_gap_mm"] * 1e-3, h["flat_thickness_mm"] * 1e-3, h["port_index"])
+    dome = None
+    if h["port"] == "dome":
+        dome = (h["dome_radius_mm"] * 1e-3, h["dome_thickness_mm"] * 1e-3, h["port_index"])
+    return h["port"], h["water_index"], flat, dome, h["dome_decenter_mm"][2] * 1e-3
+
+
 def evaluate(d: Design) -> dict[str, np.ndarray]:
     """All design outputs (the keys of `uwlab design --json`) as arrays broadcast over the design's grid axes."""
     weights = spectral_weights(d)
@@ -399,18 +418,17 @@ def evaluate(d: Design) -> dict[str, np.ndarray]:
     else:
         exposure = np.asarray(op["exposure_s"], float)
 
-    coc = op["circle_of_confusion_mm"]
-    coc_m = sensor.diagonal_m / 1500 if coc is None else np.asarray(coc) * 1e-3
+    coc_m = circle_of_confusion_m(d)
     f_m = d["lens.focal_length_mm"] * 1e-3
-    port, n_w = d["housing.port"], d["housing.water_index"]
-    dome = None
-    if port == "dome":
-        dome = (d["housing.dome_radius_mm"] * 1e-3, d["housing.dome_thickness_mm"] * 1e-3, d["housing.port_index"])
-    near, far = optics.dof_underwater(d_c, f_m, d["lens.f_number"], coc_m, port, n_w, dome)
+    port, n_w, flat, dome, decenter_z = port_geometry(d)
+    near, far = optics.dof_underwater(d_c, f_m, d["lens.f_number"], coc_m, port, n_w, dome, flat)
     min_n = None
     if op["min_dof_m"] is not None:
-        min_n = optics.min_f_number(d_c, f_m, coc_m, op["min_dof_m"], port, n_w, dome)
+        min_n = optics.min_f_number(d_c, f_m, coc_m, op["min_dof_m"], port, n_w, dome, flat=flat)
     virtual = port_model.dome_virtual_distance(d_c, *dome[:2], n_w, dome[2]) if dome else None
+    focus_image = focus.target_image_distance_m(d_c, port, n_w, flat, dome, decenter_z)
+    min_focus = d["lens.min_focus_distance_m"]
+    close_up = focus.close_up_lens_dpt(focus_image, min_focus) if min_focus is not None else None
 
     target, sensor_irradiance, rate = _on_axis(d, weights)
     bits = d["sensor.bit_depth"]
@@ -436,6 +454,9 @@ def evaluate(d: Design) -> dict[str, np.ndarray]:
         "dof_m": {"near": near, "far": far},
         "min_f_number_for_dof": min_n,
         "dome_virtual_image_m": virtual,
+        "focus_image_m": focus_image,
+        "focus_setting_m": focus.focus_setting_m(focus_image, min_focus),
+        "close_up_lens_dpt": close_up,
         "target_irradiance_w_m2": target,
         "sensor_irradiance_w_m2": sensor_irradiance,
         "mean_electrons": mu_e,

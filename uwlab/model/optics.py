@@ -9,8 +9,9 @@ degrees only at the config/CLI boundary; the circle of confusion c is given on t
   medium, air): near = s (H − f) / (H + s − 2f), far = s (H − f) / (H − s) for s < H, else ∞
   (Ray, Applied Photographic Optics, 3rd ed., 2002, §6). For s ≫ f the total is the paper's approximation
   2 N c f² s² / (f⁴ − N² c² s²).
-- Underwater the lens focuses on the port's virtual image (flat: s / n_w; dome: see `uwlab.model.port`), so
-  near/far are computed in image space and mapped back to object distances in water.
+- Underwater the lens focuses on the port's virtual image (flat: s / n_w, or with the air gap and window
+  thickness of `uwlab.model.port.flat_apparent_distance`; dome: see `uwlab.model.port`), so near/far are
+  computed in image space and mapped back to object distances in water.
 - No lens (a bare sensor): under a uniform Lambertian field of radiance L a sensor receives E = π L, which is
   the camera equation with N = 1/2 and T = 1 (the f-number limit of an aplanatic lens in air; e.g. Ohta,
   *Radiometry*; EMVA 1288 Release 4.0 Linear §3.1 uses the same relation for its disk source). `LensSetting`
@@ -96,10 +97,11 @@ def dof_in_air(s_m, focal_length_m, f_number, coc_m):
     return near, far
 
 
-def dof_underwater(s_m, focal_length_m, f_number, coc_m, port, water_index, dome=None):
+def dof_underwater(s_m, focal_length_m, f_number, coc_m, port, water_index, dome=None, flat=(0.0, 0.0, 1.0)):
     """(near, far) object distances in water for a lens focused on the object at s_m behind `port`.
 
-    port: "flat" or "dome"; dome = (radius_m, thickness_m, port_index) for a dome port.
+    port: "flat" or "dome"; dome = (radius_m, thickness_m, port_index) for a dome port; flat = (air_gap_m,
+    thickness_m, port_index) for a flat port (default: a thin window at the pupil).
     """
     if port == "dome":
         radius_m, thickness_m, port_index = dome
@@ -108,8 +110,8 @@ def dof_underwater(s_m, focal_length_m, f_number, coc_m, port, water_index, dome
         near = port_model.dome_object_distance(v_near, radius_m, thickness_m, water_index, port_index)
         far = port_model.dome_object_distance(v_far, radius_m, thickness_m, water_index, port_index)
         return near, far
-    near, far = dof_in_air(port_model.flat_apparent_distance(s_m, water_index), focal_length_m, f_number, coc_m)
-    return near * water_index, far * water_index
+    near, far = dof_in_air(port_model.flat_apparent_distance(s_m, water_index, *flat), focal_length_m, f_number, coc_m)
+    return port_model.flat_object_distance(near, water_index, *flat), port_model.flat_object_distance(far, water_index, *flat)
 
 
 def min_f_number_in_air(s_m, focal_length_m, coc_m, dof_m):
@@ -121,11 +123,14 @@ def min_f_number_in_air(s_m, focal_length_m, coc_m, dof_m):
     return f**2 / (np.asarray(coc_m, float) * a)
 
 
-def min_f_number(s_m, focal_length_m, coc_m, dof_m, port, water_index, dome=None, iterations=60):
-    """Smallest N whose underwater depth of field (far − near) reaches dof_m."""
+def min_f_number(s_m, focal_length_m, coc_m, dof_m, port, water_index, dome=None, iterations=60,
+                 flat=(0.0, 0.0, 1.0)):
+    """Smallest N whose underwater depth of field (far − near) reaches dof_m (a flat port maps distances
+    affinely, v = offset + s / n_w, so depths shrink by n_w)."""
     if port != "dome":
         n = np.asarray(water_index, float)
-        return min_f_number_in_air(np.asarray(s_m) / n, focal_length_m, coc_m, np.asarray(dof_m) / n)
+        apparent = port_model.flat_apparent_distance(s_m, n, *flat)
+        return min_f_number_in_air(apparent, focal_length_m, coc_m, np.asarray(dof_m) / n)
     shape = np.broadcast_shapes(*(np.shape(x) for x in (s_m, focal_length_m, coc_m, dof_m, water_index, *dome)))
     lo = np.full(shape, np.log(0.05))
     hi = np.full(shape, np.log(1.0e4))

@@ -7,8 +7,11 @@ face or at the dome's centre of curvature (a centred dome). Indices: water n_w, 
   Radiometry and the Detection of Optical Radiation, 1983, §5.3), for flat and dome ports alike.
 - T_port: two surfaces with normal-incidence Fresnel reflectances R = ((n₁ − n₂)/(n₁ + n₂))² (Hecht, Optics,
   5th ed., eq. 4.67) and incoherent multiple reflections, T = T₁T₂ / (1 − R₁R₂); absorption in the port neglected.
-- Flat port (paraxial, port thickness neglected): an object at distance s in water appears at s / n_w with its
-  lateral size unchanged, so the effective focal length is f_uw = n_w · f and the field of view shrinks.
+- Flat port (paraxial): an object at distance s from the pupil, behind an air gap g (pupil → inner face) and a
+  window of thickness t and index n_p, appears at g + t / n_p + (s − g − t) / n_w (apparent depth through each
+  plane layer, Hecht §5.2.3) with its lateral size unchanged; with g = t = 0 (today's default) that is s / n_w.
+  The effective focal length is f_uw = n_w · f and the field of view shrinks. Exact, off-axis refraction is in
+  `uwlab.model.raytrace`.
 - Dome port (thick, concentric): Gaussian refraction at each spherical surface, n₁/s_o + n₂/s_i = (n₂ − n₁)/R
   (real-is-positive convention, R > 0 with the centre of curvature on the camera side; Hecht eq. 5.8), first
   water→port at the outer radius R_o, then port→air at R_i = R_o − t. The virtual image of infinity lies at
@@ -32,9 +35,19 @@ def port_transmittance(water_index, port_index):
     return (1 - r1) * (1 - r2) / (1 - r1 * r2)
 
 
-def flat_apparent_distance(s_m, water_index):
-    """Paraxial apparent distance of an object at s_m behind a flat port: s / n_w."""
-    return np.asarray(s_m, float) / water_index
+def _flat_offset(water_index, air_gap_m, thickness_m, port_index):
+    """g + t/n_p − (g + t)/n_w: the apparent distance is s/n_w plus this (exactly 0.0 when g = t = 0)."""
+    return air_gap_m + thickness_m / port_index - (air_gap_m + thickness_m) / np.asarray(water_index, float)
+
+
+def flat_apparent_distance(s_m, water_index, air_gap_m=0.0, thickness_m=0.0, port_index=1.0):
+    """Paraxial apparent distance from the pupil of an object at s_m behind a flat port (module docstring)."""
+    return np.asarray(s_m, float) / water_index + _flat_offset(water_index, air_gap_m, thickness_m, port_index)
+
+
+def flat_object_distance(v_m, water_index, air_gap_m=0.0, thickness_m=0.0, port_index=1.0):
+    """Inverse of `flat_apparent_distance`: the object distance whose apparent distance is v_m."""
+    return (np.asarray(v_m, float) - _flat_offset(water_index, air_gap_m, thickness_m, port_index)) * water_index
 
 
 def dome_virtual_distance(u_m, radius_m, thickness_m, water_index, port_index):
