@@ -10,7 +10,8 @@ from uwlab.cli.main import main
 from tests.sim.conftest import EXAMPLE
 
 KEYS = {"effective_focal_length_mm", "fov_deg", "fov_m", "max_exposure_s", "exposure_s", "min_framerate_hz", "dof_m",
-        "min_f_number_for_dof", "dome_virtual_image_m", "target_irradiance_w_m2", "sensor_irradiance_w_m2",
+        "min_f_number_for_dof", "dome_virtual_image_m", "focus_image_m", "focus_setting_m", "close_up_lens_dpt",
+        "target_irradiance_w_m2", "sensor_irradiance_w_m2",
         "mean_electrons", "mean_dn", "mean_fraction", "saturated", "snr", "snr_db", "image_average",
         "light_budget_stops"}
 

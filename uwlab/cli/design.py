@@ -10,7 +10,7 @@ import numpy as np
 
 from uwlab.errors import ConfigError
 from uwlab.jsonable import to_jsonable
-from uwlab.model.config import apply_override, load_raw, parse_value
+from uwlab.model.config import apply_override, load_raw, parse_value, split_assignment
 
 
 def register(subparsers) -> None:
@@ -49,13 +49,6 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def _assignment(text: str, option: str) -> tuple[str, str]:
-    key, eq, value = text.partition("=")
-    if not eq or not key:
-        raise ConfigError(option, text, "expected SECTION.KEY=VALUE")
-    return key.strip(), value.strip()
-
-
 def parse_grid_values(key: str, text: str) -> list:
     """`start:stop:step` (inclusive of stop) or a comma list of TOML values / bare words."""
     if text.count(":") == 2:
@@ -91,6 +84,9 @@ _TABLE = (
     ("dof_m", "depth of field (near, far)", "m", "{:.3f}"),
     ("min_f_number_for_dof", "min f-number for DoF", "", "{:.2f}"),
     ("dome_virtual_image_m", "dome virtual image", "m", "{:.4f}"),
+    ("focus_image_m", "target's image (focus on it)", "m", "{:.4f}"),
+    ("focus_setting_m", "lens focus setting", "m", "{:.4f}"),
+    ("close_up_lens_dpt", "close-up lens needed", "dpt", "{:.2f}"),
     ("target_irradiance_w_m2", "target irradiance", "W/m²", "{:.4g}"),
     ("sensor_irradiance_w_m2", "sensor irradiance", "W/m²", "{:.4g}"),
     ("mean_electrons", "mean signal (on axis)", "e-", "{:.1f}"),
@@ -165,7 +161,7 @@ def _band_text(band: dict) -> str:
 def _raw_config(path: str, sets: list[str]) -> dict:
     raw = load_raw(path)
     for item in sets:
-        key, value = _assignment(item, "--set")
+        key, value = split_assignment(item, "--set")
         apply_override(raw, key, parse_value(value))
     return raw
 
@@ -173,7 +169,7 @@ def _raw_config(path: str, sets: list[str]) -> dict:
 def _grid_axes(items: list[str]) -> dict[str, list]:
     axes = {}
     for item in items:
-        key, value = _assignment(item, "--grid")
+        key, value = split_assignment(item, "--grid")
         axes[key] = parse_grid_values(key, value)
     return axes
 
