@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import sys
 
+from uwlab.errors import ConfigError
 from uwlab.jsonable import dumps
 from uwlab.model.config import parse_value, split_assignment
 
@@ -22,6 +23,33 @@ def register(subparsers) -> None:
     t.add_argument("--plot", metavar="DIR", help="write port_distortion.png and port_focus.png to DIR")
     t.add_argument("--json", action="store_true", help="print one JSON object")
     t.set_defaults(func=run_trace)
+
+    c = sub.add_parser("calibrate", help="calibrate the port from ChArUco images in air and in water",
+                       description="Detect ChArUco corners, calibrate the lens in air (OpenCV), then fit the port "
+                                   "(dome decentring, or flat-port distance and tilt) and f_uw/f_air by minimising "
+                                   "the reprojection error through the exact ray tracing. See docs/port-calibration.md.")
+    c.add_argument("air", metavar="DIR_AIR", help="images of the board in air, housing closed")
+    c.add_argument("water", metavar="DIR_WATER", help="images of the board in water")
+    c.add_argument("--port", choices=("flat", "dome"), required=True, help="the port model to fit")
+    c.add_argument("--config", required=True, metavar="DESIGN.toml",
+                   help="design whose [housing] gives the port's nominal geometry and indices")
+    c.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE", help="override one value")
+    c.add_argument("--board", metavar="FILE", help="board TOML (default configs/boards/charuco-7x5-40mm.toml)")
+    c.add_argument("--focus", choices=("locked", "refocused"), default="locked",
+                   help="locked (default): the lens was not touched between the two sets; refocused: fit its "
+                        "focal length in water too")
+    c.add_argument("--max-distortion-px", type=float, default=None, metavar="PX",
+                   help="a dome is centred enough when its decentring adds at most this distortion (default 0.5)")
+    c.add_argument("--json", action="store_true", help="print one JSON object")
+    c.set_defaults(func=run_calibrate)
+
+    b = sub.add_parser("board", help="write the ChArUco board as a PNG to print",
+                       description="Write the board (with its white margin) as a PNG at the given resolution, with "
+                                   "the DPI recorded so that it prints at 100 %% scale.")
+    b.add_argument("--board", metavar="FILE", help="board TOML (default configs/boards/charuco-7x5-40mm.toml)")
+    b.add_argument("--dpi", type=int, default=300, help="print resolution (default 300)")
+    b.add_argument("--out", required=True, metavar="FILE.png", help="new PNG file")
+    b.set_defaults(func=run_board)
 
 
 def overrides(items: list[str]) -> dict:
@@ -75,4 +103,57 @@ def run_trace(args) -> int:
         print(_trace_table(summary))
         if written:
             print(f"plots: {', '.join(str(p) for p in written)}")
+    return 0
+
+
+def _calibration_table(result: dict) -> str:
+    def pm(value, std, fmt="{:+.3f}"):
+        return f"{fmt.format(value)} ± {std:.3f}"
+
+    rows = [("port", result["port"], "")]
+    if result["port"] == "dome":
+        for axis in "xyz":
+            rows.append((f"decentring {axis}", pm(result["decenter_mm"][axis], result["decenter_mm_std"][axis]), "mm"))
+    else:
+        rows.append(("port distance (pupil → inner face)",
+                     pm(result["port_distance_mm"], result["port_distance_mm_std"], "{:.3f}"), "mm"))
+        for axis in "xy":
+            rows.append((f"tilt about {axis}", pm(result["tilt_deg"][axis], result["tilt_deg_std"][axis]), "deg"))
+    rows.append(("f_uw / f_air", f"{result['f_ratio']:.5f} ± {result['f_ratio_std']:.5f}", ""))
+    rows.append(("RMS reprojection error (water, air)", f"{result['rms_px']:.3f}, {result['air']['rms_px']:.3f}", "px"))
+    rows.append(("views used (water, air)", f"{result['water']['views']} of {result['water']['images']}, "
+                                            f"{result['air']['views']} of {result['air']['images']}", ""))
+    if result["port"] == "dome":
+        verdict = "yes" if result["centred_enough"] else "NO"
+        rows.append(("distortion added by the decentring", f"{result['induced_distortion_px']:.2f}", "px"))
+        rows.append((f"centred enough (≤ {result['max_distortion_px']:g} px)", verdict, ""))
+    return "\n".join(f"{label:<38} {value} {unit}".rstrip() for label, value, unit in rows)
+
+
+def run_calibrate(args) -> int:
+    from uwlab.experiments.port.board import CharucoBoard
+    from uwlab.experiments.port.calibrate import DEFAULT_MAX_DISTORTION_PX, calibrate_port
+    from uwlab.model.design import load_design
+    from uwlab.model.port_field import port_of
+
+    design = load_design(args.config, {"housing.port": args.port, **overrides(args.set)})
+    limit = DEFAULT_MAX_DISTORTION_PX if args.max_distortion_px is None else args.max_distortion_px
+    if not limit > 0:
+        raise ConfigError("--max-distortion-px", limit, "must be > 0")
+    result = calibrate_port(CharucoBoard.from_toml(args.board), args.air, args.water, args.port, port_of(design),
+                            refocused=args.focus == "refocused", max_distortion_px=limit)
+    if args.json:
+        sys.stdout.write(dumps(result, indent=2) + "\n")
+    else:
+        print(_calibration_table(result))
+    return 0
+
+
+def run_board(args) -> int:
+    from uwlab.experiments.port.board import CharucoBoard, write_printable
+
+    board = CharucoBoard.from_toml(args.board)
+    path = write_printable(board, args.out, args.dpi)
+    width, height = (round(s * 1e3) for s in board.printed_size_m)
+    print(f"{path}: {width} mm × {height} mm at {args.dpi} dpi (print at 100 % scale, then measure a square)")
     return 0

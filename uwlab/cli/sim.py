@@ -7,16 +7,19 @@ import tempfile
 import threading
 
 from uwlab.cli.sim_camera import add_sim_camera_parser
+from uwlab.cli.sim_charuco import add_sim_charuco_parser
 from uwlab.model.design import SPECTROMETER_POSITIONS
 from uwlab.drivers.sim.serial_sim import SerialRig, SerialSimSettings
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("sim", help="run simulated instruments until Ctrl-C",
-                              description="Run simulated instruments that behave like the rig's hardware.")
+    p = subparsers.add_parser("sim", help="run simulated instruments until Ctrl-C; render simulated image sets",
+                              description="Run simulated instruments that behave like the rig's hardware, or render "
+                                          "image sets with the simulated camera.")
     sub = p.add_subparsers(dest="sim_command", required=True, metavar="INSTRUMENTS")
     register_serial(sub)
     add_sim_camera_parser(sub)
+    add_sim_charuco_parser(sub)
 
 
 def register_serial(sub) -> None:
