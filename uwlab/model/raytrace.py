@@ -56,18 +56,21 @@ def refract(d, m, n1, n2):
 
 @dataclass(frozen=True)
 class Plane:
-    """The plane m·x = offset (m a unit normal)."""
+    """The plane m·x = offset (m a unit normal). A one-sided plane is met only ahead of the ray (s ≥ 0; a ray
+    starting on it meets it at s = 0: a window of zero thickness); a two-sided one anywhere on the ray's line,
+    which continues a flat port smoothly through an air gap of zero (for fits that cross it)."""
 
     normal: tuple[float, float, float]
     offset: float
+    one_sided: bool = True
 
     def intersect(self, p, d):
-        """(distance along d, unit normal at the hit) for rays p + s d; NaN for rays parallel or going back
-        (a ray starting on the plane meets it at s = 0: a window of zero thickness)."""
+        """(distance along d, unit normal at the hit) for rays p + s d; NaN for rays parallel to the plane, and
+        for rays going away from a one-sided plane."""
         m = np.asarray(self.normal, float)
         with np.errstate(divide="ignore", invalid="ignore"):
             s = (self.offset - p @ m) / (d @ m)
-        s = np.where(s >= 0, s, np.nan)
+        s = np.where((s >= 0) | (not self.one_sided) & np.isfinite(s), s, np.nan)
         return s, np.broadcast_to(m, np.shape(p))
 
 
@@ -178,8 +181,8 @@ class FlatPort(Port):
 
     def interfaces(self):
         m = tuple(self.normal)
-        return [(Plane(m, self.air_gap_m), self.glass_index),
-                (Plane(m, self.air_gap_m + self.thickness_m), self.water_index)]
+        return [(Plane(m, self.air_gap_m, one_sided=False), self.glass_index),
+                (Plane(m, self.air_gap_m + self.thickness_m, one_sided=False), self.water_index)]
 
 
 @dataclass(frozen=True)

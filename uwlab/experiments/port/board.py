@@ -141,3 +141,23 @@ def refine_corners(image: np.ndarray, pixels: np.ndarray) -> np.ndarray:
         points = pixels[rows].astype(np.float32).reshape(-1, 1, 2)
         out[rows] = cv2.cornerSubPix(image, points, (int(size), int(size)), (-1, -1), criteria).reshape(-1, 2)
     return out
+
+
+def write_printable(board: CharucoBoard, path: str | Path, dpi: int) -> Path:
+    """Write the board as a PNG whose recorded resolution prints it at its true size; refuses to overwrite."""
+    import matplotlib.pyplot as plt
+
+    if not 50 <= dpi <= 2400:
+        raise ConfigError("--dpi", dpi, "must be in [50, 2400]")
+    out = Path(path)
+    if out.suffix.lower() != ".png":
+        raise ConfigError("--out", str(out), "must end in .png")
+    if out.exists():
+        raise ConfigError("--out", str(out), "exists; refusing to overwrite")
+    per_square = max(int(round(board.square_m * dpi / 0.0254)), 20)
+    try:
+        plt.imsave(out, board.binary_image(per_square), cmap="gray", vmin=0, vmax=255,
+                   dpi=per_square / board.square_m * 0.0254)
+    except OSError as exc:
+        raise ConfigError("--out", str(out), f"cannot write ({exc.strerror})") from None
+    return out

@@ -231,17 +231,11 @@ def fit_port(kind: str, nominal: Port, air: BrownLens, board: CharucoBoard, air_
     x0 = np.r_[_lens_vector(air), _initial_port(kind, nominal), 0.0,
                _initial_poses(board, air_views, air, 1.0), _initial_poses(board, water_views, air, focal_ratio(nominal))]
     mask = np.ones(problem.observed.shape[0], bool)
-    for _ in range(2):
-        result = least_squares(problem.residuals, x0, jac=problem.jacobian, method="lm", x_scale="jac",
-                               ftol=1e-12, xtol=1e-12, gtol=1e-12, max_nfev=200, args=(mask,))
-        if not np.all(np.isfinite(result.fun)):
-            raise UwlabError("the port fit left the valid region (rays missing the port); check --port and the config")
-        errors = np.linalg.norm(result.fun.reshape(-1, 2), axis=1)
-        keep = errors <= OUTLIER_SIGMA * float(np.sqrt(np.mean(errors**2)))
-        if keep.all():
-            break
-        mask[np.flatnonzero(mask)[~keep]] = False
-        x0 = result.x
+    result, errors = _solve(problem, x0, mask)
+    outliers = errors > OUTLIER_SIGMA * _rms(errors)
+    if outliers.any():
+        mask[np.flatnonzero(mask)[outliers]] = False
+        result, errors = _solve(problem, result.x, mask)
     free = np.ones(result.x.size, bool)
     free[problem.n_global - 1] = free_scale
     jac = result.jac[:, free]
@@ -257,6 +251,15 @@ def fit_port(kind: str, nominal: Port, air: BrownLens, board: CharucoBoard, air_
         s, s * math.sqrt(cov[problem.n_global - 1, problem.n_global - 1]), s * focal_ratio(port),
         float(math.sqrt(max(grad @ cov[block, block] @ grad, 0.0))), _rms(errors[water]), _rms(errors[~water]),
         int(water.sum()), int((~mask).sum()), port, result.fun.reshape(-1, 2))
+
+
+def _solve(problem: _Problem, x0, mask):
+    """Levenberg–Marquardt on the corners in `mask`; (result, per-corner error [px])."""
+    result = least_squares(problem.residuals, x0, jac=problem.jacobian, method="lm", x_scale="jac",
+                           ftol=1e-12, xtol=1e-12, gtol=1e-12, max_nfev=200, args=(mask,))
+    if not np.all(np.isfinite(result.fun)):
+        raise UwlabError("the port fit left the valid region (rays missing the port); check --port and the config")
+    return result, np.linalg.norm(result.fun.reshape(-1, 2), axis=1)
 
 
 def _rms(errors) -> float:

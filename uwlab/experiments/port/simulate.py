@@ -5,8 +5,8 @@ with radial distortion k1, OpenCV's convention) whose principal point is the ima
 at 1/`downsample` of its resolution (pixels `downsample` times larger, same area, the per-pixel noise model of
 the sensor profile unchanged). The port is the design's (`uwlab.model.port_field.port_of`: dimensions, indices,
 decentring, tilt); in air the outside medium has index 1. Poses are drawn from a seeded generator: the board's
-centre within the central part of the field, at 0.9–1.6 times the distance at which its width fills the
-field in that medium, tilted up to ±35° about x and y and ±20° about the axis, and kept only if at least 80 % of
+centre within the central part of the field, at 0.6–1.6 times the distance at which its width fills the
+field in that medium, tilted up to ±45° about x and y and ±20° about the axis, and kept only if at least 80 % of
 its corners land inside the image. The board's white gets `white_fraction` of the full well; the sensor's noise
 is that of `uwlab.drivers.sim.camera.SimSensor` (shot, dark, quantisation, fixed patterns).
 
@@ -36,9 +36,9 @@ from uwlab.model.raytrace import DomePort, Port
 MEDIA = ("air", "water")
 SIDECAR = "charuco.json"
 EXPOSURE_US = 10_000.0
-DISTANCE_RANGE = (0.9, 1.6)
+DISTANCE_RANGE = (0.6, 1.6)
 CENTRE_SPREAD = 0.35
-TILT_DEG = (35.0, 35.0, 20.0)
+TILT_DEG = (45.0, 45.0, 20.0)
 MIN_VISIBLE = 0.8
 MAX_TEXELS = 8192
 
