@@ -72,7 +72,7 @@ def test_centred_dome_refracts_nothing_and_keeps_the_in_air_field_of_view():
 def test_flat_port_field_of_view_and_distortion_match_snell_closed_forms():
     flat = FlatPort(0.008, 0.004, 1.49, 1.333)
     size, f = (8.45e-3, 7.07e-3), 8e-3
-    for axis, s in zip("xy", size):
+    for axis, s in zip("xy", size, strict=True):
         theta_a = np.arctan(s / 2 / f)
         assert exact_fov_rad(flat, size, f)[axis] == pytest.approx(2 * np.arcsin(np.sin(theta_a) / 1.333), rel=1e-12)
     xy = np.c_[np.linspace(1e-4, 5e-3, 7), np.linspace(0, 3e-3, 7)]

@@ -27,7 +27,8 @@ def register(subparsers) -> None:
     c = sub.add_parser("calibrate", help="calibrate the port from ChArUco images in air and in water",
                        description="Detect ChArUco corners, calibrate the lens in air (OpenCV), then fit the port "
                                    "(dome decentring, or flat-port distance and tilt) and f_uw/f_air by minimising "
-                                   "the reprojection error through the exact ray tracing. See docs/port-calibration.md.")
+                                   "the reprojection error through the exact ray tracing. "
+                                   "See docs/port-calibration.md.")
     c.add_argument("air", metavar="DIR_AIR", help="images of the board in air, housing closed")
     c.add_argument("water", metavar="DIR_WATER", help="images of the board in water")
     c.add_argument("--port", choices=("flat", "dome"), required=True, help="the port model to fit")
@@ -64,7 +65,8 @@ def _trace_table(result: dict) -> str:
         ("field of view, exact (x, y)", f"{result['fov_deg']['x']:.2f}, {result['fov_deg']['y']:.2f}", "deg"),
         ("field of view, paraxial (x, y)",
          f"{result['paraxial_fov_deg']['x']:.2f}, {result['paraxial_fov_deg']['y']:.2f}", "deg"),
-        ("focal ratio f_uw/f (exact, paraxial)", f"{result['focal_ratio']:.4f}, {result['paraxial_focal_ratio']:.4f}", ""),
+        ("focal ratio f_uw/f (exact, paraxial)",
+         f"{result['focal_ratio']:.4f}, {result['paraxial_focal_ratio']:.4f}", ""),
         ("distortion added (edge, corner)",
          f"{result['distortion_percent']['edge']:+.3f}, {result['distortion_percent']['corner']:+.3f}", "%"),
         ("distortion added (edge, corner)",
@@ -76,7 +78,8 @@ def _trace_table(result: dict) -> str:
         ("virtual image (on axis, edge)",
          f"{result['virtual_image_m']['on_axis']:.4f}, {result['virtual_image_m']['edge']:.4f}", "m"),
         ("lens focus setting", f"{aid['setting_m']:.4f}", "m"),
-        ("close-up lens needed", "n/a" if aid["close_up_lens_dpt"] is None else f"{aid['close_up_lens_dpt']:.2f}", "dpt"),
+        ("close-up lens needed",
+         "n/a" if aid["close_up_lens_dpt"] is None else f"{aid['close_up_lens_dpt']:.2f}", "dpt"),
         ("depth of field in water (near, far)", f"{aid['dof_m']['near']:.3f}, "
          + ("inf" if aid["dof_m"]["far"] == float("inf") else f"{aid['dof_m']['far']:.3f}"), "m"),
         ("edge in focus", str(aid["edge_in_focus"]).lower(), ""),

@@ -28,7 +28,8 @@ def target_image_distance_m(s_m, port, water_index, flat=(0.0, 0.0, 1.0), dome=N
     if port == "dome":
         radius_m, thickness_m, port_index = dome
         dz = np.asarray(decenter_z_m, float)
-        return port_model.dome_virtual_distance(np.asarray(s_m) + dz, radius_m, thickness_m, water_index, port_index) - dz
+        shifted = np.asarray(s_m) + dz
+        return port_model.dome_virtual_distance(shifted, radius_m, thickness_m, water_index, port_index) - dz
     return port_model.flat_apparent_distance(s_m, water_index, *flat)
 
 

@@ -31,7 +31,7 @@ class BrownLens:
     distortion: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
 
     @classmethod
-    def from_opencv(cls, camera_matrix, dist_coeffs) -> "BrownLens":
+    def from_opencv(cls, camera_matrix, dist_coeffs) -> BrownLens:
         k = np.asarray(camera_matrix, float)
         dist = np.zeros(5)
         coeffs = np.asarray(dist_coeffs, float).ravel()[:5]

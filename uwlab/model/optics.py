@@ -111,7 +111,8 @@ def dof_underwater(s_m, focal_length_m, f_number, coc_m, port, water_index, dome
         far = port_model.dome_object_distance(v_far, radius_m, thickness_m, water_index, port_index)
         return near, far
     near, far = dof_in_air(port_model.flat_apparent_distance(s_m, water_index, *flat), focal_length_m, f_number, coc_m)
-    return port_model.flat_object_distance(near, water_index, *flat), port_model.flat_object_distance(far, water_index, *flat)
+    return (port_model.flat_object_distance(near, water_index, *flat),
+            port_model.flat_object_distance(far, water_index, *flat))
 
 
 def min_f_number_in_air(s_m, focal_length_m, coc_m, dof_m):

@@ -41,7 +41,8 @@ def port_of(d) -> Port:
     for key in ("water_index", "port_index", "flat_thickness_mm", "flat_air_gap_mm", "dome_radius_mm",
                 "dome_thickness_mm"):
         if np.ndim(values[key]) > 0:
-            raise ConfigError(f"housing.{key}", np.asarray(values[key]).tolist(), "must be a single value to trace rays")
+            raise ConfigError(f"housing.{key}", np.asarray(values[key]).tolist(),
+                              "must be a single value to trace rays")
     n_w, n_p = float(values["water_index"]), float(values["port_index"])
     if values["port"] == "dome":
         return DomePort(values["dome_radius_mm"] * 1e-3, values["dome_thickness_mm"] * 1e-3, n_p, n_w,
@@ -174,10 +175,11 @@ def trace_design(d, samples: int = 41) -> dict:
     image_axis = 0.5 * (tan_axis + sag_axis)
     image_edge = 0.5 * (tan_edge + sag_edge)
     f_eff = float(effective_focal_length_m(d))
-    paraxial_fov = {a: float(np.degrees(optics.angular_fov_rad(s, f_eff))) for a, s in zip("xy", size)}
+    paraxial_fov = {a: float(np.degrees(optics.angular_fov_rad(s, f_eff))) for a, s in zip("xy", size, strict=True)}
 
     u = np.linspace(0.0, 1.0, samples)
-    directions = {"x": np.c_[u * half_x, 0 * u], "y": np.c_[0 * u, u * half_y], "diagonal": np.c_[u * half_x, u * half_y]}
+    directions = {"x": np.c_[u * half_x, 0 * u], "y": np.c_[0 * u, u * half_y],
+                  "diagonal": np.c_[u * half_x, u * half_y]}
     profile = {"field_deg_air": {}, "image_radius_px": {}, "distortion_percent": {}, "distortion_px": {},
                "paraxial_error_deg": {}, "virtual_image_tangential_m": {}, "virtual_image_sagittal_m": {}}
     for name, xy in directions.items():
@@ -203,7 +205,8 @@ def trace_design(d, samples: int = 41) -> dict:
         "distortion_px": {"edge": _worst(dist_m_e / pixel), "corner": _worst(dist_m_c / pixel)},
         "paraxial_error_deg": {"edge": _worst(np.degrees(err_rad_e)), "corner": _worst(np.degrees(err_rad_c))},
         "paraxial_error_px": {"edge": _worst(err_m_e / pixel), "corner": _worst(err_m_c / pixel)},
-        "virtual_image_m": {"on_axis": float(image_axis), "edge": float(image_edge[np.argmax(np.abs(image_edge - image_axis))])},
+        "virtual_image_m": {"on_axis": float(image_axis),
+                            "edge": float(image_edge[np.argmax(np.abs(image_edge - image_axis))])},
         "focus": focus_aids(d, float(image_axis), image_edge),
         "profile": profile,
     }

@@ -116,7 +116,7 @@ class Port:
     def interfaces(self) -> list[tuple[Plane | Sphere, float]]:
         raise NotImplementedError
 
-    def in_medium(self, index: float) -> "Port":
+    def in_medium(self, index: float) -> Port:
         """The same port with another outside medium (index 1 for the housing in air)."""
         return replace(self, water_index=float(index))
 

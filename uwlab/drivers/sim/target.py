@@ -5,7 +5,8 @@ corners go from the lens model (`uwlab.model.lens.BrownLens`, pixel → ray) thr
 (`uwlab.model.raytrace`, exact refraction) into the medium, once per camera; for each pose of the target they
 meet its plane, giving target coordinates at the pixel corners. Each pixel is then the mean of s × s samples of
 the target's reflectance (bilinear in a texture finer than the samples) at points interpolated bilinearly
-between its corners (the mapping is smooth on the scale of a pixel): an anti-aliased box filter over the pixel.
+between its corners (the mapping is smooth on the scale of a pixel; OpenCV's `remap` interpolates on a 1/32 grid,
+which holds the s × s sample positions exactly for s = 2, 4, 8): an anti-aliased box filter over the pixel.
 Illumination is uniform (no vignetting, no attenuation) and there is no defocus blur: the images test geometry.
 
 Pose convention (OpenCV's): a target point X (target frame) is at R X + t in camera axes.
@@ -20,16 +21,21 @@ import numpy as np
 from uwlab.model.lens import BrownLens
 from uwlab.model.raytrace import Port, Rays
 
+OFF_TARGET = -1.0e6  # texel coordinate of rays that miss the target plane (sampled as background)
+
 
 @dataclass(frozen=True)
 class PlanarTarget:
-    """A reflectance texture on the plane z = 0 of the target frame: `texel_m` per texel, the texture's outer
-    top-left corner at target coordinates `origin_m`, `background` reflectance outside it."""
+    """A reflectance texture (float32) on the plane z = 0 of the target frame: `texel_m` per texel, the texture's
+    outer top-left corner at target coordinates `origin_m`, `background` reflectance outside it."""
 
     reflectance: np.ndarray
     texel_m: float
     origin_m: tuple[float, float]
     background: float
+
+    def __post_init__(self):
+        object.__setattr__(self, "reflectance", np.ascontiguousarray(self.reflectance, np.float32))
 
 
 class TargetView:
@@ -41,6 +47,7 @@ class TargetView:
         self.supersample = supersample
         u, v = np.meshgrid(np.arange(self.width + 1) - 0.5, np.arange(self.height + 1) - 0.5)
         self._rays: Rays = port.trace(lens.rays(np.stack([u, v], axis=-1)))
+        self._maps = None
 
     def target_coordinates(self, rotation, translation) -> np.ndarray:
         """Target-frame (x, y) [m] where the pixel-corner rays meet the target plane, (height+1, width+1, 2)
@@ -55,21 +62,20 @@ class TargetView:
     def reflectance_image(self, target: PlanarTarget, rotation, translation) -> np.ndarray:
         """Mean target reflectance over each pixel, (height, width) float32."""
         corners = self.target_coordinates(rotation, translation)
-        s = self.supersample
-        a = (np.arange(s) + 0.5) / s
-        c00, c01 = corners[:-1, :-1], corners[:-1, 1:]
-        c10, c11 = corners[1:, :-1], corners[1:, 1:]
-        ay = a[None, :, None, None, None]
-        ax = a[None, None, None, :, None]
+        texel = (corners - np.asarray(target.origin_m)) / target.texel_m - 0.5
+        texel = np.where(np.isfinite(texel), texel, OFF_TARGET).astype(np.float32)
+        map_x, map_y = self._sample_maps()
+        u = cv2.remap(texel[..., 0], map_x, map_y, cv2.INTER_LINEAR)
+        v = cv2.remap(texel[..., 1], map_x, map_y, cv2.INTER_LINEAR)
+        sampled = cv2.remap(target.reflectance, u, v, cv2.INTER_LINEAR,
+                            borderMode=cv2.BORDER_CONSTANT, borderValue=float(target.background))
+        return cv2.resize(sampled, (self.width, self.height), interpolation=cv2.INTER_AREA)
 
-        def expand(c):
-            return c[:, None, :, None, :]
-
-        samples = ((1 - ay) * ((1 - ax) * expand(c00) + ax * expand(c01))
-                   + ay * ((1 - ax) * expand(c10) + ax * expand(c11)))
-        texel = (samples - np.asarray(target.origin_m)) / target.texel_m - 0.5
-        texel = np.where(np.isfinite(texel), texel, -1e6).reshape(self.height * s, self.width * s, 2)
-        sampled = cv2.remap(target.reflectance.astype(np.float32), texel[..., 0].astype(np.float32),
-                            texel[..., 1].astype(np.float32), cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                            borderValue=float(target.background))
-        return sampled.reshape(self.height, s, self.width, s).mean(axis=(1, 3))
+    def _sample_maps(self):
+        """Positions of the s × s sub-pixel samples in the pixel-corner grid (corner (i, j) at index (i, j))."""
+        if self._maps is None:
+            s = self.supersample
+            x = ((np.arange(self.width * s) + 0.5) / s).astype(np.float32)
+            y = ((np.arange(self.height * s) + 0.5) / s).astype(np.float32)
+            self._maps = tuple(np.ascontiguousarray(m) for m in np.meshgrid(x, y))
+        return self._maps

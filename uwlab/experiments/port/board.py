@@ -35,19 +35,20 @@ class CharucoBoard:
     margin_m: float = 0.02
 
     @classmethod
-    def from_toml(cls, path: str | Path | None = None) -> "CharucoBoard":
+    def from_toml(cls, path: str | Path | None = None) -> CharucoBoard:
         """Read a board description (None: configs/boards/charuco-7x5-40mm.toml)."""
         path = Path(path) if path is not None else config_dir() / DEFAULT_BOARD
         return cls.from_dict(read_toml(path, "--board"))
 
     @classmethod
-    def from_dict(cls, raw: dict) -> "CharucoBoard":
+    def from_dict(cls, raw: dict) -> CharucoBoard:
         known = {"squares", "square_mm", "marker_mm", "dictionary", "margin_mm"}
         for key in raw:
             if key not in known:
                 raise ConfigError(f"board.{key}", raw[key], f"unknown key; a board has {', '.join(sorted(known))}")
         squares = raw.get("squares")
-        if not (isinstance(squares, list) and len(squares) == 2 and all(isinstance(v, int) and 3 <= v <= 100 for v in squares)):
+        if not (isinstance(squares, list) and len(squares) == 2
+                and all(isinstance(v, int) and 3 <= v <= 100 for v in squares)):
             raise ConfigError("board.squares", squares, "must be [columns, rows], integers from 3 to 100")
         square = Num(lo=1.0, hi=1000.0).check("board.square_mm", raw.get("square_mm"))
         marker = Num(lo=0.5, hi=1000.0).check("board.marker_mm", raw.get("marker_mm"))

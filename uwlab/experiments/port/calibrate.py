@@ -228,8 +228,8 @@ def fit_port(kind: str, nominal: Port, air: BrownLens, board: CharucoBoard, air_
              water_views: list[Detection], free_scale: bool = False) -> PortFit:
     """Refine lens, port, focal scale (when `free_scale`) and poses jointly on all views (module docstring)."""
     problem = _Problem(kind, nominal, board, air_views, water_views, free_scale)
-    x0 = np.r_[_lens_vector(air), _initial_port(kind, nominal), 0.0,
-               _initial_poses(board, air_views, air, 1.0), _initial_poses(board, water_views, air, focal_ratio(nominal))]
+    x0 = np.r_[_lens_vector(air), _initial_port(kind, nominal), 0.0, _initial_poses(board, air_views, air, 1.0),
+               _initial_poses(board, water_views, air, focal_ratio(nominal))]
     mask = np.ones(problem.observed.shape[0], bool)
     result, errors = _solve(problem, x0, mask)
     outliers = errors > OUTLIER_SIGMA * _rms(errors)
@@ -306,13 +306,13 @@ def calibrate_port(board: CharucoBoard, air_dir, water_dir, kind: str, nominal: 
     fit = fit_port(kind, nominal, air.lens, board, air_views, water_views, free_scale=refocused)
     record = {"port": kind}
     if kind == "dome":
-        record["decenter_mm"] = dict(zip("xyz", fit.values))
-        record["decenter_mm_std"] = dict(zip("xyz", fit.stds))
+        record["decenter_mm"] = dict(zip("xyz", fit.values, strict=True))
+        record["decenter_mm_std"] = dict(zip("xyz", fit.stds, strict=True))
     else:
         record["port_distance_mm"] = fit.values[0]
         record["port_distance_mm_std"] = fit.stds[0]
-        record["tilt_deg"] = dict(zip("xy", fit.values[1:]))
-        record["tilt_deg_std"] = dict(zip("xy", fit.stds[1:]))
+        record["tilt_deg"] = dict(zip("xy", fit.values[1:], strict=True))
+        record["tilt_deg_std"] = dict(zip("xy", fit.stds[1:], strict=True))
     record.update({"f_ratio": fit.f_ratio, "f_ratio_std": fit.f_ratio_std, "rms_px": fit.rms_px})
     if kind == "dome":
         distortion = induced_distortion_px(fit.port, _scaled(fit.lens, fit.scale), air_size)

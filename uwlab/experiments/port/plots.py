@@ -7,10 +7,10 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from uwlab.experiments.figures import save_figure  # noqa: E402
+from uwlab.experiments.figures import save_figure
 
 _STYLE = {"x": ("tab:blue", "along x (to the edge)"), "y": ("tab:green", "along y"),
           "diagonal": ("tab:red", "diagonal (to the corner)")}
@@ -45,7 +45,8 @@ def plot_distortion(design, trace: dict, path: Path) -> Path:
     fov, par = trace["fov_deg"], trace["paraxial_fov_deg"]
     fig.suptitle(f"{_port_label(design)} — FOV {fov['x']:.2f} × {fov['y']:.2f}° exact, "
                  f"{par['x']:.2f} × {par['y']:.2f}° paraxial; corner distortion "
-                 f"{trace['distortion_percent']['corner']:+.2f} % ({trace['distortion_px']['corner']:+.1f} px)", fontsize=9)
+                 f"{trace['distortion_percent']['corner']:+.2f} % ({trace['distortion_px']['corner']:+.1f} px)",
+                 fontsize=9)
     return save_figure(fig, path)
 
 

@@ -87,9 +87,9 @@ def sample_poses(board: CharucoBoard, lens: BrownLens, resolution, port: Port, c
 
 
 def _texture(board: CharucoBoard, lens: BrownLens, distance_m: float, supersample: int):
-    """The board texture, finer than half the sample spacing at `distance_m` (capped at MAX_TEXELS a side)."""
+    """The board texture, at least as fine as the sample spacing at `distance_m` (capped at MAX_TEXELS a side)."""
     spacing = distance_m / lens.fx / supersample
-    per_square = math.ceil(board.square_m / (spacing / 2))
+    per_square = math.ceil(board.square_m / spacing)
     per_square = min(per_square, MAX_TEXELS // (board.squares[0] + 2))
     return board.texture(per_square / board.square_m)
 
