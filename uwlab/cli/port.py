@@ -50,6 +50,7 @@ def register(subparsers) -> None:
     b.add_argument("--board", metavar="FILE", help="board TOML (default configs/boards/charuco-7x5-40mm.toml)")
     b.add_argument("--dpi", type=int, default=300, help="print resolution (default 300)")
     b.add_argument("--out", required=True, metavar="FILE.png", help="new PNG file")
+    b.add_argument("--json", action="store_true", help='print {"path", "size_mm", "dpi", "board"}')
     b.set_defaults(func=run_board)
 
 
@@ -158,5 +159,9 @@ def run_board(args) -> int:
     board = CharucoBoard.from_toml(args.board)
     path = write_printable(board, args.out, args.dpi)
     width, height = (round(s * 1e3) for s in board.printed_size_m)
-    print(f"{path}: {width} mm × {height} mm at {args.dpi} dpi (print at 100 % scale, then measure a square)")
+    if args.json:
+        record = {"path": path, "size_mm": [width, height], "dpi": args.dpi, "board": board.to_dict()}
+        sys.stdout.write(dumps(record) + "\n")
+    else:
+        print(f"{path}: {width} mm × {height} mm at {args.dpi} dpi (print at 100 % scale, then measure a square)")
     return 0

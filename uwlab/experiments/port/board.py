@@ -8,20 +8,48 @@ origin (the outer corner of its white margin), so pixel centres are at (j + ½, 
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
 import numpy as np
 
+from pydantic import Field, model_validator
+
 from uwlab.errors import ConfigError
-from uwlab.model.config import Num
 from uwlab.model.data import config_dir, read_toml
+from uwlab.model.schema import NonEmptyText, Schema, invalid, parse, quantity
 
 DEFAULT_BOARD = "boards/charuco-7x5-40mm.toml"
 BLACK_REFLECTANCE = 0.04     # matte black print (assumed)
 WHITE_REFLECTANCE = 0.80     # matte white paper (assumed)
 REFINE_MAX_HALF_WINDOW = 5
+# Squares per side of a printable board; square and marker sides (a size in metres or µm is outside).
+SquareCount = quantity(3, 100, "squares", hint="", integer=True)
+BoardMm = quantity(0.5, 1000.0, "mm")
+MarginMm = quantity(0.0, 1000.0, "mm")
+
+
+class BoardConfig(Schema):
+    """A ChArUco board file (configs/boards/*.toml)."""
+
+    squares: tuple[SquareCount, SquareCount] = Field(description="chessboard squares [columns, rows]")
+    square_mm: BoardMm = Field(description="side of a chessboard square, as printed and measured [mm]")
+    marker_mm: BoardMm = Field(description="side of an ArUco marker [mm]")
+    dictionary: NonEmptyText = Field(description="OpenCV ArUco dictionary, e.g. DICT_5X5_100")
+    margin_mm: MarginMm = Field(20.0, description="white border around the squares [mm]")
+
+    @model_validator(mode="after")
+    def _consistent(self):
+        if self.marker_mm >= self.square_mm:
+            raise invalid("marker_mm", self.marker_mm, "must be smaller than square_mm")
+        if not (self.dictionary.startswith("DICT_") and hasattr(cv2.aruco, self.dictionary)):
+            raise invalid("dictionary", self.dictionary, "must name an OpenCV ArUco dictionary, e.g. DICT_5X5_100")
+        needed = (self.squares[0] * self.squares[1]) // 2
+        markers = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, self.dictionary)).bytesList.shape[0]
+        if markers < needed:
+            raise invalid("dictionary", self.dictionary, f"has {markers} markers; the board needs {needed}")
+        return self
 
 
 @dataclass(frozen=True)
@@ -42,33 +70,15 @@ class CharucoBoard:
 
     @classmethod
     def from_dict(cls, raw: dict) -> CharucoBoard:
-        known = {"squares", "square_mm", "marker_mm", "dictionary", "margin_mm"}
-        for key in raw:
-            if key not in known:
-                raise ConfigError(f"board.{key}", raw[key], f"unknown key; a board has {', '.join(sorted(known))}")
-        squares = raw.get("squares")
-        if not (isinstance(squares, list) and len(squares) == 2
-                and all(isinstance(v, int) and 3 <= v <= 100 for v in squares)):
-            raise ConfigError("board.squares", squares, "must be [columns, rows], integers from 3 to 100")
-        square = Num(lo=1.0, hi=1000.0).check("board.square_mm", raw.get("square_mm"))
-        marker = Num(lo=0.5, hi=1000.0).check("board.marker_mm", raw.get("marker_mm"))
-        if marker >= square:
-            raise ConfigError("board.marker_mm", marker, "must be smaller than square_mm")
-        margin = Num(lo=0.0, hi=1000.0).check("board.margin_mm", raw.get("margin_mm", 20.0))
-        name = raw.get("dictionary")
-        if not (isinstance(name, str) and name.startswith("DICT_") and hasattr(cv2.aruco, name)):
-            raise ConfigError("board.dictionary", name, "must name an OpenCV ArUco dictionary, e.g. DICT_5X5_100")
-        board = cls((squares[0], squares[1]), square * 1e-3, marker * 1e-3, name, margin * 1e-3)
-        needed = (squares[0] * squares[1]) // 2
-        if cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, name)).bytesList.shape[0] < needed:
-            raise ConfigError("board.dictionary", name, f"has fewer than the {needed} markers the board needs")
-        return board
+        """A board from its TOML form (`BoardConfig`, millimetres)."""
+        config = parse(BoardConfig, raw, "board")
+        return cls(config.squares, config.square_mm * 1e-3, config.marker_mm * 1e-3, config.dictionary,
+                   config.margin_mm * 1e-3)
 
     def to_dict(self) -> dict:
         """The TOML form (millimetres)."""
-        raw = asdict(self)
-        return {"squares": list(self.squares), "square_mm": raw["square_m"] * 1e3, "marker_mm": raw["marker_m"] * 1e3,
-                "dictionary": self.dictionary, "margin_mm": raw["margin_m"] * 1e3}
+        return {"squares": list(self.squares), "square_mm": self.square_m * 1e3, "marker_mm": self.marker_m * 1e3,
+                "dictionary": self.dictionary, "margin_mm": self.margin_m * 1e3}
 
     @property
     def size_m(self) -> tuple[float, float]:
