@@ -54,8 +54,8 @@ def _comma_list(value):
     return value
 
 
-Vector2Deg = Annotated[tuple[TiltDeg, TiltDeg], BeforeValidator(_comma_list)]
-Vector3Mm = Annotated[tuple[DecenterMm, DecenterMm, DecenterMm], BeforeValidator(_comma_list)]
+Vector2Deg = Annotated[list[TiltDeg], Field(min_length=2, max_length=2), BeforeValidator(_comma_list)]
+Vector3Mm = Annotated[list[DecenterMm], Field(min_length=3, max_length=3), BeforeValidator(_comma_list)]
 
 
 def _section(model):
@@ -126,13 +126,13 @@ class Housing(Schema):
     dome_radius_mm: Grid[HousingMm] | None = Field(None, description="dome outer radius [mm] (dome ports)")
     dome_thickness_mm: Grid[HousingMm] | None = Field(None, description="dome wall thickness [mm] (dome ports)")
     dome_decenter_mm: Vector3Mm = Field(
-        (0.0, 0.0, 0.0), description="[x, y, z] of the entrance pupil from the dome's centre, camera axes "
+        [0.0, 0.0, 0.0], description="[x, y, z] of the entrance pupil from the dome's centre, camera axes "
                                      "(x right, y down, z forward) [mm] (dome ports; `uwlab port`)")
     flat_thickness_mm: Grid[WindowMm] = Field(0.0, description="flat window thickness [mm] (0: a thin window)")
     flat_air_gap_mm: Grid[AirGapMm] = Field(
         0.0, description="entrance pupil → inner face of the flat window, along its normal [mm]")
     flat_tilt_deg: Vector2Deg = Field(
-        (0.0, 0.0), description="[x, y] angles of the flat window's normal from the optical axis in the x–z and "
+        [0.0, 0.0], description="[x, y] angles of the flat window's normal from the optical axis in the x–z and "
                                 "y–z planes [deg] (`uwlab port`)")
 
     @model_validator(mode="after")
