@@ -83,9 +83,10 @@ def _trace_table(result: dict) -> str:
          "n/a" if aid["close_up_lens_dpt"] is None else f"{aid['close_up_lens_dpt']:.2f}", "dpt"),
         ("depth of field in water (near, far)", f"{aid['dof_m']['near']:.3f}, "
          + ("inf" if aid["dof_m"]["far"] == float("inf") else f"{aid['dof_m']['far']:.3f}"), "m"),
-        ("edge in focus", str(aid["edge_in_focus"]).lower(), ""),
+        ("in focus when focused on axis (edge, corner)",
+         f"{str(aid['edge_in_focus']).lower()}, {str(aid['corner_in_focus']).lower()}", ""),
     ]
-    return "\n".join(f"{label:<38} {value} {unit}".rstrip() for label, value, unit in rows)
+    return "\n".join(f"{label:<46} {value} {unit}".rstrip() for label, value, unit in rows)
 
 
 def run_trace(args) -> int:

@@ -172,6 +172,7 @@ def trace_design(d, samples: int = 41) -> dict:
     err_rad_c, err_m_c = paraxial_error(port, corners, f)
     tan_axis, sag_axis = virtual_image_z(port, np.zeros(2), f, altitude)
     tan_edge, sag_edge = virtual_image_z(port, edges, f, altitude)
+    tan_corner, sag_corner = virtual_image_z(port, corners, f, altitude)
     image_axis = 0.5 * (tan_axis + sag_axis)
     image_edge = 0.5 * (tan_edge + sag_edge)
     f_eff = float(effective_focal_length_m(d))
@@ -207,15 +208,16 @@ def trace_design(d, samples: int = 41) -> dict:
         "paraxial_error_px": {"edge": _worst(err_m_e / pixel), "corner": _worst(err_m_c / pixel)},
         "virtual_image_m": {"on_axis": float(image_axis),
                             "edge": float(image_edge[np.argmax(np.abs(image_edge - image_axis))])},
-        "focus": focus_aids(d, float(image_axis), image_edge),
+        "focus": focus_aids(d, float(image_axis), np.r_[tan_edge, sag_edge], np.r_[tan_corner, sag_corner]),
         "profile": profile,
     }
 
 
-def focus_aids(d, image_axis_m: float, image_edge_m) -> dict:
+def focus_aids(d, image_axis_m: float, image_edge_m, image_corner_m) -> dict:
     """Focusing aids from the traced virtual images: focus setting and close-up lens for the on-axis image, the
-    depth of field in water around the working altitude, and whether the edge's image lies within the lens's
-    depth of field (image space, in air) when focused on axis."""
+    depth of field in water around the working altitude, and whether the images (tangential and sagittal) of
+    the edges and of the corners lie within the lens's depth of field (image space, in air) when it is focused
+    on axis."""
     min_focus = d["lens.min_focus_distance_m"]
     f = float(d["lens.focal_length_mm"]) * 1e-3
     n = float(d["lens.f_number"])
@@ -224,14 +226,18 @@ def focus_aids(d, image_axis_m: float, image_edge_m) -> dict:
     dpt = float(focus.close_up_lens_dpt(image_axis_m, min_focus))
     near_a, far_a = optics.dof_in_air(image_axis_m, f, n, coc_m)
     near_w, far_w = _dof_in_water(d, f, n, coc_m)
-    edge = np.asarray(image_edge_m, float)
+    def inside(images):
+        images = np.asarray(images, float)
+        return bool(np.all((images >= near_a) & (images <= far_a)))
+
     return {
         "image_distance_m": image_axis_m,
         "setting_m": setting,
         "close_up_lens_dpt": None if min_focus is None else dpt,
         "dof_m": {"near": float(near_w), "far": float(far_w)},
         "image_dof_m": {"near": float(near_a), "far": float(far_a)},
-        "edge_in_focus": bool(np.all((edge >= near_a) & (edge <= far_a))),
+        "edge_in_focus": inside(image_edge_m),
+        "corner_in_focus": inside(image_corner_m),
     }
 
 

@@ -69,12 +69,11 @@ def plot_focus(design, trace: dict, path: Path) -> Path:
     if min_focus is not None:
         ax.axhline(min_focus * 1e3, color="grey", linestyle=":", label=f"lens closest focus {min_focus * 1e3:.0f} mm")
     ax.set(xlabel="field angle in air [deg]", ylabel="virtual image distance from the entrance pupil [mm]")
-    verdict = "edge IN focus" if aid["edge_in_focus"] else "edge OUT of focus"
-    extra = ""
-    if aid["close_up_lens_dpt"]:
-        extra = f"; needs a +{aid['close_up_lens_dpt']:.2f} dpt close-up lens"
-    ax.set_title(f"{_port_label(design)}\ntarget at {design['operation.altitude_m']:g} m: focus at "
-                 f"{aid['setting_m'] * 1e3:.0f} mm, f/{design['lens.f_number']:g} — {verdict}{extra}", fontsize=9)
+    verdict = (f"edge {'IN' if aid['edge_in_focus'] else 'OUT of'} focus, "
+               f"corner {'IN' if aid['corner_in_focus'] else 'OUT of'} focus")
+    close_up = f" with a +{aid['close_up_lens_dpt']:.2f} dpt close-up lens" if aid["close_up_lens_dpt"] else ""
+    ax.set_title(f"{_port_label(design)}\ntarget at {design['operation.altitude_m']:g} m: lens set to "
+                 f"{aid['setting_m'] * 1e3:.0f} mm{close_up}, f/{design['lens.f_number']:g} — {verdict}", fontsize=9)
     ax.legend(fontsize=7, loc="best")
     return save_figure(fig, path)
 
