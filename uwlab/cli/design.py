@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from uwlab.errors import ConfigError
+from uwlab.experiments.design.readout import design_warnings, table_text
 from uwlab.jsonable import to_jsonable
 from uwlab.model.config import apply_override, load_raw, parse_value, split_assignment
 
@@ -72,71 +73,6 @@ def parse_grid_values(key: str, text: str) -> list:
 
 JSON_POINTS = 10_000
 SOLVE_SAMPLES = 500
-
-
-_TABLE = (
-    ("effective_focal_length_mm", "effective focal length", "mm", "{:.2f}"),
-    ("fov_deg", "field of view (x, y)", "deg", "{:.2f}"),
-    ("fov_m", "footprint at altitude (x, y)", "m", "{:.3f}"),
-    ("max_exposure_s", "max exposure for blur", "s", "{:.4g}"),
-    ("exposure_s", "exposure", "s", "{:.4g}"),
-    ("min_framerate_hz", "min framerate", "Hz", "{:.3g}"),
-    ("dof_m", "depth of field (near, far)", "m", "{:.3f}"),
-    ("min_f_number_for_dof", "min f-number for DoF", "", "{:.2f}"),
-    ("dome_virtual_image_m", "dome virtual image", "m", "{:.4f}"),
-    ("focus_image_m", "target's image (focus on it)", "m", "{:.4f}"),
-    ("focus_setting_m", "lens focus setting", "m", "{:.4f}"),
-    ("close_up_lens_dpt", "close-up lens needed", "dpt", "{:.2f}"),
-    ("target_irradiance_w_m2", "target irradiance", "W/m²", "{:.4g}"),
-    ("sensor_irradiance_w_m2", "sensor irradiance", "W/m²", "{:.4g}"),
-    ("mean_electrons", "mean signal (on axis)", "e-", "{:.1f}"),
-    ("mean_dn", "mean response (on axis)", "DN", "{:.1f}"),
-    ("mean_fraction", "fraction of full scale", "", "{:.3f}"),
-    ("saturated", "saturated", "", "{}"),
-    ("snr", "SNR", "", "{:.1f}"),
-    ("snr_db", "SNR", "dB", "{:.1f}"),
-    ("image_average", "image average (e-, DN, SNR)", "", "{:.1f}"),
-)
-
-
-def _format(value, fmt: str) -> str:
-    if value is None:
-        return "n/a"
-    if isinstance(value, dict):
-        return ", ".join(_format(v, fmt) for v in value.values())
-    if isinstance(value, bool):
-        return str(value).lower()
-    return "inf" if value is None or (isinstance(value, float) and math.isinf(value)) else fmt.format(value)
-
-
-_STAGES = {
-    "beam_to_view": "beam → field of view", "water_to_target": "water, light → target",
-    "reflectance": "target reflectance",
-    "water_to_camera": "water, target → camera", "port": "port", "aperture": "aperture (pupil / distance)",
-    "lens_transmittance": "lens transmittance", "quantum_efficiency": "quantum efficiency",
-}
-
-
-def _budget(stops: dict) -> list[str]:
-    """The "what limits me" readout: stops lost per stage, the largest marked."""
-    worst = max(stops, key=lambda k: -math.inf if stops[k] is None else stops[k])
-    lines = ["light lost per stage (stops)"]
-    for key, label in _STAGES.items():
-        mark = "  ← limits the signal most" if key == worst else ""
-        lines.append(f"  {label:<30} {_format(stops[key], '{:.2f}')}{mark}")
-    total = sum(v for v in stops.values() if v is not None)
-    lines.append(f"  {'total (lights → electrons)':<30} {total:.2f}")
-    return lines
-
-
-def _table(result: dict) -> str:
-    lines = []
-    for key, label, unit, fmt in _TABLE:
-        value = result[key]
-        text = _format(value, fmt) if value is not None else "n/a"
-        lines.append(f"{label:<32} {text} {unit}".rstrip())
-    lines += _budget(result["light_budget_stops"])
-    return "\n".join(lines)
 
 
 _BAND = (("mean_dn", "mean response (on axis)", "DN", "{:.1f}"),
@@ -263,7 +199,7 @@ def run(args) -> int:
         json.dump(result, sys.stdout, indent=2)
         sys.stdout.write("\n")
     else:
-        print(_table(result))
+        print(table_text(result, design_warnings(design, result)))
         if args.posterior:
             print(_band_text(result["posterior"]))
         if args.out:
@@ -366,7 +302,7 @@ def _solve_text(answer: dict) -> str:
         if answer["at_bounds"]:
             lines.append(f"at a bound: {', '.join(answer['at_bounds'])}")
         lines.append("design at the solution:")
-        lines.append(_table(answer["outputs"]))
+        lines.append(table_text(answer["outputs"]))
     for key in ("out", "plot"):
         if key in answer:
             lines.append(f"{key}: {answer[key]}")

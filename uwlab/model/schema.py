@@ -140,6 +140,8 @@ class Limits:
                "exclusiveMaximum" if self.hi_open else "maximum": self.hi}
         if self.unit:
             out["unit"] = self.unit
+        if self.grid:
+            out["grid"] = True  # `uwlab design --grid` can vary it
         return out
 
 

@@ -14,22 +14,17 @@ from matplotlib.ticker import ScalarFormatter  # noqa: E402
 
 from uwlab.errors import ConfigError  # noqa: E402
 from uwlab.experiments.figures import save_figure  # noqa: E402
-from uwlab.model.design import Design, evaluate, stage_spectra  # noqa: E402
-from uwlab.model.sensor import available_profiles, load_sensor_profile  # noqa: E402
-from uwlab.model.water import WATER_TYPES, water_iop  # noqa: E402
+from uwlab.experiments.design.curves import (dof_curves, operation_curves, quantum_efficiency,  # noqa: E402
+                                             water_attenuation)
+from uwlab.model.design import Design, stage_spectra  # noqa: E402
 
 
 def plot_dof(design: Design, path: Path) -> Path:
-    f_numbers = np.geomspace(1.0, 22.0, 60)
-    altitude = float(design["operation.altitude_m"])
-    focus = altitude * np.array([0.5, 1.0, 2.0, 4.0])
-    grid = design.with_values(**{"lens.f_number": f_numbers[None, :], "operation.altitude_m": focus[:, None]})
-    dof = evaluate(grid)["dof_m"]
+    curves = dof_curves(design)
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    for i, s in enumerate(focus):
-        far = np.where(np.isfinite(dof["far"][i]), dof["far"][i], np.nan)
-        line, = ax.plot(f_numbers, far, label=f"focus {s:.2f} m")
-        ax.plot(f_numbers, dof["near"][i], color=line.get_color(), linestyle="--")
+    for s, near, far in zip(curves["focus_m"], curves["near_m"], curves["far_m"]):
+        line, = ax.plot(curves["f_number"], np.where(np.isfinite(far), far, np.nan), label=f"focus {s:.2f} m")
+        ax.plot(curves["f_number"], near, color=line.get_color(), linestyle="--")
     ax.set(xscale="log", xlabel="f-number N", ylabel="object distance in water [m]",
            title="Depth of field: far (solid) and near (dashed) limits")
     ax.legend()
@@ -52,14 +47,11 @@ def plot_stages(design: Design, path: Path) -> Path:
 
 
 def plot_operation(design: Design, path: Path) -> Path:
-    speeds = np.linspace(0.1, 3.0, 60)
-    altitude = float(design["operation.altitude_m"])
-    altitudes = altitude * np.array([0.5, 1.0, 2.0, 4.0])
-    out = evaluate(design.with_values(**{"operation.speed_m_s": speeds[None, :], "operation.altitude_m": altitudes[:, None]}))
+    curves = operation_curves(design)
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4))
-    for i, h in enumerate(altitudes):
-        a1.plot(speeds, out["min_framerate_hz"][i], label=f"altitude {h:.2f} m")
-        a2.plot(speeds, out["max_exposure_s"][i] * 1e3, label=f"altitude {h:.2f} m")
+    for h, framerate, exposure in zip(curves["altitude_m"], curves["min_framerate_hz"], curves["max_exposure_s"]):
+        a1.plot(curves["speed_m_s"], framerate, label=f"altitude {h:.2f} m")
+        a2.plot(curves["speed_m_s"], exposure * 1e3, label=f"altitude {h:.2f} m")
     a1.set(xlabel="speed [m/s]", ylabel="minimum framerate [Hz]", title="Framerate for the overlap")
     a2.set(xlabel="speed [m/s]", ylabel="maximum exposure [ms]", yscale="log", title="Exposure for the blur limit")
     a1.legend()
@@ -68,8 +60,8 @@ def plot_operation(design: Design, path: Path) -> Path:
 
 def plot_water(design: Design, path: Path) -> Path:
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    for name in WATER_TYPES:
-        ax.plot(design.grid.nm, water_iop(name, design.grid).c_per_m, label=name)
+    for name, c in water_attenuation(design.grid).items():
+        ax.plot(design.grid.nm, c, label=name)
     ax.set(yscale="log", xlabel="wavelength [nm]", ylabel="beam attenuation c = a + b [1/m]",
            title="Water attenuation profiles")
     ax.legend(fontsize=7, ncol=2)
@@ -78,9 +70,8 @@ def plot_water(design: Design, path: Path) -> Path:
 
 def plot_qe(design: Design, path: Path) -> Path:
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    for name in available_profiles():
-        profile = load_sensor_profile(name)
-        ax.plot(profile.qe_nm, profile.qe["combined"], label=profile.name, linewidth=2.5 if profile is design.sensor else 1)
+    for name, (nm, qe) in quantum_efficiency((design.sensor,)).items():
+        ax.plot(nm, qe, label=name, linewidth=2.5 if name == design.sensor.name else 1)
     ax.set(xlabel="wavelength [nm]", ylabel="quantum efficiency η", title="Sensor quantum efficiency (mono / combined)")
     ax.legend(fontsize=7)
     return save_figure(fig, path)
