@@ -22,7 +22,7 @@ from uwlab.model.design import Design, stage_spectra  # noqa: E402
 def plot_dof(design: Design, path: Path) -> Path:
     curves = dof_curves(design)
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    for s, near, far in zip(curves["focus_m"], curves["near_m"], curves["far_m"]):
+    for s, near, far in zip(curves["focus_m"], curves["near_m"], curves["far_m"], strict=True):
         line, = ax.plot(curves["f_number"], np.where(np.isfinite(far), far, np.nan), label=f"focus {s:.2f} m")
         ax.plot(curves["f_number"], near, color=line.get_color(), linestyle="--")
     ax.set(xscale="log", xlabel="f-number N", ylabel="object distance in water [m]",
@@ -49,7 +49,8 @@ def plot_stages(design: Design, path: Path) -> Path:
 def plot_operation(design: Design, path: Path) -> Path:
     curves = operation_curves(design)
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4))
-    for h, framerate, exposure in zip(curves["altitude_m"], curves["min_framerate_hz"], curves["max_exposure_s"]):
+    for h, framerate, exposure in zip(curves["altitude_m"], curves["min_framerate_hz"], curves["max_exposure_s"],
+                                      strict=True):
         a1.plot(curves["speed_m_s"], framerate, label=f"altitude {h:.2f} m")
         a2.plot(curves["speed_m_s"], exposure * 1e3, label=f"altitude {h:.2f} m")
     a1.set(xlabel="speed [m/s]", ylabel="minimum framerate [Hz]", title="Framerate for the overlap")
