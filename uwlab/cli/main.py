@@ -13,7 +13,8 @@ import sys
 from uwlab import __version__
 from uwlab.errors import UwlabError
 
-SUBCOMMAND_MODULES = ("design", "devices", "grab", "light", "spectrum", "sim", "sweep", "dataset", "emva", "fit", "report", "demo", "port")
+SUBCOMMAND_MODULES = ("design", "explore", "devices", "grab", "light", "spectrum", "sim", "sweep", "dataset", "emva",
+                      "fit", "report", "demo", "port")
 
 
 class _Parser(argparse.ArgumentParser):
