@@ -1,0 +1,65 @@
+"""`uwlab explore`: prints its URL (one JSON line with --json), serves the page and the API there, stops on Ctrl-C
+with one line and 130; a bad config, a busy port or a bad profile is one line and exit 2 before anything runs."""
+import json
+import socket
+
+import httpx
+import pytest
+
+from uwlab.cli.main import main
+
+from tests.sim.conftest import EXAMPLE
+from tests.sim.explorer_process import Explorer
+
+
+def test_serves_the_page_and_the_api_and_stops_on_ctrl_c():
+    explorer = Explorer(str(EXAMPLE))
+    try:
+        assert explorer.url.startswith("http://127.0.0.1:")
+        page = httpx.get(explorer.url, timeout=30)
+        assert page.status_code == 200 and "uwlab" in page.text and 'data-key="lens.f_number"' in page.text
+        answer = httpx.post(explorer.url + "api/design", json={"set": {"lens.f_number": 4}}, timeout=30)
+        assert answer.status_code == 200 and answer.json()["snr_db"] > 0
+    finally:
+        code, err = explorer.stop()
+    assert code == 130 and err == "uwlab explore: interrupted\n"
+
+
+def run_error(capsys, *argv) -> str:
+    assert main(["explore", "--no-browser", *argv]) == 2
+    out, err = capsys.readouterr()
+    assert out == "" and err.count("\n") == 1 and "Traceback" not in err
+    return err
+
+
+def test_bad_inputs_are_one_line(capsys, tmp_path):
+    assert "file not found" in run_error(capsys, str(tmp_path / "none.toml"))
+    bad = tmp_path / "bad.toml"
+    bad.write_text(EXAMPLE.read_text().replace("f_number = 2.0", "f_number = 0.02"))
+    assert "lens.f_number = 0.02" in run_error(capsys, str(bad))
+    assert "--port" in run_error(capsys, str(EXAMPLE), "--port", "70000")
+    assert "--host" in run_error(capsys, str(EXAMPLE), "--host", "no.such.host.invalid")
+    assert "profile" in run_error(capsys, str(EXAMPLE), "--profile", str(EXAMPLE))
+
+
+def test_a_busy_port_is_one_line(capsys):
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen(1)
+        port = busy.getsockname()[1]
+        err = run_error(capsys, str(EXAMPLE), "--port", str(port))
+    assert f"--port = {port}" in err and "cannot listen" in err
+
+
+@pytest.mark.parametrize("argv", [["--json"], []])
+def test_url_line(argv, capsys, monkeypatch):
+    """The URL is printed before serving: one JSON object with --json, a sentence otherwise."""
+    import uvicorn
+
+    monkeypatch.setattr(uvicorn.Server, "run", lambda self, sockets: sockets[0].close())
+    assert main(["explore", str(EXAMPLE), "--no-browser", "--port", "0", *argv]) == 0
+    out = capsys.readouterr().out
+    if argv:
+        assert list(json.loads(out)) == ["url"]
+    else:
+        assert out.startswith("uwlab explore: ") and "http://127.0.0.1:" in out
