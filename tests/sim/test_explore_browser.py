@@ -3,7 +3,6 @@ running as a process on 127.0.0.1. Load the page, change a value and see the res
 its number, save the design as TOML and load it back, open a shared URL, trigger a bad value and see the message,
 run a sweep. A screenshot of the page is left in the test's folder for people to look at."""
 import json
-import tempfile
 import time
 from pathlib import Path
 from urllib.parse import parse_qsl, urlsplit

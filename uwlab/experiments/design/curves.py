@@ -24,7 +24,7 @@ ALTITUDE_FACTORS = (0.5, 1.0, 2.0, 4.0)
 F_NUMBERS = np.geomspace(1.0, 22.0, 60)
 SPEEDS_M_S = np.linspace(0.1, 3.0, 60)
 # Focus distances of the depth-of-field-against-distance curve, as multiples of the design's altitude.
-DISTANCE_FACTORS = np.geomspace(0.1, 10.0, 80)
+DISTANCE_FACTORS = np.geomspace(0.1, 10.0, 81)  # odd: the design's own distance is on the curve
 
 
 def dof_curves(design: Design) -> dict[str, np.ndarray]:
