@@ -250,6 +250,26 @@ def test_form_has_every_key_of_the_schema_with_its_unit(client):
     assert exposure.words == ("max-blur",) and exposure.number.lo == 1e-6 and exposure.grid
 
 
+def test_a_key_added_to_the_schema_appears_in_the_form():
+    from pydantic import Field
+
+    from uwlab.model.config import Lens, _section
+    from uwlab.model.schema import FocalLengthMm, Grid
+
+    class ZoomLens(Lens):
+        """The lens, with a zoom."""
+
+        zoom_max_mm: Grid[FocalLengthMm] | None = Field(None, description="longest focal length of a zoom [mm]")
+
+    class ZoomConfig(DesignConfig):
+        lens: ZoomLens = _section(ZoomLens)
+
+    lens = next(s for s in form(ZoomConfig) if s.name == "lens")
+    zoom = lens.fields[-1]
+    assert (zoom.key, zoom.unit, zoom.grid, zoom.required) == ("lens.zoom_max_mm", "mm", True, False)
+    assert (zoom.number.lo, zoom.number.hi) == (1.0, 2000.0) and "longest focal length" in zoom.description
+
+
 def test_plotly_is_served_from_the_installed_package(client):
     import plotly
 

@@ -13,6 +13,7 @@ from dataclasses import asdict, dataclass, field
 from functools import cache
 
 from uwlab.model.config import DesignConfig
+from uwlab.model.schema import Schema
 
 
 @dataclass(frozen=True)
@@ -93,9 +94,9 @@ def _field(section: str, name: str, schema: dict, required: bool) -> FormField:
 
 
 @cache
-def form() -> tuple[FormSection, ...]:
-    """The form of the design config, sections and keys in the schema's order."""
-    schema = DesignConfig.model_json_schema()
+def form(config: type[Schema] = DesignConfig) -> tuple[FormSection, ...]:
+    """The form of the design config (or another config schema of sections), sections and keys in its order."""
+    schema = config.model_json_schema()
     defs = schema.get("$defs", {})
     sections = []
     for name, prop in schema["properties"].items():

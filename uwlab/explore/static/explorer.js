@@ -149,13 +149,13 @@ function showReadout(view) {
     for (const row of view.budget.rows) {
       const tr = budget.insertRow();
       if (row.key === view.budget.worst) tr.classList.add("worst");
-      cell(tr, row.label, "label"); cell(tr, row.text, "num"); cell(tr, row.unit, "unit");
-      cell(tr, row.key === view.budget.worst ? "← limits the signal most" : "", "note");
+      cell(tr, row.label, "label"); cell(tr, row.text, "num");
+      cell(tr, row.key === view.budget.worst ? "← most" : "", "note");
+      if (row.key === view.budget.worst) tr.title = "the stage that limits the signal most";
     }
     const tr = budget.insertRow();
     tr.classList.add("total");
-    cell(tr, "total (lights → electrons)", "label"); cell(tr, view.budget.total, "num"); cell(tr, "stops", "unit");
-    cell(tr, "", "note");
+    cell(tr, "total (lights → electrons)", "label"); cell(tr, view.budget.total, "num"); cell(tr, "", "note");
   }
 }
 
