@@ -98,8 +98,9 @@ def test_crash_then_interrupt_then_resume_completes_exactly_the_missing_points(t
 
 def test_refusals_exit_2_with_one_line(tmp_path, plan_path):
     existing = tmp_path / "existing"
-    existing.mkdir()
-    (existing / "metadata.json").write_text(json.dumps({"plan_sha256": "0" * 64, "plan": {}, "sim": True}))
+    with Dataset.create(existing, {"sweep": [{"id": "x", "kind": "dark", "values": [1]}]}, plan_sha256="0" * 64,
+                        sim=True) as other:
+        other.append_point({"sweep_id": "x", "point_index": 0, "kind": "dark", "frames": 2})
     code, _, err = finish(uwlab("sweep", plan_path, "--sim", "--out", existing, start_new_session=True))
     assert code == 2 and "--force" in err and len(err.strip().splitlines()) == 1
     code, _, err = finish(uwlab("sweep", plan_path, "--sim", "--resume", existing, start_new_session=True))

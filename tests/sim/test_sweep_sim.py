@@ -8,11 +8,11 @@ import pytest
 
 from uwlab.drivers.sim.camera import SimFaults
 from uwlab.errors import ConfigError
-from uwlab.experiments import dataset as ds
+from uwlab.experiments import dataset_store
 from uwlab.experiments.dataset import Dataset, DatasetWriteError
 from uwlab.experiments.acquisition.plan import load_plan
 from uwlab.experiments.acquisition.rigs import HardwareRig, SimRig
-from uwlab.experiments.acquisition.sweep import SweepRunner, check_resumable
+from uwlab.experiments.acquisition.sweep import SweepRunner, check_resumable, open_for_resume
 
 ROOT = Path(__file__).resolve().parents[2]
 HEADER = f"""
@@ -126,23 +126,24 @@ def test_disk_full_keeps_the_points_and_resume_completes(tmp_path, rig, monkeypa
     path.write_text(HEADER + '[[sweep]]\nid = "e"\nkind = "exposure"\nvalues = [100, 200, 300, 400]\ndark = "none"\n')
     plan = load_plan(path)
     data = Dataset.create(tmp_path / "d", plan.raw, plan_sha256=plan.sha256, sim=True)
-    writes = []
-    real_write = ds.pq.write_table
+    parts = []
+    real_write = dataset_store.write_durable
 
-    def fill_up(table, where):
-        writes.append(where)
-        if len(writes) > 2:
-            raise OSError(errno.ENOSPC, "No space left on device")
-        real_write(table, where)
+    def fill_up(where, payload):
+        if where.parent.name == "parts":
+            parts.append(where)
+            if len(parts) > 2:
+                raise OSError(errno.ENOSPC, "No space left on device")
+        real_write(where, payload)
 
-    monkeypatch.setattr(ds.pq, "write_table", fill_up)
+    monkeypatch.setattr(dataset_store, "write_durable", fill_up)
     with pytest.raises(DatasetWriteError, match="No space left on device.*--resume"):
         SweepRunner(plan, data, rig).run()
     monkeypatch.undo()
-    reopened = Dataset.open(tmp_path / "d")
-    assert reopened.completed() == {("e", 0), ("e", 1)}
-    check_resumable(reopened, plan, sim=True)
-    SweepRunner(plan, reopened, rig).run()
+    data.close()
+    assert Dataset.open(tmp_path / "d").completed() == {("e", 0), ("e", 1)}
+    with open_for_resume(tmp_path / "d", plan, sim=True) as resumed:
+        SweepRunner(plan, resumed, rig).run()
     assert sorted(Dataset.open(tmp_path / "d").points()["point_index"]) == [0, 1, 2, 3]
 
 

@@ -2,26 +2,31 @@
 
 Layout (docs/sweeps.md, "Dataset contract"):
 
-- ``points.parquet``: one row per completed point, columns `POINT_SCHEMA` (SI / unit-suffixed, nullable
-  where not applicable);
-- ``spectra.parquet``: long format, one row per wavelength of each spectrometer reading (`SPECTRA_SCHEMA`);
+- the ``points`` table: one row per completed point, columns `POINT_SCHEMA` (SI / unit-suffixed, nullable where
+  not applicable), built by `point_row` (the one row builder) and checked by `check_point_row` (the one row rule);
+- the ``spectra`` table: long format, one row per wavelength of each spectrometer reading (`SPECTRA_SCHEMA`);
+- both stored append-only as Parquet parts listed by ``manifest.json`` (`uwlab.experiments.dataset_store`:
+  checksums, crash safety, flat cost per point);
 - ``metadata.json``: the plan and its hash, device identities, resolved rigs, host, times, software versions;
-- optionally ``frames/`` with TIFFs.
+- ``frames/``: the raw frames of plans with ``save_frames`` (`uwlab.experiments.dataset_frames`);
+- ``lock``: names the one writer (`uwlab.lockfile`); ``quarantine/``: what ``uwlab dataset check --repair`` set
+  aside (`uwlab.experiments.dataset_check`).
 
-Durability: every write goes to a temporary file in the dataset directory, is flushed and fsync'ed, then
-atomically renamed over the old file (``os.replace``, POSIX rename semantics), so a crash at any moment
-leaves the previous, readable version. Spectra are written before their point; spectra of a point that
-never completed are ignored on reading and replaced when the point is measured again. A failed write
-(e.g. ``ENOSPC``, disk full) raises `DatasetWriteError`; what was already recorded stays intact.
+A point is recorded when `Dataset.append_point` returns: its frames, spectra and row are durable together (the
+manifest is the commit point), so a crash or SIGKILL at any moment leaves a readable dataset whose recorded
+points all resume. Readers (`Dataset.open`) take no lock and see the last committed state; writers
+(`Dataset.create`, `Dataset.open_for_writing`) hold the dataset's lock until `Dataset.close`. A failed write
+(disk full, read-only) raises `DatasetWriteError`; what was already recorded stays intact.
 """
 from __future__ import annotations
 
 import json
+import math
+import numbers
 import os
 import platform
 import shutil
 import socket
-import tempfile
 from datetime import datetime, timezone
 from importlib import metadata as importlib_metadata
 from pathlib import Path
@@ -29,19 +34,37 @@ from typing import Any
 
 import pandas as pd
 import pyarrow as pa
-import pyarrow.parquet as pq
+import pyarrow.compute as pc
 
 from uwlab import __version__
 from uwlab.errors import ConfigError, UwlabError
+from uwlab.experiments.dataset_frames import (
+    FRAMES_DIR,
+    FrameRecorder,
+    PointFrames,
+    point_folder,
+    point_frames,
+    staging_folders,
+    stored_point_folders,
+    sweep_folder,
+)
+from uwlab.experiments.dataset_store import (
+    MANIFEST_FILE,
+    PARTS_DIR,
+    DatasetWriteError,
+    ManifestDamaged,
+    PartStore,
+    write_atomic,
+)
 from uwlab.experiments.emva.stream import StackStatistics
 from uwlab.experiments.saturation import POINT_SATURATED_FRACTION, ClipLevel, point_saturated
 from uwlab.jsonable import dumps
+from uwlab.lockfile import LockHeld, OwnerLock
 
-POINTS_FILE = "points.parquet"
-SPECTRA_FILE = "spectra.parquet"
 METADATA_FILE = "metadata.json"
-FRAMES_DIR = "frames"
-DATASET_ENTRIES = (POINTS_FILE, SPECTRA_FILE, METADATA_FILE, FRAMES_DIR)
+LOCK_FILE = "lock"
+QUARANTINE_DIR = "quarantine"
+DATASET_ENTRIES = (METADATA_FILE, MANIFEST_FILE, PARTS_DIR, FRAMES_DIR, QUARANTINE_DIR)
 KINDS = ("exposure", "aperture", "gain", "light-level", "dark")
 SOFTWARE_PACKAGES = ("numpy", "scipy", "pandas", "pyarrow", "colour-science", "opencv-contrib-python-headless",
                      "harvesters", "genicam", "pyserial", "tifffile", "emcee")
@@ -70,10 +93,8 @@ SPECTRA_SCHEMA = pa.schema([
 ])
 REQUIRED_POINT_KEYS = ("sweep_id", "point_index", "kind", "frames")
 KEY = ["sweep_id", "point_index"]
-
-
-class DatasetWriteError(UwlabError):
-    """Writing to the dataset failed (disk full, permissions); everything recorded before is intact."""
+TABLES = {"points": POINT_SCHEMA, "spectra": SPECTRA_SCHEMA}
+FLOAT_COLUMNS = tuple(f.name for f in POINT_SCHEMA if pa.types.is_floating(f.type))
 
 
 def software_versions() -> dict[str, str]:
@@ -91,9 +112,14 @@ def utc_now() -> str:
     return datetime.now(timezone.utc).isoformat(timespec="seconds")
 
 
+class DatasetLocked(UwlabError):
+    """Another live process is writing the dataset (the message names its host and pid)."""
+
+
 def check_point_row(row: dict) -> dict:
-    """A point row with every `POINT_SCHEMA` column (missing ones null); unknown or missing required keys
-    raise `ConfigError` naming the key."""
+    """A point row with every `POINT_SCHEMA` column (missing ones null) — the one rule of what a recorded point
+    is: unknown columns, missing required ones, an unknown kind, fewer than 2 frames, or a NaN/infinite number
+    (a measurement that failed is not recorded) raise `ConfigError` naming the column."""
     for key in row:
         if key not in POINT_SCHEMA.names:
             raise ConfigError(f"point.{key}", row[key], "unknown dataset column")
@@ -104,6 +130,10 @@ def check_point_row(row: dict) -> dict:
         raise ConfigError("point.kind", row["kind"], f"must be one of {', '.join(KINDS)}")
     if int(row["frames"]) < 2:
         raise ConfigError("point.frames", row["frames"], "must be >= 2 (temporal variance needs frame pairs)")
+    for key in FLOAT_COLUMNS:
+        value = row.get(key)
+        if value is not None and not (isinstance(value, numbers.Real) and math.isfinite(value)):
+            raise ConfigError(f"point.{key}", value, "must be a finite number (null when not applicable)")
     return {name: row.get(name) for name in POINT_SCHEMA.names}
 
 
@@ -147,124 +177,137 @@ def spectra_frame(sweep_id: str, point_index: int, readings: list[tuple[str, Any
     return pd.concat(parts, ignore_index=True)
 
 
-def _write_atomic(path: Path, write) -> None:
-    """Write through ``write(tmp_path)`` to a temporary sibling, fsync, then rename over ``path``."""
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    os.close(fd)
-    try:
-        write(tmp)
-        with open(tmp, "rb") as fh:
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except OSError as exc:
-        Path(tmp).unlink(missing_ok=True)
-        raise DatasetWriteError(
-            f"dataset {path.parent}: cannot write {path.name} ({exc.strerror or exc}); "
-            "everything recorded before is intact: free space, then --resume"
-        ) from exc
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-def _write_parquet(path: Path, table: pa.Table) -> None:
-    _write_atomic(path, lambda tmp: pq.write_table(table, tmp))
-
-
-def _write_json(path: Path, document: dict) -> None:
-    def write(tmp: str) -> None:
-        with open(tmp, "w") as fh:
-            fh.write(dumps(document, indent=2))
-            fh.write("\n")
-    _write_atomic(path, write)
-
-
-def _read_table(path: Path, schema: pa.Schema) -> pa.Table:
-    if not path.exists():
-        return schema.empty_table()
-    try:
-        return pq.read_table(path, schema=schema)
-    except (OSError, pa.ArrowInvalid) as exc:
-        raise ConfigError("dataset", str(path), f"unreadable table ({exc})") from None
-
 
 class Dataset:
-    """A dataset directory: create it, open it, append points one at a time (each flushed atomically)."""
+    """A dataset directory. `open` reads the last committed state (no lock); `create` and `open_for_writing` return
+    a writer that holds the dataset's lock until `close` (or process exit) and appends points, each durable on
+    return. A writer is a context manager."""
 
-    def __init__(self, root: Path, metadata: dict, points: pa.Table, spectra: pa.Table):
+    def __init__(self, root: Path, metadata: dict, store: PartStore, lock: OwnerLock | None = None):
         self.root = root
         self.metadata = metadata
-        self._points = points
-        self._spectra = spectra
+        self._store = store
+        self._lock = lock
+        self._keys: set[tuple[str, int]] | None = None
 
     # -- creation and opening ---------------------------------------------------------------------
     @classmethod
     def create(cls, root: str | os.PathLike, plan: dict, *, plan_sha256: str, devices: dict | None = None,
                rigs: dict | None = None, sim: bool = False, sim_truth: dict | None = None,
-               force: bool = False) -> Dataset:
-        """A new, empty dataset at ``root``. An existing dataset there is refused (`ConfigError` on ``out``)
-        unless ``force``, which removes only the dataset's own entries (`DATASET_ENTRIES`)."""
+               force: bool = False, purpose: str = "creating the dataset") -> Dataset:
+        """A new, empty dataset at ``root``, open for writing. A dataset with recorded points there is refused
+        (`ConfigError` on ``out``) unless ``force``, which removes only the dataset's own entries
+        (`DATASET_ENTRIES`); one with nothing recorded (a sweep that stopped before its first point) is replaced."""
         root = Path(root)
-        existing = [name for name in DATASET_ENTRIES if (root / name).exists()]
-        if existing and not force:
-            raise ConfigError("out", str(root), "a dataset exists there; use --resume to complete it or --force "
-                                                "to overwrite it")
         if root.exists() and not root.is_dir():
             raise ConfigError("out", str(root), "exists and is not a directory")
         try:
             root.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise DatasetWriteError(f"dataset {root}: cannot create the directory ({exc.strerror or exc})") from exc
-        for name in existing:
-            _remove(root / name)
-        metadata = {
-            "plan": plan, "plan_sha256": plan_sha256, "uwlab_version": __version__,
-            "devices": devices or {}, "rigs": rigs or {}, "host": socket.gethostname(),
-            "started_utc": utc_now(), "finished_utc": None, "software": software_versions(),
-            "sim": bool(sim), "sim_truth": sim_truth or {},
-        }
-        dataset = cls(root, metadata, POINT_SCHEMA.empty_table(), SPECTRA_SCHEMA.empty_table())
-        dataset._save_metadata()
-        _write_parquet(root / POINTS_FILE, dataset._points)
-        _write_parquet(root / SPECTRA_FILE, dataset._spectra)
+        lock = _take_lock(root, purpose)
+        try:
+            existing = [name for name in DATASET_ENTRIES if (root / name).exists()]
+            if existing and not force and not _nothing_recorded(root):
+                raise ConfigError("out", str(root), "a dataset with recorded points exists there; use --resume to "
+                                                    "complete it or --force to overwrite it")
+            for name in existing:
+                _remove(root / name)
+            metadata = {
+                "plan": plan, "plan_sha256": plan_sha256, "uwlab_version": __version__,
+                "devices": devices or {}, "rigs": rigs or {}, "host": socket.gethostname(),
+                "started_utc": utc_now(), "finished_utc": None, "software": software_versions(),
+                "sim": bool(sim), "sim_truth": sim_truth or {},
+            }
+            dataset = cls(root, metadata, _store(root), lock)
+            dataset._save_metadata()
+        except BaseException:
+            lock.release()
+            raise
+        dataset._keys = set()
         return dataset
 
     @classmethod
     def open(cls, root: str | os.PathLike) -> Dataset:
+        """The dataset at ``root`` for reading (its last committed state)."""
         root = Path(root)
-        meta_path = root / METADATA_FILE
+        return cls(root, _read_metadata(root), _load_store(root))
+
+    @classmethod
+    def open_for_writing(cls, root: str | os.PathLike, purpose: str = "writing") -> Dataset:
+        """The dataset at ``root`` with its lock held: refused (one line naming the holder's host and pid) while
+        another writer holds it; a lock left by a dead process on this host is taken over."""
+        root = Path(root)
+        _read_metadata(root)  # refuse a folder that is not a dataset before creating a lock file in it
+        lock = _take_lock(root, purpose)
         try:
-            metadata = json.loads(meta_path.read_text())
-        except FileNotFoundError:
-            raise ConfigError("dataset", str(root), f"not a dataset (no {METADATA_FILE})") from None
-        except (OSError, ValueError) as exc:
-            raise ConfigError("dataset", str(root), f"unreadable {METADATA_FILE} ({exc})") from None
-        if not isinstance(metadata, dict) or "plan_sha256" not in metadata:
-            raise ConfigError("dataset", str(root), f"{METADATA_FILE} has no plan_sha256")
-        return cls(root, metadata, _read_table(root / POINTS_FILE, POINT_SCHEMA),
-                   _read_table(root / SPECTRA_FILE, SPECTRA_SCHEMA))
+            return cls(root, _read_metadata(root), _load_store(root), lock)
+        except BaseException:
+            lock.release()
+            raise
+
+    @property
+    def writable(self) -> bool:
+        return self._lock is not None and self._lock.held
+
+    def close(self) -> None:
+        """Release the lock (readers: nothing to do)."""
+        if self._lock is not None:
+            self._lock.release()
+
+    def __enter__(self) -> Dataset:
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
 
     # -- writing ----------------------------------------------------------------------------------
-    def append_point(self, row: dict, spectra: pd.DataFrame | None = None) -> None:
-        """Record one completed point (and its spectra, long format) durably before returning.
-
-        A point already recorded (same sweep_id and point_index) is refused: resuming must skip it."""
+    def append_point(self, row: dict, spectra: pd.DataFrame | None = None, frames: FrameRecorder | None = None) -> None:
+        """Record one completed point — its row (`check_point_row`), its spectra (long format) and its raw frames
+        (`frame_recorder`) — durably before returning. A point already recorded (same sweep_id and point_index)
+        is refused: resuming must skip it."""
+        self._require_writer()
         row = check_point_row(row)
         key = (row["sweep_id"], int(row["point_index"]))
-        if key in self.completed():
+        if key in self._recorded_keys():
             raise ConfigError("point", f"{key[0]}#{key[1]}", "already recorded in this dataset")
+        try:
+            tables = {"points": pa.Table.from_pylist([row], schema=POINT_SCHEMA)}
+        except (pa.ArrowInvalid, pa.ArrowTypeError) as exc:
+            raise ConfigError("point", f"{key[0]}#{key[1]}", f"does not fit the dataset schema ({exc})") from None
         if spectra is not None and len(spectra):
-            kept = self._spectra_without(key)
-            new = pa.Table.from_pandas(spectra[SPECTRA_SCHEMA.names], schema=SPECTRA_SCHEMA, preserve_index=False)
-            table = pa.concat_tables([kept, new])
-            _write_parquet(self.root / SPECTRA_FILE, table)
-            self._spectra = table
-        points = pa.concat_tables([self._points, pa.Table.from_pylist([row], schema=POINT_SCHEMA)])
-        _write_parquet(self.root / POINTS_FILE, points)
-        self._points = points
+            tables["spectra"] = _spectra_table(spectra, key)
+        if frames is not None:
+            try:
+                frames.commit()
+            except OSError as exc:
+                raise DatasetWriteError(f"dataset {self.root}: cannot store the frames of {key[0]}#{key[1]} "
+                                        f"({exc.strerror or exc}); everything recorded before is intact") from exc
+        self._store.append(tables)
+        self._recorded_keys().add(key)
+
+    def frame_recorder(self, sweep_id: str, point_index: int) -> FrameRecorder:
+        """Somewhere to write a point's raw frames; they become part of the dataset with the point's row
+        (``append_point(..., frames=recorder)``)."""
+        self._require_writer()
+        final = point_folder(self.root, sweep_id, point_index)
+        return self._recorder(final.parent, final)
+
+    def dark_block_recorder(self, sweep_id: str) -> FrameRecorder:
+        """Somewhere to write a sweep's shared dark frames (``dark = "block"``), for `FrameRecorder.link_darks`;
+        discard it when the sweep ends."""
+        self._require_writer()
+        return self._recorder(self.root / FRAMES_DIR / sweep_folder(sweep_id), None)
+
+    def _recorder(self, sweep_dir: Path, final: Path | None) -> FrameRecorder:
+        try:
+            return FrameRecorder(sweep_dir, final)
+        except OSError as exc:
+            raise DatasetWriteError(f"dataset {self.root}: cannot write frames ({exc.strerror or exc})") from exc
 
     def update_metadata(self, **changes: Any) -> None:
         """Merge top-level keys into metadata.json (atomically); dict values are merged one level deep."""
+        self._require_writer()
         for key, value in changes.items():
             current = self.metadata.get(key)
             self.metadata[key] = {**current, **value} if isinstance(current, dict) and isinstance(value, dict) else value
@@ -273,33 +316,122 @@ class Dataset:
     def finish(self) -> None:
         self.update_metadata(finished_utc=utc_now())
 
-    def _save_metadata(self) -> None:
-        _write_json(self.root / METADATA_FILE, self.metadata)
+    def remove_strays(self) -> None:
+        """Remove what no committed state names: part files and temporaries of interrupted writes, staging folders
+        of frames, frame folders of points not recorded. Call it on a dataset that passes its check (frames of
+        points in a damaged part would look unrecorded)."""
+        self._require_writer()
+        self._store.remove_strays()
+        for folder in staging_folders(self.root):
+            shutil.rmtree(folder, ignore_errors=True)
+        recorded = self.completed()
+        for key, folder in stored_point_folders(self.root).items():
+            if key not in recorded:
+                shutil.rmtree(folder, ignore_errors=True)
 
-    def _spectra_without(self, key: tuple[str, int]) -> pa.Table:
-        frame = self._spectra.to_pandas()
-        keep = ~((frame["sweep_id"] == key[0]) & (frame["point_index"] == key[1]))
-        return pa.Table.from_pandas(frame[keep], schema=SPECTRA_SCHEMA, preserve_index=False)
+    def _save_metadata(self) -> None:
+        write_atomic(self.root / METADATA_FILE, (dumps(self.metadata, indent=2) + "\n").encode())
+
+    def _require_writer(self) -> None:
+        if not self.writable:
+            raise DatasetWriteError(f"dataset {self.root}: opened for reading; use Dataset.open_for_writing")
 
     # -- reading ----------------------------------------------------------------------------------
+    @property
+    def store(self) -> PartStore:
+        """The part store (`uwlab.experiments.dataset_store`), for checking and repairing."""
+        return self._store
+
     def points(self) -> pd.DataFrame:
         """Completed points, one row each, in recording order (nullable columns as pandas NA/None)."""
-        return self._points.to_pandas()
+        return self._store.read_all("points").to_pandas()
 
     def spectra(self) -> pd.DataFrame:
-        """Spectra of completed points only (readings of a point interrupted before completion are dropped)."""
-        frame = self._spectra.to_pandas()
-        done = self.points()[KEY].drop_duplicates()
-        return frame.merge(done, on=KEY, how="inner")
+        """Spectra of the recorded points, long format, in recording order."""
+        return self._store.read_all("spectra").to_pandas()
 
-    def completed(self) -> set[tuple[str, int]]:
+    def completed(self) -> frozenset[tuple[str, int]]:
         """``{(sweep_id, point_index)}`` of the recorded points."""
-        table = self._points.select(KEY).to_pydict()
-        return set(zip(table["sweep_id"], table["point_index"]))
+        return frozenset(self._recorded_keys())
+
+    def _recorded_keys(self) -> set[tuple[str, int]]:
+        if self._keys is None:
+            table = self._store.read_all("points").select(KEY).to_pydict()
+            self._keys = set(zip(table["sweep_id"], table["point_index"]))
+        return self._keys
+
+    def frames(self, sweep_id: str, point_index: int) -> PointFrames:
+        """The raw frames of a recorded point (plan option ``save_frames``): TIFF paths, bright and dark, in
+        acquisition order (`uwlab.experiments.dataset_frames.read_frame` reads one)."""
+        if (sweep_id, int(point_index)) not in self.completed():
+            raise ConfigError("point", f"{sweep_id}#{point_index}", "not recorded in this dataset")
+        found = point_frames(self.root, sweep_id, point_index)
+        if not found.bright:
+            raise ConfigError("point", f"{sweep_id}#{point_index}", "has no raw frames (its sweep ran without "
+                                                                     "save_frames = true)")
+        return found
 
     @property
     def plan_sha256(self) -> str:
         return self.metadata["plan_sha256"]
+
+
+def _spectra_table(spectra: pd.DataFrame, key: tuple[str, int]) -> pa.Table:
+    """A point's spectra as a table: rows of that point only, finite numbers."""
+    table = pa.Table.from_pandas(spectra[SPECTRA_SCHEMA.names], schema=SPECTRA_SCHEMA, preserve_index=False)
+    keys = [pc.unique(table[name]).to_pylist() for name in KEY]
+    if keys != [[key[0]], [key[1]]]:
+        raise ConfigError("spectra", keys, f"rows must belong to the point {key[0]}#{key[1]}")
+    for name in ("wavelength_nm", "irradiance_w_m2_nm"):
+        if not pc.all(pc.is_finite(table[name])).as_py():
+            raise ConfigError(f"spectra.{name}", "NaN or infinite", "must be finite")
+    return table
+
+
+def _store(root: Path) -> PartStore:
+    return PartStore(root, TABLES, cached=("points",))
+
+
+def _load_store(root: Path) -> PartStore:
+    try:
+        return _store(root).load()
+    except ManifestDamaged as exc:
+        raise ConfigError("dataset", str(root), f"{exc}; restore {MANIFEST_FILE} from a backup") from None
+
+
+def _read_metadata(root: Path) -> dict:
+    meta_path = root / METADATA_FILE
+    try:
+        metadata = json.loads(meta_path.read_text())
+    except (FileNotFoundError, NotADirectoryError):
+        raise ConfigError("dataset", str(root), f"not a dataset (no {METADATA_FILE})") from None
+    except (OSError, ValueError) as exc:
+        raise ConfigError("dataset", str(root), f"unreadable {METADATA_FILE} ({exc})") from None
+    if not isinstance(metadata, dict) or "plan_sha256" not in metadata:
+        raise ConfigError("dataset", str(root), f"{METADATA_FILE} has no plan_sha256")
+    return metadata
+
+
+def _take_lock(root: Path, purpose: str) -> OwnerLock:
+    lock = OwnerLock(root / LOCK_FILE, purpose)
+    try:
+        lock.acquire()
+    except LockHeld as exc:
+        raise DatasetLocked(f"dataset {exc}") from None
+    except OSError as exc:
+        raise DatasetWriteError(f"dataset {root}: cannot lock it for writing ({exc.strerror or exc}); "
+                                "nothing was changed") from None
+    return lock
+
+
+def _nothing_recorded(root: Path) -> bool:
+    """True when the dataset at ``root`` records no point, no frames and nothing set aside (a sweep that stopped
+    before its first point): replacing it loses nothing."""
+    try:
+        store = _store(root).load()
+    except ManifestDamaged:
+        return False
+    return not store.parts and not stored_point_folders(root) and not (root / QUARANTINE_DIR).exists()
 
 
 def _remove(path: Path) -> None:
@@ -307,34 +439,3 @@ def _remove(path: Path) -> None:
         shutil.rmtree(path)
     else:
         path.unlink()
-
-
-def summarize(dataset: Dataset) -> dict:
-    """A JSON-able summary: per sweep points done/total and saturated, time span, devices, plan hash."""
-    from uwlab.experiments.acquisition.plan import point_counts
-
-    meta = dataset.metadata
-    points = dataset.points()
-    totals = point_counts(meta.get("plan", {}))
-    sweeps = []
-    for sweep_id, total in totals.items():
-        rows = points[points["sweep_id"] == sweep_id]
-        sweeps.append({"id": sweep_id, "kind": rows["kind"].iloc[0] if len(rows) else None,
-                       "points_done": int(len(rows)), "points_total": int(total),
-                       "saturated_points": int(rows["saturated"].fillna(False).astype(bool).sum()),
-                       "sensor_profile": rows["sensor_profile"].iloc[0] if len(rows) else None,
-                       "lens_label": rows["lens_label"].iloc[0] if len(rows) else None})
-    span = None
-    if len(points):
-        span = {"start_utc": _iso_ns(int(points["t_start_ns"].min())), "end_utc": _iso_ns(int(points["t_end_ns"].max()))}
-    return {
-        "path": str(dataset.root), "plan_name": meta.get("plan", {}).get("name"), "plan_sha256": meta["plan_sha256"],
-        "sim": meta.get("sim"), "started_utc": meta.get("started_utc"), "finished_utc": meta.get("finished_utc"),
-        "points_done": int(len(points)), "points_total": int(sum(totals.values())),
-        "saturated_points": int(sum(s["saturated_points"] for s in sweeps)), "time_span": span,
-        "spectra_rows": int(len(dataset.spectra())), "sweeps": sweeps, "devices": meta.get("devices", {}),
-    }
-
-
-def _iso_ns(ns: int) -> str:
-    return datetime.fromtimestamp(ns / 1e9, timezone.utc).isoformat(timespec="seconds")

@@ -45,8 +45,8 @@ def run_demo(out: Path, sweep_progress: Callable | None = None, fit_progress: Ca
     if out.exists() and any(out.iterdir()):
         raise UwlabError(f"{out} exists and is not empty; choose another --out")
     plan = load_plan(plan_path or config_dir() / DEMO_PLAN)
-    dataset = Dataset.create(out / "dataset", plan.raw, plan_sha256=plan.sha256, sim=True)
-    with SimRig(plan.rig_path) as rig:
+    with Dataset.create(out / "dataset", plan.raw, plan_sha256=plan.sha256, sim=True) as dataset, \
+            SimRig(plan.rig_path) as rig:
         SweepRunner(plan, dataset, rig, sweep_progress).run()
     calibration = calibrate(out / "dataset", None, out / "fit", progress=fit_progress)
     report = write_report(out, out / "report.html")

@@ -1,6 +1,6 @@
 """The validation report: one self-contained HTML file (figures embedded as PNG data URIs).
 
-`write_report(root, out)` looks under `root` (depth ≤ 2) for datasets (``metadata.json`` + ``points.parquet``),
+`write_report(root, out)` looks under `root` (depth ≤ 2) for datasets (``metadata.json`` + ``manifest.json``),
 calibrations (``summary.json`` + ``samples.parquet`` from `uwlab fit`) and EMVA 1288 characterisations
 (``emva.json``), and reports: the set-up, measured against predicted response per camera and lens with 68 % /
 95 % bands and residuals, the posterior table beside the simulated truth, corner plot and traces, the
@@ -22,6 +22,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 
 from uwlab.errors import UwlabError  # noqa: E402
+from uwlab.experiments.dataset_store import MANIFEST_FILE  # noqa: E402
 
 CSS = """body{font-family:sans-serif;max-width:1200px;margin:2em auto;color:#222}table{border-collapse:collapse;margin:1em 0}
 td,th{border:1px solid #ccc;padding:3px 8px;font-size:13px;text-align:right}th{background:#eee}td.l,th.l{text-align:left}
@@ -156,7 +157,7 @@ def write_report(root: str | Path, out: str | Path) -> Path:
     root, out = Path(root), Path(out)
     if not root.is_dir():
         raise UwlabError(f"{root}: not a directory")
-    datasets = _find(root, "metadata.json", "points.parquet")
+    datasets = _find(root, "metadata.json", MANIFEST_FILE)
     calibrations = _find(root, "summary.json", "samples.parquet")
     emva = _find(root, "emva.json")
     if not (datasets or calibrations or emva):

@@ -317,15 +317,21 @@ def parse_plan(raw: dict, path: Path, sha256: str) -> Plan:
                 sweeps=tuple(sweeps), instruments=plan.instruments)
 
 
+def sweep_tables(raw: dict) -> dict[str, dict]:
+    """``{sweep_id: its [[sweep]] table with the plan's [defaults] applied}`` of a parsed plan TOML (as stored in a
+    dataset's metadata; its rig is not read)."""
+    defaults = raw.get("defaults", {}) if isinstance(raw.get("defaults"), dict) else {}
+    tables = raw.get("sweep", [])
+    if not isinstance(tables, list) or not all(isinstance(t, dict) for t in tables):
+        raise ConfigError("sweep", tables, "must be a list of [[sweep]] tables")
+    bodies = [{**defaults, **table} for table in tables]
+    return {str(body.get("id", number)): body for number, body in enumerate(bodies)}
+
+
 def point_counts(raw: dict) -> dict[str, int]:
     """``{sweep_id: number of points}`` of a parsed plan TOML (as stored in a dataset's metadata)."""
-    defaults = raw.get("defaults", {}) if isinstance(raw.get("defaults"), dict) else {}
-    counts = {}
-    for number, table in enumerate(raw.get("sweep", [])):
-        body = {**defaults, **table}
-        sweep_id = body.get("id", number)
-        counts[str(sweep_id)] = len(expand_values(f"sweep.{sweep_id}.values", body.get("values")))
-    return counts
+    return {sweep_id: len(expand_values(f"sweep.{sweep_id}.values", body.get("values")))
+            for sweep_id, body in sweep_tables(raw).items()}
 
 
 def expand_values(key: str, spec: Any) -> tuple[float, ...]:

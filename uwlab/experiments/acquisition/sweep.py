@@ -11,15 +11,20 @@ columns and ``signal_dn = mean_dn − dark_mean_dn``. Frames are streamed throug
 pixels at the camera's clip level in any frame and the point is flagged ``saturated`` (never dropped), both by the
 one rule of `uwlab.experiments.saturation`; the row is built by `uwlab.experiments.dataset.point_row`.
 
-Resume: points already in the dataset are skipped. Every point is flushed before the next starts, so
-Ctrl-C or a crash loses at most the point in progress. A device that disappears is reconnected by the
-camera layer (settings restored); a failed write raises `DatasetWriteError` with the dataset intact.
+With ``save_frames``, every frame the point was computed from, bright and dark (a shared dark block linked into
+each point), is kept as TIFF with its settings (`uwlab.experiments.dataset_frames`), committed with the point.
+
+Resume (`open_for_resume`): the dataset's lock is taken, it must pass its check
+(`uwlab.experiments.dataset_check`) and come from the same plan; points already in it are skipped. Every point is
+durable before the next starts, so Ctrl-C or a crash loses at most the point in progress. A device that
+disappears is reconnected by the camera layer (settings restored); a failed write raises `DatasetWriteError`
+with the dataset intact.
 """
 from __future__ import annotations
 
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -29,7 +34,8 @@ from uwlab.drivers.camera import Camera, Frame
 from uwlab.drivers.camera.pixels import pixel_format
 from uwlab.drivers.serial.base import AVERAGING_RANGE
 from uwlab.errors import ConfigError
-from uwlab.experiments.dataset import FRAMES_DIR, Dataset, point_row, spectra_frame
+from uwlab.experiments.dataset import Dataset, FrameRecorder, point_row, spectra_frame
+from uwlab.experiments.dataset_check import check
 from uwlab.experiments.acquisition.light_calibration import measure_unsaturated
 from uwlab.experiments.acquisition.plan import Plan, Point, SweepSpec, resolved_rig
 from uwlab.experiments.acquisition.rigs import Rig
@@ -81,19 +87,39 @@ class SweepRunner:
 
     def _run_sweep(self, sweep: SweepSpec, todo: list[Point]) -> None:
         self._needs_instruments(sweep)
+        block_frames = None
         with self.rig.open_camera(sweep) as camera:
             self._configure(camera, sweep)
             self._record_devices(sweep, camera)
             self._set_light(sweep.kind != "dark", sweep.light_level, sweep.settle_s)
             roi = self._roi(sweep, camera)
-            block = self._dark(sweep, camera, roi) if sweep.dark == "block" else None
-            for point in todo:
-                row, spectra = self._measure(sweep, camera, roi, point, block)
-                self.dataset.append_point(row, spectra)
-                self._done += 1
-                if self.progress is not None:
-                    self.progress(Progress(self._done, self.plan.total_points(), sweep.id, point.index,
-                                           {k: row[k] for k in ("exposure_us", "signal_dn", "saturated")}))
+            try:
+                block = None
+                if sweep.dark == "block":
+                    block_frames = self.dataset.dark_block_recorder(sweep.id) if sweep.save_frames else None
+                    block = self._dark(sweep, camera, roi, self._keeper(block_frames, "dark", sweep, camera, roi))
+                for point in todo:
+                    self._record(sweep, camera, roi, point, block, block_frames)
+            finally:
+                if block_frames is not None:
+                    block_frames.discard()
+
+    def _record(self, sweep: SweepSpec, camera: Camera, roi: Rect, point: Point, block: StackStatistics | None,
+                block_frames: FrameRecorder | None) -> None:
+        """Measure one point and record it (with its frames when the sweep saves them)."""
+        frames = self.dataset.frame_recorder(sweep.id, point.index) if sweep.save_frames else None
+        try:
+            row, spectra = self._measure(sweep, camera, roi, point, block, frames)
+            if frames is not None and block_frames is not None:
+                frames.link_darks(block_frames)
+            self.dataset.append_point(row, spectra, frames)
+        finally:
+            if frames is not None:
+                frames.discard()  # nothing left once committed; an interrupted point's frames otherwise
+        self._done += 1
+        if self.progress is not None:
+            self.progress(Progress(self._done, self.plan.total_points(), sweep.id, point.index,
+                                   {k: row[k] for k in ("exposure_us", "signal_dn", "saturated")}))
 
     def _needs_instruments(self, sweep: SweepSpec) -> None:
         if self.rig.light is None and (sweep.kind in ("light-level", "dark") or sweep.dark != "none"):
@@ -143,27 +169,29 @@ class SweepRunner:
             return check_inside(f"sweep.{sweep.id}.roi", self.rig.board_roi(sweep, camera, image), image.shape)
         return check_inside(f"sweep.{sweep.id}.roi", sweep.roi, image.shape)
 
-    def _dark(self, sweep: SweepSpec, camera: Camera, roi: Rect) -> StackStatistics:
-        """Statistics of dark frames (light off), leaving the light as the sweep wants it."""
+    def _dark(self, sweep: SweepSpec, camera: Camera, roi: Rect, keep: Callable[[Frame], None] | None = None
+              ) -> StackStatistics:
+        """Statistics of dark frames (light off), leaving the light as the sweep wants it; ``keep`` sees each
+        frame."""
         self._set_light(False, sweep.light_level, sweep.settle_s)
-        stats = self._stack(sweep, camera, roi, sweep.dark_frames)[0]
+        stats = self._stack(sweep, camera, roi, sweep.dark_frames, keep)[0]
         self._set_light(sweep.kind != "dark", sweep.light_level, 0.0)
         return stats
 
     def _stack(self, sweep: SweepSpec, camera: Camera, roi: Rect, count: int,
-               save_as: Point | None = None) -> tuple[StackStatistics, ClipLevel, list[Frame]]:
+               keep: Callable[[Frame], None] | None = None) -> tuple[StackStatistics, ClipLevel, list[Frame]]:
         """Streaming statistics of ``count`` frames over the ROI (one frame in memory at a time), the clip level
         (from the sweep's sensor profile and the first frame, `uwlab.experiments.saturation`) and the frames'
-        metadata (images dropped); with ``save_as``, every frame is also written to ``frames/``."""
+        metadata (images dropped); ``keep`` (saving raw frames) sees every frame."""
         accumulator, clip, kept = None, None, []
-        for number, frame in enumerate(camera.frames(count)):
+        for frame in camera.frames(count):
             image = _crop(frame.image, roi)
             if accumulator is None:
                 clip = self._clip_level(sweep, frame, image)
                 accumulator = StackAccumulator(clip.dn)
             accumulator.add(image)
-            if save_as is not None:
-                self._save_frame(sweep, save_as, number, frame)
+            if keep is not None:
+                keep(frame)
             kept.append(replace(frame, image=None))
         return accumulator.result(), clip, kept
 
@@ -186,14 +214,16 @@ class SweepRunner:
             self.rig.light.set_level(point.light_level)
         self.sleep(sweep.settle_s)
 
-    def _measure(self, sweep: SweepSpec, camera: Camera, roi: Rect, point: Point,
-                 block: StackStatistics | None) -> tuple[dict, pd.DataFrame]:
+    def _measure(self, sweep: SweepSpec, camera: Camera, roi: Rect, point: Point, block: StackStatistics | None,
+                 recorder: FrameRecorder | None) -> tuple[dict, pd.DataFrame]:
         t_start = time.time_ns()
         self._apply(sweep, camera, point)
         bright, clip, frames = self._stack(sweep, camera, roi, sweep.frames_per_point,
-                                           save_as=point if sweep.save_frames else None)
+                                           self._keeper(recorder, "bright", sweep, camera, roi, point))
         readings = [self._spectrum(sweep, position) for position in sweep.spectrometer]
-        dark = block if block is not None else (self._dark(sweep, camera, roi) if sweep.dark == "point" else None)
+        dark = block
+        if sweep.dark == "point":
+            dark = self._dark(sweep, camera, roi, self._keeper(recorder, "dark", sweep, camera, roi, point))
         settings = frames[-1].settings
         lens = replace(sweep.lens, f_number=point.f_number)
         row = point_row(
@@ -239,13 +269,44 @@ class SweepRunner:
             self._set_light(sweep.kind != "dark", sweep.light_level, sweep.settle_s)
         return self._spectrometer_darks[key]
 
-    def _save_frame(self, sweep: SweepSpec, point: Point, number: int, frame: Frame) -> None:
-        import tifffile
+    def _keeper(self, recorder: FrameRecorder | None, role: str, sweep: SweepSpec, camera: Camera, roi: Rect,
+                point: Point | None = None) -> Callable[[Frame], None] | None:
+        """What writes each ``role`` frame to ``recorder`` with its settings (None without a recorder)."""
+        if recorder is None:
+            return None
+        context = {"sweep_id": sweep.id, "point_index": None if point is None else point.index,
+                   "light_on": role == "bright" and sweep.kind != "dark",
+                   "light_level": sweep.light_level if point is None else point.light_level,
+                   "f_number": sweep.lens.f_number if point is None else point.f_number,
+                   "roi": list(roi), "camera": asdict(camera.info)}
 
-        directory = self.dataset.root / FRAMES_DIR / sweep.id
-        directory.mkdir(parents=True, exist_ok=True)
-        tifffile.imwrite(directory / f"point{point.index:05d}-frame{number:03d}.tiff", frame.image,
-                         metadata={"frame_id": frame.frame_id, "settings": frame.settings.to_dict()})
+        def keep(frame: Frame) -> None:
+            recorder.add(role, frame.image, {"frame_id": frame.frame_id, "timestamp_ns": frame.timestamp_ns,
+                                             "pixel_format": frame.pixel_format,
+                                             "settings": frame.settings.to_dict(), **context})
+        return keep
+
+
+def open_for_resume(root: str | Path, plan: Plan, sim: bool, purpose: str = "resuming a sweep") -> Dataset:
+    """The dataset at ``root`` open for writing, to complete with ``plan``: its lock taken (refused while another
+    writer holds it), recorded from the same plan on the same kind of rig (`check_resumable`), passing its check
+    (`uwlab.experiments.dataset_check.check`; a damaged one is refused, naming the repair), the leftovers of
+    interrupted writes removed and its finish time cleared."""
+    dataset = Dataset.open_for_writing(root, purpose)
+    try:
+        check_resumable(dataset, plan, sim)
+        report = check(dataset)
+        if not report.ok:
+            raise ConfigError("resume", str(root), f"the dataset fails its check: {report.summary_line()}; "
+                                                   f"`uwlab dataset check {root}` lists the problems, `--repair` "
+                                                   "sets the damaged points aside (kept in quarantine/) so that "
+                                                   "--resume measures them again")
+        dataset.remove_strays()
+        dataset.update_metadata(finished_utc=None)
+    except BaseException:
+        dataset.close()
+        raise
+    return dataset
 
 
 def check_resumable(dataset: Dataset, plan: Plan, sim: bool) -> None:

@@ -35,14 +35,16 @@ def simulate_photon_transfer(root, truth: SimTruth, *, rate_e_per_s: float, quan
                              exposures_us, frames: int = 2, black_level_dn: float = 32.0,
                              wavelength_nm: float = 525.0, fwhm_nm: float = 20.0, seed: int = 0,
                              force: bool = False) -> Dataset:
-    """Render and record the sweep (one row per exposure, dark frames at every exposure) into a dataset."""
+    """Render and record the sweep (one row per exposure, dark frames at every exposure) into a dataset; returns
+    it open for reading."""
     light = {"on": 1.0}
     sensor = SimSensor(truth, flat_rate_map(rate_e_per_s), lambda: light["on"], seed=seed)
     width, height = truth.resolution_px
     area = (truth.pixel_size_um * 1e-6) ** 2
     nm, spectrum = line_spectrum(rate_e_per_s / (quantum_efficiency * area), wavelength_nm, fwhm_nm)
-    plan = {"sim_photon_transfer": {"exposures_us": [float(t) for t in exposures_us], "frames": frames,
-                                    "rate_e_per_s": rate_e_per_s, "seed": seed}}
+    plan = {"name": SWEEP_ID, "sweep": [{"id": SWEEP_ID, "kind": "exposure", "frames_per_point": frames,
+                                        "values": [float(t) for t in exposures_us]}],
+            "sim_photon_transfer": {"rate_e_per_s": rate_e_per_s, "seed": seed}}
     sim_truth = {**asdict(truth), "quantum_efficiency": quantum_efficiency, "rate_e_per_s": rate_e_per_s,
                  "wavelength_nm": wavelength_nm}
     dataset = Dataset.create(root, plan, plan_sha256=hashlib.sha256(json.dumps(plan).encode()).hexdigest(),
@@ -67,7 +69,8 @@ def simulate_photon_transfer(root, truth: SimTruth, *, rate_e_per_s: float, quan
         )
         dataset.append_point(row, spectra_frame(SWEEP_ID, index, [("camera", nm, spectrum)]))
     dataset.finish()
-    return dataset
+    dataset.close()
+    return Dataset.open(root)
 
 
 def sim_truth_of(root) -> dict:

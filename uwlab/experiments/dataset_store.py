@@ -1,0 +1,301 @@
+"""Append-only storage of a dataset's tables: immutable Parquet part files listed by an atomically replaced manifest.
+
+Layout, inside the dataset directory (docs/sweeps.md, "Storage"):
+
+- ``manifest.json``: ``{"format", "next_id", "parts": [{"id", "level", "tables": {name: {"file", "rows",
+  "sha256"}}}, ...]}``, the parts in recording order. The manifest is the commit point: a part belongs to the
+  dataset once a manifest naming it has been renamed into place. Files it does not name (left by a write that a
+  crash interrupted, or by a merge not yet cleaned up) are ignored by readers and removed by the next writer.
+  No manifest: no parts.
+- ``parts/<id>.<table>.parquet``: rows of one or more appends, Parquet with page checksums.
+
+Appending writes the new part's files (each fsync'ed), then the manifest (`write_atomic`: a temporary sibling,
+fsync, rename, fsync of the directory), so the cost of an append does not grow with what is already stored and a
+crash at any moment leaves the previous manifest and every file it names. To keep the number of files small, when
+the last `FANOUT` parts have one level they are merged into one part of the next level (tiered compaction, up to
+`MAX_LEVEL`: each row is rewritten at most `MAX_LEVEL` times and a part holds at most ``FANOUT**MAX_LEVEL``
+appends); the merged files are removed once the manifest no longer names them.
+
+Reading checks every file against the manifest (SHA-256, row count) and the Parquet page checksums, and conforms
+it to the table's schema (columns a part predates read as null); a file that fails raises `PartDamaged` naming it.
+Files are created with the user's umask (lab data is shared). A failed write (disk full, read-only) raises
+`DatasetWriteError`; the previous state stays intact.
+"""
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import secrets
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import pyarrow as pa
+import pyarrow.parquet as pq
+
+from uwlab.errors import UwlabError
+
+FORMAT = "uwlab-dataset-parts/1"
+MANIFEST_FILE = "manifest.json"
+PARTS_DIR = "parts"
+FANOUT = 16
+MAX_LEVEL = 3
+TMP_MARK = ".tmp-"
+READ_RETRIES = 5
+
+
+class DatasetWriteError(UwlabError):
+    """Writing to the dataset failed (disk full, permissions, read-only); everything recorded before is intact."""
+
+
+class PartDamaged(UwlabError):
+    """A part file is missing, unreadable or disagrees with the manifest (checksum, rows, schema)."""
+
+    def __init__(self, root: Path, file: str, reason: str):
+        self.file = file
+        self.reason = reason
+        super().__init__(f"dataset {root}: {file} is damaged ({reason}); run `uwlab dataset check {root}` "
+                         "(--repair sets the damaged points aside; --resume then measures them again)")
+
+
+class ManifestDamaged(UwlabError):
+    """The manifest is unreadable or not a manifest: the dataset cannot be read."""
+
+
+@dataclass(frozen=True)
+class PartFile:
+    file: str
+    rows: int
+    sha256: str
+
+
+@dataclass(frozen=True)
+class Part:
+    id: int
+    level: int
+    tables: dict[str, PartFile] = field(default_factory=dict)
+
+    def rows(self, name: str) -> int:
+        return self.tables[name].rows if name in self.tables else 0
+
+
+def write_atomic(path: Path, data: bytes) -> None:
+    """Replace ``path`` by ``data`` atomically and durably: a temporary sibling (user's umask), fsync, rename,
+    fsync of the directory. `DatasetWriteError` on failure, with ``path`` untouched and no temporary left."""
+    tmp = path.with_name(f".{path.name}{TMP_MARK}{os.getpid()}-{secrets.token_hex(4)}")
+    try:
+        write_durable(tmp, data)
+        os.replace(tmp, path)
+        fsync_directory(path.parent)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise _write_error(path, exc) from exc
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def write_durable(path: Path, data: bytes) -> None:
+    """Create or truncate ``path`` (user's umask), write ``data`` and fsync it (no rename: for new, unnamed files)."""
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | os.O_CLOEXEC, 0o666)
+    try:
+        view = memoryview(data)
+        while view:
+            view = view[os.write(fd, view):]
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def fsync_directory(path: Path) -> None:
+    fd = os.open(path, os.O_RDONLY | os.O_CLOEXEC)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _write_error(path: Path, exc: OSError) -> DatasetWriteError:
+    return DatasetWriteError(f"dataset {path.parent}: cannot write {path.name} ({exc.strerror or exc}); "
+                             "everything recorded before is intact: free space or fix permissions, then --resume")
+
+
+def parquet_bytes(tables: list[pa.Table], schema: pa.Schema) -> bytes:
+    """One Parquet file (page checksums on) holding ``tables`` in order, one row group or more each."""
+    sink = pa.BufferOutputStream()
+    with pq.ParquetWriter(sink, schema, write_page_checksum=True) as writer:
+        for table in tables:
+            writer.write_table(table)
+    return sink.getvalue().to_pybytes()
+
+
+def conform(table: pa.Table, schema: pa.Schema) -> pa.Table:
+    """``table`` with exactly ``schema``'s columns: missing ones null (older writers), types cast when safe.
+    Unknown columns or impossible casts raise `ValueError` naming the column."""
+    unknown = [name for name in table.column_names if name not in schema.names]
+    if unknown:
+        raise ValueError(f"unknown column {unknown[0]!r}")
+    columns = []
+    for schema_field in schema:
+        if schema_field.name not in table.column_names:
+            columns.append(pa.nulls(table.num_rows, schema_field.type))
+            continue
+        column = table.column(schema_field.name)
+        try:
+            columns.append(column if column.type == schema_field.type else column.cast(schema_field.type))
+        except (pa.ArrowInvalid, pa.ArrowNotImplementedError):
+            raise ValueError(f"column {schema_field.name!r} is {column.type}, expected {schema_field.type}") from None
+    return pa.Table.from_arrays(columns, schema=schema)
+
+
+class PartStore:
+    """The parts of one dataset directory. ``schemas``: the tables (name → schema); tables named in ``cached``
+    are kept in memory once read or written (small ones: the points)."""
+
+    def __init__(self, root: Path, schemas: dict[str, pa.Schema], cached: tuple[str, ...] = ()):
+        self.root = Path(root)
+        self.schemas = schemas
+        self.cached = cached
+        self.parts: list[Part] = []
+        self.next_id = 1
+        self._cache: dict[tuple[int, str], pa.Table] = {}
+
+    @property
+    def manifest_path(self) -> Path:
+        return self.root / MANIFEST_FILE
+
+    # -- the manifest ----------------------------------------------------------------------------
+    def load(self) -> PartStore:
+        """Read the manifest (none: no parts); `ManifestDamaged` if it cannot be read."""
+        try:
+            document = json.loads(self.manifest_path.read_text())
+        except FileNotFoundError:
+            self.parts, self.next_id = [], 1
+            return self
+        except (OSError, ValueError) as exc:
+            raise ManifestDamaged(f"dataset {self.root}: unreadable {MANIFEST_FILE} ({exc})") from None
+        try:
+            if document["format"] != FORMAT:
+                raise ValueError(f"format {document['format']!r}, expected {FORMAT!r}")
+            parts = [Part(int(p["id"]), int(p["level"]),
+                          {name: PartFile(str(f["file"]), int(f["rows"]), str(f["sha256"]))
+                           for name, f in p["tables"].items()})
+                     for p in document["parts"]]
+            next_id = int(document["next_id"])
+        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+            raise ManifestDamaged(f"dataset {self.root}: {MANIFEST_FILE} is not a parts manifest ({exc})") from None
+        self.parts, self.next_id = parts, next_id
+        self._cache = {key: table for key, table in self._cache.items() if key[0] in {p.id for p in parts}}
+        return self
+
+    def _commit(self, parts: list[Part], next_id: int) -> None:
+        document = {"format": FORMAT, "next_id": next_id, "parts": [asdict(p) for p in parts]}
+        write_atomic(self.manifest_path, (json.dumps(document, separators=(",", ":")) + "\n").encode())
+        self.parts, self.next_id = parts, next_id
+
+    # -- reading ----------------------------------------------------------------------------------
+    def read(self, part: Part, name: str) -> pa.Table:
+        """One table of one part, checked (SHA-256, Parquet page checksums, rows, schema); `PartDamaged` if not.
+        A part without that table gives an empty one. `FileNotFoundError` if its file has gone (a concurrent
+        writer merged it: reload and read again)."""
+        key = (part.id, name)
+        if key in self._cache:
+            return self._cache[key]
+        schema = self.schemas[name]
+        entry = part.tables.get(name)
+        if entry is None:
+            return schema.empty_table()
+        data = (self.root / entry.file).read_bytes()
+        if hashlib.sha256(data).hexdigest() != entry.sha256:
+            raise PartDamaged(self.root, entry.file, "SHA-256 differs from the manifest")
+        try:
+            table = conform(pq.read_table(pa.BufferReader(data), page_checksum_verification=True), schema)
+        except (OSError, pa.ArrowException, ValueError) as exc:
+            raise PartDamaged(self.root, entry.file, f"unreadable: {exc}") from None
+        if table.num_rows != entry.rows:
+            raise PartDamaged(self.root, entry.file, f"{table.num_rows} rows, the manifest says {entry.rows}")
+        if name in self.cached:
+            self._cache[key] = table
+        return table
+
+    def read_all(self, name: str) -> pa.Table:
+        """One table over all parts, in recording order (the manifest re-read if a concurrent writer merged
+        parts meanwhile)."""
+        for _ in range(READ_RETRIES):
+            try:
+                return pa.concat_tables([self.schemas[name].empty_table()]
+                                        + [self.read(part, name) for part in self.parts])
+            except FileNotFoundError as exc:
+                missing = Path(exc.filename)
+                self.load()
+        raise PartDamaged(self.root, missing.relative_to(self.root).as_posix(), "missing")
+
+    # -- writing (the caller holds the dataset's lock) ---------------------------------------------
+    def append(self, tables: dict[str, pa.Table]) -> Part:
+        """Store ``tables`` (name → rows, with that table's schema) as a new part, then merge parts if due."""
+        part = self._write_part(self.next_id, 0, {name: [table] for name, table in tables.items() if table.num_rows})
+        self._commit([*self.parts, part], self.next_id + 1)
+        self._cache.update({(part.id, name): table for name, table in tables.items() if name in self.cached})
+        self._compact()
+        return part
+
+    def replace(self, changes: dict[int, dict[str, pa.Table] | None]) -> list[Path]:
+        """Replace parts by id with new contents (None: drop the part), keeping their places and levels; returns
+        the files no longer named (the caller moves them aside)."""
+        parts, next_id, dropped = [], self.next_id, []
+        for part in self.parts:
+            if part.id not in changes:
+                parts.append(part)
+                continue
+            dropped.extend(self.root / f.file for f in part.tables.values())
+            tables = changes[part.id]
+            if tables and any(t.num_rows for t in tables.values()):
+                parts.append(self._write_part(next_id, part.level,
+                                              {n: [t] for n, t in tables.items() if t.num_rows}))
+                next_id += 1
+        self._commit(parts, next_id)
+        self._cache = {key: table for key, table in self._cache.items() if key[0] not in changes}
+        return dropped
+
+    def _write_part(self, part_id: int, level: int, tables: dict[str, list[pa.Table]]) -> Part:
+        (self.root / PARTS_DIR).mkdir(exist_ok=True)
+        files = {}
+        for name, pieces in tables.items():
+            relative = f"{PARTS_DIR}/{part_id:08d}.{name}.parquet"
+            data = parquet_bytes(pieces, self.schemas[name])
+            try:
+                write_durable(self.root / relative, data)
+            except OSError as exc:
+                (self.root / relative).unlink(missing_ok=True)
+                raise _write_error(self.root / relative, exc) from exc
+            files[name] = PartFile(relative, sum(p.num_rows for p in pieces), hashlib.sha256(data).hexdigest())
+        return Part(part_id, level, files)
+
+    def _compact(self) -> None:
+        """Merge the last `FANOUT` parts while they share a level below `MAX_LEVEL`."""
+        while len(self.parts) >= FANOUT:
+            tail = self.parts[-FANOUT:]
+            level = tail[-1].level
+            if level >= MAX_LEVEL or any(p.level != level for p in tail):
+                return
+            pieces = {n: [self.read(p, n) for p in tail if n in p.tables] for n in self.schemas}
+            merged = self._write_part(self.next_id, level + 1, {n: t for n, t in pieces.items() if t})
+            self._cache.update({(merged.id, n): pa.concat_tables([self.schemas[n].empty_table(), *pieces[n]])
+                                for n in self.cached})
+            self._commit([*self.parts[:-FANOUT], merged], self.next_id + 1)
+            for part in tail:
+                for name in part.tables:
+                    self._cache.pop((part.id, name), None)
+                    (self.root / part.tables[name].file).unlink(missing_ok=True)
+
+    # -- files no manifest names -------------------------------------------------------------------
+    def stray_files(self) -> list[Path]:
+        """Files in ``parts/`` the manifest does not name, and temporary files left in the directory."""
+        named = {self.root / f.file for p in self.parts for f in p.tables.values()}
+        parts_dir = self.root / PARTS_DIR
+        strays = [p for p in sorted(parts_dir.iterdir()) if p not in named] if parts_dir.is_dir() else []
+        return strays + sorted(p for p in self.root.iterdir() if TMP_MARK in p.name and p.name.startswith("."))
+
+    def remove_strays(self) -> None:
+        for path in self.stray_files():
+            path.unlink(missing_ok=True)
