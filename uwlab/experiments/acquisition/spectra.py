@@ -10,8 +10,13 @@ use the trapezoidal rule over the measured range.
 - CCT from the CIE 1931 2° chromaticity: XYZ = ∫ E x̄ȳz̄ dλ, xy → CIE 1960 uv → Ohno (2013),
   "Practical use and calculation of CCT and Duv", LEUKOS 10(1), via colour-science ``uv_to_CCT``.
 
-The Sekonic C-7000 CSV export lists ``Spectral Data <λ>[nm],<W/m²/nm>`` rows: a 5 nm block, then a
-1 nm block over the same range; repeated wavelengths are dropped keeping the later (1 nm) value.
+The Sekonic C-7000 CSV export lists ``Spectral Data <λ>[nm],<W/m²/nm>`` rows: a 5 nm block, then a 1 nm block,
+each over 380–780 nm. `read_sekonic_csv` keeps the 1 nm block (the 5 nm one when it is alone) and trusts nothing
+else: every data row must hold a wavelength in `SEKONIC_RANGE_NM` and a finite value in
+[0, `SEKONIC_MAX_W_M2_NM`]; within a block wavelengths increase by one step (1 or 5 nm) from the first to the last
+of the range, without gaps, repeats or strays; a block of each step at most. A file breaking a rule is refused in
+one line naming the line. `SEKONIC_MAX_W_M2_NM` is an assumed plausibility limit, 50 times the peak spectral
+irradiance of sunlight at sea level (about 2 W m⁻² nm⁻¹): beyond it a value is a unit error or corruption.
 """
 from __future__ import annotations
 
@@ -27,7 +32,10 @@ import numpy as np
 from uwlab.errors import ConfigError
 from uwlab.model.photometry import K_M_LM_PER_W, photon_flux
 
-SEKONIC_ROW = re.compile(r"\s*Spectral Data\s+(\d+(?:\.\d+)?)\s*\[nm\]\s*")
+SEKONIC_ROW = re.compile(r"\s*Spectral Data\s+(\S+?)\s*\[nm\]\s*")
+SEKONIC_RANGE_NM = (380.0, 780.0)
+SEKONIC_STEPS_NM = (1.0, 5.0)
+SEKONIC_MAX_W_M2_NM = 100.0
 CSV_COLUMNS = ("wavelength_nm", "irradiance_w_m2_nm")
 
 
@@ -97,22 +105,78 @@ def spectrum_summary(wavelength_nm, irradiance_w_m2_nm) -> dict:
 
 
 def read_sekonic_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
-    """(wavelength_nm, irradiance_w_m2_nm) from a Sekonic C-7000 CSV export."""
+    """(wavelength_nm, irradiance_w_m2_nm) from a Sekonic C-7000 CSV export, validated (see the module docstring);
+    `ConfigError` on ``import`` naming the offending line."""
     path = Path(path)
     try:
         raw = path.read_bytes()
     except OSError as exc:
         raise ConfigError("import", str(path), f"cannot read ({exc.strerror})") from None
     text = raw.decode("utf-8-sig") if _is_utf8(raw) else raw.decode("latin-1")
-    values: dict[float, float] = {}
-    for row in csv.reader(text.splitlines()):
-        match = SEKONIC_ROW.fullmatch(row[0]) if row else None
-        if match and len(row) >= 2:
-            values[float(match.group(1))] = _sekonic_value(path, row)
-    if len(values) < 2:
+    blocks: list[list[tuple[int, float, float]]] = []
+    for line, row in enumerate(csv.reader(text.splitlines()), start=1):
+        if not row or not row[0].lstrip().startswith("Spectral Data"):
+            continue
+        sample = (line, *_sekonic_row(path, line, row))
+        if blocks and sample[1] > blocks[-1][-1][1]:
+            blocks[-1].append(sample)
+        elif blocks and not (blocks[-1][-1][1] == SEKONIC_RANGE_NM[1] and sample[1] == SEKONIC_RANGE_NM[0]):
+            raise _sekonic_error(path, line, row, f"{sample[1]:g} nm after {blocks[-1][-1][1]:g} nm: wavelengths "
+                                                  "must increase within a block (a repeated or stray row)")
+        else:
+            blocks.append([sample])
+    if not blocks:
         raise ConfigError("import", str(path), "no 'Spectral Data <λ>[nm]' rows: not a Sekonic C-7000 CSV")
-    wavelength_nm = np.array(sorted(values))
-    return wavelength_nm, np.array([values[w] for w in wavelength_nm])
+    by_step: dict[float, list[tuple[int, float, float]]] = {}
+    for block in blocks:
+        step = _sekonic_step(path, block)
+        if step in by_step:
+            raise ConfigError("import", str(path), f"line {block[0][0]}: a second {step:g} nm block")
+        by_step[step] = block
+    chosen = by_step.get(1.0) or by_step[5.0]
+    return np.array([nm for _, nm, _ in chosen]), np.array([value for _, _, value in chosen])
+
+
+def _sekonic_row(path: Path, line: int, row: list[str]) -> tuple[float, float]:
+    """(λ, value) of one data row, both within their ranges."""
+    match = SEKONIC_ROW.fullmatch(row[0])
+    if not match or len(row) < 2:
+        raise _sekonic_error(path, line, row, "not a 'Spectral Data <λ>[nm],<value>' row")
+    try:
+        nm, value = float(match.group(1)), float(row[1])
+    except ValueError:
+        raise _sekonic_error(path, line, row, "wavelength and value must be numbers") from None
+    lo, hi = SEKONIC_RANGE_NM
+    if not lo <= nm <= hi:
+        raise _sekonic_error(path, line, row, f"{nm:g} nm is outside the C-7000's {lo:g}–{hi:g} nm")
+    if not (math.isfinite(value) and 0.0 <= value <= SEKONIC_MAX_W_M2_NM):
+        raise _sekonic_error(path, line, row, f"{value:g} W/m²/nm is outside [0, {SEKONIC_MAX_W_M2_NM:g}]")
+    return nm, value
+
+
+def _sekonic_step(path: Path, block: list[tuple[int, float, float]]) -> float:
+    """The step of a block covering the whole range in equal steps of `SEKONIC_STEPS_NM`."""
+    lo, hi = SEKONIC_RANGE_NM
+    first_line, first_nm, _ = block[0]
+    if first_nm != lo:
+        raise ConfigError("import", str(path), f"line {first_line}: a block starts at {first_nm:g} nm, not {lo:g} nm")
+    if len(block) < 2 or block[1][1] - first_nm not in SEKONIC_STEPS_NM:
+        raise ConfigError("import", str(path), f"line {first_line}: a block must step by "
+                                               f"{' or '.join(f'{s:g}' for s in SEKONIC_STEPS_NM)} nm from {lo:g} nm")
+    step = block[1][1] - first_nm
+    for (_, previous, _), (line, nm, _) in zip(block, block[1:]):
+        if nm - previous != step:
+            raise ConfigError("import", str(path), f"line {line}: {previous:g} → {nm:g} nm breaks the {step:g} nm "
+                                                   f"steps (missing {previous + step:g}–{nm - step:g} nm)")
+    last_line, last_nm, _ = block[-1]
+    if last_nm != hi:
+        raise ConfigError("import", str(path), f"line {last_line}: the {step:g} nm block ends at {last_nm:g} nm, "
+                                               f"not {hi:g} nm")
+    return step
+
+
+def _sekonic_error(path: Path, line: int, row: list[str], reason: str) -> ConfigError:
+    return ConfigError("import", str(path), f"line {line} {','.join(row)[:60]!r}: {reason}")
 
 
 def _is_utf8(raw: bytes) -> bool:
@@ -121,16 +185,6 @@ def _is_utf8(raw: bytes) -> bool:
     except UnicodeDecodeError:
         return False
     return True
-
-
-def _sekonic_value(path: Path, row: list[str]) -> float:
-    try:
-        value = float(row[1])
-    except ValueError:
-        raise ConfigError("import", str(path), f"row {row[0]!r} has a non-numeric value {row[1]!r}") from None
-    if not math.isfinite(value):
-        raise ConfigError("import", str(path), f"row {row[0]!r} has a non-finite value {row[1]!r}")
-    return value
 
 
 def write_spectrum_csv(path: str | Path, wavelength_nm: np.ndarray, irradiance_w_m2_nm: np.ndarray) -> Path:
