@@ -206,7 +206,14 @@ class SimulatorProcess:
         return str(self.link)
 
     def start(self, timeout_s: float = START_TIMEOUT_S) -> SimulatorProcess:
-        self.process.start()
+        # The child is spawned with SIGINT blocked (the mask survives fork and exec) and then ignores it: a Ctrl-C
+        # reaching the whole process group while it starts up (importing) must not print its traceback; the
+        # parent gets any pending SIGINT when it unblocks (as multiprocessing's resource tracker does).
+        blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+        try:
+            self.process.start()
+        finally:
+            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
         deadline = time.monotonic() + timeout_s
         while not self._status.poll(0.1):
             if not self.process.is_alive() or time.monotonic() > deadline:

@@ -16,10 +16,18 @@ target and the camera with the simulator's ``SIM:POS`` command. "No lens" gives 
 sensor sees the whole hemisphere; see `uwlab.model.optics`). The simulated board carries no printed
 markers, so an ``aruco`` ROI is the board's footprint from the scene (what the detector would report).
 The spectrometer simulator models the rig file's geometry; per-sweep geometry overrides change the images only.
+
+The rig's temporary folder (``uwlab-simrig-*`` in the system's temporary directory: pseudo-terminal links, the
+rig state) is removed when the rig closes. A process killed outright (SIGKILL) cannot; the next `SimRig` removes
+such stale folders (`remove_stale_rig_folders`): each holds an owner lock (`uwlab.lockfile`) that a dead owner no
+longer holds. Live rigs' folders are never touched.
 """
 from __future__ import annotations
 
+import os
+import shutil
 import tempfile
+import time
 from collections.abc import Callable
 from dataclasses import asdict
 from pathlib import Path
@@ -38,6 +46,11 @@ from uwlab.errors import ConfigError
 from uwlab.experiments.acquisition.plan import Plan, SweepSpec
 from uwlab.experiments.acquisition.roi import Rect, aruco_roi
 from uwlab.experiments.saturation import sensor_clip_dn
+from uwlab.lockfile import OwnerLock, is_stale, read_holder
+
+RIG_FOLDER_PREFIX = "uwlab-simrig-"
+OWNER_LOCK = "owner.lock"
+UNOWNED_STALE_S = 600.0
 
 
 class Rig(Protocol):
@@ -121,7 +134,10 @@ class SimRig:
         self.rig_path = Path(rig_path)
         self.faults = faults
         self.seed = seed
-        self._tmp = tempfile.TemporaryDirectory(prefix="uwlab-simrig-")
+        remove_stale_rig_folders()
+        self._tmp = tempfile.TemporaryDirectory(prefix=RIG_FOLDER_PREFIX)
+        self._owner = OwnerLock(Path(self._tmp.name) / OWNER_LOCK, "simulated rig")
+        self._owner.acquire()
         self._serial = SerialRig(self._tmp.name, SerialSimSettings.from_config(self.rig_path))
         self.light: Light | None = None
         self.spectrometer: Spectrometer | None = None
@@ -148,6 +164,7 @@ class SimRig:
                 device.close()
         self._serial.stop()
         self._tmp.cleanup()
+        self._owner.release()
 
     @property
     def rig_state_path(self) -> Path:
@@ -217,3 +234,28 @@ class SimRig:
         rate = self._sensor.rate_e_per_s
         bh, bv = s.binning
         return rate[s.offset_y * bv: (s.offset_y + s.height) * bv, s.offset_x * bh: (s.offset_x + s.width) * bh]
+
+
+def remove_stale_rig_folders(directory: str | os.PathLike | None = None) -> list[Path]:
+    """Remove this user's simulated-rig folders in ``directory`` (default: the system's temporary directory) whose
+    owner died without removing them: their owner lock is stale (`uwlab.lockfile.is_stale`), or, when it names no
+    owner (an older uwlab, or a kill between creating the folder and locking it), they are older than
+    `UNOWNED_STALE_S`.
+    Returns the folders removed."""
+    removed = []
+    for folder in sorted(Path(directory or tempfile.gettempdir()).glob(f"{RIG_FOLDER_PREFIX}*")):
+        try:
+            info = folder.lstat()
+        except OSError:
+            continue
+        if not folder.is_dir() or folder.is_symlink() or info.st_uid != os.getuid():
+            continue
+        lock = folder / OWNER_LOCK
+        if read_holder(lock) is not None:
+            stale = is_stale(lock)
+        else:
+            stale = time.time() - info.st_mtime > UNOWNED_STALE_S
+        if stale:
+            shutil.rmtree(folder, ignore_errors=True)
+            removed.append(folder)
+    return removed
