@@ -40,7 +40,7 @@ def run_show(args) -> int:
         return 0
     span = summary["time_span"] or {}
     print(f"dataset {summary['path']} ({'simulated rig' if summary['sim'] else 'hardware'}): {summary['state']}")
-    print(f"plan {summary['plan_name']}  sha256 {summary['plan_sha256']}")
+    print(f"plan {summary['plan_name'] or '-'}  sha256 {summary['plan_sha256']}")
     print(f"points {summary['points_done']}/{summary['points_total']}, saturated {summary['saturated_points']}, "
           f"spectra rows {summary['spectra_rows']}")
     finished = summary["finished_utc"] if summary["state"] == "complete" else "no"

@@ -23,7 +23,9 @@ import os
 import select
 import signal
 import time
+import threading
 import tty
+from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -186,6 +188,30 @@ def _child_main(factory, link: Path, command_log: Path | None, vanish_s: float, 
         server.port.close()
 
 
+@contextmanager
+def _ctrl_c_deferred():
+    """Spawn children that never see Ctrl-C, and let the parent see it only once they are spawned.
+
+    Ctrl-C reaches the whole process group. A child spawned inside this block starts with SIGINT blocked (the
+    thread's mask survives fork and exec; `_child_main` then ignores it), so it prints no traceback while it is
+    still importing. In the parent, the signal may land on any thread (pyarrow's, say), so blocking it in this
+    one is not enough: Python's handler is swapped for one that only notes it, and KeyboardInterrupt is raised
+    after the block — never halfway through a spawn, which would leave the child without its start-up data.
+    Outside the main thread (no signal handlers there) the block only masks."""
+    main = threading.current_thread() is threading.main_thread()
+    noted = []
+    previous = signal.signal(signal.SIGINT, lambda *_: noted.append(True)) if main else None
+    blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
+        if main:
+            signal.signal(signal.SIGINT, previous)
+    if noted:
+        raise KeyboardInterrupt
+
+
 class SimulatorProcess:
     """One simulated instrument in a spawned process; ``link`` is its port path once started."""
 
@@ -206,14 +232,8 @@ class SimulatorProcess:
         return str(self.link)
 
     def start(self, timeout_s: float = START_TIMEOUT_S) -> SimulatorProcess:
-        # The child is spawned with SIGINT blocked (the mask survives fork and exec) and then ignores it: a Ctrl-C
-        # reaching the whole process group while it starts up (importing) must not print its traceback; the
-        # parent gets any pending SIGINT when it unblocks (as multiprocessing's resource tracker does).
-        blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
-        try:
+        with _ctrl_c_deferred():
             self.process.start()
-        finally:
-            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
         deadline = time.monotonic() + timeout_s
         while not self._status.poll(0.1):
             if not self.process.is_alive() or time.monotonic() > deadline:
