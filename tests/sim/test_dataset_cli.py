@@ -84,7 +84,8 @@ def test_ctrl_c_at_start_up_and_while_measuring_exits_130_in_one_line_and_the_da
     plan, out = plan_file(tmp_path, points=4, settle_s=0.3), tmp_path / "data"
     for delay in (0.0, 0.4):  # as the dataset appears, then while the simulators start
         started = uwlab("sweep", plan, "--sim", "--out", out)
-        wait_until(lambda: getattr(read_holder(out / "lock"), "pid", None) == started.pid, started, "the dataset")
+        wait_until(lambda pid=started.pid: getattr(read_holder(out / "lock"), "pid", None) == pid, started,
+                   "the dataset")
         time.sleep(delay)
         os.killpg(started.pid, signal.SIGINT)  # Ctrl-C reaches the whole process group
         code, _, err = finish(started)

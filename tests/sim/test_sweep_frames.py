@@ -66,7 +66,8 @@ def test_saved_frames_are_the_frames_each_point_was_computed_from(tmp_path):
             assert meta["sweep_id"] == point.sweep_id and meta["point_index"] == point.point_index
         assert all(meta["role"] == "dark" and not meta["light_on"] for _, meta in dark)
     block = [data.frames("block", index) for index in (0, 1)]
-    assert all(os.path.samefile(a, b) for a, b in zip(block[0].dark, block[1].dark))  # one dark block, linked
+    # one dark block, linked into both points
+    assert all(os.path.samefile(a, b) for a, b in zip(block[0].dark, block[1].dark, strict=True))
     per_point = [data.frames("per-point", index) for index in (0, 1)]
     assert read_frame(per_point[0].dark[0])[1]["frame_id"] != read_frame(per_point[1].dark[0])[1]["frame_id"]
     assert not list((tmp_path / "d" / "frames").glob("*/.*"))  # no staging folder left

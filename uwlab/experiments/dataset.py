@@ -173,9 +173,8 @@ def spectra_frame(sweep_id: str, point_index: int, readings: list[tuple[str, Any
                            "irradiance_w_m2_nm": pd.Series(irradiance, dtype=float)})
              for position, wavelength, irradiance in readings]
     if not parts:
-        return SPECTRA_SCHEMA.empty_table().to_pandas()
+        return pd.DataFrame(columns=SPECTRA_SCHEMA.names)
     return pd.concat(parts, ignore_index=True)
-
 
 
 class Dataset:
@@ -357,7 +356,7 @@ class Dataset:
     def _recorded_keys(self) -> set[tuple[str, int]]:
         if self._keys is None:
             table = self._store.read_all("points").select(KEY).to_pydict()
-            self._keys = set(zip(table["sweep_id"], table["point_index"]))
+            self._keys = set(zip(table["sweep_id"], table["point_index"], strict=True))
         return self._keys
 
     def frames(self, sweep_id: str, point_index: int) -> PointFrames:

@@ -25,7 +25,7 @@ import os
 import shutil
 from collections import Counter
 from dataclasses import dataclass, field
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
@@ -146,7 +146,8 @@ def _check_part(dataset: Dataset, part, report: CheckReport) -> dict[tuple[str, 
             report.problems.append(Problem(f"point {sweep_id}#{index}", f"spectrum at {position}: wavelengths not "
                                                                        "strictly increasing or values not finite"))
     if len(rows) != points.num_rows:
-        counts = Counter(zip(points.column("sweep_id").to_pylist(), points.column("point_index").to_pylist()))
+        counts = Counter(zip(points.column("sweep_id").to_pylist(), points.column("point_index").to_pylist(),
+                             strict=True))
         for key, count in counts.items():
             if count > 1:
                 report.set_aside.setdefault(part.id, set()).add(key)
@@ -203,7 +204,7 @@ def repair(dataset: Dataset) -> list[str]:
             changes[part.id] = _without(store.read(part, "points"), store.read(part, "spectra"), keys)
             done.append(f"rewrote {files} without {len(keys)} points "
                         f"({', '.join(f'{s}#{i}' for s, i in sorted(keys)) or 'stray spectra only'})")
-    keep = set(zip(report.points["sweep_id"], report.points["point_index"]))
+    keep = set(zip(report.points["sweep_id"], report.points["point_index"], strict=True))
     for key, folder in stored_point_folders(dataset.root).items():
         if key not in keep:
             target = quarantine / FRAMES_DIR / sweep_folder(key[0]) / folder.name
@@ -228,7 +229,7 @@ def repair(dataset: Dataset) -> list[str]:
 def _without(points: pa.Table, spectra: pa.Table, keys: set[tuple[str, int]]) -> dict[str, pa.Table]:
     """A part's tables without the points ``keys`` and without spectra of points it does not keep."""
     frame = points.to_pandas()
-    kept = frame[[(s, i) not in keys for s, i in zip(frame["sweep_id"], frame["point_index"])]]
+    kept = frame[[(s, i) not in keys for s, i in zip(frame["sweep_id"], frame["point_index"], strict=True)]]
     kept_keys = kept[KEY].drop_duplicates()
     spectra_kept = spectra.to_pandas().merge(kept_keys, on=KEY, how="inner")
     return {"points": pa.Table.from_pandas(kept, schema=POINT_SCHEMA, preserve_index=False),
@@ -236,7 +237,7 @@ def _without(points: pa.Table, spectra: pa.Table, keys: set[tuple[str, int]]) ->
 
 
 def _quarantine_folder(root: Path) -> Path:
-    stamp = datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%SZ")
+    stamp = datetime.now(UTC).strftime("%Y%m%dT%H%M%SZ")
     folder, number = root / QUARANTINE_DIR / stamp, 1
     while folder.exists():
         number += 1
@@ -269,7 +270,8 @@ def summarize(dataset: Dataset) -> dict:
                        "lens_label": rows["lens_label"].iloc[0] if len(rows) else None})
     span = None
     if len(points) and points["t_start_ns"].notna().any():
-        span = {"start_utc": _iso_ns(int(points["t_start_ns"].min())), "end_utc": _iso_ns(int(points["t_end_ns"].max()))}
+        span = {"start_utc": _iso_ns(int(points["t_start_ns"].min())),
+                "end_utc": _iso_ns(int(points["t_end_ns"].max()))}
     done, total = int(len(points)), int(sum(totals.values()))
     state = ("damaged" if not report.ok else "empty" if done == 0 else "complete" if done == total else "incomplete")
     return {
@@ -283,4 +285,4 @@ def summarize(dataset: Dataset) -> dict:
 
 
 def _iso_ns(ns: int) -> str:
-    return datetime.fromtimestamp(ns / 1e9, timezone.utc).isoformat(timespec="seconds")
+    return datetime.fromtimestamp(ns / 1e9, UTC).isoformat(timespec="seconds")

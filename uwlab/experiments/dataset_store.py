@@ -189,7 +189,13 @@ class PartStore:
         return self
 
     def _commit(self, parts: list[Part], next_id: int) -> None:
+        """Make ``parts`` the dataset's: their files' names durable (fsync of ``parts/``), then the manifest."""
         document = {"format": FORMAT, "next_id": next_id, "parts": [asdict(p) for p in parts]}
+        if (self.root / PARTS_DIR).is_dir():
+            try:
+                fsync_directory(self.root / PARTS_DIR)
+            except OSError as exc:
+                raise _write_error(self.root / PARTS_DIR, exc) from exc
         write_atomic(self.manifest_path, (json.dumps(document, separators=(",", ":")) + "\n").encode())
         self.parts, self.next_id = parts, next_id
 

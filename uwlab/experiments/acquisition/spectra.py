@@ -164,7 +164,7 @@ def _sekonic_step(path: Path, block: list[tuple[int, float, float]]) -> float:
         raise ConfigError("import", str(path), f"line {first_line}: a block must step by "
                                                f"{' or '.join(f'{s:g}' for s in SEKONIC_STEPS_NM)} nm from {lo:g} nm")
     step = block[1][1] - first_nm
-    for (_, previous, _), (line, nm, _) in zip(block, block[1:]):
+    for (_, previous, _), (line, nm, _) in zip(block, block[1:], strict=False):
         if nm - previous != step:
             raise ConfigError("import", str(path), f"line {line}: {previous:g} → {nm:g} nm breaks the {step:g} nm "
                                                    f"steps (missing {previous + step:g}–{nm - step:g} nm)")

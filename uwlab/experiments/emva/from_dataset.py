@@ -7,7 +7,7 @@ camera and gain) join the dark series used for the dark current.
 Photons per pixel, μ_p = A t_exp ∫ E(λ) λ/(h c) dλ (EMVA 1288 Release 4.0), take E from, in order:
 an explicit override (`IrradianceOverride`: a number in W/m² at one wavelength, or a spectrum; for a
 ``light-level`` sweep it is the irradiance at ``light_level`` = 1, scaled by each row's ``light_level``), the
-point's spectrometer spectrum (``spectra.parquet``), or its integrated ``irradiance_w_m2`` at the given
+point's spectrometer spectrum (the dataset's ``spectra`` table), or its integrated ``irradiance_w_m2`` at the given
 wavelength. Irradiance measured at the target (``irradiance_position = "target"``) is not the irradiance at
 the sensor and is refused. The pixel area comes from ``pixel_size_um`` or from the dataset's sensor profile.
 """
@@ -70,7 +70,7 @@ def photon_weighted_wavelength(wavelength_nm, irradiance_w_m2_nm) -> float:
 def check_columns(points: pd.DataFrame, where: str) -> None:
     missing = [c for c in REQUIRED_COLUMNS if c not in points.columns]
     if missing:
-        raise ConfigError(f"{where}: columns", ", ".join(missing), "missing from points.parquet")
+        raise ConfigError(f"{where}: columns", ", ".join(missing), "missing from the dataset's points")
 
 
 def select_sweep(points: pd.DataFrame, sweep_id: str | None) -> str:
