@@ -11,8 +11,7 @@ LISTED_PROBLEMS = 20
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("dataset", help="inspect, check and repair sweep datasets",
-                              description="Inspect datasets written by `uwlab sweep`.")
+    p = subparsers.add_parser("dataset", description="Inspect datasets written by `uwlab sweep`.")
     sub = p.add_subparsers(dest="dataset_command", required=True, metavar="{show,check}")
     s = sub.add_parser("show", help="summarise a dataset",
                        description="State (complete, incomplete, empty, damaged), sweeps, points done/total, "

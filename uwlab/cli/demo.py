@@ -12,7 +12,7 @@ from uwlab.cli.fit import progress_bar
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("demo", help="run the paper's tank campaign on the simulated rig, fit, validate, report",
+    p = subparsers.add_parser("demo",
                               description="Simulated rig → exposure sweeps (IMX250, ICX285 × three lens settings) → "
                                           "Bayesian calibration → validation report. Prints the report's path.")
     p.add_argument("--out", metavar="DIR", help="new output directory (default: out/demo-<date>-<time>)")

@@ -16,7 +16,7 @@ from uwlab.model.config import apply_override, load_raw, parse_value, split_assi
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "design", help="predict FOV, exposure, framerate, DoF, response and SNR of a design; grids; inverse design",
+        "design",
         description="Evaluate an underwater camera design (TOML) with the image-formation model: one design, a grid "
                     "of designs (--grid), or the inverse problem `uwlab design solve CONFIG --free ... --require ...`.")
     p.add_argument("config", help="design TOML (see configs/design/example.toml), or `solve` followed by the TOML")

@@ -8,7 +8,7 @@ from uwlab.drivers.camera import discover
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("devices", help="list cameras on every backend",
+    p = subparsers.add_parser("devices",
                               description="List cameras from every available backend; missing backends are reported.")
     p.add_argument("--cti", action="append", default=[], metavar="PATH",
                    help="GenTL producer for harvesters (repeatable; default: GENICAM_GENTL64_PATH)")

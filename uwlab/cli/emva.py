@@ -23,8 +23,7 @@ _SUMMARY = (
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("emva", help="EMVA 1288 sensor characterisation and descriptor-file export",
-                              description="EMVA 1288 Release 4.0 (linear) characterisation (docs/emva.md).")
+    p = subparsers.add_parser("emva", description="EMVA 1288 Release 4.0 (linear) characterisation (docs/emva.md).")
     sub = p.add_subparsers(dest="emva_command", required=True, parser_class=type(p))
     c = sub.add_parser("characterize", help="EMVA 1288 parameters, plots and a sensor profile from a photon transfer")
     c.add_argument("dataset", nargs="?", help="uwlab sweep dataset directory")

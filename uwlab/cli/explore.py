@@ -14,8 +14,7 @@ DEFAULT_PORT = 8050
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("explore", help="the design explorer: edit a design in a local web page, see its "
-                              "numbers and figures live, sweep, solve, save",
+    p = subparsers.add_parser("explore",
                               description="Serve the design explorer for a design TOML on a local address and open "
                                           "it in the browser.")
     p.add_argument("config", nargs="?", help="design TOML (default: configs/design/example.toml)")

@@ -9,8 +9,7 @@ from tqdm import tqdm
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("fit", help="calibrate the model against a dataset (emcee) and validate it",
-                              description="Fit the image-formation model's free parameters to a sweep dataset.")
+    p = subparsers.add_parser("fit", description="Fit the image-formation model's free parameters to a sweep dataset.")
     p.add_argument("dataset", help="dataset directory (from `uwlab sweep`)")
     p.add_argument("--config", metavar="FIT.toml", help="free parameters and priors (default: light efficiency, "
                    "attenuation scale, each camera's K, discrepancy; see configs/fit/default.toml)")

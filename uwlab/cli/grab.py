@@ -11,8 +11,8 @@ from uwlab.model.sensor import SensorProfile, load_sensor_profile
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("grab", help="acquire frames from a camera and report statistics",
-                              description="Acquire N frames; report mean, std, min, max and saturated fraction per frame.")
+    p = subparsers.add_parser("grab",
+                              description="Acquire N frames; report mean, std, min, max and saturated fraction of each.")
     p.add_argument("--backend", choices=tuple(BACKENDS), default="sim")
     p.add_argument("--device", metavar="ID", help="device id (aravis: id or IP address); default: first found")
     p.add_argument("--cti", action="append", default=[], metavar="PATH", help="GenTL producer (harvesters)")

@@ -17,8 +17,7 @@ DEFAULT_CALIBRATION = "light-calibration.csv"
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("light", help="switch and dim the light, or calibrate it",
-                              description="Set and read back the light controller (uwlab-ascii over serial).")
+    p = subparsers.add_parser("light", description="Set and read back the light controller (uwlab-ascii over serial).")
     p.add_argument("--port", help="serial port of the light (e.g. /dev/ttyUSB0)")
     p.add_argument("--protocol", choices=PROTOCOLS, default=PROTOCOLS[0], help="instrument protocol")
     output = p.add_mutually_exclusive_group()

@@ -1,48 +1,87 @@
-"""The `uwlab` command: one parser, one subcommand module per verb.
+"""The `uwlab` command: one parser, one subcommand module per verb, imported only when it is chosen.
 
-Each module in `uwlab.cli` that defines ``register(subparsers)`` adds its subcommand and sets
-``func`` on its parser; ``func(args)`` returns the exit code. `UwlabError` becomes one line on
-stderr and exit code 2; nothing below the CLI prints.
+`SUBCOMMANDS` is the table of verbs: name → (module, one-line help). ``uwlab --help`` and ``uwlab --version``
+list it without importing any subcommand module (their imports — numpy, pandas, matplotlib, ... — would cost
+seconds); the chosen verb's module is imported and its ``register(subparsers)`` adds the verb's parser, arguments
+and ``func``. ``func(args)`` returns the exit code.
+
+The error contract: `UwlabError` (bad input, a failed device) and `OSError` (a file the system refused) become one
+line on stderr and exit code 2; Ctrl-C becomes one line ``interrupted`` and exit code 130; nothing below the CLI
+prints.
 """
 from __future__ import annotations
 
 import argparse
 import importlib
+import signal
 import sys
 
 from uwlab import __version__
 from uwlab.errors import UwlabError
 
-SUBCOMMAND_MODULES = ("design", "explore", "devices", "grab", "light", "spectrum", "sim", "sweep", "dataset", "emva",
-                      "fit", "report", "demo", "port")
+SUBCOMMANDS: dict[str, tuple[str, str]] = {
+    "design": ("uwlab.cli.design", "predict FOV, exposure, framerate, DoF, response and SNR of a design; grids; "
+                                   "inverse design"),
+    "explore": ("uwlab.cli.explore", "the design explorer: edit a design in a local web page, see its numbers and "
+                                     "figures live, sweep, solve, save"),
+    "devices": ("uwlab.cli.devices", "list cameras on every backend"),
+    "grab": ("uwlab.cli.grab", "acquire frames from a camera and report statistics"),
+    "light": ("uwlab.cli.light", "switch and dim the light, or calibrate it"),
+    "spectrum": ("uwlab.cli.spectrum", "measure or import a spectrum and derive lux, W/m², photons, CCT"),
+    "sim": ("uwlab.cli.sim", "run simulated instruments until Ctrl-C; render simulated image sets"),
+    "sweep": ("uwlab.cli.sweep", "run an exposure/aperture/gain/light-level/dark sweep plan"),
+    "dataset": ("uwlab.cli.dataset", "inspect, check and repair sweep datasets"),
+    "emva": ("uwlab.cli.emva", "EMVA 1288 sensor characterisation and descriptor-file export"),
+    "fit": ("uwlab.cli.fit", "calibrate the model against a dataset (emcee) and validate it"),
+    "report": ("uwlab.cli.report", "write the HTML validation report of a directory"),
+    "demo": ("uwlab.cli.demo", "run the paper's tank campaign on the simulated rig, fit, validate, report"),
+    "port": ("uwlab.cli.port", "exact port optics and focusing aids; port calibration from images"),
+}
 
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # one line, exit 2, as for any bad input
-        self.exit(2, f"uwlab: error: {message}\n")
+        self.exit(2, f"{self.prog}: error: {message}\n")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="uwlab", description=__doc__.splitlines()[0])
+def chosen_command(argv: list[str]) -> str | None:
+    """The verb of a command line: its first word that is not an option (the top level has only flags)."""
+    return next((word for word in argv if not word.startswith("-")), None)
+
+
+def build_parser(chosen: str | None = None) -> argparse.ArgumentParser:
+    """The parser with the full sub-parser of the verb `chosen`; the other verbs are listed with their help only,
+    so that choosing one costs no imports of the others."""
+    parser = _Parser(prog="uwlab", description="Design, calibrate and validate underwater camera systems.")
     parser.add_argument("--version", action="version", version=f"uwlab {__version__}")
-    sub = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
-    for name in SUBCOMMAND_MODULES:
-        importlib.import_module(f"uwlab.cli.{name}").register(sub)
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
+    for name, (module, help_text) in SUBCOMMANDS.items():
+        if name == chosen:
+            importlib.import_module(module).register(sub)
+        else:
+            sub.add_parser(name, help=help_text, add_help=False)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+    argv = sys.argv[1:] if argv is None else list(argv)
+    prefix = "uwlab"
     try:
+        args = build_parser(chosen_command(argv)).parse_args(argv)
+        prefix = f"uwlab {args.command}"
         return int(args.func(args) or 0)
     except UwlabError as exc:
-        print(f"uwlab {args.command}: error: {exc}", file=sys.stderr)
+        print(f"{prefix}: error: {exc}", file=sys.stderr)
         return 2
     except BrokenPipeError:
         sys.stderr.close()
         return 0
+    except OSError as exc:
+        print(f"{prefix}: error: {exc}", file=sys.stderr)
+        return 2
     except KeyboardInterrupt:
-        print(f"uwlab {args.command}: interrupted", file=sys.stderr)
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not interrupt the message
+        print(f"{prefix}: interrupted", file=sys.stderr)
         return 130
 
 

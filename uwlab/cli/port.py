@@ -10,7 +10,7 @@ from uwlab.model.config import parse_value, split_assignment
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("port", help="exact port optics and focusing aids; port calibration from images",
+    p = subparsers.add_parser("port",
                               description="Trace a design's housing port exactly, or calibrate a port from ChArUco "
                                           "images taken in air and in water.")
     sub = p.add_subparsers(dest="port_command", required=True, metavar="ACTION")

@@ -9,7 +9,7 @@ from uwlab.errors import ConfigError
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("report", help="write the HTML validation report of a directory",
+    p = subparsers.add_parser("report",
                               description="Collect the datasets, calibrations and EMVA characterisations under DIR "
                                           "into one self-contained HTML file.")
     p.add_argument("dir", help="campaign directory (datasets, `uwlab fit` and `uwlab emva` outputs)")

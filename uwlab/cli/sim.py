@@ -13,9 +13,8 @@ from uwlab.drivers.sim.serial_sim import SerialRig, SerialSimSettings
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("sim", help="run simulated instruments until Ctrl-C; render simulated image sets",
-                              description="Run simulated instruments that behave like the rig's hardware, or render "
-                                          "image sets with the simulated camera.")
+    p = subparsers.add_parser("sim", description="Run simulated instruments that behave like the rig's hardware, or "
+                                                 "render image sets with the simulated camera.")
     sub = p.add_subparsers(dest="sim_command", required=True, metavar="INSTRUMENTS")
     register_serial(sub)
     add_sim_camera_parser(sub)

@@ -12,7 +12,7 @@ from uwlab.experiments.acquisition.spectra import read_sekonic_csv, spectrum_sum
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("spectrum", help="measure or import a spectrum and derive lux, W/m², photons, CCT",
+    p = subparsers.add_parser("spectrum",
                               description="Spectral irradiance from the spectrometer or a Sekonic C-7000 CSV export.")
     source = p.add_mutually_exclusive_group(required=True)
     source.add_argument("--port", help="serial port of the spectrometer")

@@ -15,7 +15,7 @@ from uwlab.experiments.dataset_check import summarize
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("sweep", help="run an exposure/aperture/gain/light-level/dark sweep plan",
+    p = subparsers.add_parser("sweep",
                               description="Measure every point of a sweep plan and append it to a dataset as it "
                                           "completes. Exit codes: 0 done, 2 bad input or device failure, "
                                           "130 interrupted (the dataset stays valid; complete it with --resume). "
