@@ -9,6 +9,7 @@ from uwlab.model.photometry import (
     luminous_flux,
     photon_flux,
     photopic_v,
+    photopic_v_at,
     radiant_per_lumen,
 )
 from uwlab.model.spectra import NAMED_SPECTRA, generic_led, relative_spectrum
@@ -21,6 +22,13 @@ def test_683_lumens_of_555_nm_light_is_one_watt():
     watts = GRID.integrate(683.002 * radiant_per_lumen(spectrum, GRID))
     assert watts == pytest.approx(1.0, rel=1e-12)
     assert photopic_v(GRID)[GRID.nm == 555.0][0] == pytest.approx(1.0)
+
+
+def test_photopic_table_is_colour_sciences_cie_1924_observer():
+    """The V(λ) table in configs/ (read without colour-science, for a fast start-up) equals its source."""
+    sd = colour.colorimetry.SDS_LEFS_PHOTOPIC["CIE 1924 Photopic Standard Observer"]
+    np.testing.assert_array_equal(photopic_v_at(sd.wavelengths), sd.values)
+    assert photopic_v_at(np.array([359.0, 831.0])).tolist() == [0.0, 0.0]
 
 
 @pytest.mark.parametrize("name", NAMED_SPECTRA)

@@ -2,15 +2,17 @@
 
 Φv = K_m ∫ Φe(λ) V(λ) dλ with K_m = 683.002 lm/W (CIE 15:2018; BIPM SI Brochure, 9th ed., defines
 K_cd = 683 lm/W at 540 THz ≈ 555.016 nm, where V = 1.00002; 683.002 is the customary value at 555 nm).
-V(λ) is taken from colour-science's CIE 1924 Photopic Standard Observer (1 nm, 360–830 nm), resampled to the grid.
+V(λ) is the CIE 1924 Photopic Standard Observer (1 nm, 360–830 nm; `configs/photometry/cie_1924_photopic_v.csv`,
+exported unchanged from colour-science, which the tests check), interpolated linearly and zero outside its table.
 """
 from __future__ import annotations
 
 from functools import lru_cache
+from pathlib import Path
 
-import colour
 import numpy as np
 
+from uwlab.model.data import config_dir, read_csv_columns
 from uwlab.model.grid import WavelengthGrid
 
 K_M_LM_PER_W = 683.002
@@ -18,11 +20,29 @@ H_J_S = 6.62607015e-34
 C_M_S = 299792458.0
 
 
+PHOTOPIC_TABLE = "photometry/cie_1924_photopic_v.csv"
+
+
+@lru_cache(maxsize=4)
+def _photopic_table(root: Path) -> tuple[np.ndarray, np.ndarray]:
+    table = read_csv_columns(root / PHOTOPIC_TABLE, ("wavelength_nm", "v"), "photopic V(λ) table")
+    return table["wavelength_nm"], table["v"]
+
+
+def photopic_v_at(wavelength_nm) -> np.ndarray:
+    """V(λ) at the given wavelengths [nm] (zero outside 360–830 nm).
+
+    >>> float(photopic_v_at(555.0))
+    1.0
+    """
+    table_nm, v = _photopic_table(config_dir())
+    return np.interp(wavelength_nm, table_nm, v, left=0.0, right=0.0)
+
+
 @lru_cache(maxsize=16)
 def photopic_v(grid: WavelengthGrid) -> np.ndarray:
-    """V(λ) on the grid (zero outside 360–830 nm)."""
-    sd = colour.colorimetry.SDS_LEFS_PHOTOPIC["CIE 1924 Photopic Standard Observer"]
-    v = np.interp(grid.nm, sd.wavelengths, sd.values, left=0.0, right=0.0)
+    """V(λ) on the grid (zero outside 360–830 nm), read-only."""
+    v = photopic_v_at(grid.nm)
     v.setflags(write=False)
     return v
 

@@ -15,7 +15,6 @@ from __future__ import annotations
 from functools import lru_cache
 from pathlib import Path
 
-import colour
 import numpy as np
 
 from uwlab.errors import ConfigError
@@ -44,6 +43,8 @@ def _named(name: str, grid: WavelengthGrid) -> np.ndarray:
     if name == "generic-led":
         out = generic_led(grid.nm)
     else:
+        import colour  # only for these spectra: importing colour-science costs seconds
+
         sd = colour.SDS_ILLUMINANTS[_COLOUR_ILLUMINANTS[name]].copy()
         shape = colour.SpectralShape(grid.start_nm, grid.stop_nm, grid.step_nm)
         out = np.array(sd.align(shape).values, dtype=float)

@@ -26,10 +26,9 @@ from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 
 from uwlab.errors import ConfigError
-from uwlab.model.data import config_dir, read_csv_columns
+from uwlab.model.data import config_dir, read_csv_columns, read_csv_table
 from uwlab.model.grid import WavelengthGrid
 
 JERLOV_TYPES = ("I", "II", "III", "1C", "3C", "5C", "7C", "9C")
@@ -72,10 +71,17 @@ def pure_water_absorption(nm: np.ndarray) -> np.ndarray:
 
 
 @lru_cache(maxsize=4)
-def _jerlov_table(root: Path) -> pd.DataFrame:
-    path = root / "water" / "jerlov.csv"
-    frame = pd.read_csv(path, comment="#")
-    return frame
+def _jerlov_table(root: Path) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Water type → (wavelength_nm, a_per_m, b_per_m), sorted by wavelength."""
+    table = read_csv_table(root / "water" / "jerlov.csv", "water.type")
+    types = np.array(table["water_type"])
+    columns = [np.array(table[c], dtype=float) for c in ("wavelength_nm", "a_per_m", "b_per_m")]
+    out = {}
+    for water_type in dict.fromkeys(table["water_type"]):
+        rows = np.flatnonzero(types == water_type)
+        rows = rows[np.argsort(columns[0][rows], kind="stable")]
+        out[water_type] = tuple(c[rows] for c in columns)
+    return out
 
 
 def _power_law_exponent(nm: np.ndarray, b: np.ndarray) -> float:
@@ -86,11 +92,7 @@ def _power_law_exponent(nm: np.ndarray, b: np.ndarray) -> float:
 
 def jerlov(water_type: str, grid: WavelengthGrid) -> WaterIOP:
     """IOPs of a Jerlov type on the grid, extended to the red as the module docstring states."""
-    table = _jerlov_table(config_dir())
-    rows = table[table["water_type"].astype(str) == water_type].sort_values("wavelength_nm")
-    nm = rows["wavelength_nm"].to_numpy(float)
-    a = rows["a_per_m"].to_numpy(float)
-    b = rows["b_per_m"].to_numpy(float)
+    nm, a, b = _jerlov_table(config_dir())[water_type]
     out_a = np.interp(grid.nm, nm, a)
     out_b = np.interp(grid.nm, nm, b)
     red = grid.nm > nm[-1]

@@ -5,10 +5,11 @@ use the trapezoidal rule over the measured range.
 
 - irradiance E = ∫ E(λ) dλ [W/m²];
 - illuminance Ev = K_m ∫ E(λ) V(λ) dλ [lx], K_m = 683.002 lm/W, V = CIE 1924 photopic luminosity
-  function (colour-science ``SDS_LEFS_PHOTOPIC``), zero outside its table (CIE 15:2018);
+  function (`uwlab.model.photometry.photopic_v_at`), zero outside its table (CIE 15:2018);
 - photon flux Φp = ∫ E(λ) λ / (h c) dλ [m⁻² s⁻¹] (`uwlab.model.photometry.photon_flux`);
 - CCT from the CIE 1931 2° chromaticity: XYZ = ∫ E x̄ȳz̄ dλ, xy → CIE 1960 uv → Ohno (2013),
-  "Practical use and calculation of CCT and Duv", LEUKOS 10(1), via colour-science ``uv_to_CCT``.
+  "Practical use and calculation of CCT and Duv", LEUKOS 10(1), via colour-science ``uv_to_CCT`` (imported
+  only for CCT: importing colour-science costs seconds).
 
 The Sekonic C-7000 CSV export lists ``Spectral Data <λ>[nm],<W/m²/nm>`` rows: a 5 nm block, then a 1 nm block,
 each over 380–780 nm. `read_sekonic_csv` keeps the 1 nm block (the 5 nm one when it is alone) and trusts nothing
@@ -26,11 +27,10 @@ import re
 from functools import lru_cache
 from pathlib import Path
 
-import colour
 import numpy as np
 
 from uwlab.errors import ConfigError
-from uwlab.model.photometry import K_M_LM_PER_W, photon_flux
+from uwlab.model.photometry import K_M_LM_PER_W, photon_flux, photopic_v_at
 
 SEKONIC_ROW = re.compile(r"\s*Spectral Data\s+(\S+?)\s*\[nm\]\s*")
 SEKONIC_RANGE_NM = (380.0, 780.0)
@@ -57,21 +57,15 @@ def irradiance_w_m2(wavelength_nm: np.ndarray, irradiance_w_m2_nm: np.ndarray) -
 
 
 @lru_cache(maxsize=1)
-def _photopic_table() -> tuple[np.ndarray, np.ndarray]:
-    sd = colour.colorimetry.SDS_LEFS_PHOTOPIC["CIE 1924 Photopic Standard Observer"]
-    return sd.wavelengths, sd.values
-
-
-@lru_cache(maxsize=1)
 def _cmfs_table() -> tuple[np.ndarray, np.ndarray]:
+    import colour
+
     cmfs = colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"]
     return cmfs.wavelengths, cmfs.values
 
 
 def illuminance_lux(wavelength_nm: np.ndarray, irradiance_w_m2_nm: np.ndarray) -> float:
-    table_nm, v = _photopic_table()
-    v_at = np.interp(wavelength_nm, table_nm, v, left=0.0, right=0.0)
-    return float(K_M_LM_PER_W * np.trapezoid(irradiance_w_m2_nm * v_at, wavelength_nm))
+    return float(K_M_LM_PER_W * np.trapezoid(irradiance_w_m2_nm * photopic_v_at(wavelength_nm), wavelength_nm))
 
 
 def tristimulus(wavelength_nm: np.ndarray, irradiance_w_m2_nm: np.ndarray) -> np.ndarray:
@@ -86,6 +80,8 @@ def cct_k(wavelength_nm: np.ndarray, irradiance_w_m2_nm: np.ndarray) -> float:
     xyz = tristimulus(wavelength_nm, irradiance_w_m2_nm)
     if not (np.all(xyz >= 0) and xyz.sum() > 0):
         return math.nan
+    import colour
+
     uv = colour.xy_to_UCS_uv(xyz[:2] / xyz.sum())
     return float(colour.uv_to_CCT(uv, method="Ohno 2013")[0])
 
