@@ -8,11 +8,12 @@ from uwlab.drivers.camera import BACKENDS, Camera, Frame, Policy, open_camera
 from uwlab.errors import ConfigError
 from uwlab.experiments.saturation import clip_level, sensor_clip_dn
 from uwlab.model.sensor import SensorProfile, load_sensor_profile
+from uwlab.outputs import output_dir
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("grab",
-                              description="Acquire N frames; report mean, std, min, max and saturated fraction of each.")
+    p = subparsers.add_parser("grab", description="Acquire N frames; report mean, std, min, max and saturated "
+                                                  "fraction per frame.")
     p.add_argument("--backend", choices=tuple(BACKENDS), default="sim")
     p.add_argument("--device", metavar="ID", help="device id (aravis: id or IP address); default: first found")
     p.add_argument("--cti", action="append", default=[], metavar="PATH", help="GenTL producer (harvesters)")
@@ -25,7 +26,8 @@ def register(subparsers) -> None:
     p.add_argument("--frames", type=int, default=1)
     p.add_argument("--roi", metavar="x,y,w,h", help="device region of interest in pixels")
     p.add_argument("--timeout-s", type=float, default=5.0, help="per-frame acquisition timeout")
-    p.add_argument("--save", metavar="DIR", help="write each frame as TIFF with its settings in the metadata")
+    p.add_argument("--save", metavar="DIR", help="write each frame as TIFF with its settings in the metadata "
+                   "(DIR is created if its parent exists)")
     p.add_argument("--json", action="store_true", help="print one JSON object {device, frames}")
     p.set_defaults(func=run)
 
@@ -112,9 +114,7 @@ def run(args) -> int:
         check(ExposureUs, args.exposure_us, "--exposure-us")
     if args.gain_db is not None:
         check(GainDb, args.gain_db, "--gain-db")
-    save_dir = Path(args.save) if args.save else None
-    if save_dir is not None:
-        save_dir.mkdir(parents=True, exist_ok=True)
+    save_dir = output_dir(args.save, "--save") if args.save else None
     options = {"cti": args.cti} if args.backend == "harvesters" else {}
     sensor = load_sensor_profile(args.sensor) if args.sensor else None
     if args.backend == "sim":
@@ -126,6 +126,8 @@ def run(args) -> int:
     with open_camera(args.backend, args.device, policy=Policy(timeout_s=args.timeout_s), **options) as cam:
         apply_settings(cam, args)
         device = {k: v for k, v in vars(cam.info).items()}
+        if save_dir is not None:
+            save_dir.mkdir(exist_ok=True)
         rows = []
         for frame in cam.stream(args.frames):
             rows.append(frame_stats(frame, sensor))

@@ -4,7 +4,6 @@ from __future__ import annotations
 import json
 import sys
 from datetime import datetime, timezone
-from pathlib import Path
 
 from tqdm import tqdm
 
@@ -12,6 +11,7 @@ from uwlab.drivers.serial import PROTOCOLS, open_light, open_spectrometer
 from uwlab.drivers.serial.base import check_level
 from uwlab.errors import ConfigError
 from uwlab.experiments.acquisition.light_calibration import calibrate_light, calibration_levels, save_light_calibration
+from uwlab.outputs import output_file
 
 DEFAULT_CALIBRATION = "light-calibration.csv"
 
@@ -59,9 +59,7 @@ def run(args) -> int:
 
 def run_calibrate(args) -> int:
     levels = calibration_levels(args.levels)
-    out = Path(args.out)
-    if out.exists():
-        raise ConfigError("out", str(out), "file exists; refusing to overwrite it")
+    out = output_file(args.out, "--out")
     with open_light(args.light, args.protocol) as light, \
             open_spectrometer(args.spectrometer, args.protocol) as spectrometer, \
             tqdm(total=len(levels), desc="light levels", unit="level", file=sys.stderr, disable=None) as bar:

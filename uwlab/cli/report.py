@@ -5,7 +5,6 @@ import json
 import sys
 from pathlib import Path
 
-from uwlab.errors import ConfigError
 
 
 def register(subparsers) -> None:
@@ -13,7 +12,7 @@ def register(subparsers) -> None:
                               description="Collect the datasets, calibrations and EMVA characterisations under DIR "
                                           "into one self-contained HTML file.")
     p.add_argument("dir", help="campaign directory (datasets, `uwlab fit` and `uwlab emva` outputs)")
-    p.add_argument("--out", metavar="FILE", help="report file (default: DIR/report.html)")
+    p.add_argument("--out", metavar="FILE", help="report file, in an existing directory (default: DIR/report.html)")
     p.add_argument("--force", action="store_true", help="replace an existing report file")
     p.add_argument("--json", action="store_true", help='print {"report": PATH}')
     p.set_defaults(func=run)
@@ -22,10 +21,8 @@ def register(subparsers) -> None:
 def run(args) -> int:
     from uwlab.experiments.report import write_report
 
-    out = Path(args.out) if args.out else Path(args.dir) / "report.html"
-    if out.exists() and not args.force:
-        raise ConfigError("--out", str(out), "exists; use --force to replace it")
-    path = write_report(args.dir, out)
+    out = args.out if args.out else Path(args.dir) / "report.html"
+    path = write_report(args.dir, out, replace=args.force)
     if args.json:
         json.dump({"report": str(path)}, sys.stdout)
         sys.stdout.write("\n")

@@ -12,6 +12,7 @@ from uwlab.experiments.acquisition.rigs import HardwareRig, SimRig
 from uwlab.experiments.acquisition.sweep import Progress, SweepRunner, open_for_resume
 from uwlab.experiments.dataset import Dataset
 from uwlab.experiments.dataset_check import summarize
+from uwlab.outputs import output_dir
 
 
 def register(subparsers) -> None:
@@ -42,8 +43,9 @@ def _confirm(message: str) -> None:
 def _dataset(args, plan) -> Dataset:
     """The dataset to write, its lock held: checked before any device is opened."""
     if args.resume:
+        output_dir(args.resume, "--resume")
         return open_for_resume(args.resume, plan, args.sim, purpose="uwlab sweep --resume")
-    out = args.out or f"{plan.path.stem}-dataset"
+    out = output_dir(args.out or f"{plan.path.stem}-dataset", "--out")
     return Dataset.create(out, plan.raw, plan_sha256=plan.sha256, sim=args.sim, force=args.force,
                           purpose="uwlab sweep")
 

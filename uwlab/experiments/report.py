@@ -23,6 +23,7 @@ import pandas as pd  # noqa: E402
 
 from uwlab.errors import UwlabError  # noqa: E402
 from uwlab.experiments.dataset_store import MANIFEST_FILE  # noqa: E402
+from uwlab.outputs import output_file  # noqa: E402
 
 CSS = """body{font-family:sans-serif;max-width:1200px;margin:2em auto;color:#222}table{border-collapse:collapse;margin:1em 0}
 td,th{border:1px solid #ccc;padding:3px 8px;font-size:13px;text-align:right}th{background:#eee}td.l,th.l{text-align:left}
@@ -152,11 +153,13 @@ def _emva(path: Path) -> str:
     return f"<h2>EMVA 1288 characterisation: {html.escape(str(path))}</h2>" + _table(rows, ["quantity", "value", "std"]) + images
 
 
-def write_report(root: str | Path, out: str | Path) -> Path:
-    """Write the HTML report of everything found under `root` to `out`; returns `out`."""
-    root, out = Path(root), Path(out)
+def write_report(root: str | Path, out: str | Path, *, replace: bool = False) -> Path:
+    """Write the HTML report of everything found under `root` to `out` (an existing file only if `replace`; the
+    directory must exist); returns `out`."""
+    root = Path(root)
     if not root.is_dir():
         raise UwlabError(f"{root}: not a directory")
+    out = output_file(out, "--out", replace=replace, replace_option="--force")
     datasets = _find(root, "metadata.json", MANIFEST_FILE)
     calibrations = _find(root, "summary.json", "samples.parquet")
     emva = _find(root, "emva.json")
@@ -172,6 +175,5 @@ def write_report(root: str | Path, out: str | Path) -> Path:
     if metadata:
         parts += ["<h2>Provenance</h2>"] + [_provenance(d, m) for d, m in metadata]
     parts.append("</body></html>")
-    out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text("\n".join(parts))
     return out

@@ -23,13 +23,16 @@ from uwlab.errors import UwlabError  # noqa: E402
 from uwlab.experiments.calibration.fit import FitResult  # noqa: E402
 from uwlab.experiments.calibration.validation import dense_sweeps, point_predictions  # noqa: E402
 from uwlab.jsonable import dumps  # noqa: E402
+from uwlab.outputs import output_dir  # noqa: E402
 
 OUTPUT_FILES = ("samples.parquet", "summary.json", "predictions.parquet", "dense.parquet", "corner.png", "traces.png",
                 "response.png")
 
 
 def check_output_dir(out: Path) -> None:
-    """Refuse to overwrite an earlier calibration in `out`."""
+    """Refuse to write where `out` cannot be written (`uwlab.outputs.output_dir`) or to overwrite an earlier
+    calibration in it."""
+    output_dir(out, "--out")
     existing = [name for name in OUTPUT_FILES if (out / name).exists()]
     if existing:
         raise UwlabError(f"{out} already holds a calibration ({', '.join(existing)}); choose another --out")
@@ -97,8 +100,8 @@ def response_plot(predictions: pd.DataFrame, dense: pd.DataFrame, path: Path) ->
 
 def write_fit(result: FitResult, out: Path, truth: dict | None = None, extra: dict | None = None) -> dict:
     """Write every calibration output to `out` (refusing to overwrite); returns the summary."""
-    out.mkdir(parents=True, exist_ok=True)
     check_output_dir(out)
+    out.mkdir(exist_ok=True)
     summary = result.summary()
     if truth:
         for name, entry in summary["parameters"].items():

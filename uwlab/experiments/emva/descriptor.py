@@ -28,6 +28,7 @@ import numpy as np
 from uwlab.errors import ConfigError
 from uwlab.experiments.emva.analysis import QUANTISATION_VAR_DN2, PhotonTransfer, SpatialPoint, half_saturation_index
 from uwlab.experiments.emva.stream import StackStatistics, stack_statistics
+from uwlab.outputs import output_dir
 
 DESCRIPTOR_NAME = "EMVA1288descriptor.txt"
 SPATIAL_FRAMES = 16
@@ -224,11 +225,12 @@ def write_descriptor(pt: PhotonTransfer, out_dir: str | Path, *, shape: tuple[in
     nearest 50 % saturation. Refuses to write into an existing descriptor."""
     import tifffile
 
-    out = Path(out_dir)
+    out = output_dir(out_dir, "--out")
     target = out / DESCRIPTOR_NAME
     if target.exists():
         raise ConfigError("--out", str(target), "exists; refusing to overwrite")
-    (out / "images").mkdir(parents=True, exist_ok=True)
+    out.mkdir(exist_ok=True)
+    (out / "images").mkdir(exist_ok=True)
     pt = pt.sorted()
     rng = np.random.default_rng(seed)
     pattern = _Pattern(rng.standard_normal(shape), rng.standard_normal(shape))

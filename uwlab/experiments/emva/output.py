@@ -16,6 +16,7 @@ from uwlab.experiments.emva.plots import PLOT_NAMES, write_plots
 from uwlab.experiments.emva.profile import profile_documents
 from uwlab.jsonable import dumps, to_jsonable
 from uwlab.model.sensor import SensorProfile
+from uwlab.outputs import output_dir
 
 RESULT_NAME = "emva.json"
 
@@ -43,7 +44,9 @@ class OutputPaths:
 
 
 def output_paths(out: Path, name: str, with_profile: bool) -> OutputPaths:
-    """The files a characterisation writes into ``out``; refuses (`ConfigError` on ``--out``) if any exists."""
+    """The files a characterisation writes into ``out``; refuses (`ConfigError` on ``--out``) if any exists or
+    ``out`` is not a place to write (`uwlab.outputs.output_dir`)."""
+    out = output_dir(out, "--out")
     paths = OutputPaths(out / RESULT_NAME, tuple(out / n for n in PLOT_NAMES),
                         (out / f"{name}.toml", out / f"{name}_qe.csv") if with_profile else None)
     for path in paths.all():
@@ -64,7 +67,7 @@ def write_characterization(result: EmvaResult, pt: PhotonTransfer, paths: Output
     document["files"] = [str(p) for p in paths.all()]
     if paths.profile is None:
         document["notes"] = [*document["notes"], "no sensor profile written: pixel size unknown (--pixel-size-um)"]
-    paths.result.parent.mkdir(parents=True, exist_ok=True)
+    paths.result.parent.mkdir(exist_ok=True)
     write_plots(result, paths.result.parent)
     if paths.profile is not None:
         exposure_us = (float(pt.exposure_s.min() * 1e6), float(pt.exposure_s.max() * 1e6))
