@@ -46,6 +46,19 @@ def resolve_fit_config(config_path: str | Path | None, points: pd.DataFrame, rig
     return default_config_for(points[~points["saturated"].astype(bool)], rigs)
 
 
+def training_sweeps(points: pd.DataFrame, requested: list[str] | None, config: FitConfig) -> list[str]:
+    """The sweeps the cross-configuration check trains on: `requested` (``--train``), or the config's
+    ``[holdout] train``, or the first sweep with a lens; each must be a sweep of the dataset."""
+    sweeps = list(dict.fromkeys(points["sweep_id"]))
+    with_lens = list(dict.fromkeys(points.loc[points["f_number"].notna(), "sweep_id"]))
+    train = requested or config.holdout.train or (with_lens or sweeps)[:1]
+    unknown = sorted(set(train) - set(sweeps))
+    if unknown:
+        raise ConfigError("--train" if requested else "holdout.train", ", ".join(unknown),
+                          f"not a sweep of this dataset ({', '.join(sweeps)})")
+    return train
+
+
 @dataclass
 class Calibration:
     summary: dict
@@ -57,22 +70,20 @@ class Calibration:
 def calibrate(dataset_dir: str | Path, config_path: str | Path | None, out: str | Path, train_sweeps: list[str] | None = None,
               progress=None) -> Calibration:
     """Fit the whole dataset, then the cross-configuration check (training sweeps: `train_sweeps`, or the
-    config's [holdout] train, or the first sweep with a lens), then the spectra; write everything to `out`."""
+    config's [holdout] train, or the first sweep with a lens), then the spectra; write everything to `out`.
+    Every input is checked before sampling starts."""
     dataset = Dataset.open(dataset_dir)
     out = Path(out)
     check_output_dir(out)
     points, metadata = dataset.points(), dataset.metadata
+    if points.empty:
+        raise ConfigError("dataset", str(dataset_dir), "has no points to fit; run (or --resume) its sweep first")
     points = points.assign(relative_flux=relative_flux(points))
     rigs = metadata.get("rigs") or {}
     config = resolve_fit_config(config_path, points, rigs)
+    train = training_sweeps(points, train_sweeps, config)
     result = fit_points(points, rigs, config, progress=progress)
     truth = truth_from_metadata(metadata, points, result.names)
-    sweeps = list(dict.fromkeys(points["sweep_id"]))
-    with_lens = list(dict.fromkeys(points.loc[points["f_number"].notna(), "sweep_id"]))
-    train = train_sweeps or config.holdout.train or (with_lens or sweeps)[:1]
-    unknown = sorted(set(train) - set(sweeps))
-    if unknown:
-        raise ConfigError("--train", ", ".join(unknown), f"not a sweep of this dataset ({', '.join(sweeps)})")
     cross, _ = cross_configuration(points, rigs, config, train, progress=progress)
     predicted = predicted_spectra(result)
     measured = dataset.spectra()
