@@ -23,7 +23,7 @@ from uwlab.experiments.acquisition.spectra import irradiance_w_m2
 GAMMA = 1.8
 SEKONIC_SAMPLE = Path(__file__).parent / "data" / "sekonic_c7000_synthetic.csv"
 SPECTRUM_KEYS = {"wavelength_nm", "irradiance_w_m2_nm", "irradiance_w_m2", "illuminance_lux", "photon_flux_m2_s",
-                 "cct_k"}
+                 "cct_k", "saturated"}
 
 
 def flat_spectrum(position: str, flux_fraction: float):
@@ -68,19 +68,24 @@ def test_spectrum_cli_measures_and_writes_csv(rig, capsys, tmp_path):
     out = tmp_path / "spectrum.csv"
     summary = run_json(capsys, ["spectrum", "--port", rig.ports["spectrometer"], "--integration-ms", "50",
                                 "--average", "2", "--out", str(out), "--json"])
-    assert set(summary) == SPECTRUM_KEYS
+    assert set(summary) == SPECTRUM_KEYS and summary["saturated"] is False
     assert summary["irradiance_w_m2"] == pytest.approx(60.0, rel=0.01)
     assert len(summary["wavelength_nm"]) == len(summary["irradiance_w_m2_nm"]) == 401
     assert out.read_text().startswith("wavelength_nm,irradiance_w_m2_nm\n")
     assert "refusing to overwrite" in run_error(capsys, ["spectrum", "--port", rig.ports["spectrometer"],
                                                          "--out", str(out)])
+    # 500 ms: the peak (~0.2 W/m²/nm at 1e6 counts per W/m²/nm/s) exceeds the 65535-count full scale
+    assert run_json(capsys, ["spectrum", "--port", rig.ports["spectrometer"], "--integration-ms", "500",
+                             "--json"])["saturated"] is True
+    assert main(["spectrum", "--port", rig.ports["spectrometer"], "--integration-ms", "500"]) == 0
+    assert "saturated       yes" in capsys.readouterr().out
     assert "integration_ms" in run_error(capsys, ["spectrum", "--port", rig.ports["spectrometer"],
                                                   "--integration-ms", "0.1"])
 
 
 def test_spectrum_cli_imports_sekonic(capsys):
     summary = run_json(capsys, ["spectrum", "--import", str(SEKONIC_SAMPLE), "--json"])
-    assert set(summary) == SPECTRUM_KEYS
+    assert set(summary) == SPECTRUM_KEYS and summary["saturated"] is None  # the export does not say
     assert summary["wavelength_nm"][:2] == [380.0, 381.0] and len(summary["wavelength_nm"]) == 401
     assert summary["cct_k"] == pytest.approx(3000.0, rel=3e-3)
 

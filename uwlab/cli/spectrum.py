@@ -2,13 +2,12 @@
 from __future__ import annotations
 
 import json
-import sys
-from pathlib import Path
 
 from uwlab.drivers.serial import PROTOCOLS, open_spectrometer
 from uwlab.drivers.serial.base import check_averaging, check_integration_ms
 from uwlab.errors import ConfigError
 from uwlab.experiments.acquisition.spectra import read_sekonic_csv, spectrum_summary, write_spectrum_csv
+from uwlab.outputs import output_file
 
 
 def register(subparsers) -> None:
@@ -21,20 +20,21 @@ def register(subparsers) -> None:
     p.add_argument("--integration-ms", type=float, help="integration time [ms]")
     p.add_argument("--average", type=int, help="number of spectra averaged")
     p.add_argument("--out", metavar="FILE.csv", help="write wavelength_nm,irradiance_w_m2_nm (never overwritten)")
-    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.add_argument("--json", action="store_true", help="print one JSON object (with \"saturated\": whether the "
+                   "spectrometer saturated; null for an import)")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    if args.out is not None and Path(args.out).exists():
-        raise ConfigError("out", args.out, "file exists; refusing to overwrite it")
+    if args.out is not None:
+        output_file(args.out, "--out")
     if args.import_path is not None:
         if args.integration_ms is not None or args.average is not None:
             raise ConfigError("import", args.import_path, "--integration-ms and --average need --port")
-        wavelength_nm, irradiance = read_sekonic_csv(args.import_path)
+        (wavelength_nm, irradiance), saturated = read_sekonic_csv(args.import_path), None
     else:
-        wavelength_nm, irradiance = _measure(args)
-    summary = spectrum_summary(wavelength_nm, irradiance)
+        (wavelength_nm, irradiance), saturated = _measure(args)
+    summary = {**spectrum_summary(wavelength_nm, irradiance), "saturated": saturated}
     if args.out is not None:
         write_spectrum_csv(args.out, wavelength_nm, irradiance)
     if args.json:
@@ -44,7 +44,8 @@ def run(args) -> int:
     return 0
 
 
-def _measure(args):
+def _measure(args) -> tuple[tuple, bool]:
+    """((wavelength_nm, irradiance_w_m2_nm), whether the spectrometer saturated) from the instrument."""
     if args.integration_ms is not None:
         check_integration_ms(args.integration_ms)
     if args.average is not None:
@@ -54,10 +55,7 @@ def _measure(args):
             spectrometer.set_integration_ms(args.integration_ms)
         if args.average is not None:
             spectrometer.set_averaging(args.average)
-        spectrum = spectrometer.read_spectrum()
-        if spectrometer.last_saturated:
-            print("uwlab spectrum: warning: the spectrometer saturated; reduce --integration-ms", file=sys.stderr)
-    return spectrum
+        return spectrometer.read_spectrum(), spectrometer.last_saturated
 
 
 def _print_summary(summary: dict) -> None:
@@ -68,3 +66,5 @@ def _print_summary(summary: dict) -> None:
     print(f"illuminance     {summary['illuminance_lux']:.6g} lx")
     print(f"photon flux     {summary['photon_flux_m2_s']:.6g} m⁻² s⁻¹")
     print(f"CCT             {'undefined' if cct is None else f'{cct:.0f} K'}")
+    if summary["saturated"]:
+        print("saturated       yes: the readings are clipped; reduce --integration-ms")
