@@ -20,13 +20,6 @@ import numpy as np
 
 from uwlab.drivers.camera import Policy, open_camera
 
-GIGE_SERVER = (
-    "import argparse, sys\n"
-    "from uwlab.cli.sim_camera import add_sim_camera_parser\n"
-    "p = argparse.ArgumentParser(); add_sim_camera_parser(p.add_subparsers())\n"
-    "a = p.parse_args(sys.argv[1:]); sys.exit(a.func(a))\n"
-)
-
 
 def bench_sim(n_frames: int) -> dict:
     with open_camera("sim") as cam:
@@ -55,7 +48,8 @@ def bench_sim(n_frames: int) -> dict:
 
 
 def bench_gige(n_frames: int, address: str = "127.0.0.77") -> dict:
-    proc = subprocess.Popen([sys.executable, "-c", GIGE_SERVER, "camera", "--gige", "--address", address],
+    proc = subprocess.Popen([sys.executable, "-m", "uwlab.cli.main", "sim", "camera", "--gige", "--json",
+                             "--address", address],
                             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
     try:
         info = json.loads(proc.stdout.readline())

@@ -14,12 +14,6 @@ from uwlab.drivers.camera import Policy, open_camera
 from uwlab.drivers.sim.camera import SensorConfig, sensor_from_rig
 from uwlab.errors import ConfigError, DeviceError
 
-SERVER = (
-    "import argparse, sys\n"
-    "from uwlab.cli.sim_camera import add_sim_camera_parser\n"
-    "p = argparse.ArgumentParser(); add_sim_camera_parser(p.add_subparsers())\n"
-    "a = p.parse_args(sys.argv[1:]); sys.exit(a.func(a))\n"
-)
 _hosts = itertools.count(20 + os.getpid() % 100)
 FAST = Policy(timeout_s=3.0, reconnect_attempts=2, reconnect_delay_s=0.2)
 
@@ -30,7 +24,8 @@ class Server:
     def __init__(self, *extra: str):
         for _ in range(5):
             self.address = f"127.0.{os.getpid() % 200 + 1}.{next(_hosts) % 250 + 2}"
-            self.proc = subprocess.Popen([sys.executable, "-c", SERVER, "camera", "--gige", "--address", self.address, *extra],
+            self.proc = subprocess.Popen([sys.executable, "-m", "uwlab.cli.main", "sim", "camera", "--gige", "--json",
+                                          "--address", self.address, *extra],
                                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
             line = self.proc.stdout.readline()
             if line:

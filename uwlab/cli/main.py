@@ -65,10 +65,10 @@ def build_parser(chosen: str | None = None) -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
-    prefix = "uwlab"
+    chosen = chosen_command(argv)
+    prefix = f"uwlab {chosen}" if chosen in SUBCOMMANDS else "uwlab"
     try:
-        args = build_parser(chosen_command(argv)).parse_args(argv)
-        prefix = f"uwlab {args.command}"
+        args = build_parser(chosen).parse_args(argv)
         return int(args.func(args) or 0)
     except UwlabError as exc:
         print(f"{prefix}: error: {exc}", file=sys.stderr)

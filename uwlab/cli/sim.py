@@ -24,7 +24,7 @@ def register(subparsers) -> None:
 def register_serial(sub) -> None:
     p = sub.add_parser("serial", help="simulated light and spectrometer on pseudo-terminals",
                        description="Start the simulated light and spectrometer behind pseudo-terminals, print "
-                                   "their ports, and run until Ctrl-C or SIGTERM.")
+                                   "their ports, and run until SIGTERM (exit 0) or Ctrl-C (exit 130).")
     p.add_argument("--config", metavar="RIG.toml", help="rig config (default: configs/rigs/sim-tank.toml)")
     p.add_argument("--spectrometer-position", choices=SPECTROMETER_POSITIONS, default="target",
                    help="where the spectrometer sits: facing the light at the target board, or at the camera")
@@ -45,15 +45,8 @@ def run_serial(args) -> int:
             else:
                 print(f"light:        {info['light']}\nspectrometer: {info['spectrometer']}\n"
                       f"rig state:    {info['rig_state']}\nrunning; Ctrl-C to stop", flush=True)
-            _wait(stop)
+            while not stop.wait(0.5):
+                continue
     finally:
         signal.signal(signal.SIGTERM, previous)
     return 0
-
-
-def _wait(stop: threading.Event) -> None:
-    try:
-        while not stop.wait(0.5):
-            continue
-    except KeyboardInterrupt:
-        stop.set()

@@ -13,7 +13,10 @@ device time stamps in ns (tick frequency 1 GHz).
 GVCP's port is fixed, so distinct servers use distinct loopback addresses (127.0.0.0/8).
 Discovery broadcasts (Aravis sends them to 255.255.255.255 from every interface, ``lo``
 included) reach a wildcard socket shared by all servers (``SO_REUSEADDR``); each server answers
-from its own address, so ``arv-tool-0.8`` lists every running simulated camera.
+from its own address, so ``arv-tool-0.8`` lists every running simulated camera. Because the
+sockets share their port, binding cannot tell that an address is taken: each server claims its
+address with an abstract Unix socket named after it (freed by the kernel when the process ends),
+and a second server on the same address is refused, naming the process that holds it.
 """
 from __future__ import annotations
 
@@ -78,7 +81,12 @@ class GigeCameraServer:
         self._ctrl = _Control()
         self._stream = _StreamState()
         self._stop = threading.Event()
-        self._gvcp = self._bind(address)
+        self._claim = self._claim_address(address)
+        try:
+            self._gvcp = self._bind(address)
+        except BaseException:
+            self._claim.close()
+            raise
         self._discovery = self._bind_broadcast()
         self._gvsp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._gvsp.bind((address, 0))
@@ -90,6 +98,33 @@ class GigeCameraServer:
     def device_id(self) -> str:
         """The id Aravis gives this device: ``vendor-model-serial``."""
         return "-".join(str(self.nodes.value(n)) for n in ("DeviceVendorName", "DeviceModelName", "DeviceSerialNumber"))
+
+    @property
+    def stream_port(self) -> int:
+        """The UDP port GVSP packets are sent from."""
+        return self._gvsp.getsockname()[1]
+
+    @staticmethod
+    def _claim_address(address: str) -> socket.socket:
+        """Hold `address` for this process (see the module docstring); `ConfigError` if another server holds it."""
+        name = f"\0uwlab-gige-sim-{address}"
+        claim = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        try:
+            claim.bind(name)
+            claim.listen(1)
+            return claim
+        except OSError:
+            claim.close()
+        holder = "another process"
+        with socket.socket(socket.AF_UNIX, socket.SOCK_STREAM) as probe:
+            try:
+                probe.connect(name)
+                pid, _, _ = struct.unpack("3i", probe.getsockopt(socket.SOL_SOCKET, socket.SO_PEERCRED, 12))
+                holder = f"process {pid}"
+            except OSError:
+                pass
+        raise ConfigError("address", address, f"in use: a simulated camera of {holder} serves it; choose another "
+                                              "127.x.y.z address")
 
     @staticmethod
     def _bind(address: str) -> socket.socket:
@@ -123,7 +158,7 @@ class GigeCameraServer:
         for t in self._threads:
             if t.is_alive():
                 t.join(timeout=5)
-        for sock in (self._gvcp, self._discovery, self._gvsp):
+        for sock in (self._gvcp, self._discovery, self._gvsp, self._claim):
             if sock is not None:
                 sock.close()
 
