@@ -16,6 +16,8 @@ def register(subparsers) -> None:
                               description="Simulated rig → exposure sweeps (IMX250, ICX285 × three lens settings) → "
                                           "Bayesian calibration → validation report. Prints the report's path.")
     p.add_argument("--out", metavar="DIR", help="new output directory (default: out/demo-<date>-<time>)")
+    p.add_argument("--seed", type=int, default=0, help="seed of all the simulated noise: camera, spectrometer "
+                   "(default 0; equal seeds give equal numbers)")
     p.add_argument("--json", action="store_true", help="print summary.json")
     p.set_defaults(func=run)
 
@@ -23,18 +25,24 @@ def register(subparsers) -> None:
 def run(args) -> int:
     from uwlab.experiments.demo import run_demo
 
+    if args.out is None:
+        Path("out").mkdir(exist_ok=True)
     out = Path(args.out) if args.out else Path("out") / time.strftime("demo-%Y%m%d-%H%M%S")
-    with tqdm(desc="sweeps", unit="point", file=sys.stderr, leave=False) as bar:
-        def sweep_progress(event) -> None:
-            bar.total = event.total
-            bar.set_postfix_str(event.sweep_id)
-            bar.update(1)
+    bars = []
 
-        close_fit_bar, fit_progress = progress_bar("calibration")
-        try:
-            summary = run_demo(out, sweep_progress, fit_progress)
-        finally:
-            close_fit_bar()
+    def sweep_progress(event) -> None:  # the bar opens at the first point: nothing is drawn for refused input
+        if not bars:
+            bars.append(tqdm(desc="sweeps", total=event.total, unit="point", file=sys.stderr, leave=False))
+        bars[0].set_postfix_str(event.sweep_id)
+        bars[0].update(1)
+
+    close_fit_bar, fit_progress = progress_bar("calibration")
+    try:
+        summary = run_demo(out, sweep_progress, fit_progress, seed=args.seed)
+    finally:
+        for bar in bars:
+            bar.close()
+        close_fit_bar()
     if args.json:
         json.dump(summary, sys.stdout, indent=2)
         sys.stdout.write("\n")

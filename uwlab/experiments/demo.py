@@ -14,7 +14,6 @@ import json
 from pathlib import Path
 from typing import Callable
 
-from uwlab.errors import UwlabError
 from uwlab.experiments.calibration.pipeline import calibrate
 from uwlab.experiments.dataset import Dataset
 from uwlab.experiments.acquisition.plan import load_plan
@@ -22,6 +21,7 @@ from uwlab.experiments.report import write_report
 from uwlab.experiments.acquisition.rigs import SimRig
 from uwlab.experiments.acquisition.sweep import SweepRunner
 from uwlab.model.data import config_dir
+from uwlab.outputs import output_dir
 
 DEMO_PLAN = "plans/tank-exposure-sweep.toml"
 
@@ -40,13 +40,13 @@ def demo_summary(calibration_summary: dict, report: Path) -> dict:
 
 
 def run_demo(out: Path, sweep_progress: Callable | None = None, fit_progress: Callable | None = None,
-             plan_path: Path | None = None) -> dict:
-    """Run the campaign into `out` (which must not exist or be empty); returns the summary written to summary.json."""
-    if out.exists() and any(out.iterdir()):
-        raise UwlabError(f"{out} exists and is not empty; choose another --out")
+             plan_path: Path | None = None, seed: int = 0) -> dict:
+    """Run the campaign into `out` (which must not exist or be empty) on the simulated rig with all its noise seeded
+    from `seed` (equal seeds, equal numbers); returns the summary written to summary.json."""
+    out = output_dir(out, "--out", empty=True)
     plan = load_plan(plan_path or config_dir() / DEMO_PLAN)
     with Dataset.create(out / "dataset", plan.raw, plan_sha256=plan.sha256, sim=True) as dataset, \
-            SimRig(plan.rig_path) as rig:
+            SimRig(plan.rig_path, seed=seed) as rig:
         SweepRunner(plan, dataset, rig, sweep_progress).run()
     calibration = calibrate(out / "dataset", None, out / "fit", progress=fit_progress)
     report = write_report(out, out / "report.html")

@@ -126,7 +126,11 @@ class HardwareRig:
 
 
 class SimRig:
-    """The simulated rig (a context manager: simulators are always stopped, the temporary folder removed)."""
+    """The simulated rig (a context manager: simulators are always stopped, the temporary folder removed).
+
+    ``seed`` seeds all of its noise: the cameras' (the rig's ``[sim] seed`` + ``seed``: fixed patterns and temporal
+    noise) and the spectrometer's (``seed``); the light has none. Equal seeds give equal measurements.
+    """
 
     sim = True
 
@@ -138,7 +142,7 @@ class SimRig:
         self._tmp = tempfile.TemporaryDirectory(prefix=RIG_FOLDER_PREFIX)
         self._owner = OwnerLock(Path(self._tmp.name) / OWNER_LOCK, "simulated rig")
         self._owner.acquire()
-        self._serial = SerialRig(self._tmp.name, SerialSimSettings.from_config(self.rig_path))
+        self._serial = SerialRig(self._tmp.name, SerialSimSettings.from_config(self.rig_path), seed=seed)
         self.light: Light | None = None
         self.spectrometer: Spectrometer | None = None
         self._scene: RigScene | None = None
