@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import signal
 import sys
 
 from uwlab import __version__
@@ -80,7 +79,6 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{prefix}: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)  # a second Ctrl-C must not interrupt the message
         print(f"{prefix}: interrupted", file=sys.stderr)
         return 130
 
