@@ -82,11 +82,11 @@ def output_file(path: str | os.PathLike, key: str, *, replace: bool = False,
     """A file about to be written: checked name, existing writable parent, not a directory, and not an existing
     file unless `replace` (the refusal names `replace_option`, the option that allows it, if there is one)."""
     path = checked_name(path, key)
-    if path.is_dir():
-        raise ConfigError(key, str(path), "is a directory")
     if path.exists() and not replace:
         hint = f"; use {replace_option} to replace it" if replace_option else ""
         raise ConfigError(key, str(path), f"exists; refusing to overwrite it{hint}")
+    if path.is_dir():
+        raise ConfigError(key, str(path), "is a directory")
     _accepts_files(_existing_parent(path, key), key, path)
     return path
 

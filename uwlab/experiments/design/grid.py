@@ -33,6 +33,7 @@ import pyarrow.parquet as pq
 from uwlab.errors import ConfigError, UwlabError
 from uwlab.model.config import apply_override
 from uwlab.model.design import build_design, evaluate
+from uwlab.outputs import output_file
 
 CHUNK_POINTS = 1 << 17
 OUTPUT_SUFFIXES = (".parquet", ".csv")
@@ -213,22 +214,16 @@ def write_part(grid: DesignGrid, index: int, directory: str | Path) -> int:
 
 
 def check_output_path(out: str | Path) -> Path:
-    """The `--out` target of a grid: .parquet (a directory of parts) or .csv, not existing yet, parent writable."""
-    out = Path(out)
-    if out.suffix.lower() not in OUTPUT_SUFFIXES:
+    """The `--out` target of a grid: .parquet (a directory of parts) or .csv, a new path in an existing directory
+    that accepts files (`uwlab.outputs.output_file`)."""
+    if Path(out).suffix.lower() not in OUTPUT_SUFFIXES:
         raise ConfigError("--out", str(out), "must end in .parquet or .csv")
-    if out.exists():
-        raise ConfigError("--out", str(out), "exists; refusing to overwrite")
-    parent = out.parent if str(out.parent) else Path(".")
-    if parent.exists() and not (parent.is_dir() and os.access(parent, os.W_OK | os.X_OK)):
-        raise ConfigError("--out", str(out), f"cannot write into {parent}")
-    return out
+    return output_file(out, "--out")
 
 
 @contextmanager
 def staged(out: Path, directory: bool):
     """A staging path beside `out` (a directory or a file), renamed to `out` on success, removed on failure."""
-    out.parent.mkdir(parents=True, exist_ok=True)
     stage = out.parent / f".{out.name}.partial-{os.getpid()}"
     if directory:
         stage.mkdir()

@@ -2,7 +2,6 @@
 exposure limits, water attenuation, quantum efficiency."""
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import matplotlib
@@ -17,6 +16,7 @@ from uwlab.experiments.figures import save_figure  # noqa: E402
 from uwlab.experiments.design.curves import (dof_curves, operation_curves, quantum_efficiency,  # noqa: E402
                                              water_attenuation)
 from uwlab.model.design import Design, stage_spectra  # noqa: E402
+from uwlab.outputs import output_dir
 
 
 def plot_dof(design: Design, path: Path) -> Path:
@@ -79,14 +79,10 @@ def plot_qe(design: Design, path: Path) -> Path:
 
 
 def prepare_plot_dir(out_dir: str | Path) -> Path:
-    """Create the figure directory, or fail in one line naming it when it cannot be created or written."""
-    out_dir = Path(out_dir)
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise ConfigError("--plot", str(out_dir), f"cannot create the directory ({exc.strerror})") from None
-    if not os.access(out_dir, os.W_OK | os.X_OK):
-        raise ConfigError("--plot", str(out_dir), "directory is not writable")
+    """Create the figure directory once `uwlab.outputs.output_dir` accepts it (its parent must exist), or fail in one
+    line naming it."""
+    out_dir = output_dir(out_dir, "--plot")
+    out_dir.mkdir(exist_ok=True)
     return out_dir
 
 
