@@ -31,6 +31,7 @@ from uwlab.model.sensor import load_sensor_profile
 from tests.sim.conftest import EXAMPLE, ROOT
 
 SEKONIC = ROOT / "tests" / "sim" / "data" / "sekonic_c7000_synthetic.csv"
+DOME = ROOT / "configs" / "design" / "dome-8mm.toml"
 TIMEOUT_S = 180
 PLAN = f"""
 name = "bad-inputs"
@@ -176,6 +177,13 @@ ROWS = [
     ("demo --out read-only", lambda c, s: ["demo", "--out", c.ro / "demo"], ["--out", "cannot write"]),
     ("spectrum --out read-only", lambda c, s: ["spectrum", "--import", SEKONIC, "--out", c.ro / "s.csv"],
      ["--out", "cannot write"]),
+    ("port board --out read-only", lambda c, s: ["port", "board", "--out", c.ro / "board.png"],
+     ["--out", "cannot write"]),
+    ("port trace --plot read-only", lambda c, s: ["port", "trace", EXAMPLE, "--plot", c.ro / "plots"],
+     ["--plot", "cannot write"]),
+    ("sim charuco --out read-only",
+     lambda c, s: ["sim", "charuco", DOME, "--medium", "air", "--poses", "1", "--out", c.ro / "images"],
+     ["--out", "cannot write"]),
     ("light calibrate --out read-only",
      lambda c, s: ["light", "calibrate", "--light", s / "no-port", "--spectrometer", s / "no-port", "--out",
                    c.ro / "calibration.csv"], ["--out", "cannot write"]),
@@ -266,6 +274,13 @@ def test_ctrl_c_stops_sim_camera():
     assert '"address"' in process.stdout.readline().decode()
     os.killpg(process.pid, signal.SIGINT)
     assert_interrupted(process, "sim")
+
+
+def test_ctrl_c_stops_explore():
+    process = uwlab("explore", "--no-browser", "--json", "--port", "0")
+    assert '"url"' in process.stdout.readline().decode()
+    os.killpg(process.pid, signal.SIGINT)
+    assert_interrupted(process, "explore")
 
 
 def test_ctrl_c_while_the_sweeps_simulator_processes_start(tmp_path):

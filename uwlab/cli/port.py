@@ -90,17 +90,19 @@ def _trace_table(result: dict) -> str:
 
 
 def run_trace(args) -> int:
-    from uwlab.experiments.port.files import output_dir
     from uwlab.model.design import load_design
     from uwlab.model.port_field import trace_design
+    from uwlab.outputs import output_dir
 
+    plot_dir = output_dir(args.plot, "--plot") if args.plot else None
     design = load_design(args.config, overrides(args.set))
     result = trace_design(design)
     written = []
-    if args.plot:
+    if plot_dir is not None:
         from uwlab.experiments.port.plots import write_trace_plots
 
-        written = write_trace_plots(design, result, output_dir(args.plot, "--plot"))
+        plot_dir.mkdir(exist_ok=True)
+        written = write_trace_plots(design, result, plot_dir)
     summary = {k: v for k, v in result.items() if k != "profile"}
     if args.json:
         sys.stdout.write(dumps(summary, indent=2) + "\n")

@@ -19,6 +19,7 @@ from pydantic import Field, model_validator
 from uwlab.errors import ConfigError
 from uwlab.model.data import config_dir, read_toml
 from uwlab.model.schema import NonEmptyText, Schema, invalid, parse, quantity
+from uwlab.outputs import output_file
 
 DEFAULT_BOARD = "boards/charuco-7x5-40mm.toml"
 BLACK_REFLECTANCE = 0.04     # matte black print (assumed)
@@ -160,11 +161,9 @@ def write_printable(board: CharucoBoard, path: str | Path, dpi: int) -> Path:
 
     if not 50 <= dpi <= 2400:
         raise ConfigError("--dpi", dpi, "must be in [50, 2400]")
-    out = Path(path)
-    if out.suffix.lower() != ".png":
-        raise ConfigError("--out", str(out), "must end in .png")
-    if out.exists():
-        raise ConfigError("--out", str(out), "exists; refusing to overwrite")
+    if Path(path).suffix.lower() != ".png":
+        raise ConfigError("--out", str(path), "must end in .png")
+    out = output_file(path, "--out")
     per_square = max(int(round(board.square_m * dpi / 0.0254)), 20)
     try:
         plt.imsave(out, board.binary_image(per_square), cmap="gray", vmin=0, vmax=255,

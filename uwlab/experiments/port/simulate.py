@@ -27,11 +27,11 @@ from uwlab.drivers.sim.camera import SensorConfig, SimSensor, SimTruth
 from uwlab.drivers.sim.target import PlanarTarget, TargetView
 from uwlab.errors import ConfigError, UwlabError
 from uwlab.experiments.port.board import WHITE_REFLECTANCE, CharucoBoard
-from uwlab.experiments.port.files import output_dir
 from uwlab.jsonable import to_jsonable
 from uwlab.model.lens import BrownLens
 from uwlab.model.port_field import exact_fov_rad, port_of
 from uwlab.model.raytrace import DomePort, Port
+from uwlab.outputs import output_dir
 
 MEDIA = ("air", "water")
 SIDECAR = "charuco.json"
@@ -116,7 +116,8 @@ def simulate_charuco(design, board: CharucoBoard, medium: str, count: int, out: 
     lens, resolution, pixel = camera_of(design, downsample, k1)
     rng = np.random.default_rng(seed)
     poses = sample_poses(board, lens, resolution, port, count, rng)
-    folder = output_dir(out, "--out", must_be_new=True)
+    folder = output_dir(out, "--out", empty=True)
+    folder.mkdir(exist_ok=True)
     closest = min(float(np.linalg.norm(t + r @ np.array([*np.array(board.size_m) / 2, 0.0]))) for r, t in poses)
     reflectance, texel, origin = _texture(board, lens, closest, supersample)
     target = PlanarTarget(reflectance, texel, origin, background=0.1)
