@@ -70,7 +70,9 @@ def finish(process: subprocess.Popen, timeout_s: float = TIMEOUT_S) -> tuple[int
 
 
 def assert_one_line(err: str, out: str, *names: str) -> None:
+    """One line, `uwlab VERB: error: ...`, and nothing before it (no progress bar: the refusal came first)."""
     assert "Traceback" not in err + out, err
+    assert err.startswith("uwlab ") and ": error: " in err, f"not the error line alone: {err!r}"
     assert err.endswith("\n") and err.count("\n") == 1, f"not one line: {err!r}"
     for name in names:
         assert name in err, f"{name!r} not named in {err!r}"
@@ -127,6 +129,7 @@ ROWS = [
     ("demo --out an existing file", lambda c, s: ["demo", "--out", c.existing],
      ["--out", "existing.txt", "not a directory"]),
     ("sim camera bad address", lambda c, s: ["sim", "camera", "--gige", "--address", "127.0.0.300"], ["127.0.0.300"]),
+    # refused before sampling: the sampling bar (drawn on stderr at the first step) would precede the line
     ("fit --train misspelled", lambda c, s: ["fit", c.sweep, "--train", "imx250-30mm-f3", "--out", s / "fit"],
      ["--train", "imx250-30mm-f3"]),
     ("report --out in a missing directory", lambda c, s: ["report", c.sweep, "--out", s / "nonexistent" / "r.html"],

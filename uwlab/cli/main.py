@@ -7,13 +7,16 @@ and ``func``. ``func(args)`` returns the exit code.
 
 The error contract: `UwlabError` (bad input, a failed device) and `OSError` (a file the system refused) become one
 line on stderr and exit code 2; Ctrl-C becomes one line ``interrupted`` and exit code 130; nothing below the CLI
-prints.
+prints. Ctrl-C is recognised by the SIGINT itself, not only by the KeyboardInterrupt it raises: a module interrupted
+while it imports may turn the KeyboardInterrupt into another error (numpy raises ImportError).
 """
 from __future__ import annotations
 
 import argparse
 import importlib
+import signal
 import sys
+import threading
 
 from uwlab import __version__
 from uwlab.errors import UwlabError
@@ -66,21 +69,34 @@ def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     chosen = chosen_command(argv)
     prefix = f"uwlab {chosen}" if chosen in SUBCOMMANDS else "uwlab"
+    interrupts = []
+
+    def on_sigint(signum, frame):
+        interrupts.append(signum)
+        raise KeyboardInterrupt
+
+    # noted only where Python's own handler would raise KeyboardInterrupt (not where SIGINT is ignored)
+    watch = (threading.current_thread() is threading.main_thread()
+             and signal.getsignal(signal.SIGINT) is signal.default_int_handler)
+    if watch:
+        signal.signal(signal.SIGINT, on_sigint)
     try:
         args = build_parser(chosen).parse_args(argv)
         return int(args.func(args) or 0)
-    except UwlabError as exc:
+    except (KeyboardInterrupt, UwlabError, OSError, ImportError) as exc:
+        if interrupts or isinstance(exc, KeyboardInterrupt):
+            print(f"{prefix}: interrupted", file=sys.stderr)
+            return 130
+        if isinstance(exc, BrokenPipeError):
+            sys.stderr.close()
+            return 0
+        if isinstance(exc, ImportError):
+            raise
         print(f"{prefix}: error: {exc}", file=sys.stderr)
         return 2
-    except BrokenPipeError:
-        sys.stderr.close()
-        return 0
-    except OSError as exc:
-        print(f"{prefix}: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print(f"{prefix}: interrupted", file=sys.stderr)
-        return 130
+    finally:
+        if watch:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 if __name__ == "__main__":
