@@ -106,9 +106,15 @@ def ctx(tmp_path_factory, read_only_dir):
     simulate_photon_transfer(emva, truth, rate_e_per_s=1.07e5, quantum_efficiency=0.6,
                              exposures_us=np.linspace(3e3, 120e3, 12), frames=2, seed=1)
     empty = base / "empty"
-    Dataset.create(empty, {"name": "empty"}, plan_sha256="0" * 64, sim=True)
+    Dataset.create(empty, {"name": "empty"}, plan_sha256="0" * 64, sim=True).close()
     existing = base / "existing.txt"
     existing.write_text("recorded\n")
+    sekonic = SEKONIC.read_text().splitlines(keepends=True)
+    stray = base / "stray.csv"
+    stray.write_text("".join(sekonic) + "Spectral Data 99999[nm],5\n")
+    short = base / "short.csv"
+    short.write_text("".join(line for line in sekonic if not line.startswith("Spectral Data"))
+                     + "".join([line for line in sekonic if line.startswith("Spectral Data")][:3]))
 
     def plan_with(old: str, new: str) -> Path:
         assert old in PLAN
@@ -117,7 +123,7 @@ def ctx(tmp_path_factory, read_only_dir):
         return path
 
     return SimpleNamespace(plan=plan, sweep=sweep, emva=emva, empty=empty, existing=existing, ro=read_only_dir,
-                           plan_with=plan_with)
+                           plan_with=plan_with, stray=stray, short=short, base=base)
 
 
 # (row id, argv from (ctx, scratch dir), what the one line must name)
@@ -171,6 +177,9 @@ ROWS = [
     ("design grid --out read-only",
      lambda c, s: ["design", EXAMPLE, "--grid", "lens.f_number=2,4", "--out", c.ro / "grid.csv"],
      ["--out", "cannot write"]),
+    ("Sekonic stray 99999 nm row", lambda c, s: ["spectrum", "--import", c.stray], ["99999", "line"]),
+    ("Sekonic 3-sample file", lambda c, s: ["spectrum", "--import", c.short], ["short.csv", "line"]),
+    ("dataset check on a non-dataset", lambda c, s: ["dataset", "check", c.base], ["not a dataset"]),
     ("emva characterize --out read-only", lambda c, s: ["emva", "characterize", c.emva, "--out", c.ro / "emva"],
      ["--out", "cannot write"]),
     ("emva export --out read-only", lambda c, s: ["emva", "export", c.emva, "--out", c.ro / "descriptor"],

@@ -54,8 +54,8 @@ def plan_path(tmp_path_factory):
 def measure(plan_path, root, seed: int) -> tuple[pd.DataFrame, pd.DataFrame]:
     """The plan's sweeps on the simulated rig: (points without their clock times, spectra)."""
     plan = load_plan(plan_path)
-    dataset = Dataset.create(root, plan.raw, plan_sha256=plan.sha256, sim=True)
-    with SimRig(plan.rig_path, seed=seed) as rig:
+    with Dataset.create(root, plan.raw, plan_sha256=plan.sha256, sim=True) as dataset, \
+            SimRig(plan.rig_path, seed=seed) as rig:
         SweepRunner(plan, dataset, rig).run()
     dataset = Dataset.open(root)
     return dataset.points().drop(columns=CLOCK_COLUMNS), dataset.spectra()
