@@ -177,6 +177,10 @@ ROWS = [
     ("design grid --out read-only",
      lambda c, s: ["design", EXAMPLE, "--grid", "lens.f_number=2,4", "--out", c.ro / "grid.csv"],
      ["--out", "cannot write"]),
+    ("design grid larger than the disk",  # ~1.8e12 points: refused after its first chunk, the staging removed
+     lambda c, s: ["design", EXAMPLE, "--grid", "operation.altitude_m=0.5:5:0.000001", "--grid",
+                   "lens.f_number=1:20:0.001", "--grid", "sensor.gain_db=0:20:1", "--out", s / "huge.parquet"],
+     ["--out", "GiB free"]),
     ("Sekonic stray 99999 nm row", lambda c, s: ["spectrum", "--import", c.stray], ["99999", "line"]),
     ("Sekonic 3-sample file", lambda c, s: ["spectrum", "--import", c.short], ["short.csv", "line"]),
     ("dataset check on a non-dataset", lambda c, s: ["dataset", "check", c.base], ["not a dataset"]),

@@ -18,7 +18,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from uwlab.errors import ConfigError, UwlabError
-from uwlab.experiments.design.grid import DesignGrid, check_output_path, staged, write_part
+from uwlab.experiments.design.grid import DesignGrid, check_disk_space, check_output_path, staged, write_part
 
 IN_FLIGHT_PER_THREAD = 3
 WORKER_TIMEOUT_S = 30
@@ -75,6 +75,8 @@ def write_grid_dask(grid: DesignGrid, out: str | Path, address: str, progress=No
                 break
         for future in pending:
             written = future.result()
+            if rows == 0:
+                check_disk_space(grid, stage)
             rows += written
             if progress:
                 progress(written)

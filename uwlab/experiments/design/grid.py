@@ -237,6 +237,27 @@ def staged(out: Path, directory: bool):
     stage.rename(out)
 
 
+DISK_MARGIN = 1.1
+
+
+def check_disk_space(grid: DesignGrid, stage: Path, rows_written: int = 0) -> None:
+    """Refuse to go on when the grid, at the bytes per row written so far, would not fit on the disk holding
+    ``stage`` (with a 10 % margin): a huge grid stops after its first chunk, not when the disk is full."""
+    if stage.is_dir():  # Parquet parts: each holds one chunk (the last may be shorter)
+        parts = [p.stat().st_size for p in stage.iterdir() if p.is_file()]
+        per_point = sum(parts) / (len(parts) * grid.points / grid.chunks) if parts else 0.0
+        remaining = max(grid.chunks - len(parts), 0) * grid.points / grid.chunks
+    else:
+        per_point = stage.stat().st_size / rows_written if rows_written else 0.0
+        remaining = grid.points - rows_written
+    needed = per_point * remaining * DISK_MARGIN
+    free = shutil.disk_usage(stage if stage.is_dir() else stage.parent).free
+    if needed > free:
+        raise UwlabError(f"--out: the grid needs about {needed / 2**30:.3g} GiB more on disk "
+                         f"({per_point:.0f} bytes per point), {free / 2**30:.3g} GiB free; "
+                         "choose fewer points or fewer --columns")
+
+
 def write_grid(grid: DesignGrid, out: str | Path, progress=None) -> dict:
     """Evaluate `grid` chunk by chunk into `out` (.parquet: a directory of parts; .csv: one file) with memory
     bounded by one chunk; returns {"points", "out", "chunks", "columns"}. `progress(rows)` is called per chunk."""
@@ -248,6 +269,8 @@ def write_grid(grid: DesignGrid, out: str | Path, progress=None) -> dict:
             for index in range(grid.chunks):
                 written = write_part(grid, index, stage)
                 rows += written
+                if index == 0:
+                    check_disk_space(grid, stage, rows)
                 if progress:
                     progress(written)
     else:
@@ -256,6 +279,8 @@ def write_grid(grid: DesignGrid, out: str | Path, progress=None) -> dict:
                 frame = grid.chunk(index)
                 frame.to_csv(stage, mode="a", header=index == 0, index=False, float_format="%.17g")  # round trip
                 rows += len(frame)
+                if index == 0:
+                    check_disk_space(grid, stage, rows)
                 if progress:
                     progress(len(frame))
     return {"points": rows, "out": str(out), "chunks": grid.chunks, "columns": grid.schema.names}
