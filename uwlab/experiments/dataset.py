@@ -81,6 +81,9 @@ POINT_SCHEMA = pa.schema([
     ("mean_dn", pa.float64()), ("temporal_var_dn2", pa.float64()), ("spatial_var_dn2", pa.float64()),
     ("dark_mean_dn", pa.float64()), ("dark_temporal_var_dn2", pa.float64()), ("dark_spatial_var_dn2", pa.float64()),
     ("dark_frames", pa.int64()), ("signal_dn", pa.float64()),
+    ("spatial_var_row_dn2", pa.float64()), ("spatial_var_col_dn2", pa.float64()), ("spatial_var_pixel_dn2", pa.float64()),
+    ("dark_spatial_var_row_dn2", pa.float64()), ("dark_spatial_var_col_dn2", pa.float64()),
+    ("dark_spatial_var_pixel_dn2", pa.float64()), ("mean_diff_dn", pa.float64()),
     ("saturated_fraction", pa.float64()), ("saturated", pa.bool_()),
     ("clip_level_dn", pa.float64()), ("clip_source", pa.string()),
     ("exposure_us_readback", pa.float64()), ("gain_db_readback", pa.float64()), ("temperature_c", pa.float64()),
@@ -142,18 +145,22 @@ def point_row(*, sweep_id: str, point_index: int, kind: str, bright: StackStatis
     """The dataset row of one measured point — the one place a row is built.
 
     From the point's bright and dark stacks (`uwlab.experiments.emva.stream`) come ``frames``, ``mean_dn``,
-    ``temporal_var_dn2``, ``spatial_var_dn2``, the ``dark_*`` columns and ``signal_dn = mean_dn − dark_mean_dn``
-    (null without dark frames); from the clip level and the one saturation rule (`uwlab.experiments.saturation`)
-    ``saturated_fraction``, ``saturated``, ``clip_level_dn`` and ``clip_source``. ``columns`` are the settings and
-    identity columns of `POINT_SCHEMA` (camera, lens, exposure, read-backs, irradiance, times, ...); a column
-    given twice, an unknown column or a missing required one raises `ConfigError` naming it.
+    ``temporal_var_dn2``, ``spatial_var_dn2`` (unfiltered), the row/column/pixel parts of the highpassed spatial
+    variance corrected for temporal noise (``spatial_var_{row,col,pixel}_dn2``, EMVA 1288 Release 4.0 eq. 44; null
+    for a ROI too small for the highpass), ``mean_diff_dn`` (μ[0] − μ[1] of the first frame pair), the ``dark_*``
+    columns and ``signal_dn = mean_dn − dark_mean_dn`` (null without dark frames); from the clip level and the one
+    saturation rule (`uwlab.experiments.saturation`) ``saturated_fraction``, ``saturated``, ``clip_level_dn`` and
+    ``clip_source``. ``columns`` are the settings and identity columns of `POINT_SCHEMA` (camera, lens, exposure,
+    read-backs, irradiance, times, ...); a column given twice, an unknown column or a missing required one raises
+    `ConfigError` naming it.
     """
     derived = {
         "frames": bright.frames, "mean_dn": bright.mean_dn, "temporal_var_dn2": bright.temporal_var_dn2,
-        "spatial_var_dn2": bright.spatial_var_dn2,
+        "spatial_var_dn2": bright.spatial_var_dn2, **_split_columns("", bright), "mean_diff_dn": bright.mean_diff_dn,
         "dark_mean_dn": dark.mean_dn if dark else None,
         "dark_temporal_var_dn2": dark.temporal_var_dn2 if dark else None,
         "dark_spatial_var_dn2": dark.spatial_var_dn2 if dark else None,
+        **_split_columns("dark_", dark),
         "dark_frames": dark.frames if dark else 0,
         "signal_dn": bright.mean_dn - dark.mean_dn if dark else None,
         "saturated_fraction": bright.saturated_fraction,
@@ -164,6 +171,12 @@ def point_row(*, sweep_id: str, point_index: int, kind: str, bright: StackStatis
     if twice:
         raise ConfigError(f"point.{twice[0]}", columns[twice[0]], "derived from the frame statistics; do not pass it")
     return check_point_row({"sweep_id": sweep_id, "point_index": point_index, "kind": kind, **derived, **columns})
+
+
+def _split_columns(prefix: str, stats: StackStatistics | None) -> dict:
+    spatial = stats.spatial if stats is not None else None
+    return {f"{prefix}spatial_var_{part}_dn2": getattr(spatial, part) if spatial is not None else None
+            for part in ("row", "col", "pixel")}
 
 
 def spectra_frame(sweep_id: str, point_index: int, readings: list[tuple[str, Any, Any]]) -> pd.DataFrame:

@@ -1,16 +1,25 @@
 """Streaming EMVA 1288 statistics of a stack of frames, one frame at a time.
 
-EMVA 1288 Release 4.0 (linear), computation of mean and variance: for L frames y_l of M×N pixels
+EMVA Standard 1288 Release 4.0 Linear (the General document uses the same definitions), for L frames y_l of M×N
+pixels:
 
-* mean μ_y = (1/(L M N)) Σ_l Σ_mn y_l[m, n];
-* temporal variance from frame pairs, σ²_y = (1/2) var(y_A − y_B) with the mean difference removed,
-  averaged over the pairs (y_1, y_2), (y_3, y_4), … (an odd last frame enters the mean only);
-* spatial variance s²_y,measured of the L-frame mean image (unbiased, ddof = 1), not yet corrected for the
-  residual temporal noise σ²_y / L (the caller does that).
+* mean μ_y over all frames and pixels (eq. 16, eq. 34);
+* temporal variance σ²_y from frame pairs (eq. 18): half the mean square difference of the pair minus half the
+  squared difference of the pair's means (the Release 4 correction for noise common to all pixels), averaged over
+  the pairs (y_0, y_1), (y_2, y_3), … (an odd last frame enters the means only); μ[0] − μ[1] of the first pair is
+  kept for the stability graph (§6.6, Fig. 6);
+* temporal variance of the stack σ²_y.stack (eq. 65): the mean over the pixels of each pixel's variance over the
+  L frames (divisor L − 1);
+* spatial variance of the mean image ⟨y⟩ (eq. 33–35) without highpass (``spatial_var_dn2``, s²_y.measured over all
+  the ROI) and, on the highpassed mean image (§8.1), corrected and split into row, column and pixel parts
+  (eq. 36–44, `uwlab.experiments.emva.nonuniformity.spatial_variances`) with σ²_y (L = 2) or σ²_y.stack (L > 2);
+* the fraction of pixels at or above the camera's clip level in any frame (`uwlab.experiments.saturation`).
 
-Memory is bounded by a few frames whatever L is: a uint32 sum image (exact for up to 65 536 frames of
-16-bit data), a boolean "saturated in any frame" map and the first frame of the current pair; the
-variances are accumulated over row chunks (`CHUNK_PIXELS`), so temporaries stay small.
+Memory is bounded by a few frames whatever L is: a uint32 sum image (exact for up to 32 768 frames of
+16-bit data), a boolean "saturated in any frame" map and the first frame of the current pair; sums of squares of integer
+deviations from an integer centre are accumulated exactly (integers, over row chunks of at most `CHUNK_PIXELS`), so
+temporaries stay small and no precision is lost to cancellation. The highpass at the end works on a float32 copy
+of ⟨y⟩ − μ_y.
 """
 from __future__ import annotations
 
@@ -20,33 +29,43 @@ from dataclasses import dataclass
 import numpy as np
 
 from uwlab.errors import ConfigError
+from uwlab.experiments.emva.nonuniformity import HIGHPASS_MARGIN, SpatialVariances, highpass, spatial_variances
 
 CHUNK_PIXELS = 1 << 18
 
 
 @dataclass(frozen=True)
 class StackStatistics:
-    """EMVA statistics of one stack (DN, DN²); ``saturated_fraction``: pixels at or above the clip level in any
-    frame (`uwlab.experiments.saturation`)."""
+    """EMVA statistics of one stack [DN, DN²]. ``spatial``: the highpassed, corrected spatial variances (None
+    for a ROI too small for the highpass); ``mean_image``: ⟨y⟩ (float32) when requested."""
 
     frames: int
     mean_dn: float
     temporal_var_dn2: float
+    stack_var_dn2: float
     spatial_var_dn2: float
+    spatial: SpatialVariances | None
+    mean_diff_dn: float
     saturated_fraction: float
+    mean_image: np.ndarray | None = None
 
 
 class StackAccumulator:
     """Accumulates frames (2-D integer arrays of one shape) for `StackStatistics`; ``clip_dn`` is the camera's
-    clip level (`uwlab.experiments.saturation.ClipLevel.dn`)."""
+    clip level (`uwlab.experiments.saturation.ClipLevel.dn`); ``keep_mean_image`` keeps ⟨y⟩ in the result (for
+    the spectrograms, profiles and histograms of a nonuniformity stack)."""
 
-    def __init__(self, clip_dn: float):
+    def __init__(self, clip_dn: float, keep_mean_image: bool = False):
         self.clip_dn = float(clip_dn)
+        self.keep_mean_image = keep_mean_image
         self._sum: np.ndarray | None = None
         self._saturated: np.ndarray | None = None
         self._pending: np.ndarray | None = None
+        self._centre = 0
+        self._squares = 0
         self._pair_var_sum = 0.0
         self._pairs = 0
+        self._mean_diff = 0.0
         self.frames = 0
 
     def add(self, frame: np.ndarray) -> None:
@@ -56,14 +75,19 @@ class StackAccumulator:
         if self._sum is None:
             self._sum = np.zeros(frame.shape, np.uint32)
             self._saturated = np.zeros(frame.shape, bool)
+            self._centre = int(round(float(frame.mean())))
         elif frame.shape != self._sum.shape:
             raise ConfigError("frame", frame.shape, f"shape differs from the first frame {self._sum.shape}")
         np.add(self._sum, frame, out=self._sum, casting="unsafe")
         self._saturated |= frame >= self.clip_dn
+        self._squares += _centred_square_sum(frame, self._centre)
         if self._pending is None:
             self._pending = frame.copy()
         else:
-            self._pair_var_sum += 0.5 * _difference_variance(self._pending, frame)
+            var, diff = _pair_statistics(self._pending, frame)
+            self._pair_var_sum += var
+            if self._pairs == 0:
+                self._mean_diff = diff
             self._pairs += 1
             self._pending = None
         self.frames += 1
@@ -71,15 +95,34 @@ class StackAccumulator:
     def result(self) -> StackStatistics:
         if self._pairs == 0:
             raise ConfigError("frames", self.frames, "need at least 2 frames for the temporal variance")
-        n = self._sum.size
-        total_mean = float(self._sum.sum(dtype=np.uint64)) / n
-        squares = sum(_centred_squares(rows, total_mean) for rows in _row_chunks(self._sum))
+        n, frames = self._sum.size, self.frames
+        sum_total = int(self._sum.sum(dtype=np.uint64))
+        mean = sum_total / (n * frames)
+        # with D = Σ_l y_l − L c per pixel (c the integer centre): eq. 65 is (Σ_l Σ (y − c)² − Σ D² / L) / ((L − 1) MN)
+        # and eq. 35 of the unfiltered mean image is (Σ D² − (Σ D)² / MN) / (L² MN)
+        d_sum = sum_total - n * frames * self._centre
+        d_squares = _centred_square_sum(self._sum, frames * self._centre)
+        stack_var = (self._squares - d_squares / frames) / ((frames - 1) * n)
+        measured = (d_squares - d_sum * d_sum / n) / (frames**2 * n)
+        temporal = self._pair_var_sum / self._pairs
+        deviation = self._deviation_image(mean)
+        spatial = None
+        if min(deviation.shape) > 2 * HIGHPASS_MARGIN + 1:
+            spatial = spatial_variances(highpass(deviation), stack_var if frames > 2 else temporal, frames)
         return StackStatistics(
-            frames=self.frames, mean_dn=total_mean / self.frames,
-            temporal_var_dn2=self._pair_var_sum / self._pairs,
-            spatial_var_dn2=squares / (n - 1) / self.frames**2,
+            frames=frames, mean_dn=mean, temporal_var_dn2=temporal, stack_var_dn2=stack_var,
+            spatial_var_dn2=measured, spatial=spatial, mean_diff_dn=self._mean_diff,
             saturated_fraction=float(np.count_nonzero(self._saturated)) / n,
+            mean_image=deviation + np.float32(mean) if self.keep_mean_image else None,
         )
+
+    def _deviation_image(self, mean: float) -> np.ndarray:
+        """⟨y⟩ − μ_y as float32 (computed from the exact integer sum, in row chunks)."""
+        out = np.empty(self._sum.shape, np.float32)
+        scale = 1.0 / self.frames
+        for rows, target in zip(_row_chunks(self._sum), _row_chunks(out), strict=True):
+            np.subtract(rows * scale, mean, out=target, casting="unsafe")
+        return out
 
 
 def _row_chunks(image: np.ndarray) -> list[np.ndarray]:
@@ -88,25 +131,33 @@ def _row_chunks(image: np.ndarray) -> list[np.ndarray]:
     return [image[i : i + rows] for i in range(0, image.shape[0], rows)]
 
 
-def _centred_squares(block: np.ndarray, centre: float) -> float:
-    d = block.astype(np.float64).ravel() - centre
-    return float(d @ d)
+def _centred_square_sum(image: np.ndarray, centre: int) -> int:
+    """Σ (y − c)² over an integer image, exactly: int64 dot products over row blocks small enough not to overflow,
+    summed as a Python int."""
+    bound = max(abs(int(image.max()) - centre), abs(int(image.min()) - centre), 1)
+    rows = max(1, min(CHUNK_PIXELS, (1 << 62) // (bound * bound)) // image.shape[1])
+    total = 0
+    for start in range(0, image.shape[0], rows):
+        d = image[start : start + rows].astype(np.int64).ravel() - centre
+        total += int(d @ d)
+    return total
 
 
-def _difference_variance(a: np.ndarray, b: np.ndarray) -> float:
-    """var(a − b) over all pixels (population variance, mean difference removed), in row chunks."""
-    total, squares = 0, 0.0
-    for rows_a, rows_b in zip(_row_chunks(a), _row_chunks(b)):
+def _pair_statistics(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
+    """(σ²_y of the pair by eq. 18, μ[a] − μ[b]), accumulated in row chunks."""
+    total, squares = 0, 0
+    for rows_a, rows_b in zip(_row_chunks(a), _row_chunks(b), strict=True):
         diff = np.subtract(rows_a, rows_b, dtype=np.int64).ravel()
         total += int(diff.sum())
-        squares += float(diff @ diff)
+        squares += int(diff @ diff)
     n = a.size
-    return (squares - total * total / n) / n
+    mean_diff = total / n
+    return 0.5 * (squares / n - mean_diff**2), mean_diff
 
 
-def stack_statistics(frames: Iterable[np.ndarray], clip_dn: float) -> StackStatistics:
+def stack_statistics(frames: Iterable[np.ndarray], clip_dn: float, keep_mean_image: bool = False) -> StackStatistics:
     """`StackStatistics` of an iterable of frames, consumed one at a time (a generator keeps memory flat)."""
-    acc = StackAccumulator(clip_dn)
+    acc = StackAccumulator(clip_dn, keep_mean_image)
     for frame in frames:
         acc.add(frame)
     return acc.result()
