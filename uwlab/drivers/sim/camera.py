@@ -14,6 +14,13 @@ Physics (EMVA Standard 1288 release 4.0, "linear camera model"), per pixel and f
   ``bit_depth`` and clipped to its range; the output pixel format then shifts the native code
   left or right to its own bit depth (as cameras do for Mono16 / Mono8 output).
 
+Test equipment beyond the linear model (both off by default): ``nonlinearity`` β compresses the
+signal (noise included) quadratically, e → e − β e² / saturation_e after the full-well clip, so
+that the characteristic curve bends by β at the full well and has slope 1 at zero; and
+``dark_current_doubling_c`` makes the dark current double every that many °C around
+``temperature_c`` (the Release 3.1 model, EMVA 1288 Release 4.0 Linear eq. 31), see
+`SimTruth.at_temperature`.
+
 Binning sums charge of ``bh × bv`` pixels (CCD-style) with one read per binned pixel;
 full-well clipping is applied per binned pixel.
 
@@ -63,6 +70,8 @@ class SimTruth:
     gain_max_db: float
     pixel_size_um: float = 3.45
     temperature_c: float = 40.0
+    nonlinearity: float = 0.0
+    dark_current_doubling_c: float | None = None
 
     @classmethod
     def from_sensor_profile(cls, profile: Any, **overrides: Any) -> SimTruth:
@@ -74,6 +83,18 @@ class SimTruth:
     def system_gain(self, gain_db: float) -> float:
         """K [DN/e-] at the native bit depth for ``gain_db``."""
         return self.K_dn_per_e * 10.0 ** (gain_db / 20.0)
+
+    def at_temperature(self, temperature_c: float) -> SimTruth:
+        """The sensor at another temperature: µ_I = µ_I.ref 2^((T − T_ref)/T_d) (EMVA 1288 Release 4.0 Linear
+        eq. 31) with T_d = ``dark_current_doubling_c``; unchanged dark current without a doubling temperature."""
+        factor = 1.0 if self.dark_current_doubling_c is None else \
+            2.0 ** ((temperature_c - self.temperature_c) / self.dark_current_doubling_c)
+        return replace(self, temperature_c=float(temperature_c), dark_current_e_per_s=self.dark_current_e_per_s * factor)
+
+    def compressed_e(self, electrons):
+        """The signal after the test non-linearity: e − β e² / saturation_e (identity for β = 0)."""
+        electrons = np.asarray(electrons, float)
+        return electrons - self.nonlinearity * electrons**2 / self.saturation_e
 
 
 @dataclass(frozen=True)
@@ -192,7 +213,20 @@ class SimSensor:
             self._work = np.empty(mean.shape, np.float32)
         np.multiply(std, self._deviates(mean.size).reshape(mean.shape), out=self._work)
         self._work += mean
+        self._compress(self._work, cfg, cap)
         return self._quantise(self._work, cap)
+
+    def _compress(self, dn_plus_half: np.ndarray, cfg: SensorConfig, cap_plus_half: float) -> None:
+        """Apply the test non-linearity (in place) to DN values: clip at the full well, then s − β s² / s_sat for the
+        signal s above the offset (s_sat = K · saturation_e)."""
+        if not self.truth.nonlinearity:
+            return
+        k = self.truth.system_gain(cfg.gain_db)
+        offset = np.float32(self.truth.dark_offset_dn + cfg.black_level_dn + 0.5)
+        np.minimum(dn_plus_half, np.float32(cap_plus_half), out=dn_plus_half)
+        dn_plus_half -= offset
+        dn_plus_half -= np.float32(self.truth.nonlinearity / (k * self.truth.saturation_e)) * dn_plus_half**2
+        dn_plus_half += offset
 
     def _render_poisson(self, cfg: SensorConfig, fraction: float) -> np.ndarray:
         t = cfg.exposure_us * 1e-6
@@ -204,7 +238,10 @@ class SimSensor:
         electrons += self._rng.standard_normal(electrons.shape, np.float32) * np.float32(self.truth.dark_noise_e)
         k = self.truth.system_gain(cfg.gain_db)
         offset = self.truth.dark_offset_dn + cfg.black_level_dn
-        return self._quantise(electrons * np.float32(k) + np.float32(offset + 0.5), k * self.truth.saturation_e + offset + 0.5)
+        cap = k * self.truth.saturation_e + offset + 0.5
+        dn = electrons * np.float32(k) + np.float32(offset + 0.5)
+        self._compress(dn, cfg, cap)
+        return self._quantise(dn, cap)
 
     def _quantise(self, dn_plus_half: np.ndarray, cap_plus_half: float) -> np.ndarray:
         top = min(cap_plus_half, (1 << self.truth.bit_depth) - 0.5)
