@@ -4,7 +4,7 @@ Layouts follow the GenICam Pixel Format Naming Convention (PFNC 2.x) and, for th
 GigE Vision ``*Packed`` formats, the GigE Vision 1.2 specification (section "Pixel formats"):
 
 * ``Mono8``: one byte per pixel.
-* ``Mono10``, ``Mono12``, ``Mono16``: one little-endian 16-bit word per pixel, value in the LSBs.
+* ``Mono10``, ``Mono12``, ``Mono14``, ``Mono16``: one little-endian 16-bit word per pixel, value in the LSBs.
 * ``Mono10p``, ``Mono12p``: LSB-first bit stream (pixel 0 in the lowest bits of byte 0);
   ``Mono10p`` packs 4 pixels in 5 bytes, ``Mono12p`` 2 pixels in 3 bytes.
 * ``Mono10Packed``, ``Mono12Packed`` (GigE Vision legacy): 2 pixels in 3 bytes; bytes 0 and 2
@@ -54,6 +54,7 @@ PIXEL_FORMATS: dict[str, PixelFormat] = {
         PixelFormat("Mono12", 0x01100005, 12, 16),
         PixelFormat("Mono12p", 0x010C0047, 12, 12),
         PixelFormat("Mono12Packed", 0x010C0006, 12, 12),
+        PixelFormat("Mono14", 0x01100025, 14, 16),
         PixelFormat("Mono16", 0x01100007, 16, 16),
     )
 }

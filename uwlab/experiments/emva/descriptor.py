@@ -5,20 +5,31 @@ no code taken).
 A plain-text descriptor next to the images; blank lines and lines starting with ``#`` are ignored:
 
 * ``v 4.0`` — the EMVA 1288 release the data were taken for;
-* ``n BITS WIDTH HEIGHT`` — once per file (a fifth field, an offset, is tolerated on reading);
-* ``b EXPOSURE_NS PHOTONS`` — a bright measurement: exposure [ns], mean photons per pixel μ_p; followed by
+* ``n BITS WIDTH HEIGHT`` — once per file (a fifth field, an offset, is tolerated on reading); BITS one of
+  `SUPPORTED_BITS`, WIDTH and HEIGHT positive integers;
+* ``b EXPOSURE_NS PHOTONS`` — a bright measurement: exposure [ns] > 0, mean photons per pixel μ_p > 0; followed by
   its images;
 * ``d EXPOSURE_NS`` — a dark measurement at that exposure, followed by its images;
-* ``i RELATIVE/PATH`` — one image of the preceding ``b``/``d`` block (``\\`` accepted as separator); at
-  least two per block. Two images make a *temporal* measurement (photon-transfer point), more make a
-  *spatial* one (DSNU/PRNU stack);
+* ``i RELATIVE/PATH`` — one image of the preceding ``b``/``d`` block (``\\`` accepted as separator). Two images make
+  a *temporal* measurement (a photon-transfer point or a dark-series point), more make a *spatial* one (the
+  nonuniformity stacks of Release 4.0 §8: one bright block near 50 % of saturation and one dark block at the same
+  exposure);
 * ``l NAME VALUE`` — report (LaTeX template) variables.
 
-Every exposure of the temporal series needs its dark block (the reference loader requires it too). Images
-are read one at a time (TIFF by tifffile, PNG/PGM and others by OpenCV) into `emva_stream` statistics.
+What is refused, each with one line naming the file and line: a malformed or non-finite number, a non-positive
+exposure or photon count, an unsupported bit depth, a block with fewer than two images, a second temporal dark
+block at one exposure, bright blocks that neither vary the exposure (one per exposure, Release 4.0 §6.3 method I)
+nor the irradiance at one exposure (methods II/III), two bright blocks with the same exposure and photon count, a
+bright exposure without its dark block, more than one spatial block of a kind, a spatial block without its partner
+at the same exposure; and on reading, an image of the wrong size or type, or with values outside 0 … 2^BITS − 1.
+
+Images are read one at a time (OpenCV, tifffile for TIFFs OpenCV cannot read) into `uwlab.experiments.emva.stream`
+statistics. The clip level (`uwlab.experiments.saturation.clip_level`) is found once, from the first image of the
+brightest bright block (a pile-up at the top code), else it is the ADC maximum 2^BITS − 1.
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path, PureWindowsPath
@@ -26,22 +37,27 @@ from pathlib import Path, PureWindowsPath
 import numpy as np
 
 from uwlab.errors import ConfigError
-from uwlab.experiments.emva.analysis import QUANTISATION_VAR_DN2, PhotonTransfer, SpatialPoint, half_saturation_index
-from uwlab.experiments.emva.stream import StackStatistics, stack_statistics
-from uwlab.outputs import output_dir
+from uwlab.experiments.emva.dark import DarkSeries
+from uwlab.experiments.emva.datasheet import SheetInfo
+from uwlab.experiments.emva.stream import stack_statistics
+from uwlab.experiments.emva.transfer import NonuniformityStack, PhotonTransfer, SpatialSplit
+from uwlab.experiments.saturation import ClipLevel, clip_level
 
 DESCRIPTOR_NAME = "EMVA1288descriptor.txt"
-SPATIAL_FRAMES = 16
+SUPPORTED_BITS = (8, 10, 12, 14, 16)
+MAX_SIZE_PX = 1 << 16
 
 
 @dataclass(frozen=True)
 class Block:
-    """One ``b``/``d`` block: exposure [ns], photons per pixel (0 for dark) and its image paths."""
+    """One ``b``/``d`` block: exposure [ns], photons per pixel (0 for dark), its image paths and the line it
+    starts on."""
 
     dark: bool
     exposure_ns: float
     photons: float
     images: tuple[str, ...]
+    line: int = field(default=0, compare=False)
 
     @property
     def spatial(self) -> bool:
@@ -58,15 +74,30 @@ class Descriptor:
     variables: dict = field(default_factory=dict)
 
 
-def _number(text: str, path: Path, lineno: int) -> float:
+def _number(text: str, where: str, what: str, positive: bool = True) -> float:
     try:
-        return float(text.replace(",", "."))
+        value = float(text.replace(",", "."))
     except ValueError:
-        raise ConfigError(f"{path.name}:{lineno}", text, "not a number") from None
+        raise ConfigError(where, text, f"{what}: not a number") from None
+    if not math.isfinite(value):
+        raise ConfigError(where, text, f"{what}: not a finite number")
+    if positive and not value > 0:
+        raise ConfigError(where, text, f"{what}: must be > 0")
+    return value
+
+
+def _integer(text: str, where: str, what: str, allowed: tuple[int, ...] | None = None) -> int:
+    value = _number(text, where, what)
+    if value != int(value) or not 0 < value < MAX_SIZE_PX:
+        raise ConfigError(where, text, f"{what}: must be a positive integer below {MAX_SIZE_PX}")
+    if allowed is not None and int(value) not in allowed:
+        raise ConfigError(where, text, f"{what}: must be one of {', '.join(map(str, allowed))}")
+    return int(value)
 
 
 def parse_descriptor(path: str | Path) -> Descriptor:
-    """Parse a descriptor file; `ConfigError` names the file and line of any malformed entry."""
+    """Parse and check a descriptor file; `ConfigError` names the file and line of any problem (module
+    docstring)."""
     path = Path(path)
     try:
         lines = path.read_text(encoding="utf-8").splitlines()
@@ -84,35 +115,80 @@ def parse_descriptor(path: str | Path) -> Descriptor:
             current[3].append(rest[0].strip())
             continue
         if current is not None:
-            blocks.append(_close(current, where))
+            blocks.append(_close(current, path.name))
             current = None
         if tag == "v" and len(rest) == 1:
             version = rest[0]
         elif tag == "n" and len(rest) in (3, 4):
             if fmt is not None:
                 raise ConfigError(where, line, "only one 'n bits width height' line is allowed")
-            fmt = tuple(int(_number(x, path, lineno)) for x in rest[:3])
+            fmt = (_integer(rest[0], where, "bits", SUPPORTED_BITS), _integer(rest[1], where, "width"),
+                   _integer(rest[2], where, "height"))
+            if len(rest) == 4:
+                _number(rest[3], where, "offset", positive=False)
         elif tag == "b" and len(rest) == 2:
-            current = [False, _number(rest[0], path, lineno), _number(rest[1], path, lineno), []]
+            current = [False, _number(rest[0], where, "exposure [ns]"), _number(rest[1], where, "photons"), [],
+                       lineno]
         elif tag == "d" and len(rest) == 1:
-            current = [True, _number(rest[0], path, lineno), 0.0, []]
+            current = [True, _number(rest[0], where, "exposure [ns]"), 0.0, [], lineno]
         elif tag == "l" and rest:
             name, _, value = rest[0].partition(" ")
             variables[name] = value.strip()
         else:
             raise ConfigError(where, line, "expected 'v', 'n', 'b', 'd', 'i' or 'l' with its fields")
     if current is not None:
-        blocks.append(_close(current, f"{path.name}:end"))
+        blocks.append(_close(current, path.name))
     if fmt is None:
         raise ConfigError(f"{path.name}", "n", "missing 'n bits width height' line")
+    _check_blocks(blocks, path.name)
     return Descriptor(version or "", fmt[0], fmt[1], fmt[2], tuple(blocks), variables)
 
 
-def _close(current: list, where: str) -> Block:
-    dark, exposure, photons, images = current
+def _close(current: list, name: str) -> Block:
+    dark, exposure, photons, images, lineno = current
     if len(images) < 2:
-        raise ConfigError(where, len(images), "each b/d block needs at least two 'i' image lines")
-    return Block(dark, exposure, photons, tuple(images))
+        raise ConfigError(f"{name}:{lineno}", len(images), "each b/d block needs at least two 'i' image lines")
+    return Block(dark, exposure, photons, tuple(images), lineno)
+
+
+def _check_blocks(blocks: list[Block], name: str) -> None:
+    """The cross-block rules of the module docstring."""
+    temporal = [b for b in blocks if not b.spatial]
+    seen_dark: dict[float, Block] = {}
+    for block in (b for b in temporal if b.dark):
+        if block.exposure_ns in seen_dark:
+            first = seen_dark[block.exposure_ns].line
+            raise ConfigError(f"{name}:{block.line}", f"d {block.exposure_ns:g}",
+                              f"a second dark block at this exposure (first at line {first})")
+        seen_dark[block.exposure_ns] = block
+    bright = [b for b in temporal if not b.dark]
+    exposures = {b.exposure_ns for b in bright}
+    seen_bright: dict[tuple[float, float], Block] = {}
+    by_exposure: dict[float, Block] = {}
+    for block in bright:
+        where = f"{name}:{block.line}"
+        key = (block.exposure_ns, block.photons)
+        if key in seen_bright:
+            raise ConfigError(where, f"b {block.exposure_ns:g} {block.photons:g}",
+                              f"the same bright measurement again (first at line {seen_bright[key].line})")
+        seen_bright[key] = block
+        if block.exposure_ns in by_exposure and len(exposures) > 1:
+            first = by_exposure[block.exposure_ns].line
+            raise ConfigError(where, f"b {block.exposure_ns:g}",
+                              f"a second bright block at this exposure (first at line {first}): a descriptor varies "
+                              "either the exposure (one b block per exposure) or the photons at one exposure")
+        by_exposure.setdefault(block.exposure_ns, block)
+        if block.exposure_ns not in seen_dark:
+            raise ConfigError(where, f"b {block.exposure_ns:g}", "no dark (d) block with two images at this exposure")
+    spatial = [b for b in blocks if b.spatial]
+    for dark in (True, False):
+        kind = [b for b in spatial if b.dark == dark]
+        if len(kind) > 1:
+            raise ConfigError(f"{name}:{kind[1].line}", len(kind[1].images),
+                              f"a second spatial {'dark' if dark else 'bright'} block (first at line {kind[0].line})")
+    if len(spatial) == 1 or (len(spatial) == 2 and spatial[0].exposure_ns != spatial[1].exposure_ns):
+        raise ConfigError(f"{name}:{spatial[-1].line}", len(spatial[-1].images),
+                          "a spatial block needs a bright and a dark stack at the same exposure")
 
 
 def format_descriptor(desc: Descriptor, comments: tuple[str, ...] = ()) -> str:
@@ -126,150 +202,100 @@ def format_descriptor(desc: Descriptor, comments: tuple[str, ...] = ()) -> str:
     return "\n".join(out) + "\n"
 
 
-def read_image(path: Path) -> np.ndarray:
-    """One image as a 2-D integer array (TIFF via tifffile, other formats via OpenCV, unchanged depth)."""
-    if not path.is_file():
-        raise ConfigError("image", str(path), "file not found")
-    if path.suffix.lower() in (".tif", ".tiff"):
-        import tifffile
-        image = tifffile.imread(path)
-    else:
+class ImageReader:
+    """Reads a descriptor's images, checking size, type and range against its ``n`` line."""
+
+    def __init__(self, base: Path, desc: Descriptor):
+        self.base = base
+        self.shape = (desc.height, desc.width)
+        self.full = (1 << desc.bits) - 1
+
+    def path(self, name: str) -> Path:
+        return self.base.joinpath(*PureWindowsPath(name).parts)
+
+    def read(self, name: str) -> np.ndarray:
+        path = self.path(name)
+        if not path.is_file():
+            raise ConfigError("image", str(path), "file not found")
         import cv2
+
         image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        if image is None and path.suffix.lower() in (".tif", ".tiff"):
+            import tifffile
+
+            image = tifffile.imread(path)
         if image is None:
             raise ConfigError("image", str(path), "unreadable image")
-    if image.ndim != 2:
-        raise ConfigError("image", str(path), f"expected a monochrome image, got shape {image.shape}")
-    return image
+        if image.ndim != 2 or image.dtype.kind not in "ui":
+            raise ConfigError("image", str(path),
+                              f"expected a monochrome integer image, got {image.dtype}{image.shape}")
+        if image.shape != self.shape:
+            raise ConfigError("image", str(path), f"size {image.shape[1]}x{image.shape[0]} differs from the "
+                                                  f"descriptor's n line ({self.shape[1]}x{self.shape[0]})")
+        if image.min() < 0 or image.max() > self.full:
+            raise ConfigError("image", str(path), f"values outside 0..{self.full} (the descriptor's bit depth)")
+        return image if image.dtype.itemsize <= 2 else image.astype(np.uint16 if self.full > 255 else np.uint8)
+
+    def frames(self, block: Block) -> Iterator[np.ndarray]:
+        return (self.read(name) for name in block.images)
 
 
-def _image_path(base: Path, name: str) -> Path:
-    return base.joinpath(*PureWindowsPath(name).parts)
-
-
-def _block_stats(base: Path, block: Block, full: int) -> StackStatistics:
-    return stack_statistics((read_image(_image_path(base, n)) for n in block.images), full)
+def descriptor_clip_level(reader: ImageReader, desc: Descriptor) -> ClipLevel:
+    """The clip level from the first image of the brightest temporal bright block (module docstring)."""
+    bright = [b for b in desc.blocks if not b.dark]
+    fmt = f"Mono{desc.bits}"
+    if not bright:
+        return clip_level(fmt)
+    brightest = max(bright, key=lambda b: (b.photons, b.exposure_ns))
+    return clip_level(fmt, image=reader.read(brightest.images[0]))
 
 
 def photon_transfer_from_descriptor(path: str | Path, pixel_size_um: float | None = None) -> PhotonTransfer:
     """The `PhotonTransfer` of a descriptor dataset (statistics streamed from its images)."""
     path = Path(path)
     desc = parse_descriptor(path)
-    base, full = path.parent, (1 << desc.bits) - 1
+    reader = ImageReader(path.parent, desc)
+    clip = descriptor_clip_level(reader, desc)
     temporal = [b for b in desc.blocks if not b.spatial]
-    darks = {b.exposure_ns: _block_stats(base, b, full) for b in temporal if b.dark}
     bright = [b for b in temporal if not b.dark]
     if not bright:
         raise ConfigError(path.name, "b", "no bright (b) blocks with two images")
-    missing = sorted({b.exposure_ns for b in bright} - set(darks))
-    if missing:
-        raise ConfigError(path.name, f"d {missing[0]:g}", "no dark images at this exposure")
-    stats = [_block_stats(base, b, full) for b in bright]
+    darks = {b.exposure_ns: stack_statistics(reader.frames(b), clip.dn) for b in temporal if b.dark}
+    stats = [stack_statistics(reader.frames(b), clip.dn) for b in bright]
     dark_at = [darks[b.exposure_ns] for b in bright]
     arr = lambda seq, name: np.array([getattr(s, name) for s in seq], float)  # noqa: E731
-    dark_t = np.array(sorted(darks)) * 1e-9
+    dark_t = np.array(sorted(darks))
     return PhotonTransfer(
         photons=np.array([b.photons for b in bright]), exposure_s=np.array([b.exposure_ns for b in bright]) * 1e-9,
-        mean_dn=arr(stats, "mean_dn"), temporal_var_dn2=arr(stats, "temporal_var_dn2"),
-        spatial_var_dn2=arr(stats, "spatial_var_dn2"), frames=arr(stats, "frames"),
+        mean_dn=arr(stats, "mean_dn"), temporal_var_dn2=arr(stats, "temporal_var_dn2"), frames=arr(stats, "frames"),
         dark_mean_dn=arr(dark_at, "mean_dn"), dark_temporal_var_dn2=arr(dark_at, "temporal_var_dn2"),
-        dark_spatial_var_dn2=arr(dark_at, "spatial_var_dn2"), dark_frames=arr(dark_at, "frames"),
-        dark_exposure_s=dark_t, dark_series_mean_dn=np.array([darks[t].mean_dn for t in sorted(darks)]),
-        dark_series_var_dn2=np.array([darks[t].temporal_var_dn2 for t in sorted(darks)]),
-        bit_depth=desc.bits, width_px=desc.width, height_px=desc.height,
+        dark_frames=arr(dark_at, "frames"), spatial=SpatialSplit.of(stats), dark_spatial=SpatialSplit.of(dark_at),
+        dark=DarkSeries(dark_t * 1e-9, [darks[t].mean_dn for t in dark_t], [darks[t].temporal_var_dn2 for t in dark_t],
+                        np.full(len(dark_t), np.nan)),
+        bit_depth=desc.bits, saturated_fraction=arr(stats, "saturated_fraction"),
+        mean_diff_dn=arr(stats, "mean_diff_dn"),
+        stack=_stack(desc, reader, clip), width_px=desc.width, height_px=desc.height,
         pixel_area_m2=(pixel_size_um * 1e-6) ** 2 if pixel_size_um else None,
-        source=f"descriptor {path}", spatial=_spatial_from_descriptor(desc, base, full),
+        source=f"descriptor {path}", notes=(f"clip level {clip.dn:g} DN ({clip.source})",),
     )
 
 
-def _spatial_from_descriptor(desc: Descriptor, base: Path, full: int) -> SpatialPoint | None:
-    bright = [b for b in desc.blocks if b.spatial and not b.dark]
-    dark = [b for b in desc.blocks if b.spatial and b.dark]
-    if not bright or not dark:
+def _stack(desc: Descriptor, reader: ImageReader, clip: ClipLevel) -> NonuniformityStack | None:
+    spatial = {b.dark: b for b in desc.blocks if b.spatial}
+    if len(spatial) != 2:
         return None
-    s, d = _block_stats(base, bright[0], full), _block_stats(base, dark[0], full)
-    return SpatialPoint(s.mean_dn, s.temporal_var_dn2, s.spatial_var_dn2, s.frames,
-                        d.mean_dn, d.temporal_var_dn2, d.spatial_var_dn2, d.frames)
+    bright, dark = spatial[False], spatial[True]
+    stats = {b.dark: stack_statistics(reader.frames(b), clip.dn, keep_mean_image=True) for b in (bright, dark)}
+    return NonuniformityStack(stats[False], stats[True], bright.photons, bright.exposure_ns * 1e-9)
 
 
-@dataclass(frozen=True)
-class _Pattern:
-    """Fixed-pattern maps shared by all synthetic images of one export (dark and photo-response parts)."""
-
-    dark: np.ndarray
-    photo: np.ndarray
+SHEET_VARIABLES = {"vendor": ("vendor", "vendorname"), "model": ("model", "modelname", "cameramodel"),
+                   "serial": ("serial", "serialnumber"), "interface": ("interface", "interfacetype"),
+                   "measured": ("date", "measurementdate")}
 
 
-def synthetic_frames(mean_dn: float, temporal_var_dn2: float, spatial_var_dn2: float, dark_spatial_var_dn2: float,
-                     count: int, pattern: _Pattern, rng: np.random.Generator, bits: int) -> Iterator[np.ndarray]:
-    """Frames whose mean, temporal variance (quantisation included) and temporal-noise-corrected spatial
-    variance (split into the dark part and the photo-response part) reproduce the given statistics."""
-    dark_sd = np.sqrt(max(dark_spatial_var_dn2, 0.0))
-    photo_sd = np.sqrt(max(spatial_var_dn2 - max(dark_spatial_var_dn2, 0.0), 0.0))
-    fixed = mean_dn + dark_sd * pattern.dark + photo_sd * pattern.photo
-    noise_sd = np.sqrt(max(temporal_var_dn2 - QUANTISATION_VAR_DN2, 0.0))
-    dtype = np.uint8 if bits <= 8 else np.uint16
-    for _ in range(count):
-        frame = np.rint(fixed + noise_sd * rng.standard_normal(fixed.shape))
-        yield np.clip(frame, 0, (1 << bits) - 1).astype(dtype)
-
-
-def _corrected(spatial_var: float, temporal_var: float, frames: float) -> float:
-    return float(spatial_var - temporal_var / frames) if np.isfinite(spatial_var) and frames > 0 else 0.0
-
-
-def write_descriptor(pt: PhotonTransfer, out_dir: str | Path, *, shape: tuple[int, int] = (256, 256),
-                     seed: int = 0, source: str = "") -> Path:
-    """Export a photon transfer as a descriptor dataset with synthetic TIFF images (see `synthetic_frames`):
-    two bright and two dark images per point, plus a spatial stack (`SPATIAL_FRAMES` images) at the point
-    nearest 50 % saturation. Refuses to write into an existing descriptor."""
-    import tifffile
-
-    out = output_dir(out_dir, "--out")
-    target = out / DESCRIPTOR_NAME
-    if target.exists():
-        raise ConfigError("--out", str(target), "exists; refusing to overwrite")
-    out.mkdir(exist_ok=True)
-    (out / "images").mkdir(exist_ok=True)
-    pt = pt.sorted()
-    rng = np.random.default_rng(seed)
-    pattern = _Pattern(rng.standard_normal(shape), rng.standard_normal(shape))
-    blocks: list[Block] = []
-    counter = iter(range(10**9))
-
-    def emit(dark: bool, exposure_s: float, photons: float, frames) -> None:
-        names = []
-        for frame in frames:
-            name = f"images/image{next(counter):05d}.tif"
-            tifffile.imwrite(out / name, frame)
-            names.append(name)
-        blocks.append(Block(dark, exposure_s * 1e9, photons, tuple(names)))
-
-    dark_done = set()
-    for i in range(len(pt.photons)):
-        s2 = _corrected(pt.spatial_var_dn2[i], pt.temporal_var_dn2[i], pt.frames[i])
-        s2d = _corrected(pt.dark_spatial_var_dn2[i], pt.dark_temporal_var_dn2[i], pt.dark_frames[i])
-        emit(False, pt.exposure_s[i], pt.photons[i],
-             synthetic_frames(pt.mean_dn[i], pt.temporal_var_dn2[i], s2, s2d, 2, pattern, rng, pt.bit_depth))
-        if round(pt.exposure_s[i] * 1e9, 3) not in dark_done:
-            dark_done.add(round(pt.exposure_s[i] * 1e9, 3))
-            emit(True, pt.exposure_s[i], 0.0,
-                 synthetic_frames(pt.dark_mean_dn[i], pt.dark_temporal_var_dn2[i], s2d, s2d, 2, pattern, rng,
-                                  pt.bit_depth))
-    i = half_saturation_index(pt)
-    s2d = _corrected(pt.dark_spatial_var_dn2[i], pt.dark_temporal_var_dn2[i], pt.dark_frames[i])
-    s2 = _corrected(pt.spatial_var_dn2[i], pt.temporal_var_dn2[i], pt.frames[i])
-    emit(False, pt.exposure_s[i], pt.photons[i], synthetic_frames(
-        pt.mean_dn[i], pt.temporal_var_dn2[i], s2, s2d, SPATIAL_FRAMES, pattern, rng, pt.bit_depth))
-    emit(True, pt.exposure_s[i], 0.0, synthetic_frames(
-        pt.dark_mean_dn[i], pt.dark_temporal_var_dn2[i], s2d, s2d, SPATIAL_FRAMES, pattern, rng, pt.bit_depth))
-    comments = (
-        f"EMVA 1288 descriptor written by uwlab from {source or pt.source}",
-        "Images are SYNTHETIC: raw frames were not saved, so each image set is generated from the recorded",
-        "per-point statistics (mean, temporal variance, temporal-noise-corrected spatial variance);",
-        f"pixel values are not the camera's. Image size {shape[1]} x {shape[0]} px (not the ROI size).",
-        "b exposure_ns photons_per_pixel / d exposure_ns / i image path (Release 4.0 linear)",
-    )
-    desc = Descriptor("4.0", pt.bit_depth, shape[1], shape[0], tuple(blocks))
-    target.write_text(format_descriptor(desc, comments))
-    return target
+def sheet_info(desc: Descriptor) -> SheetInfo:
+    """The datasheet header from the descriptor's ``l`` variables (names matched case-insensitively)."""
+    found = {name.lower(): value for name, value in desc.variables.items()}
+    values = {key: next((found[n] for n in names if n in found), "—") for key, names in SHEET_VARIABLES.items()}
+    return SheetInfo(**values)
