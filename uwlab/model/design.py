@@ -470,9 +470,11 @@ def evaluate(d: Design) -> dict[str, np.ndarray]:
     }
 
 
-SPECTROMETER_POSITIONS = ("target", "camera")
+SPECTROMETER_POSITIONS = ("target", "camera", "sensor")
 """Where a rig's spectrometer reads the chain: ``target``, the irradiance on a board facing the light;
-``camera``, π L_w at the camera (the irradiance from the Lambertian target filling the meter's field)."""
+``camera``, π L_w at the camera (the irradiance from the Lambertian target filling the meter's field); ``sensor``,
+the irradiance on the sensor plane (on an EMVA 1288 bench, `uwlab.model.bench`, where the standard's photodiode sits,
+Release 4.0 Linear §6.4)."""
 
 
 LIGHT_BUDGET_STAGES = ("beam_to_view", "water_to_target", "reflectance", "water_to_camera", "port", "aperture",

@@ -14,9 +14,13 @@ degrees only at the config/CLI boundary; the circle of confusion c is given on t
   computed in image space and mapped back to object distances in water.
 - No lens (a bare sensor): under a uniform Lambertian field of radiance L a sensor receives E = π L, which is
   the camera equation with N = 1/2 and T = 1 (the f-number limit of an aplanatic lens in air; e.g. Ohta,
-  *Radiometry*; EMVA 1288 Release 4.0 Linear §3.1 uses the same relation for its disk source). `LensSetting`
-  carries this rule: a bare sensor is evaluated as a lens with `BARE_SENSOR_F_NUMBER` and
-  `BARE_SENSOR_TRANSMITTANCE`, without vignetting.
+  *Radiometry*). `LensSetting` carries this rule: a bare sensor is evaluated as a lens with
+  `BARE_SENSOR_F_NUMBER` and `BARE_SENSOR_TRANSMITTANCE`, without vignetting.
+- A bare sensor under a uniform Lambertian disk of radiance L, diameter D, at distance d (the EMVA 1288 bench,
+  Release 4.0 Linear §6.1, f-number N = d/D, eq. 46): at a distance r from the axis on the sensor plane
+  E = (π L / 2) [1 − (d² + r² − R²) / √((d² + r² + R²)² − 4 r² R²)], R = D/2 (the view factor from a differential
+  area to a parallel coaxial disk; Howell, *A Catalog of Radiation Heat Transfer Configuration Factors*, B-13);
+  on axis E = π L / (1 + 4 N²) (`disk_source_irradiance_factor`).
 - The minimum f-number for a required depth of field D solves far − near = D. In air-equivalent space, with
   a = f²/(N c), the total is 2 s a (s − f) / (a² − (s − f)²), so a = (s − f)(s + √(s² + D²)) / D and
   N = f² / (c a). Dome ports have no closed form: bisection on log N.
@@ -74,6 +78,20 @@ NO_LENS = LensSetting(None, None)
 def lens_irradiance_factor(f_number, cos_alpha=1.0):
     """π / (4 N²) · cos⁴α: sensor irradiance per unit scene radiance behind the port (×T_lens)."""
     return np.pi / (4.0 * np.asarray(f_number, float) ** 2) * np.asarray(cos_alpha, float) ** 4
+
+
+def disk_source_irradiance_factor(f_number, r_over_d=0.0):
+    """E / L [sr] on a plane parallel to a Lambertian disk of f-number N = d/D, at r/d from its axis (module
+    docstring); π / (1 + 4 N²) on axis.
+
+    >>> round(float(disk_source_irradiance_factor(8.0)) * 257 / np.pi, 12)
+    1.0
+    """
+    n = np.asarray(f_number, float)
+    rho = np.asarray(r_over_d, float)
+    radius = 1.0 / (2.0 * n)
+    a = 1.0 + rho**2 + radius**2
+    return 0.5 * np.pi * (1.0 - (1.0 + rho**2 - radius**2) / np.sqrt(a**2 - 4.0 * rho**2 * radius**2))
 
 
 def angular_fov_rad(sensor_size_m, focal_length_m):

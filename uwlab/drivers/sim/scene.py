@@ -10,7 +10,10 @@ Images: the per-pixel electron rate is the model's on-axis rate (configured dist
 relative profile of `uwlab.model.design.electron_rate_at_radius` (cos⁴ falloff, oblique paths, beam cut-off),
 with the board's reflectance inside its footprint and the surround's outside. Spectra: at the target, the
 irradiance on a board facing the light (normal incidence); at the camera, π L_w, the irradiance from a
-Lambertian target filling the meter's field. Both scale linearly with the light's flux fraction.
+Lambertian target filling the meter's field; at the sensor, the irradiance on the sensor plane behind the lens
+(on axis). All scale linearly with the light's flux fraction.
+
+`load_scene` reads any rig config: a ``[bench]`` table makes it the EMVA 1288 bench (`uwlab.drivers.sim.bench`).
 """
 from __future__ import annotations
 
@@ -148,13 +151,28 @@ class RigScene:
         return ((nx - w) // 2, (ny - h) // 2, w, h)
 
     def spectral_irradiance(self, position: str, flux_fraction: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
-        """(wavelength_nm, irradiance_w_m2_nm) a spectrometer measures at `position` ("target" or "camera")."""
+        """(wavelength_nm, irradiance_w_m2_nm) a spectrometer measures at `position` (`SPECTROMETER_POSITIONS`)."""
         if position not in SPECTROMETER_POSITIONS:
             raise ConfigError("position", position, f"must be one of {', '.join(SPECTROMETER_POSITIONS)}")
         spectra = stage_spectra(self.design)
         if position == "target":
             cos_i = np.cos(np.radians(self.design["light.incidence_deg"]))
             irradiance = spectra["target_irradiance_w_m2_nm"] / cos_i
+        elif position == "sensor":
+            irradiance = spectra["sensor_irradiance_w_m2_nm"]
         else:
             irradiance = np.pi * spectra["return_radiance_w_m2_sr_nm"]
         return spectra["wavelength_nm"], flux_fraction * self.sim.light_efficiency * irradiance
+
+
+def load_scene(path: str | Path | None = None, state: RigState | None = None):
+    """The scene of a rig config (None: the default simulated tank): a `RigScene`, or for a config with a
+    ``[bench]`` table the EMVA 1288 bench (`uwlab.drivers.sim.bench.BenchScene`)."""
+    from uwlab.drivers.sim.bench import BenchScene
+    from uwlab.model.bench import is_bench
+
+    path = Path(path) if path is not None else config_dir() / DEFAULT_RIG
+    raw = read_toml(path, "--config")
+    if is_bench(raw):
+        return BenchScene.from_dict(raw, path.resolve().parent, state)
+    return RigScene.from_dict(raw, path.resolve().parent, state)

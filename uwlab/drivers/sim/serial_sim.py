@@ -33,7 +33,7 @@ from typing import Callable
 
 from uwlab.drivers.serial.protocol import ERR_BUSY, ERR_HARDWARE, TERMINATOR
 from uwlab.drivers.sim.rig_state import RigState
-from uwlab.drivers.sim.scene import RigScene
+from uwlab.drivers.sim.scene import load_scene
 from uwlab.drivers.sim.serial_instruments import (
     SimInstrument,
     SimLight,
@@ -282,12 +282,13 @@ class SerialSimSettings:
         """Load and check the rig config (None: the default rig) and take its ``[sim] light_gamma``."""
         if spectrometer_position not in SPECTROMETER_POSITIONS:
             raise ConfigError("spectrometer_position", spectrometer_position, f"must be one of {', '.join(SPECTROMETER_POSITIONS)}")
-        scene = RigScene.from_toml(path)
+        scene = load_scene(path)
         return cls(Path(path) if path is not None else None, scene.sim.light_gamma, spectrometer_position)
 
 
 class SceneSpectrum:
-    """`SpectrumSource` from the rig model, `uwlab.drivers.sim.scene.RigScene`, built on first use."""
+    """`SpectrumSource` from the rig model (`uwlab.drivers.sim.scene.load_scene`: the tank or the EMVA bench), built
+    on first use."""
 
     def __init__(self, config_path: Path | None):
         self.config_path = config_path
@@ -295,7 +296,7 @@ class SceneSpectrum:
 
     def __call__(self, position: str, flux_fraction: float):
         if self._scene is None:
-            self._scene = RigScene.from_toml(self.config_path)
+            self._scene = load_scene(self.config_path)
         return self._scene.spectral_irradiance(position, flux_fraction)
 
 

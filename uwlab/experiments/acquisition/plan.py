@@ -3,7 +3,8 @@
 Schema (docs/sweeps.md has a commented example). Top level:
 
 - ``name``, ``description`` (text); ``rig`` (required): a design config (`uwlab design` sections, plus the
-  simulated rig's ``[sim]``), relative to the plan file; ``[geometry]``: design sections overriding the rig for
+  simulated rig's ``[sim]``) or an EMVA 1288 bench (a ``[bench]`` table, `uwlab.model.bench`), relative to the plan
+  file; ``[geometry]``: design sections overriding the rig for
   every sweep (``[geometry.light] distance_m = 1.2``);
 - ``[camera]``: ``backend``, ``id``, ``pixel_format``, ``window`` = [x, y, w, h] (device ROI), ``timeout_s``;
 - ``[instruments]``: ``light_port``, ``spectrometer_port``, ``protocol`` (real hardware; ``--sim`` replaces them);
@@ -13,7 +14,7 @@ Each ``[[sweep]]``: ``id`` (unique), ``kind`` (exposure | aperture | gain | ligh
 (a list, or ``{start, stop, num, spacing = "linear" | "log"}``: exposure_us, f-number, gain_db or light level;
 a dark sweep steps exposure_us with the light off), ``frames_per_point`` (≥ 2), ``settle_s``, ``dark``
 ("point": dark frames at every point, "block": once per sweep, only when camera settings stay fixed, "none"),
-``dark_frames`` (≥ 2), ``spectrometer`` (positions read at each point: "target", "camera"; the first gives the
+``dark_frames`` (≥ 2), ``spectrometer`` (positions read at each point: "target", "camera", "sensor"; the first gives the
 point's ``irradiance_w_m2``), ``spectrometer_integration_ms``, ``spectrometer_averaging``, ``roi`` ([x, y, w, h]
 within the acquired image, or "aruco"), ``aruco_dictionary``, ``saturation_threshold`` (fraction of ROI pixels
 at the camera's clip level above which a point is flagged; `uwlab.experiments.saturation`),
@@ -48,6 +49,7 @@ from uwlab.experiments.saturation import POINT_SATURATED_FRACTION
 from uwlab.jsonable import to_jsonable
 from uwlab.model.config import apply_override
 from uwlab.model.data import read_toml, resolve_path
+from uwlab.model.bench import Bench, build_bench, is_bench
 from uwlab.model.design import SPECTROMETER_POSITIONS, Design, build_design
 from uwlab.model.optics import NO_LENS, LensSetting
 from uwlab.model.schema import (DurationS, ExposureUs, FNumber, FocalLengthMm, Fraction, FrameCount, GainDb,
@@ -262,7 +264,7 @@ class SweepSpec:
     light_level: float
     save_frames: bool
     rig_raw: dict
-    design: Design
+    design: Design | Bench
 
     def points(self) -> list[Point]:
         """Every point of the sweep, in order."""
@@ -352,7 +354,8 @@ def _sweep(body: dict, number: int, rig_raw: dict, rig_dir: Path, geometry: dict
     lens = _lens(f"{prefix}.lens", table.lens, rig)
     _apply_sweep(rig, table, lens)
     try:
-        design = build_design({k: v for k, v in rig.items() if k != "sim"}, rig_dir)
+        design = build_bench(rig, rig_dir) if is_bench(rig) else build_design(
+            {k: v for k, v in rig.items() if k != "sim"}, rig_dir)
     except ConfigError as exc:
         raise ConfigError(f"{prefix}.rig.{exc.key}", exc.value, exc.reason) from None
     sensor = design.sensor

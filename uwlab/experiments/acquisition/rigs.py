@@ -3,7 +3,9 @@
 `HardwareRig`: a camera by backend and id, the light and spectrometer on serial ports; whatever the rig cannot do
 itself (set a manual aperture, move the spectrometer) is asked of the operator.
 
-`SimRig`, for ``uwlab sweep --sim``: the same code paths as the tank, with simulated devices.
+`SimRig`, for ``uwlab sweep --sim``: the same code paths as the tank, with simulated devices, on the simulated tank
+or, for a rig config with a ``[bench]`` table, the simulated EMVA 1288 bench (`uwlab.drivers.sim.bench`: a bare
+sensor under a diffuse disk source, the spectrometer at the sensor plane).
 
 - Light and spectrometer: the serial simulators (`uwlab.drivers.sim.serial_sim.SerialRig`) in their own
   processes behind real pseudo-terminals, driven through the real serial drivers;
@@ -40,7 +42,8 @@ from uwlab.drivers.camera.pixels import pixel_format
 from uwlab.drivers.serial import Light, Spectrometer, open_light, open_spectrometer
 from uwlab.drivers.sim.camera import SimFaults, SimSensor, SimTruth, flat_rate_map
 from uwlab.drivers.sim.rig_state import RigState
-from uwlab.drivers.sim.scene import RigScene
+from uwlab.drivers.sim.bench import BenchScene
+from uwlab.drivers.sim.scene import RigScene, load_scene
 from uwlab.drivers.sim.serial_sim import SerialRig, SerialSimSettings
 from uwlab.errors import ConfigError
 from uwlab.experiments.acquisition.plan import Plan, SweepSpec
@@ -145,7 +148,7 @@ class SimRig:
         self._serial = SerialRig(self._tmp.name, SerialSimSettings.from_config(self.rig_path), seed=seed)
         self.light: Light | None = None
         self.spectrometer: Spectrometer | None = None
-        self._scene: RigScene | None = None
+        self._scene: RigScene | BenchScene | None = None
         self._sensor: SimSensor | None = None
         self._sweep: SweepSpec | None = None
 
@@ -176,7 +179,7 @@ class SimRig:
 
     def open_camera(self, sweep: SweepSpec) -> Camera:
         """The sweep's simulated camera: its sensor profile and lens, lit by the shared light state."""
-        scene = RigScene.from_toml(self.rig_path, RigState(self.rig_state_path))
+        scene = load_scene(self.rig_path, RigState(self.rig_state_path))
         scene.design = sweep.design
         truth = SimTruth.from_sensor_profile(scene.sensor)
         self._scene, self._sweep = scene, sweep
@@ -187,7 +190,7 @@ class SimRig:
 
     def _rate_map(self):
         scene = self._scene
-        if self._sweep.lens.bare:
+        if self._sweep.lens.bare and not isinstance(scene, BenchScene):
             return flat_rate_map(scene.on_axis_rate_e_per_s())
         return lambda shape: scene.electron_rate_map(shape, 1.0)
 
@@ -213,7 +216,7 @@ class SimRig:
         truth = self._sensor.truth
         s = camera.read_settings()
         fmt_bits = pixel_format(s.pixel_format).bits
-        return {
+        common = {
             **{k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(truth).items()},
             "output_bit_depth": fmt_bits,
             "dn_scale": 2.0 ** (fmt_bits - truth.bit_depth),
@@ -224,8 +227,13 @@ class SimRig:
                                             s.pixel_format),
             "light_gamma": self._scene.sim.light_gamma,
             "light_curve": "flux_fraction = level ** light_gamma",
-            "on_axis_rate_e_per_s": self._scene.on_axis_rate_e_per_s(),
             "window_mean_rate_e_per_s": float(self._window_rate(s).mean()),
+        }
+        if isinstance(self._scene, BenchScene):
+            return {**common, **self._scene.truth()}
+        return {
+            **common,
+            "on_axis_rate_e_per_s": self._scene.on_axis_rate_e_per_s(),
             "f_number": self._scene.design["lens.f_number"],
             "light_efficiency": self._scene.sim.light_efficiency,
             "attenuation_scale": float(self._scene.design["water.attenuation_scale"]),

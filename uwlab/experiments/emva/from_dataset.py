@@ -4,12 +4,20 @@ Photon-transfer points are the rows of one ``exposure`` or ``light-level`` sweep
 statistics are the row's ``dark_*`` columns. Dark frames at other exposures (rows of kind ``dark`` of the same
 camera and gain) join the dark series used for the dark current.
 
-Photons per pixel, μ_p = A t_exp ∫ E(λ) λ/(h c) dλ (EMVA 1288 Release 4.0), take E from, in order:
-an explicit override (`IrradianceOverride`: a number in W/m² at one wavelength, or a spectrum; for a
-``light-level`` sweep it is the irradiance at ``light_level`` = 1, scaled by each row's ``light_level``), the
-point's spectrometer spectrum (the dataset's ``spectra`` table), or its integrated ``irradiance_w_m2`` at the given
-wavelength. Irradiance measured at the target (``irradiance_position = "target"``) is not the irradiance at
-the sensor and is refused. The pixel area comes from ``pixel_size_um`` or from the dataset's sensor profile.
+Photons per pixel, μ_p = A t_exp ∫ E(λ) λ/(h c) dλ (EMVA 1288 Release 4.0 Linear eq. 3), with E the irradiance *at
+the sensor plane* (§6.4: a calibrated photodiode "put at the place of the image sensor"), taken from, in order: an
+explicit override (`IrradianceOverride`: a number in W/m² at one wavelength, or a spectrum, both meant at the sensor
+plane; for a ``light-level`` sweep it is the irradiance at ``light_level`` = 1, scaled by each row's
+``light_level``), the point's spectrometer spectrum read at the ``sensor`` position (the dataset's ``spectra`` table), or its
+integrated ``irradiance_w_m2`` at the given wavelength when ``irradiance_position`` is ``sensor``. Irradiance read
+anywhere else (``target``: on the board; ``camera``: π L_w in the water in front of the port, which differs from the
+sensor plane by the port, the lens and n_w²) is refused with a one-line error: nothing converts it silently. The
+pixel area comes from ``pixel_size_um`` or from the dataset's sensor profile.
+
+Per point, the highpassed spatial variance split (``spatial_var_{row,col,pixel}_dn2`` and the ``dark_`` ones), the
+saturated fraction, μ[0] − μ[1] and the temperature are taken when recorded. The dark series (for the dark noise and
+the dark current, with its temperatures) is every dark measurement of the camera at the sweep's gain: the sweep's
+own dark frames and the rows of ``dark`` sweeps.
 """
 from __future__ import annotations
 
@@ -20,15 +28,17 @@ import numpy as np
 import pandas as pd
 
 from uwlab.errors import ConfigError
-from uwlab.experiments.emva.analysis import PhotonTransfer, photons_per_pixel
+from uwlab.experiments.emva.dark import DarkSeries
+from uwlab.experiments.emva.datasheet import SheetInfo
+from uwlab.experiments.emva.transfer import PhotonTransfer, SpatialSplit, photons_per_pixel
 from uwlab.model.data import read_csv_columns
 from uwlab.model.photometry import photon_flux, photons_per_joule
 from uwlab.model.sensor import SensorProfile, load_sensor_profile
 
 SWEEP_KINDS = ("exposure", "light-level")
 REQUIRED_COLUMNS = ("sweep_id", "point_index", "kind", "exposure_us", "light_on", "frames", "bit_depth",
-                    "mean_dn", "temporal_var_dn2", "spatial_var_dn2", "dark_mean_dn", "dark_temporal_var_dn2",
-                    "dark_spatial_var_dn2", "dark_frames", "gain_db")
+                    "mean_dn", "temporal_var_dn2", "dark_mean_dn", "dark_temporal_var_dn2", "dark_frames", "gain_db")
+SENSOR_PLANE = "sensor"
 
 
 @dataclass(frozen=True)
@@ -106,16 +116,25 @@ def named_profile(points: pd.DataFrame) -> SensorProfile | None:
         return None
 
 
+def _refuse_position(where: str, position) -> None:
+    raise ConfigError(f"{where}: irradiance_position", position,
+                      "EMVA 1288 needs the irradiance at the sensor plane (Release 4.0 §6.4): read the spectrometer "
+                      "at the 'sensor' position (e.g. the bench rig configs/rigs/sim-emva-bench.toml) or pass "
+                      "--irradiance")
+
+
 def _row_photon_irradiance(row, spectra: pd.DataFrame, wavelength_nm: float | None) -> tuple[float, float | None]:
     where = f"sweep {row.sweep_id} point {row.point_index}"
-    if getattr(row, "irradiance_position", None) == "target":
-        raise ConfigError(f"{where}: irradiance_position", "target",
-                          "EMVA 1288 needs the irradiance at the sensor; pass --irradiance")
     spec = spectra[(spectra["sweep_id"] == row.sweep_id) & (spectra["point_index"] == row.point_index)]
-    spec = spec[spec["position"] != "target"]
-    if len(spec) >= 2:
-        return (float(photon_flux(spec["wavelength_nm"], spec["irradiance_w_m2_nm"])),
-                photon_weighted_wavelength(spec["wavelength_nm"], spec["irradiance_w_m2_nm"]))
+    at_sensor = spec[spec["position"] == SENSOR_PLANE]
+    if len(at_sensor) >= 2:
+        return (float(photon_flux(at_sensor["wavelength_nm"], at_sensor["irradiance_w_m2_nm"])),
+                photon_weighted_wavelength(at_sensor["wavelength_nm"], at_sensor["irradiance_w_m2_nm"]))
+    position = getattr(row, "irradiance_position", None)
+    if len(spec):
+        _refuse_position(where, str(spec["position"].iloc[0]))
+    if position != SENSOR_PLANE:
+        _refuse_position(where, position)
     irradiance = getattr(row, "irradiance_w_m2", None)
     if irradiance is None or pd.isna(irradiance):
         raise ConfigError(f"{where}: irradiance_w_m2", None, "no spectrometer reading; pass --irradiance")
@@ -137,17 +156,31 @@ def _photon_irradiances(rows: pd.DataFrame, spectra: pd.DataFrame, override: Irr
     return np.array([e for e, _ in found]), float(np.mean(lams)) if lams else None
 
 
-def _dark_series(points: pd.DataFrame, rows: pd.DataFrame) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(exposure [s], dark mean [DN], dark temporal variance [DN²]) of all distinct dark measurements."""
-    own = rows[["exposure_us", "dark_mean_dn", "dark_temporal_var_dn2"]].set_axis(["t", "m", "v"], axis=1)
+def _column(rows: pd.DataFrame, name: str) -> np.ndarray:
+    """A float column, NaN where absent or null."""
+    return pd.to_numeric(rows[name], errors="coerce").to_numpy(float) if name in rows else np.full(len(rows), np.nan)
+
+
+def _split(rows: pd.DataFrame, prefix: str) -> SpatialSplit:
+    return SpatialSplit(*(_column(rows, f"{prefix}spatial_var_{part}_dn2") for part in ("row", "col", "pixel")))
+
+
+def _dark_series(points: pd.DataFrame, rows: pd.DataFrame) -> DarkSeries:
+    """Every distinct dark measurement of the sweep's camera at its gain: the sweep's own dark frames and the rows
+    of dark sweeps (exposure [s], mean [DN], temporal variance [DN²], temperature [°C])."""
+    columns = ["exposure_us", "m", "v", "temperature_c"]
+    own = pd.DataFrame({"exposure_us": _column(rows, "exposure_us"), "m": _column(rows, "dark_mean_dn"),
+                        "v": _column(rows, "dark_temporal_var_dn2"), "temperature_c": _column(rows, "temperature_c")})
     cam = rows["camera_id"].iloc[0] if "camera_id" in rows else None
     gain = rows["gain_db"].iloc[0]
     dark = points[(points["kind"] == "dark") & (points["gain_db"] == gain)]
     if cam is not None and "camera_id" in dark:
         dark = dark[dark["camera_id"] == cam]
-    other = dark[["exposure_us", "mean_dn", "temporal_var_dn2"]].set_axis(["t", "m", "v"], axis=1)
-    series = pd.concat([own, other]).dropna().astype(float).drop_duplicates()
-    return series["t"].to_numpy() * 1e-6, series["m"].to_numpy(), series["v"].to_numpy()
+    other = pd.DataFrame({"exposure_us": _column(dark, "exposure_us"), "m": _column(dark, "mean_dn"),
+                          "v": _column(dark, "temporal_var_dn2"), "temperature_c": _column(dark, "temperature_c")})
+    series = pd.concat([own, other])[columns].dropna(subset=columns[:3]).drop_duplicates()
+    return DarkSeries(series["exposure_us"].to_numpy() * 1e-6, series["m"].to_numpy(), series["v"].to_numpy(),
+                      series["temperature_c"].to_numpy(float))
 
 
 def photon_transfer_from_points(points: pd.DataFrame, spectra: pd.DataFrame, *, sweep_id: str | None = None,
@@ -169,17 +202,50 @@ def photon_transfer_from_points(points: pd.DataFrame, spectra: pd.DataFrame, *, 
     e_p, lam = _photon_irradiances(rows, spectra, override, wavelength_nm)
     area = pixel_area_m2(rows, pixel_size_um)
     exposure_s = rows["exposure_us"].to_numpy(float) * 1e-6
-    dark_t, dark_m, dark_v = _dark_series(points, rows)
     width = rows["roi_w"].dropna() if "roi_w" in rows else pd.Series(dtype=float)
     height = rows["roi_h"].dropna() if "roi_h" in rows else pd.Series(dtype=float)
     col = lambda name: rows[name].to_numpy(float)  # noqa: E731
+    notes = () if override is None else ("irradiance from --irradiance (taken to be at the sensor plane)",)
     return PhotonTransfer(
         photons=photons_per_pixel(e_p, exposure_s, area), exposure_s=exposure_s,
-        mean_dn=col("mean_dn"), temporal_var_dn2=col("temporal_var_dn2"), spatial_var_dn2=col("spatial_var_dn2"),
-        frames=col("frames"), dark_mean_dn=col("dark_mean_dn"), dark_temporal_var_dn2=col("dark_temporal_var_dn2"),
-        dark_spatial_var_dn2=col("dark_spatial_var_dn2"), dark_frames=col("dark_frames"),
-        dark_exposure_s=dark_t, dark_series_mean_dn=dark_m, dark_series_var_dn2=dark_v,
-        bit_depth=int(rows["bit_depth"].iloc[0]), width_px=int(width.iloc[0]) if len(width) else 0,
-        height_px=int(height.iloc[0]) if len(height) else 0, pixel_area_m2=area, wavelength_nm=lam,
-        gain_db=float(rows["gain_db"].iloc[0]), source=f"{source} sweep {sweep}".strip(),
+        mean_dn=col("mean_dn"), temporal_var_dn2=col("temporal_var_dn2"), frames=col("frames"),
+        dark_mean_dn=col("dark_mean_dn"), dark_temporal_var_dn2=col("dark_temporal_var_dn2"),
+        dark_frames=col("dark_frames"), spatial=_split(rows, ""), dark_spatial=_split(rows, "dark_"),
+        dark=_dark_series(points, rows), bit_depth=int(rows["bit_depth"].iloc[0]),
+        saturated_fraction=_column(rows, "saturated_fraction"), mean_diff_dn=_column(rows, "mean_diff_dn"),
+        temperature_c=_column(rows, "temperature_c"),
+        width_px=int(width.iloc[0]) if len(width) else 0, height_px=int(height.iloc[0]) if len(height) else 0,
+        pixel_area_m2=area, wavelength_nm=lam, gain_db=float(rows["gain_db"].iloc[0]),
+        source=f"{source} sweep {sweep}".strip(), notes=notes,
     )
+
+
+@dataclass(frozen=True)
+class DatasetInput:
+    """A dataset's photon transfer with what the outputs need besides: the sensor profile it names (or None), a
+    camera name and the datasheet header."""
+
+    transfer: PhotonTransfer
+    profile: SensorProfile | None
+    camera: str
+    info: SheetInfo
+
+
+def load_dataset_input(root, *, sweep_id: str | None = None, pixel_size_um: float | None = None,
+                       override: IrradianceOverride | None = None, wavelength_nm: float | None = None) -> DatasetInput:
+    """Open the dataset at ``root`` and build its `PhotonTransfer` (`photon_transfer_from_points`)."""
+    from uwlab.experiments.dataset import Dataset
+
+    dataset = Dataset.open(root)
+    points = dataset.points()
+    pt = photon_transfer_from_points(points, dataset.spectra(), sweep_id=sweep_id, pixel_size_um=pixel_size_um,
+                                     override=override, wavelength_nm=wavelength_nm, source=f"dataset {root}")
+    camera = points["camera_model"].dropna() if "camera_model" in points else []
+    name = str(camera.iloc[0]) if len(camera) else "camera"
+    sweep = pt.source.rsplit(" sweep ", 1)[-1]
+    device = (dataset.metadata.get("devices") or {}).get(sweep, {}).get("camera") or {}
+    info = SheetInfo(vendor=device.get("vendor") or "—", model=device.get("model") or name,
+                     serial=device.get("serial") or "—", measured=dataset.metadata.get("started_utc") or "—",
+                     interface=device.get("backend") or "—",
+                     type_of_data="Single (simulated camera)" if dataset.metadata.get("sim") else "Single")
+    return DatasetInput(pt, named_profile(points), name, info)
