@@ -1,5 +1,5 @@
-"""`uwlab emva`: EMVA 1288 characterisation of a sweep dataset or a descriptor dataset, and export to the
-EMVA 1288 descriptor format."""
+"""`uwlab emva`: EMVA 1288 Release 4.0 characterisation of a sweep dataset, a descriptor dataset or a fleet of them,
+and export to the EMVA 1288 descriptor format."""
 from __future__ import annotations
 
 import json
@@ -11,29 +11,52 @@ from uwlab.errors import ConfigError
 _SUMMARY = (
     ("K_dn_per_e", "system gain K", "DN/e-", "{:.5g}"),
     ("quantum_efficiency", "quantum efficiency η", "", "{:.4f}"),
+    ("responsivity_dark_dn_per_photon", "responsivity in the dark R_d", "DN/p", "{:.4g}"),
     ("dark_noise_e", "temporal dark noise σ_d", "e-", "{:.4g}"),
-    ("saturation_e", "saturation capacity μ_e,sat", "e-", "{:.5g}"),
+    ("dark_noise_p", "temporal dark noise σ_d", "p", "{:.4g}"),
+    ("dark_noise_dn", "temporal dark noise σ_y.dark", "DN", "{:.4g}"),
+    ("saturation_e", "saturation capacity μ_e.sat", "e-", "{:.5g}"),
+    ("saturation_photons", "saturation μ_p.sat", "p", "{:.5g}"),
+    ("sensitivity_threshold_photons", "sensitivity threshold μ_p.min", "p", "{:.4g}"),
     ("snr_max_db", "maximum SNR", "dB", "{:.2f}"),
     ("dynamic_range_db", "dynamic range", "dB", "{:.2f}"),
-    ("linearity_error_percent", "linearity error", "%", "{:.3g}"),
+    ("linearity_error_percent", "linearity error LE", "%", "{:.3g}"),
     ("dark_current_e_per_s", "dark current", "e-/s", "{:.4g}"),
-    ("dsnu_e", "DSNU", "e-", "{:.3g}"),
-    ("prnu_percent", "PRNU", "%", "{:.3g}"),
+    ("dark_current_p_per_s", "dark current", "p/s", "{:.4g}"),
+    ("dsnu_e", "DSNU1288", "e-", "{:.3g}"),
+    ("dsnu_p", "DSNU1288", "p", "{:.3g}"),
+    ("prnu_percent", "PRNU1288", "%", "{:.3g}"),
 )
+_FLEET_COLUMNS = (("K_dn_per_e", "K DN/e-", "{:.4g}"), ("quantum_efficiency", "η", "{:.3f}"),
+                  ("dark_noise_e", "σ_d e-", "{:.3g}"), ("saturation_e", "μe.sat e-", "{:.5g}"),
+                  ("dynamic_range_db", "DR dB", "{:.1f}"), ("linearity_error_percent", "LE %", "{:.2g}"),
+                  ("dsnu_e", "DSNU e-", "{:.3g}"), ("prnu_percent", "PRNU %", "{:.3g}"),
+                  ("dark_current_e_per_s", "Idark e-/s", "{:.3g}"))
+MODELS = ("linear", "general")
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("emva", description="EMVA 1288 Release 4.0 (linear) characterisation (docs/emva.md).")
+    p = subparsers.add_parser("emva", description="EMVA 1288 Release 4.0 (linear or general model) "
+                                                  "characterisation (docs/emva.md).")
     sub = p.add_subparsers(dest="emva_command", required=True, parser_class=type(p))
-    c = sub.add_parser("characterize", help="EMVA 1288 parameters, plots and a sensor profile from a photon transfer")
+    c = sub.add_parser("characterize", help="EMVA 1288 parameters, datasheet, XML and a sensor profile")
     c.add_argument("dataset", nargs="?", help="uwlab sweep dataset directory")
     c.add_argument("--descriptor", metavar="FILE", help="EMVA 1288 descriptor file (instead of a dataset)")
     _input_options(c)
+    _model_option(c)
     c.add_argument("--name", help="name of the sensor profile written to --out (default: measured-<camera>)")
-    c.add_argument("--seed", type=int, default=0, help="seed of the emcee posterior (default 0)")
-    c.add_argument("--out", metavar="DIR", help="write emva.json, the plots and the profile TOML here")
+    c.add_argument("--out", metavar="DIR", help="write emva.json, datasheet.html, emva1288.xml, the figures and the "
+                                                "profile TOML here")
     c.add_argument("--json", action="store_true", help="print one JSON object")
     c.set_defaults(func=run_characterize)
+    f = sub.add_parser("fleet", help="characterise every dataset and descriptor under a folder (one row per camera)")
+    f.add_argument("folder", help="folder holding datasets and/or EMVA1288*.txt descriptor files")
+    _model_option(f)
+    f.add_argument("--pixel-size-um", type=float,
+                   help="pixel pitch for descriptors (datasets use their sensor profile)")
+    f.add_argument("--out", metavar="DIR", help="one sub-directory per camera, plus fleet.csv and fleet.json")
+    f.add_argument("--json", action="store_true", help="print the rows as a JSON list")
+    f.set_defaults(func=run_fleet)
     e = sub.add_parser("export", help="write a dataset's photon transfer as an EMVA 1288 descriptor dataset")
     e.add_argument("dataset", help="uwlab sweep dataset directory")
     _input_options(e)
@@ -43,10 +66,16 @@ def register(subparsers) -> None:
     e.set_defaults(func=run_export)
 
 
+def _model_option(p) -> None:
+    p.add_argument("--model", choices=MODELS, default="linear",
+                   help="Release 4.0 Linear (default) or General (non-linear cameras; suggested by the linear "
+                        "characterisation when the camera is not linear)")
+
+
 def _input_options(p) -> None:
     p.add_argument("--sweep", help="sweep_id of the photon-transfer sweep (default: the only one)")
     p.add_argument("--irradiance", metavar="W_M2|CSV",
-                   help="irradiance at the sensor: a number [W/m²] (with --wavelength-nm) or a spectrum CSV "
+                   help="irradiance at the sensor plane: a number [W/m²] (with --wavelength-nm) or a spectrum CSV "
                         "(wavelength_nm, irradiance_w_m2_nm); overrides the dataset's readings")
     p.add_argument("--wavelength-nm", type=float, help="wavelength of monochromatic light, for integrated irradiances")
     p.add_argument("--pixel-size-um", type=float, help="pixel pitch (default: from the dataset's sensor profile)")
@@ -77,19 +106,10 @@ def _override(args):
 
 
 def _load_dataset(args):
-    from uwlab.experiments.dataset import Dataset
-    from uwlab.experiments.emva.from_dataset import (
-        named_profile,
-        photon_transfer_from_points,
-    )
+    from uwlab.experiments.emva.from_dataset import load_dataset_input
 
-    dataset = Dataset.open(args.dataset)
-    points = dataset.points()
-    pt = photon_transfer_from_points(points, dataset.spectra(), sweep_id=args.sweep, pixel_size_um=args.pixel_size_um,
-                                     override=_override(args), wavelength_nm=args.wavelength_nm,
-                                     source=f"dataset {args.dataset}")
-    camera = points["camera_model"].dropna() if "camera_model" in points else []
-    return pt, named_profile(points), (str(camera.iloc[0]) if len(camera) else "camera")
+    return load_dataset_input(args.dataset, sweep_id=args.sweep, pixel_size_um=args.pixel_size_um,
+                              override=_override(args), wavelength_nm=args.wavelength_nm)
 
 
 def run_characterize(args) -> int:
@@ -100,16 +120,20 @@ def run_characterize(args) -> int:
         raise ConfigError("DATASET|--descriptor", None, "give exactly one of a dataset directory or --descriptor")
     _check_inputs(args)
     if args.descriptor:
-        from uwlab.experiments.emva.descriptor import photon_transfer_from_descriptor
+        from uwlab.experiments.emva.descriptor import parse_descriptor, photon_transfer_from_descriptor, sheet_info
 
-        pt, base, camera = photon_transfer_from_descriptor(args.descriptor, args.pixel_size_um), None, "descriptor"
+        pt, base = photon_transfer_from_descriptor(args.descriptor, args.pixel_size_um), None
+        info = sheet_info(parse_descriptor(args.descriptor))
+        camera = info.model if info.model != "—" else "descriptor"
     else:
-        pt, base, camera = _load_dataset(args)
+        loaded = _load_dataset(args)
+        pt, base, camera, info = loaded.transfer, loaded.profile, loaded.camera, loaded.info
+    result = characterize(pt, args.model)
     name = profile_name(args.name or f"measured-{camera}")
-    paths = output_paths(Path(args.out), name, bool(args.pixel_size_um or base)) if args.out else None
-    result = characterize(pt, seed=args.seed)
-    if paths is not None:
-        document = write_characterization(result, pt, paths, name=name, base=base, pixel_size_um=args.pixel_size_um)
+    if args.out:
+        paths = output_paths(Path(args.out), result, name, bool(args.pixel_size_um or base))
+        document = write_characterization(result, pt, paths, name=name, base=base, pixel_size_um=args.pixel_size_um,
+                                          info=info)
     else:
         document = result_document(result)
     if args.json:
@@ -121,20 +145,64 @@ def run_characterize(args) -> int:
 
 
 def _summary(doc: dict) -> str:
-    lines = [f"EMVA 1288 (Release 4.0 linear) — {doc['source']}",
-             f"{doc['points']} points, {doc['sensitivity_fit_points']} in the 0-70 % fit, gain {doc['gain_db']:g} dB, "
-             f"{doc['bit_depth']} bit"]
+    lines = [f"EMVA 1288 ({doc['standard']}) — {doc['source']}",
+             f"{doc['points']} points, saturation at point {doc['saturation_index']} ({doc['saturation_rule']}), "
+             f"gain {doc['gain_db']:g} dB, {doc['bit_depth']} bit"]
     for key, label, unit, fmt in _SUMMARY:
-        value = doc.get(key)
+        if key not in doc:
+            continue
+        value = doc[key]
         text = "n/a" if value is None else fmt.format(value)
         std = doc.get(f"{key}_std")
         if value is not None and std is not None:
             text += f" ± {fmt.format(std)}"
-            if doc.get(f"{key}_std_mcmc") is not None:
-                text += f" (posterior ± {fmt.format(doc[f'{key}_std_mcmc'])})"
-        lines.append(f"  {label:<30} {text} {unit}".rstrip())
+        lines.append(f"  {label:<32} {text} {unit}".rstrip())
     lines += [f"  note: {n}" for n in doc.get("notes", [])]
     lines += [f"  wrote {f}" for f in doc.get("files", [])]
+    return "\n".join(lines)
+
+
+def run_fleet(args) -> int:
+    from tqdm import tqdm
+
+    from uwlab.experiments.emva.fleet import characterize_fleet, find_inputs
+    from uwlab.model.schema import PixelSizeUm, check
+
+    if args.pixel_size_um is not None:
+        check(PixelSizeUm, args.pixel_size_um, "--pixel-size-um")
+    inputs = find_inputs(args.folder)
+    with tqdm(total=len(inputs), desc="EMVA 1288", unit="camera", file=sys.stderr, disable=None) as bar:
+        def progress(row) -> None:
+            bar.set_postfix_str(row.camera[:30])
+            bar.update(1)
+
+        rows = characterize_fleet(inputs, model=args.model, pixel_size_um=args.pixel_size_um,
+                                  out=Path(args.out) if args.out else None, progress=progress)
+    documents = [row.document() for row in rows]
+    if args.json:
+        from uwlab.jsonable import dumps
+
+        sys.stdout.write(dumps(documents, indent=2) + "\n")
+    else:
+        print(_fleet_table(documents))
+    return 0
+
+
+def _fleet_table(documents: list[dict]) -> str:
+    header = ["camera", *(label for _, label, _ in _FLEET_COLUMNS), "status"]
+    rows = []
+    for doc in documents:
+        cells = [doc["camera"]]
+        cells += ["—" if doc.get(key) is None else fmt.format(doc[key]) for key, _, fmt in _FLEET_COLUMNS]
+        cells.append("ok" if doc["error"] is None else f"refused: {doc['error']}")
+        rows.append(cells)
+    widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(len(header) - 1)]
+    lines = []
+    for r in [header, *rows]:
+        lines.append("  ".join(str(c).rjust(w) if i else str(c).ljust(w) for i, (c, w) in enumerate(zip(r, widths, strict=False)))
+                     + "  " + str(r[-1]))
+    ok = sum(d["error"] is None for d in documents)
+    lines.append(f"{ok} of {len(documents)} cameras characterised")
     return "\n".join(lines)
 
 
@@ -150,11 +218,11 @@ def _image_size(text: str) -> tuple[int, int]:
 
 
 def run_export(args) -> int:
-    from uwlab.experiments.emva.descriptor import write_descriptor
+    from uwlab.experiments.emva.export import write_descriptor
 
     shape = _image_size(args.image_size)
     _check_inputs(args)
-    pt, _, _ = _load_dataset(args)
+    pt = _load_dataset(args).transfer
     path = write_descriptor(pt, args.out, shape=shape, source=pt.source)
     if args.json:
         json.dump({"descriptor": str(path), "points": int(len(pt.photons)), "synthetic_images": True}, sys.stdout)

@@ -1,0 +1,183 @@
+"""The EMVA 1288 datasheet as one self-contained HTML page (jinja2 template ``templates/datasheet.html.j2``, figures
+embedded as PNG data URIs).
+
+Structure (EMVA 1288 Release 4.0 Linear §10.2 and the summary-sheet template of Appendix G; General §10.2): a header
+with vendor, model, serial number and the date of the measurement; the operation point; the summary — the photon
+transfer curve (general model: the characteristic curve) and the SNR curve beside a one-column table of every
+quantity of Table 2 in the table's units (the general model's version of Table 2: K and η "N/A", every other quantity
+in photons); then the verdicts and notes; then the detailed results (every other figure); and the provenance. No
+EMVA logo: a licence is needed to claim compliance (Preface), and this page says what it is instead.
+"""
+from __future__ import annotations
+
+import base64
+from dataclasses import dataclass, field
+from datetime import UTC, datetime
+from pathlib import Path
+
+from uwlab import __version__
+from uwlab.experiments.emva.analysis import EmvaResult
+from uwlab.experiments.emva.linear import linear_model_holds
+
+TEMPLATE = "datasheet.html.j2"
+SUMMARY_FIGURES = {"linear": ("photon_transfer.png", "snr.png"), "general": ("characteristic.png", "snr.png")}
+CAPTIONS = {
+    "photon_transfer.png": "Photon transfer (Fig. 7)",
+    "characteristic.png": "Characteristic curve (General Fig. 5)",
+    "snr.png": "Signal-to-noise ratio (Fig. 8; General Fig. 7)",
+    "linearity.png": "Linearity (Fig. 9)",
+    "stability.png": "Stability (Fig. 6)",
+    "dark_current.png": "Dark current (Fig. 10)",
+    "dark_current_temperature.png": "Dark current against temperature (Fig. 11)",
+    "spatial_variances.png": "Spatial variances at every step (§4.3)",
+    "dsnu_spectrogram.png": "DSNU spectrograms (Fig. 12)",
+    "prnu_spectrogram.png": "PRNU spectrograms (Fig. 13)",
+    "dsnu_profiles.png": "DSNU profiles (Fig. 14)",
+    "prnu_profiles.png": "PRNU profiles (Fig. 14)",
+    "dsnu_histograms.png": "DSNU histograms (Figs. 15a, 16a)",
+    "prnu_histograms.png": "PRNU histograms (Figs. 15b, 16b)",
+}
+
+
+@dataclass(frozen=True)
+class SheetInfo:
+    """What the datasheet header and operation point say beyond the characterisation itself."""
+
+    vendor: str = "—"
+    model: str = "—"
+    serial: str = "—"
+    measured: str = "—"
+    type_of_data: str = "Single"
+    interface: str = "—"
+    extra: dict = field(default_factory=dict)
+
+
+def _number(value, spec: str) -> str:
+    if value is None:
+        return "—"
+    return f"{value:{spec}}"
+
+
+def _with_std(values: dict, key: str, spec: str) -> str:
+    text = _number(values.get(key), spec)
+    std = values.get(f"{key}_std")
+    return text if std is None or values.get(key) is None else f"{text} ± {std:{spec}}"
+
+
+def summary_rows(values: dict) -> list[tuple[str, list[tuple[str, str, str]]]]:
+    """The one-column table of Table 2: [(group, [(symbol, value, unit), ...]), ...]."""
+    v = values
+    linear = v["model"] == "linear"
+    q = "e-" if linear else "p"
+    dark_key = "dark_noise_e" if linear else "dark_noise_p"
+    limit = "< " if v.get("dark_noise_upper_limit") else ""
+    eta = v.get("quantum_efficiency")
+    rows = [
+        ("Quantum efficiency", [("η", f"{100 * eta:.1f}" if eta is not None else "N/A (cannot be measured)",
+                                 "%" if eta is not None else "")]),
+        ("Overall system gain", [("K", _number(v.get("K_dn_per_e"), ".4g") if linear else "N/A", "DN/e-"),
+                                 ("1/K", _number(v.get("inverse_K_e_per_dn"), ".4g") if linear else "N/A", "e-/DN")]),
+        ("Temporal dark noise", [("σ_d", limit + _number(v.get(dark_key), ".3g"), q),
+                                 ("σ_y.dark", _number(v.get("dark_noise_dn"), ".3g"), "DN")]),
+        ("Signal-to-noise ratio", [("SNR_max" if linear else "SNR_p.max", _number(v.get("snr_max"), ".4g"), ""),
+                                   ("", _number(v.get("snr_max_db"), ".1f"), "dB"),
+                                   ("1/SNR_max", _number(v.get("inverse_snr_max_percent"), ".3g"), "%")]),
+    ]
+    if linear:
+        rows += [
+            ("Absolute sensitivity threshold", [("μ_e.min", _number(v["sensitivity_threshold_e"], ".3g"), "e-"),
+                                                ("μ_e.min.area", _number(v.get("sensitivity_threshold_e_per_um2"),
+                                                                         ".3g"), "e-/µm²")]),
+            ("Saturation capacity", [("μ_e.sat", _number(v["saturation_e"], ".5g"), "e-"),
+                                     ("μ_e.sat.area", _number(v.get("saturation_e_per_um2"), ".4g"), "e-/µm²")]),
+        ]
+    else:
+        rows += [
+            ("Absolute sensitivity threshold", [("μ_p.min", _number(v["sensitivity_threshold_photons"], ".3g"), "p"),
+                                                ("μ_p.min.area", _number(v.get("sensitivity_threshold_photons_per_um2"),
+                                                                         ".3g"), "p/µm²")]),
+            ("Saturation capacity", [("μ_p.sat", _number(v["saturation_photons"], ".5g"), "p"),
+                                     ("μ_p.sat.area", _number(v.get("saturation_photons_per_um2"), ".4g"), "p/µm²")]),
+        ]
+    rows += [
+        ("Dynamic range", [("DR", _number(v.get("dynamic_range"), ".4g"), ""),
+                           ("", _number(v.get("dynamic_range_db"), ".1f"), "dB")]),
+        ("Spatial nonuniformities", [(f"DSNU1288{s}", _number(v.get(f"dsnu{k}_{q[0]}"), ".3g"), q)
+                                     for s, k in (("", ""), (".col", "_col"), (".row", "_row"), (".pix", "_pixel"))]
+         + [(f"PRNU1288{s}", _number(v.get(f"prnu{k}_percent"), ".3g"), "%")
+            for s, k in (("", ""), (".col", "_col"), (".row", "_row"), (".pix", "_pixel"))]),
+        ("Linearity error", [("LE", _number(v.get("linearity_error_percent"), ".3g"), "%")]),
+        ("Dark current", [("μ_I.mean", _with_std(v, f"dark_current_{q[0]}_per_s", ".3g"), f"{q}/s"),
+                          ("μ_I.var", _with_std(v, f"dark_current_var_{q[0]}_per_s", ".3g"), f"{q}/s")]),
+    ]
+    return rows
+
+
+def verdicts(values: dict) -> list[tuple[str, str]]:
+    """(class, text) lines shown above the details: which model, whether it holds, and the saturation choice."""
+    v = values
+    out = []
+    if v["model"] == "linear":
+        deviation, noise = v.get("photon_transfer_slope_deviation"), v.get("photon_transfer_slope_noise") or 0.0
+        le = v["linearity_error_percent"]
+        if deviation is None:
+            out.append(("warn", "Linear model not checked (eq. 51): too few points up to saturation."))
+        elif linear_model_holds(deviation, noise, le):
+            out.append(("ok", f"Linear model holds: photon transfer slope deviation {100 * deviation:.2g} % "
+                              f"({100 * noise:.2g} % from noise alone; limit 3 %, eq. 51), linearity error "
+                              f"{le:.2g} %."))
+        else:
+            out.append(("bad", f"Linear model does not hold: photon transfer slope deviation {100 * deviation:.2g} % "
+                               f"({100 * noise:.2g} % from noise; eq. 51), linearity error {le:.2g} % — use the "
+                               "general model (--model general)."))
+    else:
+        out.append(("ok", "General model (Release 4.0 General): K and η are not measured; quantities in photons."))
+    out.append(("info", f"Saturation at point {v['saturation_index']} by the {v['saturation_rule']}; the variance "
+                        f"maximum is at point {v['variance_max_index']}."))
+    return out
+
+
+def _data_uri(path: Path) -> str:
+    return "data:image/png;base64," + base64.b64encode(path.read_bytes()).decode()
+
+
+def operation_point(values: dict, curves: dict) -> list[tuple[str, str]]:
+    """The operation-point rows of the summary sheet."""
+    v = values
+    exposure = curves["exposure_s"] * 1e6
+    varied = exposure.max() > exposure.min() * 1.0001
+    exposure_text = f"{exposure.min():.4g} – {exposure.max():.4g} µs" if varied else f"{exposure[0]:.4g} µs"
+    wavelength = v.get("wavelength_nm")
+    return [
+        ("Exposure control", "by exposure time" if varied else "by irradiance"),
+        ("Exposure time", exposure_text),
+        ("Gain", f"{v['gain_db']:g} dB"),
+        ("Data transfer mode", f"Mono {v['bit_depth']}"),
+        ("Camera temperature", "—" if v.get("temperature_c") is None else f"{v['temperature_c']:.1f} °C"),
+        ("Wavelength (photon-weighted mean)", "—" if wavelength is None else f"{wavelength:.0f} nm"),
+        ("Pixel area", "—" if not v.get("pixel_area_m2") else f"{v['pixel_area_m2'] * 1e12:.4g} µm²"),
+        ("Image size", f"{v['width_px']} × {v['height_px']} px" if v.get("width_px") else "—"),
+    ]
+
+
+def datasheet_html(result: EmvaResult, figures: list[Path], info: SheetInfo) -> str:
+    """The datasheet page of ``result`` with the PNG ``figures`` (written by `uwlab.experiments.emva.plots`)."""
+    from jinja2 import Environment, PackageLoader, select_autoescape
+
+    env = Environment(loader=PackageLoader("uwlab.experiments.emva", "templates"),
+                      autoescape=select_autoescape(["html", "j2"]))
+    v = result.values
+    by_name = {p.name: p for p in figures}
+    summary = [(CAPTIONS[n], _data_uri(by_name[n])) for n in SUMMARY_FIGURES[v["model"]] if n in by_name]
+    details = [(CAPTIONS.get(p.name, p.stem), _data_uri(p)) for p in figures
+               if p.name not in SUMMARY_FIGURES[v["model"]]]
+    return env.get_template(TEMPLATE).render(
+        v=v, info=info, rows=summary_rows(v), verdicts=verdicts(v), notes=v.get("notes", []),
+        operation=operation_point(v, result.curves), summary=summary, details=details, version=__version__,
+        generated=datetime.now(UTC).isoformat(timespec="seconds"),
+    )
+
+
+def write_datasheet(result: EmvaResult, figures: list[Path], path: Path, info: SheetInfo) -> Path:
+    path.write_text(datasheet_html(result, figures, info), encoding="utf-8")
+    return path
