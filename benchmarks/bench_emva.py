@@ -1,21 +1,36 @@
-"""EMVA 1288 streaming statistics benchmark (JSON on stdout).
+"""EMVA 1288 benchmarks (JSON on stdout).
 
-A stack of 2448×2048 Mono16 frames (12-bit data, generated on the fly from a small bank of distinct noisy
-frames, so the stack never exists in memory) is reduced by `uwlab.experiments.emva_stream.StackAccumulator`:
-mean, temporal variance from frame pairs, spatial variance of the mean image, saturated fraction.
-Reports processing throughput (MB/s of frame data, generation excluded) and peak memory: the tracemalloc
-peak of the accumulator (in frames: bounded by a few frames whatever the stack length) and the process's
-maximum resident set size.
+1. ``stream``: a stack of 2448×2048 Mono16 frames (12-bit data, generated on the fly from a small bank of distinct
+   noisy frames, so the stack never exists in memory) reduced by `uwlab.experiments.emva.stream.StackAccumulator`:
+   mean, temporal variances (eq. 18, eq. 65), spatial variances of the highpassed mean image and their split
+   (eq. 36–44), saturated fraction. Throughput (MB/s of frame data, generation excluded) and peak memory: the
+   tracemalloc peak of the accumulator in frames.
+2. ``descriptor``: the issue-12 comparison — a 100-image 320×240 12-bit descriptor dataset (20 exposure steps with
+   two bright and two dark images each, and two 10-image nonuniformity stacks, the layout of the reference
+   implementation's dataset generator; images of uwlab's simulated camera) characterised by
+   ``uwlab emva characterize --descriptor`` in a fresh interpreter: wall and CPU time (median of ``--repeats``) of
+   the whole command (``cli_*``: today it imports every subcommand's modules first) and of the emva subcommand alone
+   (``emva_*``: its own parser and imports only), and the tracemalloc peak of the in-process characterisation in
+   frames. With ``--reference-python PY`` (a Python with
+   the EMVA 1288 reference implementation, github.com/EMVA1288/emva1288, importable as ``emva1288``) the same files
+   are processed by the reference (parser, loader, Data1288, Results1288 with all its results) and the ratio is
+   reported; without it the reference is skipped (it is not a dependency of uwlab).
 
-Usage: python benchmarks/bench_emva.py [--frames N]
+Usage: python benchmarks/bench_emva.py [--frames N] [--repeats R] [--reference-python PY]
 """
 from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
+import statistics
+import subprocess
+import sys
+import tempfile
 import time
 import tracemalloc
+from pathlib import Path
 
 import numpy as np
 
@@ -23,6 +38,24 @@ from uwlab.experiments.emva.stream import StackAccumulator
 
 WIDTH, HEIGHT = 2448, 2048
 BANK = 3
+SUBCOMMAND_SCRIPT = """
+import argparse, sys
+from uwlab.cli import emva
+parser = argparse.ArgumentParser(prog="uwlab")
+emva.register(parser.add_subparsers(dest="command"))
+args = parser.parse_args(["emva", "characterize", "--descriptor", sys.argv[1], "--json"])
+sys.exit(args.func(args))
+"""
+REFERENCE_SCRIPT = """
+import logging, sys, time
+t0, c0 = time.perf_counter(), time.process_time()
+from emva1288 import process
+p = process.ParseEmvaDescriptorFile(sys.argv[1], loglevel=logging.ERROR)
+images = process.LoadImageData(p.images, loglevel=logging.ERROR)
+data = process.Data1288(images.data, loglevel=logging.ERROR)
+results = process.Results1288(data.data, loglevel=logging.ERROR).results
+print(time.perf_counter() - t0, time.process_time() - c0, results["K"]["value"])
+"""
 
 
 def frame_bank(rng: np.random.Generator) -> list[np.ndarray]:
@@ -31,10 +64,7 @@ def frame_bank(rng: np.random.Generator) -> list[np.ndarray]:
             for _ in range(BANK)]
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--frames", type=int, default=40, help="stack length (default 40)")
-    args = parser.parse_args()
+def stream_benchmark(frames: int) -> dict:
     bank = frame_bank(np.random.default_rng(0))
     frame_bytes = bank[0].nbytes
     tracemalloc.start()
@@ -42,7 +72,7 @@ def main() -> None:
     tracemalloc.reset_peak()
     acc = StackAccumulator(4095)
     busy = 0.0
-    for i in range(args.frames):
+    for i in range(frames):
         frame = bank[i % BANK]
         t0 = time.perf_counter()
         acc.add(frame)
@@ -52,15 +82,120 @@ def main() -> None:
     busy += time.perf_counter() - t0
     _, peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
-    data_mb = args.frames * frame_bytes / 1e6
-    print(json.dumps({
-        "benchmark": "emva_stream", "frames": args.frames, "width": WIDTH, "height": HEIGHT, "pixel_format": "Mono16",
+    data_mb = frames * frame_bytes / 1e6
+    return {
+        "benchmark": "emva_stream", "frames": frames, "width": WIDTH, "height": HEIGHT, "pixel_format": "Mono16",
         "stack_mb": round(data_mb, 1), "seconds": round(busy, 3), "throughput_mb_s": round(data_mb / busy, 1),
-        "peak_traced_mb": round((peak - base_current) / 1e6, 1),
         "peak_traced_frames": round((peak - base_current) / frame_bytes, 2),
-        "max_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
         "temporal_var_dn2": round(stats.temporal_var_dn2, 3), "mean_dn": round(stats.mean_dn, 3),
-    }))
+    }
+
+
+def write_descriptor_dataset(root: Path) -> Path:
+    """The 100-image dataset of the module docstring, rendered by the simulated camera."""
+    import tifffile
+
+    from uwlab.drivers.sim.camera import SimTruth
+    from uwlab.experiments.emva.descriptor import DESCRIPTOR_NAME, Block, Descriptor, format_descriptor
+    from uwlab.experiments.emva.simulate import DirectBench
+    from uwlab.model.sensor import load_sensor_profile
+
+    truth = SimTruth.from_sensor_profile(load_sensor_profile("imx250m"), resolution_px=(320, 240),
+                                         dark_current_e_per_s=30.0, dsnu_e=1.0, prnu_percent=0.5)
+    bench = DirectBench(truth, rate_e_per_s=2.0e5, quantum_efficiency=0.6, seed=1)
+    (root / "images").mkdir(parents=True)
+    blocks, count = [], 0
+
+    def block(exposure_us: float, light: bool, frames: int) -> None:
+        nonlocal count
+        sensor, cfg = bench.sensor(), bench.config(exposure_us)
+        bench.light["on"] = 1.0 if light else 0.0
+        names = []
+        for _ in range(frames):
+            names.append(f"images/image{count:04d}.tif")
+            tifffile.imwrite(root / names[-1], sensor.render(cfg))
+            count += 1
+        blocks.append(Block(not light, exposure_us * 1e3, bench.photons(exposure_us) if light else 0.0, tuple(names)))
+
+    for exposure_us in np.linspace(500, 60000, 20):
+        block(exposure_us, True, 2)
+        block(exposure_us, False, 2)
+    block(25000, True, 10)
+    block(25000, False, 10)
+    path = root / DESCRIPTOR_NAME
+    path.write_text(format_descriptor(Descriptor("4.0", 12, 320, 240, tuple(blocks)), ("benchmark dataset",)))
+    return path
+
+
+def _timed(argv: list[str]) -> tuple[float, float]:
+    """(wall, CPU) seconds of a child process."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    subprocess.run(argv, check=True, capture_output=True, env={**os.environ})
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+
+
+def _uwlab_runs(path: Path, repeats: int) -> dict:
+    cli = [_timed([sys.executable, "-m", "uwlab.cli.main", "emva", "characterize", "--descriptor", str(path),
+                   "--json"]) for _ in range(repeats)]
+    alone = [_timed([sys.executable, "-c", SUBCOMMAND_SCRIPT, str(path)]) for _ in range(repeats)]
+    median = lambda runs, i: round(statistics.median(r[i] for r in runs), 3)  # noqa: E731
+    return {"cli_wall_s": median(cli, 0), "cli_cpu_s": median(cli, 1), "emva_wall_s": median(alone, 0),
+            "emva_cpu_s": median(alone, 1)}
+
+
+def _reference_run(python: str, path: Path) -> tuple[float, float, float]:
+    """(wall, CPU) of the reference in a fresh interpreter, and its K."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    out = subprocess.run([python, "-c", REFERENCE_SCRIPT, str(path)], check=True, capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return wall, cpu, float(out.stdout.split()[-1])
+
+
+def _peak_frames(path: Path) -> float:
+    """tracemalloc peak of loading and characterising in-process, in 320×240 uint16 frames."""
+    from uwlab.experiments.emva.analysis import characterize
+    from uwlab.experiments.emva.descriptor import photon_transfer_from_descriptor
+
+    tracemalloc.start()
+    characterize(photon_transfer_from_descriptor(path))
+    _, peak = tracemalloc.get_traced_memory()
+    tracemalloc.stop()
+    return peak / (320 * 240 * 2)
+
+
+def descriptor_benchmark(repeats: int, reference_python: str | None) -> dict:
+    with tempfile.TemporaryDirectory(prefix="uwlab-bench-emva-") as tmp:
+        path = write_descriptor_dataset(Path(tmp))
+        result = {"benchmark": "emva_descriptor", "images": 100, "width": 320, "height": 240, "bits": 12,
+                  "repeats": repeats, **_uwlab_runs(path, repeats),
+                  "peak_traced_frames": round(_peak_frames(path), 1)}
+        if reference_python:
+            ref = [_reference_run(reference_python, path) for _ in range(repeats)]
+            result |= {"reference_wall_s": round(statistics.median(r[0] for r in ref), 3),
+                       "reference_cpu_s": round(statistics.median(r[1] for r in ref), 3),
+                       "reference_K_dn_per_e": ref[0][2]}
+            for kind in ("cli", "emva"):
+                result[f"speedup_{kind}_wall"] = round(result["reference_wall_s"] / result[f"{kind}_wall_s"], 2)
+                result[f"speedup_{kind}_cpu"] = round(result["reference_cpu_s"] / result[f"{kind}_cpu_s"], 2)
+        else:
+            result["reference"] = "skipped (pass --reference-python)"
+        return result
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--frames", type=int, default=40, help="stream benchmark stack length (default 40)")
+    parser.add_argument("--repeats", type=int, default=3, help="descriptor benchmark runs (median; default 3)")
+    parser.add_argument("--reference-python", help="a Python interpreter with emva1288 importable")
+    args = parser.parse_args()
+    print(json.dumps(stream_benchmark(args.frames)))
+    print(json.dumps(descriptor_benchmark(args.repeats, args.reference_python)))
 
 
 if __name__ == "__main__":

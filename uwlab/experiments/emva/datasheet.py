@@ -141,12 +141,21 @@ def _data_uri(path: Path) -> str:
     return "data:image/png;base64," + base64.b64encode(path.read_bytes()).decode()
 
 
+def _duration(seconds: float) -> str:
+    """An exposure time in s, ms or µs, three significant digits."""
+    if seconds >= 1.0:
+        return f"{seconds:.3g} s"
+    if seconds >= 1e-3:
+        return f"{seconds * 1e3:.3g} ms"
+    return f"{seconds * 1e6:.3g} µs"
+
+
 def operation_point(values: dict, curves: dict) -> list[tuple[str, str]]:
     """The operation-point rows of the summary sheet."""
     v = values
-    exposure = curves["exposure_s"] * 1e6
+    exposure = curves["exposure_s"]
     varied = exposure.max() > exposure.min() * 1.0001
-    exposure_text = f"{exposure.min():.4g} – {exposure.max():.4g} µs" if varied else f"{exposure[0]:.4g} µs"
+    exposure_text = f"{_duration(exposure.min())} – {_duration(exposure.max())}" if varied else _duration(exposure[0])
     wavelength = v.get("wavelength_nm")
     return [
         ("Exposure control", "by exposure time" if varied else "by irradiance"),
@@ -154,7 +163,7 @@ def operation_point(values: dict, curves: dict) -> list[tuple[str, str]]:
         ("Gain", f"{v['gain_db']:g} dB"),
         ("Data transfer mode", f"Mono {v['bit_depth']}"),
         ("Camera temperature", "—" if v.get("temperature_c") is None else f"{v['temperature_c']:.1f} °C"),
-        ("Wavelength (photon-weighted mean)", "—" if wavelength is None else f"{wavelength:.0f} nm"),
+        ("Wavelength (centroid)", "—" if wavelength is None else f"{wavelength:.0f} nm"),
         ("Pixel area", "—" if not v.get("pixel_area_m2") else f"{v['pixel_area_m2'] * 1e12:.4g} µm²"),
         ("Image size", f"{v['width_px']} × {v['height_px']} px" if v.get("width_px") else "—"),
     ]

@@ -79,7 +79,7 @@ def characterize_general(pt: PhotonTransfer) -> tuple[dict, dict]:
     mu_p_sat = float(pt.photons[sat.index])
     x = np.r_[0.0, pt.photons[idx]]
     curve = bspline_regression(x, np.r_[0.0, signal[idx]], intervals, (0.0, mu_p_sat))
-    slope = curve.derivative()
+    slope = curve.slope
     r_d = float(slope(0.0))
     if not r_d > 0:
         raise ConfigError("characteristic curve", f"R_d = {r_d:.4g}", "the slope at zero exposure must be positive")

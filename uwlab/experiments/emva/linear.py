@@ -37,7 +37,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.interpolate import BSpline
 
 from uwlab.errors import ConfigError
 from uwlab.experiments.emva.dark import dark_current, dark_current_by_temperature
@@ -102,9 +101,8 @@ def photon_transfer_slope_deviation(signal: np.ndarray, var: np.ndarray, var_std
     from ``var_std`` through the regression (zero when ``var_std`` is unknown)."""
     spline = bspline_regression(signal, var, intervals_for(len(signal)),
                                 (min(0.0, float(signal.min())), float(signal.max())))
-    deviation = float(np.mean(np.abs(spline.derivative()(signal[evaluate]) - k)) / k)
-    basis = BSpline(spline.t, np.eye(len(spline.c)), spline.k)
-    slopes = basis.derivative()(signal[evaluate]) @ np.linalg.pinv(basis(signal))
+    deviation = float(np.mean(np.abs(spline.slope(signal[evaluate]) - k)) / k)
+    slopes = spline.slope_basis(signal[evaluate]) @ np.linalg.pinv(spline.basis(signal))
     slope_std = np.sqrt(np.einsum("ij,j,ij->i", slopes, np.nan_to_num(var_std) ** 2, slopes))
     return deviation, float(math.sqrt(2.0 / math.pi) * np.mean(slope_std) / k)
 

@@ -73,7 +73,7 @@ def highpass(image: np.ndarray) -> np.ndarray:
     kernel = smoothing_kernel().astype(np.float32)
     smooth = cv2.sepFilter2D(image, cv2.CV_32F, kernel, kernel, borderType=cv2.BORDER_REFLECT)
     inner = (slice(m, -m), slice(m, -m))
-    return image[inner] - smooth[inner]
+    return np.subtract(image[inner], smooth[inner], out=smooth[inner])
 
 
 @dataclass(frozen=True)
@@ -105,13 +105,14 @@ def spatial_variances(mean_image: np.ndarray, temporal_var_dn2: float, frames: i
     >>> round(spatial_variances(img, 0.0, 1).col, 12)
     1.0
     """
-    y = np.asarray(mean_image, np.float64)
+    y = np.asarray(mean_image)
     rows, cols = y.shape
-    mu = float(y.mean())
-    measured = float(np.mean((y - mu) ** 2))
+    mu = float(y.mean(dtype=np.float64))
+    squares = sum(float(np.sum((block.astype(np.float64) - mu) ** 2)) for block in _row_blocks(y))
+    measured = squares / y.size
     total = measured - temporal_var_dn2 / frames
-    col_means = y.mean(axis=0)
-    row_means = y.mean(axis=1)
+    col_means = y.mean(axis=0, dtype=np.float64)
+    row_means = y.mean(axis=1, dtype=np.float64)
     cav = float(np.mean((col_means - mu) ** 2)) - temporal_var_dn2 / (frames * rows)
     rav = float(np.mean((row_means - mu) ** 2)) - temporal_var_dn2 / (frames * cols)
     m, n = rows, cols
@@ -120,6 +121,13 @@ def spatial_variances(mean_image: np.ndarray, temporal_var_dn2: float, frames: i
     row = ((m * n - n) * rav - m * (total - cav)) / det
     pixel = m * n * (total - cav - rav) / det
     return SpatialVariances(measured, total, cav, rav, row, col, pixel, rows, cols)
+
+
+def _row_blocks(image: np.ndarray, pixels: int = 1 << 16) -> list[np.ndarray]:
+    """Views of at most ``pixels`` pixels and an eighth of the image each (whole rows), to keep float64 and complex
+    temporaries a fraction of a frame."""
+    rows = max(1, min(pixels, image.size // 8) // image.shape[1])
+    return [image[i : i + rows] for i in range(0, image.shape[0], rows)]
 
 
 def dsnu_e(s2_dark_dn2: float, k_dn_per_e: float) -> float | None:
@@ -136,22 +144,26 @@ def prnu_percent(s2_bright_dn2: float, s2_dark_dn2: float, signal_dn: float) -> 
 def spectrogram(image: np.ndarray, vertical: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """(spatial frequency v/N [cycles/pixel], √P[v] [DN]) for v = 0 … N/2 (eq. 70–71); ``vertical``: the same
     down the columns. White noise of variance s² gives a flat √P = s."""
-    y = np.asarray(image, np.float64)
+    y = np.asarray(image)
     if vertical:
         y = y.T
     n = y.shape[1]
-    spectrum = np.fft.rfft(y - y.mean(), axis=1) / math.sqrt(n)
-    power = np.mean(spectrum.real**2 + spectrum.imag**2, axis=0)
-    return np.arange(power.size) / n, np.sqrt(power)
+    mu = float(y.mean(dtype=np.float64))
+    power = np.zeros(n // 2 + 1)
+    for block in _row_blocks(y):
+        spectrum = np.fft.rfft(block - mu, axis=1) / math.sqrt(n)
+        power += np.sum(spectrum.real**2 + spectrum.imag**2, axis=0)
+    return np.arange(power.size) / n, np.sqrt(power / y.shape[0])
 
 
 def profiles(image: np.ndarray, vertical: bool = False) -> dict[str, np.ndarray]:
     """§8.7 profiles of an unfiltered image: ``middle`` (row M//2, or column N//2), ``mean``, ``max``, ``min`` over
     all rows (columns) at each horizontal (vertical) position."""
-    y = np.asarray(image, np.float64)
+    y = np.asarray(image)
     if vertical:
         y = y.T
-    return {"middle": y[y.shape[0] // 2].copy(), "mean": y.mean(axis=0), "max": y.max(axis=0), "min": y.min(axis=0)}
+    return {"middle": y[y.shape[0] // 2].astype(np.float64), "mean": y.mean(axis=0, dtype=np.float64),
+            "max": y.max(axis=0).astype(np.float64), "min": y.min(axis=0).astype(np.float64)}
 
 
 @dataclass(frozen=True)
@@ -172,26 +184,41 @@ def _bins(span: float, frames: int) -> tuple[int, int]:
     return interval, math.floor(frames * span / interval) + 1
 
 
+def _counts(blocks, origin: float, frames: int, interval: int, count: int, absolute: bool = False) -> np.ndarray:
+    """Eq. 74 / 79 bin counts, q = floor(L (y − origin) / I) (of |y − origin| when ``absolute``), block by block."""
+    counts = np.zeros(count, np.int64)
+    for block in blocks:
+        y = block.astype(np.float64)
+        y -= origin
+        if absolute:
+            np.abs(y, out=y)
+        index = np.minimum(np.floor(frames * y.ravel() / interval).astype(np.int64), count - 1)
+        counts += np.bincount(index, minlength=count)
+    return counts
+
+
 def log_histogram(image: np.ndarray, frames: int) -> Histogram:
     """The logarithmic histogram of eq. 73–76 of a (highpassed) mean image of ``frames`` frames."""
-    y = np.asarray(image, np.float64).ravel()
-    lo, hi, mu = float(y.min()), float(y.max()), float(y.mean())
+    y = np.asarray(image)
+    lo, hi, mu = float(y.min()), float(y.max()), float(y.mean(dtype=np.float64))
     interval, count = _bins(hi - lo, frames)
-    index = np.minimum(np.floor(frames * (y - lo) / interval).astype(np.int64), count - 1)
-    counts = np.bincount(index, minlength=count)
+    counts = _counts(_row_blocks(y), lo, frames, interval, count)
     centres = lo + (interval - 1) / (2 * frames) + np.arange(count) * interval / frames - mu
-    s_nw = float(y.std())
-    model = (interval / frames) * y.size / (math.sqrt(2 * math.pi) * s_nw) * np.exp(-centres**2 / (2 * s_nw**2))
+    s_nw = math.sqrt(sum(float(np.sum((b.astype(np.float64) - mu) ** 2)) for b in _row_blocks(y)) / y.size)
+    model = np.zeros(count)
+    if s_nw > 0:
+        model = (interval / frames) * y.size / (math.sqrt(2 * math.pi) * s_nw) * np.exp(-centres**2 / (2 * s_nw**2))
     return Histogram(centres, counts, model, interval / frames, s_nw)
 
 
 def accumulated_histogram(image: np.ndarray, frames: int) -> Histogram:
     """The accumulated histogram of |y − μ_y| of eq. 77–81, in percent of the pixels: at each bin, the share of
     pixels deviating by at least the bin's lower edge."""
-    y = np.abs(np.asarray(image, np.float64).ravel() - float(np.mean(image)))
-    interval, count = _bins(float(y.max()), frames)
-    index = np.minimum(np.floor(frames * y / interval).astype(np.int64), count - 1)
-    counts = np.bincount(index, minlength=count)
+    y = np.asarray(image)
+    mu = float(y.mean(dtype=np.float64))
+    top = max(abs(float(y.max()) - mu), abs(float(y.min()) - mu))
+    interval, count = _bins(top, frames)
+    counts = _counts(_row_blocks(y), mu, frames, interval, count, absolute=True)
     accumulated = np.cumsum(counts[::-1])[::-1] * (100.0 / y.size)
     centres = (interval - 1) / (2 * frames) + np.arange(count) * interval / frames
     return Histogram(centres, accumulated, None, interval / frames)

@@ -129,7 +129,7 @@ def plot_dark_current(result: EmvaResult, path: Path) -> Path:
     unit = "e-/s" if v["model"] == "linear" else "p/s"
     key = "dark_current_e_per_s" if v["model"] == "linear" else "dark_current_p_per_s"
     var_key = key.replace("current_", "current_var_")
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(9.0, 3.8))
+    fig, (ax, bx) = plt.subplots(2, 1, figsize=(6.4, 6.0))
     ax.plot(dark.exposure_s, dark.mean_dn, "o", ms=3, label="measured")
     bx.plot(dark.exposure_s, dark.var_dn2, "o", ms=3, label="measured")
     if fit is not None:
@@ -186,10 +186,13 @@ def _spectrogram(spectrograms: dict, level_lines: list[tuple[float, str]], unit:
     fig, axes = plt.subplots(2, 1, figsize=(6.4, 6.0))
     for ax, name in zip(axes, ("horizontal", "vertical"), strict=True):
         freq, amp = spectrograms[name]
-        ax.semilogy(freq[1:], amp[1:], "-", lw=0.9, label="√P")
+        ax.plot(freq[1:], amp[1:], "-", lw=0.9, label="√P")
+        top = float(amp[1:].max())
         for level, label in level_lines:
             if level is not None and level > 0:
                 ax.axhline(level, ls="--", lw=1, color="tab:red" if "1288" in label else "0.4", label=label)
+                top = max(top, level)
+        ax.set_ylim(0, 1.15 * top)
         ax.set(xlabel="spatial frequency [cycles/pixel]", ylabel=f"standard deviation [{unit}]",
                title=f"{title}: {name} spectrogram")
         ax.legend(fontsize=7)

@@ -31,7 +31,7 @@ import numpy as np
 from uwlab.errors import ConfigError
 from uwlab.experiments.emva.nonuniformity import HIGHPASS_MARGIN, SpatialVariances, highpass, spatial_variances
 
-CHUNK_PIXELS = 1 << 18
+CHUNK_PIXELS = 1 << 16
 
 
 @dataclass(frozen=True)
@@ -113,7 +113,7 @@ class StackAccumulator:
             frames=frames, mean_dn=mean, temporal_var_dn2=temporal, stack_var_dn2=stack_var,
             spatial_var_dn2=measured, spatial=spatial, mean_diff_dn=self._mean_diff,
             saturated_fraction=float(np.count_nonzero(self._saturated)) / n,
-            mean_image=deviation + np.float32(mean) if self.keep_mean_image else None,
+            mean_image=np.add(deviation, np.float32(mean), out=deviation) if self.keep_mean_image else None,
         )
 
     def _deviation_image(self, mean: float) -> np.ndarray:
@@ -126,8 +126,9 @@ class StackAccumulator:
 
 
 def _row_chunks(image: np.ndarray) -> list[np.ndarray]:
-    """Views of about `CHUNK_PIXELS` pixels each, so temporaries stay a small fraction of a frame."""
-    rows = max(1, CHUNK_PIXELS // image.shape[1])
+    """Views of at most `CHUNK_PIXELS` pixels and an eighth of the image each (whole rows), so temporaries stay a
+    small fraction of a frame."""
+    rows = max(1, min(CHUNK_PIXELS, image.size // 8) // image.shape[1])
     return [image[i : i + rows] for i in range(0, image.shape[0], rows)]
 
 
@@ -135,10 +136,11 @@ def _centred_square_sum(image: np.ndarray, centre: int) -> int:
     """Σ (y − c)² over an integer image, exactly: int64 dot products over row blocks small enough not to overflow,
     summed as a Python int."""
     bound = max(abs(int(image.max()) - centre), abs(int(image.min()) - centre), 1)
-    rows = max(1, min(CHUNK_PIXELS, (1 << 62) // (bound * bound)) // image.shape[1])
+    rows = max(1, min(CHUNK_PIXELS, image.size // 8, (1 << 62) // (bound * bound)) // image.shape[1])
     total = 0
     for start in range(0, image.shape[0], rows):
-        d = image[start : start + rows].astype(np.int64).ravel() - centre
+        d = image[start : start + rows].astype(np.int64).ravel()
+        d -= centre
         total += int(d @ d)
     return total
 
