@@ -83,6 +83,8 @@ def _input_options(p) -> None:
 
 def _check_inputs(args) -> None:
     """The numeric options through the quantities of `uwlab.model.schema` (plausibility limits included)."""
+    if args.wavelength_nm is None and args.pixel_size_um is None:
+        return
     from uwlab.model.schema import PixelSizeUm, WavelengthNm, check
 
     if args.wavelength_nm is not None:

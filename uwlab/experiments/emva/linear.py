@@ -18,9 +18,10 @@ EMVA Standard 1288, Release 4.0 Linear, March 2021).
   at the shortest exposure time), σ_d = √(σ²_y.dark − σ²_q) / K with σ²_q = 1/12 DN²; when σ²_y.dark < 0.24 DN²,
   σ_y.dark is set to 0.49 DN and σ_d < 0.40 / K is an upper limit.
 * Absolute sensitivity threshold (eq. 26): μ_p.min = (√(σ²_y.dark / K² + 1/4) + 1/2) / η; μ_e.min = η μ_p.min (eq. 27).
-* SNR (eq. 20) measured, the model eq. 21 (`uwlab.model.sensor.snr`), the ideal sensor √μ_p (eq. 23); total SNR with
-  the spatial nonuniformity, measured at every point and modelled by eq. 69; SNR_max = √μ_e.sat (eq. 55) as a ratio,
-  in dB (20 log₁₀) and in bits (log₂); dynamic range DR = μ_p.sat / μ_p.min (eq. 28), likewise.
+* SNR (eq. 20) measured, the model eq. 21 (`uwlab.model.sensor.snr`, drawn by the plots), the ideal sensor √μ_p
+  (eq. 23); total SNR with the spatial nonuniformity, measured at every point and modelled by eq. 69; SNR_max =
+  √μ_e.sat (eq. 55) as a ratio, in dB (20 log₁₀) and in bits (log₂); dynamic range DR = μ_p.sat / μ_p.min (eq. 28),
+  likewise.
 * Linearity (§6.9): the line y = a₀ + a₁ μ_p fitted to y = μ_y − μ_y.dark over 5–95 % of the saturation signal
   minimising the relative deviations (weights 1/y², eq. 59–61), δ = 100 (y − fit)/fit (eq. 62) and
   LE = (1/n) Σ |δ| (eq. 63); the extreme δ are reported as well (the reference implementation's LE_min / LE_max).
@@ -43,7 +44,6 @@ from uwlab.experiments.emva.dark import dark_current, dark_current_by_temperatur
 from uwlab.experiments.emva.nonuniformity import dsnu_e, prnu_percent
 from uwlab.experiments.emva.regression import bspline_regression, fit_line, intervals_for
 from uwlab.experiments.emva.transfer import PhotonTransfer, Saturation, points_between, saturation, spatial_point
-from uwlab.model.sensor import snr
 
 QUANTISATION_VAR_DN2 = 1.0 / 12.0
 MIN_DARK_VAR_DN2 = 0.24
@@ -198,13 +198,12 @@ def characterize_linear(pt: PhotonTransfer) -> tuple[dict, dict]:
     spatial_values, spatial_curves = _nonuniformity(pt, sat, k, notes)
     values.update(spatial_values)
     values.update(condition_values(pt, notes))
-    mu_e = eta * pt.photons
     curves = {
         "photons": pt.photons, "signal_dn": signal, "signal_var_dn2": var, "fit_idx": fit_idx, "sat": sat.index,
         "variance_max": sat.variance_max_index, "lin_idx": lin_idx, "linearity_fit_dn": lin_fit,
         "linearity_dev_percent": deviation, "temporal_std_dn": np.sqrt(pt.temporal_var_dn2),
         "mean_diff_dn": pt.mean_diff_dn, "snr": signal / np.sqrt(np.maximum(pt.temporal_var_dn2, 1e-30)),
-        "snr_model": snr(mu_e, sigma_d, k), "exposure_s": pt.exposure_s, "dark": pt.dark,
+        "exposure_s": pt.exposure_s, "dark": pt.dark,
         "photon_transfer_line": (k, k_fit.intercept), "dark_current_fit": dark_fit,
         **spatial_curves,
     }

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -17,8 +18,10 @@ from uwlab.errors import ConfigError
 from uwlab.experiments.emva.analysis import EmvaResult
 from uwlab.experiments.emva.transfer import PhotonTransfer
 from uwlab.jsonable import dumps, to_jsonable
-from uwlab.model.sensor import SensorProfile
 from uwlab.outputs import output_dir
+
+if TYPE_CHECKING:
+    from uwlab.model.sensor import SensorProfile
 
 RESULT_NAME = "emva.json"
 DATASHEET_NAME = "datasheet.html"
