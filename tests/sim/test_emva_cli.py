@@ -115,6 +115,8 @@ def test_general_model(dataset, tmp_path, capsys):
     assert "characteristic.png" in names and "photon_transfer.png" not in names and not any(
         n.endswith(".toml") for n in names)
     assert any("no sensor profile written" in n for n in doc["notes"])
+    # 40 linear steps from 3 ms start at SNR_p ≈ 20: no μ_p.min by interpolation (General D.1), said so
+    assert doc["sensitivity_threshold_photons"] is None and any("D.1" in n for n in doc["notes"])
     root = ET.parse(out / "emva1288.xml").getroot()
     assert root.find("sensitivity/QE/Value").text == "nan" and root.find("sensitivity/sigma_d/Unit").text == "$p$"
     assert "N/A (cannot be measured)" in (out / "datasheet.html").read_text()

@@ -55,10 +55,11 @@ def test_recovers_ground_truth(sim_dataset, result):
     assert 0.93 * t["saturation_e"] < result["saturation_e"] < t["saturation_e"]
     assert result["dark_current_e_per_s"] == pytest.approx(t["dark_current_e_per_s"], rel=0.02)
     assert result["dark_current_var_e_per_s"] == pytest.approx(t["dark_current_e_per_s"], rel=0.05)
-    # the highpass keeps 98.85 % of a white pattern's variance (§8.1); 2 frames, 78 × 78 highpassed pixels
+    # the highpass keeps 98.85 % of a white pattern's variance (§8.1); from the 2-frame point at 50 % and 78 × 78
+    # highpassed pixels the DSNU has a statistical spread of ~2.6 % (its variance sits on σ²_y.dark / 2, eq. 36)
     gain = math.sqrt(white_noise_gain())
-    assert result["dsnu_e"] == pytest.approx(DSNU * gain, rel=0.06)
-    assert result["prnu_percent"] == pytest.approx(PRNU * gain, rel=0.06)
+    assert result["dsnu_e"] == pytest.approx(DSNU * gain, rel=0.1)
+    assert result["prnu_percent"] == pytest.approx(PRNU * gain, rel=0.1)
     assert abs(result["dsnu_row_e"] or 0) < 0.3 and abs(result["dsnu_col_e"] or 0) < 0.3
     assert result["linearity_error_percent"] < 0.1
     assert 0 < result["photon_transfer_slope_deviation"] - result["photon_transfer_slope_noise"] < 0.03

@@ -13,7 +13,8 @@ the input, in photons.
   √μ_p (eq. 15).
 * Absolute sensitivity threshold μ_p.min (§6.8): a cubic B-spline regression of the inverse relation μ_p(SNR_p) up to
   saturation, with the same number of intervals (the dark point SNR_p = 0 at μ_p = 0 included), evaluated at
-  SNR_p = 1. The text names no weights; the regression minimises the relative deviations (weights 1/μ_p, the dark
+  SNR_p = 1, when the darkest point has SNR_p ≤ 2 (else it is not computed: General D.1 asks for exposure steps
+  down to SNR_p ≈ 1). The text names no weights; the regression minimises the relative deviations (weights 1/μ_p, the dark
   point weighted as the darkest measured one), as the standard's own linearity regression does (Linear §6.9):
   unweighted, the residuals of the μ_p ≈ 10⁴ points decide the curve at μ_p ≈ 5 (−6 % on a simulated camera whose
   measured SNR_p agrees with its closed form to 1 %). SNR_p.max: the largest SNR_p measured up to saturation
@@ -86,16 +87,15 @@ def characterize_general(pt: PhotonTransfer) -> tuple[dict, dict]:
     local_slope = slope(pt.photons[idx])
     sigma_y = np.sqrt(pt.temporal_var_dn2[idx])
     snr_p = pt.photons[idx] / sigma_y * local_slope
-    if snr_p.min() > MAX_SNR_P_AT_LOWEST_POINT:
-        notes.append(f"the darkest point has SNR_p = {snr_p.min():.2g}: μ_p.min is interpolated from SNR_p = 0; "
-                     "General D.1 asks for exposures down to SNR_p ≈ 1")
     relative = 1.0 / np.r_[pt.photons[idx].min(), pt.photons[idx]]
     inverse = bspline_regression(np.r_[0.0, snr_p], x, intervals, (0.0, float(snr_p.max())), relative)
     mu_p_min = float(inverse(1.0))
-    if not 0 < mu_p_min < mu_p_sat:
-        raise ConfigError("absolute sensitivity threshold", mu_p_min, "the SNR_p regression does not cross 1")
+    if snr_p.min() > MAX_SNR_P_AT_LOWEST_POINT or not 0 < mu_p_min < mu_p_sat:
+        notes.append(f"μ_p.min and the dynamic range not computed: the darkest point has SNR_p = {snr_p.min():.2g}, "
+                     "General D.1 asks for exposure steps down to SNR_p ≈ 1")
+        mu_p_min = None
     snr_max = float(snr_p.max())
-    dr = mu_p_sat / mu_p_min
+    dr = mu_p_sat / mu_p_min if mu_p_min else None
 
     dark_var, upper_limit = dark_variance_general(pt)
     sigma_d = math.sqrt(dark_var - QUANTISATION_VAR_DN2) / r_d
@@ -119,8 +119,8 @@ def characterize_general(pt: PhotonTransfer) -> tuple[dict, dict]:
         "saturation_photons": mu_p_sat, "saturation_dn": float(signal[sat.index]),
         "snr_max": snr_max, "snr_max_db": 20.0 * math.log10(snr_max), "snr_max_bits": math.log2(snr_max),
         "inverse_snr_max_percent": 100.0 / snr_max,
-        "sensitivity_threshold_photons": mu_p_min,
-        "dynamic_range": dr, "dynamic_range_db": 20.0 * math.log10(dr), "dynamic_range_bits": math.log2(dr),
+        "sensitivity_threshold_photons": mu_p_min, "dynamic_range": dr,
+        "dynamic_range_db": 20.0 * math.log10(dr) if dr else None, "dynamic_range_bits": math.log2(dr) if dr else None,
         "linearity_error_percent": le, "points": int(len(signal)), "characteristic_fit_points": int(len(idx)),
     }
     values.update(area_values(values, pt.pixel_area_m2, ("saturation_photons", "sensitivity_threshold_photons")))

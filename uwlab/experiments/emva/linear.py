@@ -213,7 +213,7 @@ def characterize_linear(pt: PhotonTransfer) -> tuple[dict, dict]:
 def area_values(values: dict, pixel_area_m2: float | None, keys: tuple[str, ...]) -> dict:
     """The per-µm² variants of ``keys`` (Table 2: "in number of ... per µm²"), None without a pixel area."""
     area_um2 = pixel_area_m2 * 1e12 if pixel_area_m2 else None
-    return {f"{key}_per_um2": values[key] / area_um2 if area_um2 else None for key in keys}
+    return {f"{key}_per_um2": values[key] / area_um2 if area_um2 and values[key] is not None else None for key in keys}
 
 
 def dark_current_values(pt: PhotonTransfer, scale: float, unit: str, notes: list[str],

@@ -68,7 +68,8 @@ def plot_snr(result: EmvaResult, path: Path) -> Path:
     ok = (c["photons"] > 0) & (np.arange(len(c["photons"])) <= c["sat"])
     p = c["photons"][ok]
     fig, ax = plt.subplots(figsize=FIGSIZE)
-    grid = np.geomspace(max(v["sensitivity_threshold_photons"] / 3, 1e-2), v["saturation_photons"], 200)
+    threshold = v["sensitivity_threshold_photons"]
+    grid = np.geomspace(max((threshold or p.min()) / 3, 1e-2), v["saturation_photons"], 200)
     if v["model"] == "linear":
         eta, sigma_d, k = v["quantum_efficiency"], v["dark_noise_e"], v["K_dn_per_e"]
         ax.loglog(p, c["snr"][ok], "o", ms=3, color="tab:blue", label="measured SNR")
@@ -83,12 +84,12 @@ def plot_snr(result: EmvaResult, path: Path) -> Path:
         ax.loglog(p, c["snr_p_total"][ok], "s", ms=2.5, color="tab:orange", label="measured SNR_p total")
         ylabel = "input SNR_p"
     ax.loglog(grid, np.sqrt(grid), ":", color="0.3", label="ideal sensor √μ_p")
-    ax.axvline(v["sensitivity_threshold_photons"], ls="--", color="tab:red", lw=1,
-               label=f"threshold SNR = 1: {v['sensitivity_threshold_photons']:.3g} p/pixel")
+    if threshold is not None:
+        ax.axvline(threshold, ls="--", color="tab:red", lw=1, label=f"threshold SNR = 1: {threshold:.3g} p/pixel")
     ax.axvline(v["saturation_photons"], **SAT_STYLE, label=f"saturation: {v['saturation_photons']:.0f} p/pixel")
     ax.axhline(1.0, color="0.7", lw=0.8)
     ax.set(xlabel="irradiation μ_p [photons/pixel]", ylabel=ylabel,
-           title=f"SNR: SNR_max = {v['snr_max_db']:.1f} dB, DR = {v['dynamic_range_db']:.1f} dB")
+           title=f"SNR: SNR_max = {v['snr_max_db']:.1f} dB, DR = {_fmt(v['dynamic_range_db'], '.1f')} dB")
     ax.legend(fontsize=7)
     return save_figure(fig, path)
 

@@ -3,9 +3,11 @@ equipment whose ground truth the characterisation must recover.
 
 `DirectBench`: a `SimSensor` under an electron-rate map (flat by default; any map, e.g. a vignetted one) whose light is
 recorded as a narrow Gaussian spectrum (``fwhm_nm``) at ``wavelength_nm`` at the sensor plane, with the photon
-irradiance that gives exactly μ_p = rate t_exp / η per pixel on axis. It measures points (L bright and L dark
-frames), dark points at any temperature (`SimTruth.at_temperature`) and the nonuniformity stacks, each through
-`uwlab.experiments.emva.stream`. `simulate_photon_transfer` records a sweep (and a dark-current series) into a
+irradiance that gives exactly μ_p = rate t_exp / η per pixel on axis. The clip level comes from the sensor profile
+and a frame exposed to twice the full well, as a sweep finds it (`uwlab.experiments.saturation.clip_level`: a
+pile-up below the profile's level wins, e.g. for the compressed test non-linearity). It measures points (L bright
+and L dark frames), dark points at any temperature (`SimTruth.at_temperature`) and the nonuniformity stacks, each
+through `uwlab.experiments.emva.stream`. `simulate_photon_transfer` records a sweep (and a dark-current series) into a
 dataset with the ground truth in ``metadata.sim_truth``.
 """
 from __future__ import annotations
@@ -57,9 +59,11 @@ class DirectBench:
         self.spectrum = line_spectrum(self.rate_e_per_s / (self.quantum_efficiency * area), self.wavelength_nm,
                                       self.fwhm_nm)
         self.format = f"Mono{self.truth.bit_depth}"
-        self.clip: ClipLevel = clip_level(self.format, native_bits=self.truth.bit_depth, profile_dn=sensor_clip_dn(
-            self.truth.K_dn_per_e, self.truth.saturation_e, self.truth.dark_offset_dn + self.black_level_dn,
-            self.truth.bit_depth, self.format))
+        profile_dn = sensor_clip_dn(self.truth.K_dn_per_e, self.truth.saturation_e,
+                                    self.truth.dark_offset_dn + self.black_level_dn, self.truth.bit_depth, self.format)
+        overexposed = self.sensor().render(self.config(2e6 * self.truth.saturation_e / self.rate_e_per_s))
+        self.clip: ClipLevel = clip_level(self.format, native_bits=self.truth.bit_depth, profile_dn=profile_dn,
+                                          image=overexposed)
 
     def sensor(self, temperature_c: float | None = None) -> SimSensor:
         """The sensor (same fixed patterns) at ``temperature_c`` (default: the truth's)."""
