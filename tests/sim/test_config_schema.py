@@ -10,11 +10,12 @@ import tomllib
 import numpy as np
 import pytest
 
-from uwlab.drivers.sim.scene import RigScene
+from uwlab.drivers.sim.scene import RigScene, load_scene
 from uwlab.errors import ConfigError
 from uwlab.experiments.acquisition.plan import load_plan
 from uwlab.experiments.calibration.fit import load_fit_config
 from uwlab.experiments.saturation import POINT_SATURATED_FRACTION
+from uwlab.model.bench import is_bench
 from uwlab.model.config import apply_override, validate
 from uwlab.model.design import build_design
 from uwlab.model.schema import (ExposureUs, FocalLengthMm, FrameCount, GainDb, PixelSizeUm, WavelengthNm, check,
@@ -276,8 +277,13 @@ def test_design_configs_round_trip(path):
 @pytest.mark.parametrize("path", sorted((CONFIGS / "rigs").glob("*.toml")), ids=lambda p: p.name)
 def test_rig_configs_round_trip(path):
     raw = read(path)
-    design_round_trip({k: v for k, v in raw.items() if k != "sim"})
-    sim = dict(RigScene.from_dict(raw, path.parent).sim)
+    if is_bench(raw):  # the EMVA 1288 bench: its [bench] table instead of the design sections
+        scene = load_scene(path)
+        assert scene.design.values["bench"] == {"f_number": 8.0, **raw["bench"]}
+    else:
+        design_round_trip({k: v for k, v in raw.items() if k != "sim"})
+        scene = RigScene.from_dict(raw, path.parent)
+    sim = dict(scene.sim)
     assert sim == {k: tuple(v) if isinstance(v, list) else v for k, v in {**SIM_DEFAULTS, **raw["sim"]}.items()}
 
 

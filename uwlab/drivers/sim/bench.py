@@ -71,4 +71,5 @@ class BenchScene:
         return {"quantum_efficiency": b.quantum_efficiency(), "bench_f_number": b.f_number,
                 "source_diameter_mm": b.source_diameter_mm, "source_distance_mm": b.distance_mm,
                 "wavelength_nm": b.wavelength_nm, "fwhm_nm": b.fwhm_nm,
-                "sensor_irradiance_w_m2": float(np.trapezoid(e, nm)), "on_axis_rate_e_per_s": self.on_axis_rate_e_per_s()}
+                "sensor_irradiance_w_m2": float(np.trapezoid(e, nm)),
+                "on_axis_rate_e_per_s": self.on_axis_rate_e_per_s()}

@@ -89,7 +89,8 @@ class SimTruth:
         eq. 31) with T_d = ``dark_current_doubling_c``; unchanged dark current without a doubling temperature."""
         factor = 1.0 if self.dark_current_doubling_c is None else \
             2.0 ** ((temperature_c - self.temperature_c) / self.dark_current_doubling_c)
-        return replace(self, temperature_c=float(temperature_c), dark_current_e_per_s=self.dark_current_e_per_s * factor)
+        return replace(self, temperature_c=float(temperature_c),
+                       dark_current_e_per_s=self.dark_current_e_per_s * factor)
 
     def compressed_e(self, electrons):
         """The signal after the test non-linearity: e − β e² / saturation_e (identity for β = 0)."""

@@ -14,8 +14,8 @@ the input, in photons.
 * Absolute sensitivity threshold μ_p.min (§6.8): a cubic B-spline regression of the inverse relation μ_p(SNR_p) up to
   saturation, with the same number of intervals (the dark point SNR_p = 0 at μ_p = 0 included), evaluated at
   SNR_p = 1, when the darkest point has SNR_p ≤ 2 (else it is not computed: General D.1 asks for exposure steps
-  down to SNR_p ≈ 1). The text names no weights; the regression minimises the relative deviations (weights 1/μ_p, the dark
-  point weighted as the darkest measured one), as the standard's own linearity regression does (Linear §6.9):
+  down to SNR_p ≈ 1). The text names no weights; the regression minimises the relative deviations (weights 1/μ_p,
+  the dark point weighted as the darkest measured one), as the linearity regression of Linear §6.9 does:
   unweighted, the residuals of the μ_p ≈ 10⁴ points decide the curve at μ_p ≈ 5 (−6 % on a simulated camera whose
   measured SNR_p agrees with its closed form to 1 %). SNR_p.max: the largest SNR_p measured up to saturation
   (§6.8). DR = μ_p.sat / μ_p.min (eq. 21).
