@@ -193,3 +193,64 @@ def test_shipped_plan_on_the_bench_measures_the_true_quantum_efficiency(tmp_path
     assert doc["K_dn_per_e"] == pytest.approx(truth["K_dn_per_e_output"], rel=0.02)
     assert doc["dark_current_e_per_s"] == pytest.approx(truth["dark_current_e_per_s"], rel=0.1)
     assert doc["dark_current_exposures"] >= 6
+
+
+FRAMES_PLAN = """
+name = "emva-frames"
+rig = "{rig}"
+[camera]
+backend = "aravis"
+id = "blackfly-s"
+pixel_format = "Mono12"
+window = [1200, 1000, 48, 40]
+[instruments]
+light_port = "/dev/ttyUSB0"
+spectrometer_port = "/dev/ttyUSB1"
+[defaults]
+sensor = "imx250m"
+lens = "none"
+black_level_dn = 32
+frames_per_point = 2
+dark = "point"
+dark_frames = 2
+save_frames = true
+[[sweep]]
+id = "photon-transfer"
+kind = "exposure"
+values = {{ start = 20, stop = 4600, num = 16, spacing = "linear" }}
+spectrometer = ["sensor"]
+spectrometer_integration_ms = 10
+[[sweep]]
+id = "dark-current"
+kind = "dark"
+values = {{ start = 500000, stop = 3000000, num = 6, spacing = "linear" }}
+dark = "none"
+"""
+
+
+def test_export_writes_the_recorded_frames(tmp_path, capsys):
+    """A bench sweep with save_frames = true: `uwlab emva export` writes the camera's frames (ROI crops), not
+    synthetic ones, so the descriptor gives back exactly the dataset's statistics."""
+    from uwlab.experiments.emva.descriptor import photon_transfer_from_descriptor
+    from uwlab.experiments.emva.from_dataset import load_dataset_input
+
+    plan = tmp_path / "plan.toml"
+    plan.write_text(FRAMES_PLAN.format(rig=ROOT / "configs" / "rigs" / "sim-emva-bench.toml"))
+    data = tmp_path / "data"
+    assert main(["sweep", str(plan), "--sim", "--out", str(data)]) == 0
+    capsys.readouterr()
+    doc = run_json(capsys, "emva", "export", str(data), "--out", str(tmp_path / "desc"), "--json")
+    assert doc["synthetic_images"] is False
+    text = Path(doc["descriptor"]).read_text()
+    assert "recorded frames" in text and "n 12 48 40" in text
+    assert text.count("\nd ") == 16 + 6 and text.count("\nb ") == 16
+    a = load_dataset_input(data).transfer.sorted()
+    b = photon_transfer_from_descriptor(doc["descriptor"])
+    np.testing.assert_allclose(b.mean_dn, a.mean_dn, rtol=1e-12)
+    np.testing.assert_allclose(b.temporal_var_dn2, a.temporal_var_dn2, rtol=1e-12)
+    np.testing.assert_allclose(b.dark_mean_dn, a.dark_mean_dn, rtol=1e-12)
+    np.testing.assert_allclose(b.photons, a.photons, rtol=1e-8)
+    assert len(b.dark) == 16 + 6
+    # without frames the export says its images are synthetic
+    assert main(["emva", "export", str(make_dataset(tmp_path / "plain")), "--out", str(tmp_path / "syn")]) == 0
+    assert "SYNTHETIC images" in capsys.readouterr().out

@@ -57,11 +57,13 @@ def register(subparsers) -> None:
     f.add_argument("--out", metavar="DIR", help="one sub-directory per camera, plus fleet.csv and fleet.json")
     f.add_argument("--json", action="store_true", help="print the rows as a JSON list")
     f.set_defaults(func=run_fleet)
-    e = sub.add_parser("export", help="write a dataset's photon transfer as an EMVA 1288 descriptor dataset")
+    e = sub.add_parser("export", help="write a dataset's photon transfer as an EMVA 1288 descriptor dataset (its "
+                                      "recorded frames, else synthetic images)")
     e.add_argument("dataset", help="uwlab sweep dataset directory")
     _input_options(e)
     e.add_argument("--out", metavar="DIR", required=True, help="directory for the descriptor and its images")
-    e.add_argument("--image-size", default="256x256", metavar="WxH", help="synthetic image size (default 256x256)")
+    e.add_argument("--image-size", default="256x256", metavar="WxH",
+                   help="size of synthetic images when the sweep kept no raw frames (default 256x256)")
     e.add_argument("--json", action="store_true", help="print one JSON object")
     e.set_defaults(func=run_export)
 
@@ -220,15 +222,28 @@ def _image_size(text: str) -> tuple[int, int]:
 
 
 def run_export(args) -> int:
-    from uwlab.experiments.emva.export import write_descriptor
+    from uwlab.experiments.dataset import Dataset
+    from uwlab.experiments.emva.export import has_recorded_frames, write_descriptor, write_descriptor_from_frames
+    from uwlab.experiments.emva.from_dataset import dark_rows
 
     shape = _image_size(args.image_size)
     _check_inputs(args)
     pt = _load_dataset(args).transfer
-    path = write_descriptor(pt, args.out, shape=shape, source=pt.source)
+    dataset = Dataset.open(args.dataset)
+    recorded = has_recorded_frames(dataset, pt)
+    if recorded:
+        points = dataset.points()
+        darks = dark_rows(points, points[(points["sweep_id"] == pt.sweep_id)])
+        dark_points = [(r.sweep_id, r.point_index, r.exposure_us * 1e-6) for r in darks.itertuples()]
+        path = write_descriptor_from_frames(dataset, pt, args.out, dark_points=dark_points, source=pt.source)
+        how = "the recorded frames"
+    else:
+        path = write_descriptor(pt, args.out, shape=shape, source=pt.source)
+        how = "SYNTHETIC images from the recorded statistics: the sweep kept no raw frames (save_frames = true)"
     if args.json:
-        json.dump({"descriptor": str(path), "points": int(len(pt.photons)), "synthetic_images": True}, sys.stdout)
+        json.dump({"descriptor": str(path), "points": int(len(pt.photons)), "synthetic_images": not recorded},
+                  sys.stdout)
         sys.stdout.write("\n")
     else:
-        print(f"wrote {path} ({len(pt.photons)} points, synthetic images from the recorded statistics)")
+        print(f"wrote {path} ({len(pt.photons)} points, {how})")
     return 0

@@ -1,5 +1,10 @@
-"""Export of a photon transfer as an EMVA 1288 descriptor dataset (`uwlab.experiments.emva.descriptor` format).
+"""Export of a dataset's photon transfer as an EMVA 1288 descriptor dataset (`uwlab.experiments.emva.descriptor`
+format).
 
+With recorded frames (the plan option ``save_frames = true``; `uwlab.experiments.dataset.Dataset.frames` finds a
+point's bright and dark frames) the images are the camera's, cropped to the analysis ROI: the first two bright and
+two dark frames of every point, the dark frames of the camera's dark sweeps at other exposures, and — when the
+point nearest 50 % of saturation has more than two frames of each kind — all of them as the nonuniformity stacks.
 Without recorded frames the images are synthetic: generated from each point's statistics (mean, temporal variance
 with quantisation, and the highpassed spatial variance split into a dark and a photo-response fixed pattern shared by
 all images), at a chosen size; the descriptor's comments say so.
@@ -52,11 +57,8 @@ def write_descriptor(pt: PhotonTransfer, out_dir: str | Path, *, shape: tuple[in
     50 % saturation. Refuses to write into an existing descriptor."""
     import tifffile
 
-    out = Path(out_dir)
-    target = out / DESCRIPTOR_NAME
-    if target.exists():
-        raise ConfigError("--out", str(target), "exists; refusing to overwrite")
-    (out / "images").mkdir(parents=True, exist_ok=True)
+    target = _target(out_dir)
+    out = target.parent
     pt = pt.sorted()
     rng = np.random.default_rng(seed)
     pattern = Pattern(rng.standard_normal(shape), rng.standard_normal(shape))
@@ -97,5 +99,86 @@ def write_descriptor(pt: PhotonTransfer, out_dir: str | Path, *, shape: tuple[in
         "b exposure_ns photons_per_pixel / d exposure_ns / i image path (Release 4.0)",
     )
     desc = Descriptor("4.0", pt.bit_depth, shape[1], shape[0], tuple(blocks))
+    target.write_text(format_descriptor(desc, comments))
+    return target
+
+
+def has_recorded_frames(dataset, pt: PhotonTransfer) -> bool:
+    """Whether the photon transfer's first point kept its raw frames (then every point must have them)."""
+    try:
+        dataset.frames(pt.sweep_id, int(pt.point_index[0]))
+    except ConfigError:
+        return False
+    return True
+
+
+def _target(out_dir: str | Path) -> Path:
+    target = Path(out_dir) / DESCRIPTOR_NAME
+    if target.exists():
+        raise ConfigError("--out", str(target), "exists; refusing to overwrite")
+    (target.parent / "images").mkdir(parents=True, exist_ok=True)
+    return target
+
+
+def write_descriptor_from_frames(dataset, pt: PhotonTransfer, out_dir: str | Path, *, dark_points=(),
+                                 source: str = "") -> Path:
+    """Export the recorded frames of ``pt``'s points (and of ``dark_points``: (sweep_id, point_index, exposure [s])
+    of dark sweeps) as a descriptor dataset (module docstring). Refuses to write into an existing descriptor."""
+    import tifffile
+
+    from uwlab.experiments.dataset_frames import read_frame
+
+    target = _target(out_dir)
+    out = target.parent
+    pt = pt.sorted()
+    blocks: list[Block] = []
+    shape = [None]
+    counter = iter(range(10**9))
+
+    def copy(paths, dark: bool, exposure_s: float, photons: float) -> None:
+        names = []
+        for path in paths:
+            image, metadata = read_frame(path)
+            x, y, w, h = metadata.get("roi") or (0, 0, image.shape[1], image.shape[0])
+            image = image[y : y + h, x : x + w]
+            if shape[0] is None:
+                shape[0] = image.shape
+            elif image.shape != shape[0]:
+                raise ConfigError("frame", str(path), f"ROI {image.shape} differs from the first frame's {shape[0]}")
+            name = f"images/image{next(counter):05d}.tif"
+            tifffile.imwrite(out / name, image)
+            names.append(name)
+        blocks.append(Block(dark, exposure_s * 1e9, photons, tuple(names)))
+
+    frames = [dataset.frames(pt.sweep_id, int(i)) for i in pt.point_index]
+    dark_exposures = set()
+    for i, found in enumerate(frames):
+        if len(found.bright) < 2 or len(found.dark) < 2:
+            raise ConfigError("point", f"{pt.sweep_id}#{int(pt.point_index[i])}",
+                              "needs two recorded bright and two dark frames")
+        copy(found.bright[:2], False, pt.exposure_s[i], pt.photons[i])
+        key = round(pt.exposure_s[i] * 1e9, 3)
+        if key not in dark_exposures:
+            dark_exposures.add(key)
+            copy(found.dark[:2], True, pt.exposure_s[i], 0.0)
+    for sweep_id, point_index, exposure_s in dark_points:
+        key = round(exposure_s * 1e9, 3)
+        if key not in dark_exposures:
+            found = dataset.frames(sweep_id, int(point_index))
+            if len(found.bright) >= 2:
+                dark_exposures.add(key)
+                copy(found.bright[:2], True, exposure_s, 0.0)
+    i = half_saturation_index(pt, saturation(pt).index)
+    stacks = len(frames[i].bright) > 2 and len(frames[i].dark) > 2
+    if stacks:
+        copy(frames[i].bright, False, pt.exposure_s[i], pt.photons[i])
+        copy(frames[i].dark, True, pt.exposure_s[i], 0.0)
+    stack_text = "the frames of the point nearest 50 % of saturation" if stacks else "none (2 frames per point)"
+    comments = (
+        f"EMVA 1288 descriptor written by uwlab from {source or pt.source}",
+        f"Images: the camera's recorded frames (save_frames), cropped to the analysis ROI; stacks: {stack_text}.",
+        "b exposure_ns photons_per_pixel / d exposure_ns / i image path (Release 4.0)",
+    )
+    desc = Descriptor("4.0", pt.bit_depth, shape[0][1], shape[0][0], tuple(blocks))
     target.write_text(format_descriptor(desc, comments))
     return target

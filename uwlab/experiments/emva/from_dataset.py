@@ -165,17 +165,22 @@ def _split(rows: pd.DataFrame, prefix: str) -> SpatialSplit:
     return SpatialSplit(*(_column(rows, f"{prefix}spatial_var_{part}_dn2") for part in ("row", "col", "pixel")))
 
 
+def dark_rows(points: pd.DataFrame, rows: pd.DataFrame) -> pd.DataFrame:
+    """The rows of dark sweeps taken with the camera and gain of the photon-transfer ``rows``."""
+    cam = rows["camera_id"].iloc[0] if "camera_id" in rows else None
+    dark = points[(points["kind"] == "dark") & (points["gain_db"] == rows["gain_db"].iloc[0])]
+    if cam is not None and "camera_id" in dark:
+        dark = dark[dark["camera_id"] == cam]
+    return dark
+
+
 def _dark_series(points: pd.DataFrame, rows: pd.DataFrame) -> DarkSeries:
     """Every distinct dark measurement of the sweep's camera at its gain: the sweep's own dark frames and the rows
     of dark sweeps (exposure [s], mean [DN], temporal variance [DN²], temperature [°C])."""
     columns = ["exposure_us", "m", "v", "temperature_c"]
     own = pd.DataFrame({"exposure_us": _column(rows, "exposure_us"), "m": _column(rows, "dark_mean_dn"),
                         "v": _column(rows, "dark_temporal_var_dn2"), "temperature_c": _column(rows, "temperature_c")})
-    cam = rows["camera_id"].iloc[0] if "camera_id" in rows else None
-    gain = rows["gain_db"].iloc[0]
-    dark = points[(points["kind"] == "dark") & (points["gain_db"] == gain)]
-    if cam is not None and "camera_id" in dark:
-        dark = dark[dark["camera_id"] == cam]
+    dark = dark_rows(points, rows)
     other = pd.DataFrame({"exposure_us": _column(dark, "exposure_us"), "m": _column(dark, "mean_dn"),
                           "v": _column(dark, "temporal_var_dn2"), "temperature_c": _column(dark, "temperature_c")})
     series = pd.concat([own, other])[columns].dropna(subset=columns[:3]).drop_duplicates()
@@ -213,7 +218,7 @@ def photon_transfer_from_points(points: pd.DataFrame, spectra: pd.DataFrame, *, 
         dark_frames=col("dark_frames"), spatial=_split(rows, ""), dark_spatial=_split(rows, "dark_"),
         dark=_dark_series(points, rows), bit_depth=int(rows["bit_depth"].iloc[0]),
         saturated_fraction=_column(rows, "saturated_fraction"), mean_diff_dn=_column(rows, "mean_diff_dn"),
-        temperature_c=_column(rows, "temperature_c"),
+        temperature_c=_column(rows, "temperature_c"), point_index=_column(rows, "point_index"), sweep_id=sweep,
         width_px=int(width.iloc[0]) if len(width) else 0, height_px=int(height.iloc[0]) if len(height) else 0,
         pixel_area_m2=area, wavelength_nm=lam, gain_db=float(rows["gain_db"].iloc[0]),
         source=f"{source} sweep {sweep}".strip(), notes=notes,
@@ -242,8 +247,7 @@ def load_dataset_input(root, *, sweep_id: str | None = None, pixel_size_um: floa
                                      override=override, wavelength_nm=wavelength_nm, source=f"dataset {root}")
     camera = points["camera_model"].dropna() if "camera_model" in points else []
     name = str(camera.iloc[0]) if len(camera) else "camera"
-    sweep = pt.source.rsplit(" sweep ", 1)[-1]
-    device = (dataset.metadata.get("devices") or {}).get(sweep, {}).get("camera") or {}
+    device = (dataset.metadata.get("devices") or {}).get(pt.sweep_id, {}).get("camera") or {}
     info = SheetInfo(vendor=device.get("vendor") or "—", model=device.get("model") or name,
                      serial=device.get("serial") or "—", measured=dataset.metadata.get("started_utc") or "—",
                      interface=device.get("backend") or "—",

@@ -79,7 +79,8 @@ class NonuniformityStack:
 
 
 PER_POINT = ("photons", "exposure_s", "mean_dn", "temporal_var_dn2", "frames", "dark_mean_dn",
-             "dark_temporal_var_dn2", "dark_frames", "saturated_fraction", "mean_diff_dn", "temperature_c")
+             "dark_temporal_var_dn2", "dark_frames", "saturated_fraction", "mean_diff_dn", "temperature_c",
+             "point_index")
 
 
 @dataclass(frozen=True)
@@ -88,7 +89,8 @@ class PhotonTransfer:
     splits), its dark series (every dark measurement of the camera at this gain, for the dark noise and dark
     current) and optionally the nonuniformity stacks.
 
-    ``saturated_fraction``, ``mean_diff_dn`` and ``temperature_c`` may hold NaN where not recorded.
+    ``saturated_fraction``, ``mean_diff_dn``, ``temperature_c`` and ``point_index`` (the dataset row of each point,
+    of sweep ``sweep_id``) may hold NaN where not recorded.
     """
 
     photons: np.ndarray
@@ -106,6 +108,8 @@ class PhotonTransfer:
     saturated_fraction: np.ndarray | None = None
     mean_diff_dn: np.ndarray | None = None
     temperature_c: np.ndarray | None = None
+    point_index: np.ndarray | None = None
+    sweep_id: str | None = None
     stack: NonuniformityStack | None = None
     width_px: int = 0
     height_px: int = 0
