@@ -95,6 +95,14 @@ def _check_inputs(args) -> None:
         check(PixelSizeUm, args.pixel_size_um, "--pixel-size-um")
 
 
+def _check_out(out: str | None) -> None:
+    """An output directory checked before anything is computed (`uwlab.outputs.output_dir`)."""
+    if out is not None:
+        from uwlab.outputs import output_dir
+
+        output_dir(out, "--out")
+
+
 def _override(args):
     from uwlab.experiments.emva.from_dataset import IrradianceOverride
     from uwlab.model.schema import IrradianceWM2, check
@@ -123,6 +131,7 @@ def run_characterize(args) -> int:
     if (args.dataset is None) == (args.descriptor is None):
         raise ConfigError("DATASET|--descriptor", None, "give exactly one of a dataset directory or --descriptor")
     _check_inputs(args)
+    _check_out(args.out)
     if args.descriptor:
         from uwlab.experiments.emva.descriptor import parse_descriptor, photon_transfer_from_descriptor, sheet_info
 
@@ -174,6 +183,7 @@ def run_fleet(args) -> int:
 
     if args.pixel_size_um is not None:
         check(PixelSizeUm, args.pixel_size_um, "--pixel-size-um")
+    _check_out(args.out)
     inputs = find_inputs(args.folder)
     with tqdm(total=len(inputs), desc="EMVA 1288", unit="camera", file=sys.stderr, disable=None) as bar:
         def progress(row) -> None:
@@ -228,6 +238,7 @@ def run_export(args) -> int:
 
     shape = _image_size(args.image_size)
     _check_inputs(args)
+    _check_out(args.out)
     pt = _load_dataset(args).transfer
     dataset = Dataset.open(args.dataset)
     recorded = has_recorded_frames(dataset, pt)

@@ -33,7 +33,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "sim": ("uwlab.cli.sim", "run simulated instruments until Ctrl-C; render simulated image sets"),
     "sweep": ("uwlab.cli.sweep", "run an exposure/aperture/gain/light-level/dark sweep plan"),
     "dataset": ("uwlab.cli.dataset", "inspect, check and repair sweep datasets"),
-    "emva": ("uwlab.cli.emva", "EMVA 1288 sensor characterisation and descriptor-file export"),
+    "emva": ("uwlab.cli.emva", "EMVA 1288 characterisation of a camera or a fleet, datasheets, descriptor export"),
     "fit": ("uwlab.cli.fit", "calibrate the model against a dataset (emcee) and validate it"),
     "report": ("uwlab.cli.report", "write the HTML validation report of a directory"),
     "demo": ("uwlab.cli.demo", "run the paper's tank campaign on the simulated rig, fit, validate, report"),

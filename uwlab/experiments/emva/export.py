@@ -20,6 +20,7 @@ import numpy as np
 from uwlab.errors import ConfigError
 from uwlab.experiments.emva.descriptor import DESCRIPTOR_NAME, Block, Descriptor, format_descriptor
 from uwlab.experiments.emva.transfer import PhotonTransfer, half_saturation_index, saturation
+from uwlab.outputs import output_dir
 
 SPATIAL_FRAMES = 16
 
@@ -113,10 +114,14 @@ def has_recorded_frames(dataset, pt: PhotonTransfer) -> bool:
 
 
 def _target(out_dir: str | Path) -> Path:
-    target = Path(out_dir) / DESCRIPTOR_NAME
+    """The descriptor's path in ``out_dir`` (`uwlab.outputs.output_dir`: no missing parents created), refusing an
+    existing one; the directory and its ``images/`` are created."""
+    out = output_dir(out_dir, "--out")
+    target = out / DESCRIPTOR_NAME
     if target.exists():
         raise ConfigError("--out", str(target), "exists; refusing to overwrite")
-    (target.parent / "images").mkdir(parents=True, exist_ok=True)
+    out.mkdir(exist_ok=True)
+    (out / "images").mkdir(exist_ok=True)
     return target
 
 

@@ -13,6 +13,7 @@ from pathlib import Path
 
 from uwlab.errors import ConfigError, UwlabError
 from uwlab.jsonable import dumps
+from uwlab.outputs import output_dir
 
 DESCRIPTOR_GLOB = "EMVA1288*.txt"
 COLUMNS = (("K_dn_per_e", "K [DN/e-]", ".4g"), ("quantum_efficiency", "η", ".3f"), ("dark_noise_e", "σ_d [e-]", ".3g"),
@@ -97,6 +98,7 @@ def characterize_fleet(inputs: list[FleetInput], *, model: str = "linear", pixel
     from uwlab.experiments.emva.output import profile_name
 
     if out is not None:
+        out = output_dir(out, "--out")
         labels = [profile_name(i.label) for i in inputs]
         twice = sorted({label for label in labels if labels.count(label) > 1})
         if twice:
@@ -104,6 +106,7 @@ def characterize_fleet(inputs: list[FleetInput], *, model: str = "linear", pixel
         for name in ("fleet.csv", "fleet.json"):
             if (out / name).exists():
                 raise ConfigError("--out", str(out / name), "exists; refusing to overwrite")
+        out.mkdir(exist_ok=True)
     rows = []
     for item in inputs:
         try:
@@ -122,7 +125,6 @@ def write_fleet_table(rows: list[FleetRow], out: Path) -> None:
     """``fleet.json`` (every row's document) and ``fleet.csv`` (the table's columns) in ``out``."""
     import pandas as pd
 
-    out.mkdir(parents=True, exist_ok=True)
     documents = [r.document() for r in rows]
     (out / "fleet.json").write_text(dumps(documents, indent=2) + "\n")
     frame = pd.DataFrame([{k: v for k, v in d.items() if k != "notes"} for d in documents])

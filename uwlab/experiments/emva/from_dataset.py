@@ -8,8 +8,8 @@ Photons per pixel, μ_p = A t_exp ∫ E(λ) λ/(h c) dλ (EMVA 1288 Release 4.0 
 the sensor plane* (§6.4: a calibrated photodiode "put at the place of the image sensor"), taken from, in order: an
 explicit override (`IrradianceOverride`: a number in W/m² at one wavelength, or a spectrum, both meant at the sensor
 plane; for a ``light-level`` sweep it is the irradiance at ``light_level`` = 1, scaled by each row's
-``light_level``), the point's spectrometer spectrum read at the ``sensor`` position (the dataset's ``spectra`` table), or its
-integrated ``irradiance_w_m2`` at the given wavelength when ``irradiance_position`` is ``sensor``. Irradiance read
+``light_level``), the point's spectrometer spectrum read at the ``sensor`` position (the dataset's ``spectra``
+table), or its integrated ``irradiance_w_m2`` at the given wavelength when ``irradiance_position`` is ``sensor``. Irradiance read
 anywhere else (``target``: on the board; ``camera``: π L_w in the water in front of the port, which differs from the
 sensor plane by the port, the lens and n_w²) is refused with a one-line error: nothing converts it silently. The
 pixel area comes from ``pixel_size_um`` or from the dataset's sensor profile.
