@@ -1,6 +1,7 @@
 """`uwlab explore`: the design explorer, a local web page over a design (docs/explorer.md)."""
 from __future__ import annotations
 
+import asyncio
 import json
 import socket
 import sys
@@ -66,15 +67,24 @@ def run(args) -> int:
     host, port = sock.getsockname()[:2]
     shown = f"[{host}]" if ":" in host else host
     url = f"http://{shown}:{port}/"
-    if args.json:
-        json.dump({"url": url}, sys.stdout)
-        sys.stdout.write("\n")
-    else:
-        print(f"uwlab explore: {served.path} at {url} (Ctrl-C stops)")
-    sys.stdout.flush()
     server = uvicorn.Server(uvicorn.Config(create_app(served, catalog), log_level="warning", access_log=False,
                                            lifespan="off"))
-    if not args.no_browser:
-        threading.Timer(0.5, webbrowser.open, (url,)).start()
-    server.run(sockets=[sock])
+
+    async def serve() -> None:
+        """Serve, and print the URL once the server accepts connections (and handles Ctrl-C itself)."""
+        task = asyncio.ensure_future(server.serve(sockets=[sock]))
+        while not server.started and not task.done():
+            await asyncio.sleep(0.01)
+        if server.started:
+            if args.json:
+                json.dump({"url": url}, sys.stdout)
+                sys.stdout.write("\n")
+            else:
+                print(f"uwlab explore: {served.path} at {url} (Ctrl-C stops)")
+            sys.stdout.flush()
+            if not args.no_browser:
+                threading.Timer(0.5, webbrowser.open, (url,)).start()
+        await task
+
+    asyncio.run(serve())
     return 0
