@@ -53,10 +53,14 @@ def test_a_busy_port_is_one_line(capsys):
 
 @pytest.mark.parametrize("argv", [["--json"], []])
 def test_url_line(argv, capsys, monkeypatch):
-    """The URL is printed before serving: one JSON object with --json, a sentence otherwise."""
+    """The URL is printed once the server has started: one JSON object with --json, a sentence otherwise."""
     import uvicorn
 
-    monkeypatch.setattr(uvicorn.Server, "run", lambda self, sockets: sockets[0].close())
+    async def started_then_stopped(self, sockets):
+        self.started = True
+        sockets[0].close()
+
+    monkeypatch.setattr(uvicorn.Server, "serve", started_then_stopped)
     assert main(["explore", str(EXAMPLE), "--no-browser", "--port", "0", *argv]) == 0
     out = capsys.readouterr().out
     if argv:
