@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from uwlab.drivers.serial import open_light, open_spectrometer
+from uwlab.drivers.serial.base import LightReadback
 from uwlab.drivers.sim.rig_state import RigState
 from uwlab.drivers.sim.serial_instruments import DetectorModel
 from uwlab.drivers.sim.serial_sim import SerialRig, SerialSimSettings
@@ -123,12 +124,20 @@ def test_out_of_range_never_sent(rig, light, spectrometer):
                    for line in sent)
 
 
-@pytest.mark.parametrize("fault", ["noreply", "garbage", "partial", "busy", "vanish"])
+@pytest.mark.parametrize("fault", ["noreply", "garbage", "partial", "busy"])
 def test_light_recovers_from_fault(rig, light, fault):
     light.transport.command(f"SIM:FAULT {fault}")
     light.set_level(0.3)
     assert light.level() == 0.3
     assert received(rig, "light")[-3:-1] == ["LEV 0.3", "LEV 0.3"]
+
+
+def test_reopened_port_gets_the_full_state_again_verified_by_read_back(rig, light):
+    recoveries = light.recoveries
+    light.transport.command("SIM:FAULT vanish")
+    light.set_level(0.3)
+    assert light.readback() == LightReadback(True, 0.3) and light.recoveries == recoveries + 1
+    assert received(rig, "light")[-8:] == ["LEV 0.3", "OUTP ON", "LEV 1.0", "OUTP?", "LEV?", "LEV 0.3", "OUTP?", "LEV?"]
 
 
 @pytest.mark.parametrize("fault", ["noreply", "garbage", "partial", "vanish", "reset"])

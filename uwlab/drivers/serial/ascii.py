@@ -1,9 +1,15 @@
 """``uwlab-ascii`` drivers (SCPI-style, docs/serial-protocol.md) for the light and the spectrometer.
 
-Each driver remembers the settings it sent; after an unrequested reset (a banner line) it sends
-them again before retrying the interrupted command, so a reset instrument ends up as commanded.
+Each driver remembers the settings it sent. Whenever the transport finds that the instrument may have
+lost them — an unrequested reset (a banner line) or a reopened port (the instrument, or its USB adapter,
+restarted) — the driver sends all of them again and reads every one back; it repeats this until the
+read-backs agree with no further reset in between (at most `RESTORE_ATTEMPTS` times), then retries the
+interrupted command. A restored state that still disagrees is one `DeviceError` naming the setting.
 """
 from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -22,9 +28,27 @@ from uwlab.drivers.serial.protocol import (
     parse_spectrum_lines,
 )
 from uwlab.drivers.serial.transport import LineTransport
+from uwlab.errors import DeviceError
 
 PROTOCOL = "uwlab-ascii"
 SPECTRUM_MARGIN_S = 2.0
+RESTORE_ATTEMPTS = 3
+READBACK_TOLERANCE = 1e-9
+
+
+@dataclass(frozen=True)
+class _Setting:
+    """One remembered setting: the command that applies it, the query that reads it back, the value sent."""
+
+    command: str
+    query: str
+    parse: Callable[[str], object]
+    value: object
+
+    def agrees(self, reported: object) -> bool:
+        if isinstance(self.value, bool) or isinstance(self.value, int):
+            return reported == self.value
+        return abs(float(reported) - float(self.value)) <= READBACK_TOLERANCE * max(1.0, abs(float(self.value)))
 
 
 class _AsciiInstrument:
@@ -32,10 +56,14 @@ class _AsciiInstrument:
 
     def __init__(self, port: str, *, timeout_s: float = 1.0, retries: int = 3, reopen_s: float = 5.0):
         self.port = port
-        self._settings: dict[str, str] = {}
+        self._settings: dict[str, _Setting] = {}
         self.transport = LineTransport(
-            port, timeout_s=timeout_s, retries=retries, reopen_s=reopen_s, on_reset=self._reapply
+            port, timeout_s=timeout_s, retries=retries, reopen_s=reopen_s, on_recover=self._restore
         ).open()
+
+    @property
+    def recoveries(self) -> int:
+        return self.transport.recoveries
 
     def identity(self) -> str:
         return self.transport.query("*IDN?")
@@ -47,27 +75,42 @@ class _AsciiInstrument:
     def close(self) -> None:
         self.transport.close()
 
-    def _set(self, header: str, argument: str) -> None:
+    def _set(self, header: str, argument: str, query: str, parse: Callable[[str], object], value: object) -> None:
         command = f"{header} {argument}"
         self.transport.command(command)
-        self._settings[header] = command
+        self._settings[header] = _Setting(command, query, parse, value)
 
-    def _reapply(self) -> None:
-        for command in list(self._settings.values()):
-            self.transport.command(command)
+    def _restore(self) -> None:
+        """Send every remembered setting again and read each back (called by the transport after a recovery)."""
+        disagreeing: list[str] = []
+        for _ in range(RESTORE_ATTEMPTS):
+            recoveries = self.transport.recoveries
+            for setting in list(self._settings.values()):
+                self.transport.command(setting.command)
+            disagreeing = []
+            for setting in list(self._settings.values()):
+                reported = self.transport.query(setting.query, setting.parse)
+                if not setting.agrees(reported):
+                    disagreeing.append(f"{setting.query} {reported!r} (sent {setting.command!r})")
+            if not disagreeing and self.transport.recoveries == recoveries:
+                return
+        detail = "; ".join(disagreeing) or "the instrument kept resetting"
+        raise DeviceError(f"{self.port}: settings not restored after a reset or reopen "
+                          f"({RESTORE_ATTEMPTS} attempts): {detail}")
 
 
 class AsciiLight(_AsciiInstrument, Light):
     """Light controller: ``OUTP ON|OFF``, ``OUTP?``, ``LEV <x>``, ``LEV?``."""
 
     def set_output(self, on: bool) -> None:
-        self._set("OUTP", "ON" if on else "OFF")
+        self._set("OUTP", "ON" if on else "OFF", "OUTP?", parse_bool, bool(on))
 
     def output(self) -> bool:
         return self.transport.query("OUTP?", parse_bool)
 
     def set_level(self, level: float) -> None:
-        self._set("LEV", format_float(check_level(level)))
+        level = check_level(level)
+        self._set("LEV", format_float(level), "LEV?", parse_float, level)
 
     def level(self) -> float:
         return self.transport.query("LEV?", parse_float)
@@ -81,13 +124,15 @@ class AsciiSpectrometer(_AsciiInstrument, Spectrometer):
         self.last_saturated = False
 
     def set_integration_ms(self, integration_ms: float) -> None:
-        self._set("SPEC:INT", format_float(check_integration_ms(integration_ms)))
+        integration_ms = check_integration_ms(integration_ms)
+        self._set("SPEC:INT", format_float(integration_ms), "SPEC:INT?", parse_float, integration_ms)
 
     def integration_ms(self) -> float:
         return self.transport.query("SPEC:INT?", parse_float)
 
     def set_averaging(self, averaging: int) -> None:
-        self._set("SPEC:AVG", str(check_averaging(averaging)))
+        averaging = check_averaging(averaging)
+        self._set("SPEC:AVG", str(averaging), "SPEC:AVG?", parse_int, averaging)
 
     def averaging(self) -> int:
         return self.transport.query("SPEC:AVG?", parse_int)

@@ -5,10 +5,16 @@ the class by protocol name. Values are checked here, before anything is sent, an
 `ConfigError` naming the key: level in [0, 1], integration time in `INTEGRATION_MS_RANGE`,
 averaging in `AVERAGING_RANGE`. Spectra are returned in SI-derived units: wavelength in nm and
 spectral irradiance in W/m²/nm.
+
+Every instrument exposes its read-backs (`Light.readback`, `Spectrometer.readback`: the settings the
+instrument reports now, not what was sent) and `recoveries`, the number of times the driver found the
+instrument reset or its port reopened and re-applied its settings. A caller that reads back before and
+after a measurement and sees `recoveries` unchanged knows the settings held throughout.
 """
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -33,8 +39,29 @@ def check_averaging(averaging: int) -> int:
     return check(Averaging, averaging, "averaging")
 
 
+@dataclass(frozen=True)
+class LightReadback:
+    """What the light reports now: output on/off and level in [0, 1]."""
+
+    on: bool
+    level: float
+
+
+@dataclass(frozen=True)
+class SpectrometerReadback:
+    """What the spectrometer reports now: integration time [ms] and number of spectra averaged."""
+
+    integration_ms: float
+    averaging: int
+
+
 class _Instrument(ABC):
     port: str
+
+    @property
+    @abstractmethod
+    def recoveries(self) -> int:
+        """How many times the instrument was found reset (or its port reopened) and its settings re-applied."""
 
     @abstractmethod
     def identity(self) -> str:
@@ -70,6 +97,9 @@ class Light(_Instrument):
     @abstractmethod
     def level(self) -> float: ...
 
+    def readback(self) -> LightReadback:
+        return LightReadback(self.output(), self.level())
+
 
 class Spectrometer(_Instrument):
     """A spectroradiometer returning calibrated spectral irradiance."""
@@ -87,6 +117,9 @@ class Spectrometer(_Instrument):
 
     @abstractmethod
     def averaging(self) -> int: ...
+
+    def readback(self) -> SpectrometerReadback:
+        return SpectrometerReadback(self.integration_ms(), self.averaging())
 
     @abstractmethod
     def read_spectrum(self) -> tuple[np.ndarray, np.ndarray]:

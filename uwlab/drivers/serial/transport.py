@@ -6,10 +6,13 @@ block, a header, data lines and ``END``). What is recovered, each within ``1 + r
 - no reply, or a partial line followed by silence (timeout) → the command is sent again;
 - garbage (non-ASCII, control bytes, wrong reply type) → input discarded, command sent again;
 - ``ERR 200`` (busy) → sent again; any other ``ERR`` is reported at once;
-- a banner (``# ...``, the instrument has reset, during a command or between commands) → ``on_reset``
-  is called (drivers re-apply their settings), then the command is sent again;
+- a banner (``# ...``, the instrument has reset, during a command or between commands) → ``on_recover``
+  is called (drivers re-apply and verify their settings), then the command is sent again;
 - the port disappearing (read/write/open errors) → closed and reopened until ``reopen_s`` has passed,
-  then the command is sent again.
+  ``on_recover`` called (whatever answers on the reopened port may have restarted), then the command is
+  sent again.
+
+`LineTransport.recoveries` counts the resets and reopens seen, nested ones (during ``on_recover``) included.
 
 Giving up raises one `DeviceError` naming the port and the command. All commands of the protocol are
 idempotent, so repeating one is safe.
@@ -62,7 +65,8 @@ class LineTransport:
     ``port`` is anything `serial.serial_for_url` opens (a device path, a symlink to one, or a URL); it is
     locked (``flock``) while open, so two programs cannot interleave commands on one instrument.
     ``timeout_s`` bounds each reply, ``retries`` the extra attempts per command, ``reopen_s`` the time
-    allowed for a vanished port to come back. ``on_reset`` is called after an unrequested reset.
+    allowed for a vanished port to come back. ``on_recover`` is called after an unrequested reset or a
+    reopen, before the interrupted command is sent again.
     """
 
     def __init__(
@@ -73,7 +77,7 @@ class LineTransport:
         timeout_s: float = 1.0,
         retries: int = 3,
         reopen_s: float = 5.0,
-        on_reset: Callable[[], None] | None = None,
+        on_recover: Callable[[], None] | None = None,
     ):
         if isinstance(retries, bool) or not isinstance(retries, int) or retries < 0:
             raise ConfigError("retries", retries, "must be an integer >= 0")
@@ -84,7 +88,8 @@ class LineTransport:
         self.timeout_s = timeout_s
         self.retries = retries
         self.reopen_s = reopen_s
-        self.on_reset = on_reset
+        self.on_recover = on_recover
+        self.recoveries = 0
         self._serial: serial.SerialBase | None = None
         self._buffer = b""
         self._restoring = False
@@ -126,7 +131,7 @@ class LineTransport:
         return self._transact(command, lambda deadline: self._read_block(deadline, parse), timeout_s)
 
     def reset(self) -> None:
-        """``*RST``: the banner it causes is expected and does not trigger ``on_reset``."""
+        """``*RST``: the banner it causes is expected and does not trigger ``on_recover``."""
         self._transact("*RST", self._read_ok_after_banner, self.timeout_s)
 
     def _transact(self, command: str, receive: Callable[[float], T], timeout_s: float) -> T:
@@ -143,6 +148,7 @@ class LineTransport:
             except _PortLost as exc:
                 last = exc
                 self._reopen(command)
+                self._restore()
             except (_Retry, ReplyParseError) as exc:
                 last = exc
             except _Refused as exc:
@@ -155,6 +161,7 @@ class LineTransport:
     def _ensure_open(self, command: str) -> None:
         if self._serial is None:
             self._reopen(command)
+            self._restore()
 
     def _reopen(self, command: str) -> None:
         self.close()
@@ -172,11 +179,12 @@ class LineTransport:
                 time.sleep(0.05)
 
     def _restore(self) -> None:
-        if self.on_reset is None or self._restoring:
+        self.recoveries += 1
+        if self.on_recover is None or self._restoring:
             return
         self._restoring = True
         try:
-            self.on_reset()
+            self.on_recover()
         finally:
             self._restoring = False
 

@@ -1,7 +1,9 @@
 """Simulated ``uwlab-ascii`` instruments: command handlers of the light and the spectrometer.
 
 Each handler maps one command line to its reply lines (docs/serial-protocol.md); the serving loop,
-the pseudo-terminal and fault injection are in `uwlab.drivers.sim.serial_sim`.
+the pseudo-terminal and fault injection are in `uwlab.drivers.sim.serial_sim`. With a `StateLog`, every
+change of state (power-on, command) and every spectrometer reading is logged with the full state, so
+tests can compare recorded data against what the instrument really did.
 
 Light: output on/off and level x ∈ [0, 1]; the emitted fraction of the rated flux follows the
 non-linear curve ``flux_fraction = x ** gamma`` (a gamma-law dimmer; gamma from the rig config key
@@ -18,6 +20,7 @@ reference, which is off by ``dark_error`` (a relative error), and divides by ``k
 """
 from __future__ import annotations
 
+import re
 import time
 from dataclasses import dataclass
 from typing import Callable
@@ -35,10 +38,12 @@ from uwlab.drivers.serial.protocol import (
     format_float,
 )
 from uwlab.drivers.sim.rig_state import LightState, RigState
+from uwlab.drivers.sim.state_log import StateLog
 from uwlab.model.design import SPECTROMETER_POSITIONS
 from uwlab.model.grid import DEFAULT_GRID
 
 SpectrumSource = Callable[[str, float], tuple[np.ndarray, np.ndarray]]
+ECHO_CHARS = 32
 
 
 class CommandError(Exception):
@@ -49,14 +54,25 @@ class CommandError(Exception):
         self.code = code
 
 
+def _quoted(text: str) -> str:
+    """``text`` for an error message: quoted, at most `ECHO_CHARS` characters of it."""
+    return repr(text[:ECHO_CHARS]) + ("..." if len(text) > ECHO_CHARS else "")
+
+
 def _number(argument: str, low: float, high: float) -> float:
     try:
         value = float(argument)
     except ValueError:
-        raise CommandError(ERR_BAD_ARGUMENT, f"not a number: {argument!r}") from None
+        raise CommandError(ERR_BAD_ARGUMENT, f"not a number: {_quoted(argument)}") from None
     if not low <= value <= high:
-        raise CommandError(ERR_OUT_OF_RANGE, f"{argument} outside [{low:g}, {high:g}]")
+        raise CommandError(ERR_OUT_OF_RANGE, f"{_quoted(argument)} outside [{low:g}, {high:g}]")
     return value
+
+
+def _integer(argument: str, low: int, high: int) -> int:
+    if not re.fullmatch(r"[+-]?[0-9]{1,12}", argument):
+        raise CommandError(ERR_BAD_ARGUMENT, f"not an integer: {_quoted(argument)}")
+    return int(_number(argument, low, high))
 
 
 class SimInstrument:
@@ -64,8 +80,9 @@ class SimInstrument:
 
     model = "SIM"
 
-    def __init__(self, serial_number: str = "0001"):
+    def __init__(self, serial_number: str = "0001", state_log: StateLog | None = None):
         self.identity = f"UWLAB,{self.model},{serial_number},1.0"
+        self.state_log = state_log
         self._last_error = (0, "No error")
         self.power_on()
 
@@ -74,7 +91,21 @@ class SimInstrument:
         return f"# {self.identity} ready"
 
     def power_on(self) -> None:
-        """Set the power-on state (also the state after ``*RST`` or a spontaneous reset)."""
+        """Go to the power-on state (at start, after ``*RST`` or a spontaneous reset) and log it."""
+        self.set_power_on_state()
+        self.record("power-on")
+
+    def set_power_on_state(self) -> None:
+        """Set the instrument's power-on state."""
+
+    def state(self) -> dict:
+        """The instrument's full state, as logged."""
+        return {}
+
+    def record(self, event: str, **extra: object) -> None:
+        """Append ``event`` with the full state to the state log, if there is one."""
+        if self.state_log is not None:
+            self.state_log.append(event, **self.state(), **extra)
 
     def handle(self, line: str) -> list[str]:
         """Reply lines for one command line."""
@@ -96,7 +127,7 @@ class SimInstrument:
             return [f"ERR {exc.code} {exc}"]
 
     def dispatch(self, header: str, argument: str) -> list[str]:
-        raise CommandError(ERR_UNKNOWN_COMMAND, f"{ERROR_CODES[ERR_UNKNOWN_COMMAND]} {header!r}")
+        raise CommandError(ERR_UNKNOWN_COMMAND, f"{ERROR_CODES[ERR_UNKNOWN_COMMAND]} {_quoted(header)}")
 
 
 class SimLight(SimInstrument):
@@ -104,21 +135,25 @@ class SimLight(SimInstrument):
 
     model = "SIM-LIGHT"
 
-    def __init__(self, rig_state: RigState, gamma: float = 2.2, serial_number: str = "0001"):
+    def __init__(self, rig_state: RigState, gamma: float = 2.2, serial_number: str = "0001",
+                 state_log: StateLog | None = None):
         self.rig_state = rig_state
         self.gamma = gamma
-        super().__init__(serial_number)
+        super().__init__(serial_number, state_log)
 
-    def power_on(self) -> None:
+    def set_power_on_state(self) -> None:
         self.on = False
         self.level = 0.0
         self._publish()
+
+    def state(self) -> dict:
+        return {"on": self.on, "level": self.level, "flux_fraction": self.level**self.gamma}
 
     def dispatch(self, header: str, argument: str) -> list[str]:
         if header == "OUTP" and argument.upper() in ("ON", "OFF", "1", "0"):
             self.on = argument.upper() in ("ON", "1")
         elif header == "OUTP":
-            raise CommandError(ERR_BAD_ARGUMENT, f"expected ON or OFF, got {argument!r}")
+            raise CommandError(ERR_BAD_ARGUMENT, f"expected ON or OFF, got {_quoted(argument)}")
         elif header == "OUTP?":
             return ["1" if self.on else "0"]
         elif header == "LEV":
@@ -128,6 +163,7 @@ class SimLight(SimInstrument):
         else:
             return super().dispatch(header, argument)
         self._publish()
+        self.record("command")
         return ["OK"]
 
     def _publish(self) -> None:
@@ -188,6 +224,7 @@ class SimSpectrometer(SimInstrument):
         detector: DetectorModel = DetectorModel(),
         seed: int | None = None,
         serial_number: str = "0001",
+        state_log: StateLog | None = None,
     ):
         self.rig_state = rig_state
         self.spectrum = spectrum
@@ -195,11 +232,14 @@ class SimSpectrometer(SimInstrument):
         self.detector = detector
         self.wavelength_nm = DEFAULT_GRID.nm
         self.rng = np.random.default_rng(seed)
-        super().__init__(serial_number)
+        super().__init__(serial_number, state_log)
 
-    def power_on(self) -> None:
+    def set_power_on_state(self) -> None:
         self.integration_ms = 100.0
         self.averaging = 1
+
+    def state(self) -> dict:
+        return {"integration_ms": self.integration_ms, "averaging": self.averaging, "position": self.position}
 
     def dispatch(self, header: str, argument: str) -> list[str]:
         if header == "SPEC:INT":
@@ -207,7 +247,7 @@ class SimSpectrometer(SimInstrument):
         elif header == "SPEC:INT?":
             return [format_float(self.integration_ms)]
         elif header == "SPEC:AVG":
-            self.averaging = int(_number(argument, *AVERAGING_RANGE))
+            self.averaging = _integer(argument, *AVERAGING_RANGE)
         elif header == "SPEC:AVG?":
             return [str(self.averaging)]
         elif header == "SPEC:READ?":
@@ -220,16 +260,20 @@ class SimSpectrometer(SimInstrument):
             return [self.position]
         else:
             return super().dispatch(header, argument)
+        self.record("command")
         return ["OK"]
 
-    def true_irradiance(self) -> np.ndarray:
-        """The model's spectral irradiance for the current light state, on the instrument's grid."""
-        wavelength_nm, irradiance = self.spectrum(self.position, self.rig_state.light.effective_fraction)
+    def true_irradiance(self, flux_fraction: float) -> np.ndarray:
+        """The model's spectral irradiance at the light's ``flux_fraction``, on the instrument's grid."""
+        wavelength_nm, irradiance = self.spectrum(self.position, flux_fraction)
         return np.interp(self.wavelength_nm, wavelength_nm, irradiance, left=0.0, right=0.0)
 
     def read(self) -> list[str]:
         integration_s = self.integration_ms / 1000.0
         time.sleep(integration_s * self.averaging)
-        measured, saturated = self.detector.measure(self.true_irradiance(), integration_s, self.averaging, self.rng)
+        light = self.rig_state.light
+        self.record("read", light_on=light.on, light_level=light.level, flux_fraction=light.effective_fraction)
+        irradiance = self.true_irradiance(light.effective_fraction)
+        measured, saturated = self.detector.measure(irradiance, integration_s, self.averaging, self.rng)
         rows = [f"{format_float(w)} {value:.6e}" for w, value in zip(self.wavelength_nm, measured)]
         return [f"{BLOCK_BEGIN} {len(rows)} {int(saturated)}", *rows, BLOCK_END]

@@ -5,6 +5,14 @@ stable symlink (e.g. ``<dir>/light``): drivers open the symlink with pyserial, e
 open ``/dev/ttyUSB0``. When the port "vanishes" the simulator closes the pty, removes the symlink,
 waits, opens a fresh pty and re-points the symlink (a pty path cannot be re-created).
 
+The simulators are test equipment and must not fall over, whatever a client sends:
+
+- a command line longer than `MAX_LINE_BYTES` is discarded unread and answered with one ``ERR 101``
+  (never echoed back); error messages quote at most 32 characters of what was sent;
+- replies go out through a non-blocking master and a bounded output buffer (`MAX_PENDING_OUTPUT_BYTES`):
+  a client that writes without reading loses the replies beyond it, and the simulator keeps serving;
+- fault counts are bounded (1 to `MAX_FAULT_COUNT`) and queued as (fault, count) pairs.
+
 Fault injection, by command (never faulted itself; docs/serial-protocol.md):
 
 - ``SIM:FAULT <name> [count]`` — the next ``count`` (default 1) commands get fault ``name``:
@@ -14,10 +22,14 @@ Fault injection, by command (never faulted itself; docs/serial-protocol.md):
   ``vanish_s`` and comes back as a new pty; command lost). ``SIM:FAULT NONE`` clears the queue.
 - ``SIM:RESET`` — a spontaneous reset: ``OK``, then the banner, as if the instrument rebooted.
 
-Every received line can be appended to a command log file (tests check what reached the device).
+Every received line can be appended to a command log file (tests check what reached the device), and
+every instrument logs its true state (`uwlab.drivers.sim.state_log`) to ``<dir>/<name>.state.jsonl``.
+`SerialRig.kill` / `SerialRig.restart` cut an instrument's power and bring it back (fault campaigns);
+`SerialRig.revive` restarts any simulator that died.
 """
 from __future__ import annotations
 
+import fcntl
 import multiprocessing
 import os
 import select
@@ -25,14 +37,22 @@ import signal
 import time
 import threading
 import tty
+from collections import deque
 from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
 from typing import Callable
 
-from uwlab.drivers.serial.protocol import ERR_BUSY, ERR_HARDWARE, TERMINATOR
-from uwlab.drivers.sim.rig_state import RigState
+from uwlab.drivers.serial.protocol import (
+    ERR_BAD_ARGUMENT,
+    ERR_BUSY,
+    ERR_HARDWARE,
+    ERR_OUT_OF_RANGE,
+    MAX_LINE_BYTES,
+    TERMINATOR,
+)
+from uwlab.drivers.sim.rig_state import LightState, RigState
 from uwlab.drivers.sim.scene import load_scene
 from uwlab.drivers.sim.serial_instruments import (
     SimInstrument,
@@ -40,25 +60,34 @@ from uwlab.drivers.sim.serial_instruments import (
     SimSpectrometer,
     SpectrumSource,
 )
+from uwlab.drivers.sim.state_log import StateLog
 from uwlab.errors import ConfigError, DeviceError, UwlabError
 from uwlab.model.design import SPECTROMETER_POSITIONS
 
 FAULTS = ("noreply", "garbage", "partial", "err", "busy", "reset", "vanish")
+MAX_FAULT_COUNT = 10_000
+MAX_PENDING_OUTPUT_BYTES = 64 * 1024
+READ_CHUNK_BYTES = 4096
 GARBAGE = b"\x00\xff\xfe\x1b[2J\xc3(\x07garbage\x80"
-WRITE_TIMEOUT_S = 5.0
 START_TIMEOUT_S = 60.0
 
 
 class PtyPort:
-    """The master side of a pty whose slave is published at the symlink ``link``."""
+    """The master side of a pty whose slave is published at the symlink ``link``.
+
+    The master is non-blocking; replies wait in a bounded output buffer until the pty accepts them.
+    """
 
     def __init__(self, link: Path):
         self.link = Path(link)
+        self._pending = bytearray()
+        self.dropped_bytes = 0
         self._open()
 
     def _open(self) -> None:
         self.master, self._slave = os.openpty()
         tty.setraw(self._slave)
+        fcntl.fcntl(self.master, fcntl.F_SETFL, fcntl.fcntl(self.master, fcntl.F_GETFL) | os.O_NONBLOCK)
         temporary = self.link.with_name(f".{self.link.name}.new")
         temporary.unlink(missing_ok=True)
         os.symlink(os.ttyname(self._slave), temporary)
@@ -66,6 +95,7 @@ class PtyPort:
 
     def close(self) -> None:
         self.link.unlink(missing_ok=True)
+        self._pending.clear()
         for fd in (self.master, self._slave):
             try:
                 os.close(fd)
@@ -79,17 +109,32 @@ class PtyPort:
         self._open()
 
     def read(self, timeout_s: float) -> bytes:
-        ready, _, _ = select.select([self.master], [], [], timeout_s)
-        return os.read(self.master, 4096) if ready else b""
+        """Input received within ``timeout_s`` (b"" if none); pending output is sent meanwhile."""
+        writing = [self.master] if self._pending else []
+        readable, writable, _ = select.select([self.master], writing, [], timeout_s)
+        if writable:
+            self._flush()
+        if not readable:
+            return b""
+        try:
+            return os.read(self.master, READ_CHUNK_BYTES)
+        except BlockingIOError:
+            return b""
 
     def write(self, data: bytes) -> None:
-        """Write all of ``data`` unless the reader stops reading for `WRITE_TIMEOUT_S` (rest dropped)."""
-        deadline = time.monotonic() + WRITE_TIMEOUT_S
-        view = memoryview(data)
-        while view and time.monotonic() < deadline:
-            _, writable, _ = select.select([], [self.master], [], 0.1)
-            if writable:
-                view = view[os.write(self.master, view):]
+        """Queue ``data`` and send what the pty accepts now; beyond the bounded buffer, data is dropped."""
+        room = MAX_PENDING_OUTPUT_BYTES - len(self._pending)
+        self._pending += data[:max(room, 0)]
+        self.dropped_bytes += max(len(data) - max(room, 0), 0)
+        self._flush()
+
+    def _flush(self) -> None:
+        try:
+            while self._pending:
+                sent = os.write(self.master, self._pending)
+                del self._pending[:sent]
+        except (BlockingIOError, InterruptedError):
+            pass
 
 
 class SerialServer:
@@ -101,18 +146,27 @@ class SerialServer:
         self.port = port
         self.command_log = command_log
         self.vanish_s = vanish_s
-        self.faults: list[str] = []
+        self.faults: deque[list] = deque()
         self._buffer = b""
+        self._overlong = False
 
     def step(self, timeout_s: float) -> None:
         """Wait up to ``timeout_s`` for input and answer every complete line."""
         self._buffer += self.port.read(timeout_s)
         while TERMINATOR in self._buffer:
             raw, _, self._buffer = self._buffer.partition(TERMINATOR)
+            if self._overlong or len(raw) > MAX_LINE_BYTES:
+                self._overlong = False
+                self._log(f"<command longer than {MAX_LINE_BYTES} bytes>")
+                self._send([f"ERR {ERR_BAD_ARGUMENT} command longer than {MAX_LINE_BYTES} bytes\n".encode()])
+                continue
             line = raw.decode("ascii", "replace").strip()
             if line:
                 self._log(line)
                 self._send(self.respond(line))
+        if len(self._buffer) > MAX_LINE_BYTES:
+            self._buffer = b""
+            self._overlong = True
 
     def respond(self, line: str) -> list[bytes]:
         """Reply lines (terminated) for one command, after any queued fault."""
@@ -124,7 +178,7 @@ class SerialServer:
             return [b"OK\n", self.instrument.banner.encode() + TERMINATOR]
         try:
             if self.faults:
-                return self._fault(self.faults.pop(0), line)
+                return self._fault(self._next_fault(), line)
             return [reply.encode() + TERMINATOR for reply in self.instrument.handle(line)]
         except Exception as exc:  # a simulator bug or model error must not kill the port: report it as hardware
             return [f"ERR {ERR_HARDWARE} internal: {type(exc).__name__}: {exc}".encode()[:200] + TERMINATOR]
@@ -133,12 +187,21 @@ class SerialServer:
         if fields and fields[0].upper() == "NONE":
             self.faults.clear()
             return b"OK\n"
-        valid_count = len(fields) == 1 or (len(fields) == 2 and fields[1].isdigit())
+        valid_count = len(fields) == 1 or (len(fields) == 2 and fields[1].isascii() and fields[1].isdigit())
         if not fields or fields[0].lower() not in FAULTS or not valid_count:
-            return f"ERR 101 expected SIM:FAULT <{'|'.join(FAULTS)}|NONE> [count]\n".encode()
+            return f"ERR {ERR_BAD_ARGUMENT} expected SIM:FAULT <{'|'.join(FAULTS)}|NONE> [count]\n".encode()
         count = int(fields[1]) if len(fields) == 2 else 1
-        self.faults.extend([fields[0].lower()] * count)
+        if not 1 <= count <= MAX_FAULT_COUNT:
+            return f"ERR {ERR_OUT_OF_RANGE} fault count outside [1, {MAX_FAULT_COUNT}]\n".encode()
+        self.faults.append([fields[0].lower(), count])
         return b"OK\n"
+
+    def _next_fault(self) -> str:
+        fault = self.faults[0]
+        fault[1] -= 1
+        if fault[1] == 0:
+            self.faults.popleft()
+        return fault[0]
 
     def _fault(self, fault: str, line: str) -> list[bytes]:
         if fault == "noreply":
@@ -219,6 +282,7 @@ class SimulatorProcess:
                  vanish_s: float = 0.5):
         context = multiprocessing.get_context("spawn")
         self.link = Path(link)
+        self._options = (factory, command_log, vanish_s)
         self._status, child_status = context.Pipe(duplex=False)
         self._stop = context.Event()
         self.process = context.Process(
@@ -230,6 +294,22 @@ class SimulatorProcess:
     @property
     def port(self) -> str:
         return str(self.link)
+
+    @property
+    def died(self) -> bool:
+        """Started, and no longer running although nobody stopped it."""
+        return self.process.pid is not None and not self._stop.is_set() and not self.process.is_alive()
+
+    def fresh(self) -> SimulatorProcess:
+        """A new, unstarted simulator of the same instrument on the same port path."""
+        factory, command_log, vanish_s = self._options
+        return SimulatorProcess(factory, self.link, command_log=command_log, vanish_s=vanish_s)
+
+    def kill(self, timeout_s: float = 10.0) -> None:
+        """SIGKILL, as a power cut: no clean-up, the port symlink is left dangling."""
+        if self.process.is_alive():
+            self.process.kill()
+        self.process.join(timeout_s)
 
     def start(self, timeout_s: float = START_TIMEOUT_S) -> SimulatorProcess:
         with _ctrl_c_deferred():
@@ -300,18 +380,20 @@ class SceneSpectrum:
         return self._scene.spectral_irradiance(position, flux_fraction)
 
 
-def _make_light(rig_state_path: Path, gamma: float) -> SimLight:
-    return SimLight(RigState(rig_state_path), gamma)
+def _make_light(rig_state_path: Path, gamma: float, state_log: Path) -> SimLight:
+    return SimLight(RigState(rig_state_path), gamma, state_log=StateLog(state_log))
 
 
-def _make_spectrometer(rig_state_path: Path, spectrum: SpectrumSource, position: str, seed: int | None):
-    return SimSpectrometer(RigState(rig_state_path), spectrum, position, seed=seed)
+def _make_spectrometer(rig_state_path: Path, spectrum: SpectrumSource, position: str, seed: int | None,
+                       state_log: Path):
+    return SimSpectrometer(RigState(rig_state_path), spectrum, position, seed=seed, state_log=StateLog(state_log))
 
 
 class SerialRig:
     """The simulated light and spectrometer sharing one rig state file in ``directory``.
 
-    Ports: ``<directory>/light`` and ``<directory>/spectrometer``; rig state: ``<directory>/rig-state.json``.
+    Ports: ``<directory>/light`` and ``<directory>/spectrometer``; rig state: ``<directory>/rig-state.json``;
+    true-state logs: ``<directory>/<name>.state.jsonl`` (`state_log`).
     ``spectrum`` replaces the rig model (tests inject a known one); it must be picklable.
     With ``command_log``, each simulator appends received lines to ``<directory>/<name>.log``.
     """
@@ -323,9 +405,10 @@ class SerialRig:
         self.rig_state_path = self.directory / "rig-state.json"
         spectrum = spectrum if spectrum is not None else SceneSpectrum(settings.config_path)
         factories = {
-            "light": partial(_make_light, self.rig_state_path, settings.light_gamma),
+            "light": partial(_make_light, self.rig_state_path, settings.light_gamma, self.state_log("light").path),
             "spectrometer": partial(
-                _make_spectrometer, self.rig_state_path, spectrum, settings.spectrometer_position, seed
+                _make_spectrometer, self.rig_state_path, spectrum, settings.spectrometer_position, seed,
+                self.state_log("spectrometer").path,
             ),
         }
         self.simulators = {
@@ -338,6 +421,35 @@ class SerialRig:
 
     def log_path(self, name: str) -> Path:
         return self.directory / f"{name}.log"
+
+    def state_log(self, name: str) -> StateLog:
+        """The true-state log of simulator ``name`` (kept across its restarts)."""
+        return StateLog(self.directory / f"{name}.state.jsonl")
+
+    def kill(self, name: str) -> None:
+        """Cut simulator ``name``'s power: SIGKILL; the light goes dark. Logged as ``power-lost``."""
+        self.simulators[name].kill()
+        self._power_lost(name)
+
+    def restart(self, name: str) -> None:
+        """Start simulator ``name`` again on the same port path, at its power-on state."""
+        self.simulators[name].stop()
+        self.simulators[name] = self.simulators[name].fresh().start()
+
+    def revive(self) -> dict[str, int | None]:
+        """Restart every simulator that died unasked (logged as a power loss); returns their exit codes."""
+        dead = {name: sim.process.exitcode for name, sim in self.simulators.items() if sim.died}
+        for name in dead:
+            self._power_lost(name)
+            self.restart(name)
+        return dead
+
+    def _power_lost(self, name: str) -> None:
+        if name == "light":
+            RigState(self.rig_state_path).set_light(LightState(False, 0.0, 0.0))
+            self.state_log(name).append("power-lost", on=False, level=0.0, flux_fraction=0.0)
+        else:
+            self.state_log(name).append("power-lost")
 
     @property
     def ports(self) -> dict[str, str]:
