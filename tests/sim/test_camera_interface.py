@@ -2,15 +2,16 @@
 faults (injected), profiles."""
 from __future__ import annotations
 
+import time
 from typing import Any
 
 import numpy as np
 import pytest
 
 from uwlab.drivers.camera import Camera, Policy, open_camera
-from uwlab.drivers.camera.interface import FrameTimeout, RawFrame
+from uwlab.drivers.camera.interface import Frame, FrameTimeout, RawFrame, Settings
 from uwlab.drivers.camera.profiles import GENERIC_SFNC, select_profile
-from uwlab.drivers.sim.camera import SimFaults, SimSensor, SimTruth, flat_rate_map
+from uwlab.drivers.sim.camera import SimFaults, SimNodeMap, SimSensor, SimTransport, SimTruth, flat_rate_map
 from uwlab.errors import ConfigError, DeviceError
 
 TRUTH = SimTruth("t", (64, 48), 12, 0.5, 64.0, 2.0, 7000.0, 10.0, 0.0, 0.0, 10.0, 1e6, 0.0, 24.0)
@@ -124,9 +125,83 @@ def test_device_lost_mid_stream_reconnects_and_restores_settings():
 
 
 def test_device_lost_for_good_raises_after_bounded_attempts():
-    with sim_camera(SimFaults(lost_after=2, failed_reconnects=99)) as cam:
-        with pytest.raises(DeviceError, match="lost mid-stream; 3 reconnect attempts failed"):
+    policy = Policy(timeout_s=0.1, reconnect_delay_s=0.001, reconnect_attempts=3)
+    sensor = SimSensor(TRUTH, flat_rate_map(1e5), seed=0)
+    with open_camera("sim", sensor=sensor, faults=SimFaults(lost_after=2, failed_reconnects=99), policy=policy) as cam:
+        with pytest.raises(DeviceError, match="device lost .*not back after 3 reconnect attempts .*limits: 3 attempts"):
             cam.acquire(5)
+
+
+def _session(cam: Camera) -> tuple[list[Frame], Settings]:
+    """Every kind of camera operation: settings written and read, acquisition started, frames fetched."""
+    cam.pixel_format = "Mono12p"
+    cam.set_roi(8, 4, 32, 16)
+    cam.exposure_us = 2000.0
+    cam.gain_db = 6.0
+    cam.black_level = 16.0
+    assert cam.exposure_us == 2000.0 and cam.gain_db == 6.0
+    cam.start()
+    frames = cam.acquire(3)
+    cam.stop()
+    cam.exposure_us = 3000.0
+    frames += cam.acquire(2)
+    return frames, cam.read_settings()
+
+
+def test_a_loss_at_any_operation_is_survived_with_the_settings_restored_and_verified():
+    """The device vanishes (and comes back power-cycled, registers at their defaults) at the 1st, 2nd, ...
+    device operation of a session: every session ends as the fault-free one does."""
+    with sim_camera() as cam:
+        opened = cam.transport.operations
+        frames, reference = _session(cam)
+        operations = cam.transport.operations
+    expected_means = [f.image.mean() for f in frames]
+    assert operations - opened > 40
+    for at in range(opened + 1, operations + 1):
+        with sim_camera(SimFaults(lost_at_operation=at, failed_reconnects=1)) as cam:
+            frames, settings = _session(cam)
+            assert cam.stats.reconnects == 1, at
+            assert settings == reference, at
+            assert [f.settings.exposure_us for f in frames] == [2000.0] * 3 + [3000.0] * 2, at
+            np.testing.assert_allclose([f.image.mean() for f in frames], expected_means, rtol=0.01, err_msg=str(at))
+            assert cam.transport.nodes.value("ExposureAuto") == "Off"
+
+
+def test_an_outage_within_the_limit_is_ridden_out_and_one_past_it_is_one_error():
+    policy = Policy(timeout_s=0.5, reconnect_delay_s=0.05, reconnect_max_delay_s=0.2, outage_limit_s=1.5)
+    sensor = SimSensor(TRUTH, flat_rate_map(1e5), seed=0)
+    with open_camera("sim", sensor=sensor, policy=policy) as cam:
+        cam.exposure_us = 1500.0
+        cam.transport.cut(outage_s=1.0)
+        started = time.monotonic()
+        assert len(cam.acquire(2)) == 2 and cam.stats.reconnects == 1
+        assert 1.0 <= time.monotonic() - started < 1.5
+        assert cam.read_settings().exposure_us == 1500.0
+        cam.transport.cut(outage_s=60.0)
+        started = time.monotonic()
+        with pytest.raises(DeviceError, match=r"not back after \d+ reconnect attempts over 1\.\d s .*1\.5 s"):
+            cam.gain_db = 3.0
+        assert time.monotonic() - started < 2.5
+
+
+class StuckExposureTransport(SimTransport):
+    """A simulated camera that comes back from an outage ignoring exposure writes (a faulty device)."""
+
+    def reconnect(self) -> None:
+        super().reconnect()
+        self.nodes.nodes["ExposureTime"].writable = False
+        self.nodes.set = lambda name, value, nodes=self.nodes: None if name == "ExposureTime" else SimNodeMap.set(
+            nodes, name, value)
+
+
+def test_a_device_that_does_not_take_its_settings_back_is_one_clear_error():
+    sensor = SimSensor(TRUTH, flat_rate_map(1e5), seed=0)
+    with Camera(StuckExposureTransport(sensor), policy=Policy(timeout_s=0.1, reconnect_delay_s=0.001,
+                                                              reconnect_attempts=2)) as cam:
+        cam.exposure_us = 1234.0
+        cam.transport.cut(outage_s=0.0)
+        with pytest.raises(DeviceError, match="settings not restored after reconnecting: exposure_us: 1234.0 -> "):
+            cam.acquire(1)
 
 
 def test_context_manager_releases_device_on_exception():

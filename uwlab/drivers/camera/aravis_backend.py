@@ -3,12 +3,19 @@
 Features are accessed by name through the device's GenICam node map (typed by node class:
 enumeration, boolean, float, integer, string, command). Buffers come from an `Aravis.Stream`
 with a small pool; a buffer whose status is not SUCCESS (missing packets, size mismatch, ...)
-is reported as incomplete. When no buffer arrives in time, one register read tells a silent
-device (`DeviceLost`) from a plain timeout. ``device_id`` is an Aravis id (``vendor-model-serial``)
-or a GigE Vision device's IP address (no discovery needed, e.g. on the loopback interface).
+is reported as incomplete. ``device_id`` is an Aravis id (``vendor-model-serial``) or a GigE
+Vision device's IP address (no discovery needed, e.g. on the loopback interface).
+
+Lost devices (`DeviceLost`, which `Camera` answers by reconnecting): an Aravis device error
+``timeout``, ``not-connected``, ``not-controller`` or ``protocol-error-access-denied`` on any
+feature access or acquisition start — a device that stopped answering, or one that restarted and
+no longer recognises us as its controller (GigE Vision control channel privilege). When no
+buffer arrives in time, one register read and the controller status tell a silent or restarted
+device from a plain timeout. The register cache is disabled, so every read is a device read-back.
 """
 from __future__ import annotations
 
+import threading
 from typing import Any
 
 from uwlab.drivers.camera.interface import DeviceEntry, DeviceLost, FrameTimeout, RawFrame, unknown_device
@@ -24,6 +31,13 @@ except (ImportError, ValueError) as exc:  # the caller reports the backend as un
     raise ImportError(f"Aravis 0.8 GObject bindings not importable: {exc}") from exc
 
 N_BUFFERS = 8
+LOST_CODES = frozenset({Aravis.DeviceError.NOT_CONNECTED, Aravis.DeviceError.TIMEOUT, Aravis.DeviceError.NOT_FOUND,
+                        Aravis.DeviceError.NOT_CONTROLLER, Aravis.DeviceError.PROTOCOL_ERROR_ACCESS_DENIED})
+REJECTED_CODES = frozenset({Aravis.DeviceError.INVALID_PARAMETER, Aravis.DeviceError.PROTOCOL_ERROR_INVALID_PARAMETER})
+
+
+def _is_device_error(exc: GLib.Error, codes: frozenset) -> bool:
+    return exc.domain == GLib.quark_to_string(Aravis.device_error_quark()) and exc.code in {int(c) for c in codes}
 
 
 def discover(**_: Any) -> list[DeviceEntry]:
@@ -37,9 +51,16 @@ def open_transport(device_id: str | None = None, **_: Any) -> AravisTransport:
     return AravisTransport(device_id)
 
 
+def _connect(device_id: str | None) -> Any:
+    """An `Aravis.Camera` whose feature reads always go to the device (no register cache)."""
+    camera = Aravis.Camera.new(device_id)
+    camera.get_device().set_register_cache_policy(Aravis.RegisterCachePolicy.DISABLE)
+    return camera
+
+
 def _open_camera(device_id: str | None) -> Any:
     try:
-        return Aravis.Camera.new(device_id)
+        return _connect(device_id)
     except GLib.Error as exc:
         found = [d.id for d in discover()]
         if device_id is None:
@@ -65,7 +86,9 @@ class AravisTransport:
         node = self._node(name)
         try:
             return node is not None and bool(node.is_available())
-        except GLib.Error:
+        except GLib.Error as exc:
+            if _is_device_error(exc, LOST_CODES):
+                raise self._error(f"cannot evaluate {name}", exc) from exc
             return False
 
     def get(self, name: str) -> Any:
@@ -93,12 +116,12 @@ class AravisTransport:
             else:
                 dev.set_integer_feature_value(name, int(value))
         except GLib.Error as exc:
-            if "invalid-parameter" in exc.message or "out of range" in exc.message.lower():
+            if _is_device_error(exc, REJECTED_CODES) or "out of range" in exc.message.lower():
                 raise ConfigError(name, value, f"rejected by the device ({exc.message})") from exc
             raise self._error(f"cannot write {name}={value!r}", exc) from exc
 
     def _error(self, what: str, exc: GLib.Error) -> DeviceError:
-        if "timeout" in exc.message.lower():
+        if _is_device_error(exc, LOST_CODES):
             return DeviceLost(f"aravis: {self.device_id}: {what}: {exc.message}")
         return DeviceError(f"aravis: {self.device_id}: {what}: {exc.message}")
 
@@ -118,7 +141,10 @@ class AravisTransport:
     def entries(self, name: str) -> tuple[str, ...]:
         if not isinstance(self._node(name), Aravis.GcEnumeration):
             return ()
-        return tuple(self._device.dup_available_enumeration_feature_values_as_strings(name))
+        try:
+            return tuple(self._device.dup_available_enumeration_feature_values_as_strings(name))
+        except GLib.Error as exc:
+            raise self._error(f"cannot list {name}", exc) from exc
 
     def execute(self, name: str) -> None:
         try:
@@ -170,10 +196,22 @@ class AravisTransport:
             self._device.get_integer_feature_value("Width")
         except GLib.Error as exc:
             raise DeviceLost(f"aravis: {self.device_id}: device not responding ({exc.message})") from exc
+        if isinstance(self._device, Aravis.GvDevice) and not self._device.is_controller():
+            raise DeviceLost(f"aravis: {self.device_id}: control of the device lost (it restarted or was "
+                             f"taken over)")
 
     def reconnect(self) -> None:
-        self.stop()
-        self._camera = _open_camera(self.device_id)
+        """Open the device again. The old connection is released in a background thread: Aravis
+        finalises it by talking to the lost device (stream channel, control release), seconds of
+        timeouts that need not delay the reconnect (PyGObject releases the GIL meanwhile)."""
+        old = [self._stream, self._camera, self._device]
+        self._stream = self._camera = self._device = None
+        threading.Thread(target=old.clear, name="aravis-release", daemon=True).start()
+        del old
+        try:
+            self._camera = _connect(self.device_id)
+        except GLib.Error as exc:
+            raise DeviceLost(f"aravis: {self.device_id}: not back yet ({exc.message})") from exc
         self._device = self._camera.get_device()
 
     def close(self) -> None:

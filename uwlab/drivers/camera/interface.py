@@ -7,15 +7,26 @@ checks, auto modes off, ROI/binning, trigger modes, pixel unpacking (`pixels.py`
 incomplete frames, bounded reconnects. The simulated camera therefore runs through exactly the
 code path used with hardware.
 
+Outages: every public operation (a setting read or written, acquisition start, trigger, frame
+fetch, ``acquire``) survives the device going away. A backend reports a vanished device with
+`DeviceLost`; the operation then reconnects with exponential back-off within the bounds of its
+`Policy`, re-applies the settings in force before the loss (`Camera.settings_in_force`), reads
+every one back and compares, restarts acquisition if it was running, and runs again from its
+start (so ``acquire(n)`` returns n frames from one connection). Past the bounds: one
+`DeviceError`. `AcquisitionStats.reconnects` counts the recoveries, so a caller can tell that one
+happened during a measurement.
+
 Units: exposure in µs, gain in dB, frame rate in Hz, temperature in °C, black level in device
 units (DN on most cameras), timestamps in ns of the device clock.
 """
 from __future__ import annotations
 
+import functools
+import math
 import time
-from collections.abc import Iterator
-from dataclasses import asdict, dataclass, field
-from typing import Any, Protocol
+from collections.abc import Callable, Iterator
+from dataclasses import asdict, dataclass, field, fields
+from typing import Any, Protocol, TypeVar
 
 import numpy as np
 
@@ -29,7 +40,8 @@ class FrameTimeout(DeviceError):
 
 
 class DeviceLost(DeviceError):
-    """The device stopped answering (unplugged, powered off, server stopped)."""
+    """The device stopped answering or its control channel was taken away (unplugged, powered
+    off, restarted, server stopped or frozen): `Camera` reconnects."""
 
 
 @dataclass(frozen=True)
@@ -117,6 +129,19 @@ class Settings:
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
 
+    def disagreements(self, other: Settings, rel_tol: float = 1e-9) -> list[str]:
+        """``name: self -> other`` for every setting that differs (floats to ``rel_tol``)."""
+        out = []
+        for f in fields(self):
+            mine, theirs = getattr(self, f.name), getattr(other, f.name)
+            if isinstance(mine, float) and isinstance(theirs, float):
+                same = math.isclose(mine, theirs, rel_tol=rel_tol, abs_tol=1e-12)
+            else:
+                same = mine == theirs
+            if not same:
+                out.append(f"{f.name}: {mine!r} -> {theirs!r}")
+        return out
+
 
 @dataclass(frozen=True)
 class Frame:
@@ -139,22 +164,70 @@ class AcquisitionStats:
 
 @dataclass(frozen=True)
 class Policy:
-    """Fault handling bounds: per-frame ``timeout_s``; at most ``max_discarded_in_row``
-    consecutive incomplete frames; ``reconnect_attempts`` with exponential back-off from
-    ``reconnect_delay_s``."""
+    """Fault handling bounds.
+
+    ``timeout_s``: per frame (then "acquisition timeout"); ``max_discarded_in_row``: consecutive
+    incomplete frames. A lost device is reconnected; attempt k (from 0) waits
+    ``min(reconnect_delay_s · 2**k, reconnect_max_delay_s)`` first, and the camera gives up when
+    ``reconnect_attempts`` attempts have failed or ``outage_limit_s`` have passed since the loss
+    was noticed, whichever comes first. The defaults ride out a 10 s outage (about 8 attempts).
+    """
 
     timeout_s: float = 2.0
     max_discarded_in_row: int = 20
-    reconnect_attempts: int = 3
+    reconnect_attempts: int = 12
     reconnect_delay_s: float = 0.2
+    reconnect_max_delay_s: float = 2.0
+    outage_limit_s: float = 30.0
+
+    def __post_init__(self) -> None:
+        for name in ("timeout_s", "reconnect_delay_s", "reconnect_max_delay_s", "outage_limit_s"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ConfigError(f"policy.{name}", value, "must be a finite number > 0")
+        for name in ("max_discarded_in_row", "reconnect_attempts"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 0:
+                raise ConfigError(f"policy.{name}", value, "must be an integer >= 0")
+
+    def backoff_s(self, attempt: int) -> float:
+        """The wait before reconnect attempt ``attempt`` (0, 1, ...)."""
+        return min(self.reconnect_delay_s * 2.0 ** min(attempt, 60), self.reconnect_max_delay_s)
 
 
 @dataclass
 class _State:
     streaming: bool = False
     trigger: str = "free-run"
+    frame_rate_set: bool = False
     in_force: Settings | None = None
+    operation_depth: int = 0
     stats: AcquisitionStats = field(default_factory=AcquisitionStats)
+
+
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def _survives_outages(method: F) -> F:
+    """Run a public operation; if the device is lost, reconnect (`Camera._reconnect`) and run it
+    again from its start. Only the outermost operation does this: nested ones let `DeviceLost` pass."""
+
+    @functools.wraps(method)
+    def operation(self: Camera, *args: Any, **kwargs: Any) -> Any:
+        state = self._state
+        if state.operation_depth:
+            return method(self, *args, **kwargs)
+        state.operation_depth += 1
+        try:
+            while True:
+                try:
+                    return method(self, *args, **kwargs)
+                except DeviceLost as lost:
+                    self._reconnect(lost)
+        finally:
+            state.operation_depth -= 1
+
+    return operation  # type: ignore[return-value]
 
 
 class Camera:
@@ -164,9 +237,9 @@ class Camera:
     def __init__(self, transport: Transport, profile: VendorProfile | None = None, policy: Policy | None = None):
         self.transport = transport
         self.policy = policy or Policy()
+        self._state = _State()
         vendor, model = self._read_str("DeviceVendorName"), self._read_str("DeviceModelName")
         self.profile = profile or select_profile(vendor, model)
-        self._state = _State()
         self.info = CameraInfo(
             backend=transport.backend,
             device_id=transport.device_id,
@@ -244,62 +317,81 @@ class Camera:
         return entries if entries else (value,)
 
     def _refresh(self) -> None:
-        if self._state.streaming:
-            self._state.in_force = self.read_settings()
+        self._state.in_force = self.read_settings()
 
     # -- settings ---------------------------------------------------------------------------
+    @_survives_outages
     def auto_off(self) -> None:
         """Switch automatic exposure, gain and black level off (before any measurement)."""
         for name, value in self.profile.auto_off:
             self._set_optional(name, value)
+        self._refresh()
+
+    def _auto_modes_left_on(self) -> list[str]:
+        return [f"{name}: {self.transport.get(name)!r} (want {value!r})" for name, value in self.profile.auto_off
+                if self.transport.has(name) and value in self._allowed(name, value)
+                and self.transport.get(name) != value]
 
     @property
+    @_survives_outages
     def exposure_us(self) -> float | None:
         return self._read(self.profile.exposure_us)
 
     @exposure_us.setter
+    @_survives_outages
     def exposure_us(self, value: float) -> None:
         self._write("exposure_us", self.profile.exposure_us, value)
 
     @property
+    @_survives_outages
     def gain_db(self) -> float | None:
         return self._read(self.profile.gain_db)
 
     @gain_db.setter
+    @_survives_outages
     def gain_db(self, value: float) -> None:
         self._write("gain_db", self.profile.gain_db, value)
 
     @property
+    @_survives_outages
     def black_level(self) -> float | None:
         return self._read(self.profile.black_level)
 
     @black_level.setter
+    @_survives_outages
     def black_level(self, value: float) -> None:
         self._write("black_level", self.profile.black_level, value)
 
     @property
+    @_survives_outages
     def frame_rate_hz(self) -> float | None:
         return self._read(self.profile.frame_rate_hz)
 
     @frame_rate_hz.setter
+    @_survives_outages
     def frame_rate_hz(self, value: float) -> None:
         for name, enable in self.profile.frame_rate_enable:
             self._set_optional(name, enable)
         self._write("frame_rate_hz", self.profile.frame_rate_hz, value)
+        self._state.frame_rate_set = True
 
     @property
+    @_survives_outages
     def temperature_c(self) -> float | None:
         return self._read(self.profile.temperature_c)
 
     @property
+    @_survives_outages
     def pixel_formats(self) -> tuple[str, ...]:
         return self.transport.entries("PixelFormat")
 
     @property
+    @_survives_outages
     def pixel_format(self) -> str:
         return str(self.transport.get("PixelFormat"))
 
     @pixel_format.setter
+    @_survives_outages
     def pixel_format(self, name: str) -> None:
         pixel_format(name)
         if name not in self.pixel_formats:
@@ -307,6 +399,7 @@ class Camera:
         self.transport.set("PixelFormat", name)
         self._refresh()
 
+    @_survives_outages
     def set_roi(self, x: int, y: int, width: int, height: int) -> None:
         """Region of interest in (binned) pixels; offsets are zeroed first so that every
         intermediate state is valid on the device."""
@@ -318,10 +411,12 @@ class Camera:
         self._set_int("roi.x", "OffsetX", x)
         self._set_int("roi.y", "OffsetY", y)
 
+    @_survives_outages
     def set_binning(self, horizontal: int, vertical: int) -> None:
         self._set_int("binning.horizontal", "BinningHorizontal", horizontal)
         self._set_int("binning.vertical", "BinningVertical", vertical)
 
+    @_survives_outages
     def set_trigger(self, mode: str) -> None:
         """``"free-run"`` or ``"software"`` (frame start on `trigger`)."""
         if mode not in ("free-run", "software"):
@@ -337,9 +432,11 @@ class Camera:
         self._state.trigger = mode
         self._refresh()
 
+    @_survives_outages
     def trigger(self) -> None:
         self.transport.execute("TriggerSoftware")
 
+    @_survives_outages
     def read_settings(self) -> Settings:
         """Every setting read back from the device now."""
         return Settings(
@@ -353,14 +450,25 @@ class Camera:
             height=int(self.transport.get("Height")),
             binning=(int(self._get_or("BinningHorizontal", 1)), int(self._get_or("BinningVertical", 1))),
             frame_rate_hz=self.frame_rate_hz,
-            trigger=self._state.trigger,
+            trigger=self._read_trigger(),
         )
+
+    def _read_trigger(self) -> str:
+        if self.transport.has("TriggerMode"):
+            return "software" if self.transport.get("TriggerMode") == "On" else "free-run"
+        return self._state.trigger
+
+    @property
+    def settings_in_force(self) -> Settings:
+        """The settings read back after the last change (what a reconnect restores)."""
+        return self._state.in_force
 
     # -- acquisition --------------------------------------------------------------------------
     @property
     def stats(self) -> AcquisitionStats:
         return self._state.stats
 
+    @_survives_outages
     def start(self) -> None:
         if not self._state.streaming:
             self._state.in_force = self.read_settings()
@@ -368,23 +476,38 @@ class Camera:
             self._state.streaming = True
 
     def stop(self) -> None:
+        """Stop acquiring. A lost device is not acquiring either, and a reconnect leaves it stopped."""
         if self._state.streaming:
             self._state.streaming = False
-            self.transport.stop()
+            try:
+                self.transport.stop()
+            except DeviceLost:
+                pass
 
     def acquire(self, n: int) -> list[Frame]:
-        """Acquire ``n`` complete frames (starting and stopping the stream if it was idle)."""
-        return list(self.frames(n))
+        """Acquire ``n`` complete frames (starting and stopping the stream if it was idle). After a
+        reconnect the acquisition starts over, so all ``n`` frames come from one connection."""
+        was_streaming = self._state.streaming
+        try:
+            return self._acquire(n)
+        finally:
+            if not was_streaming:
+                self.stop()
 
     def frames(self, n: int) -> Iterator[Frame]:
         """``n`` complete frames, one at a time (memory of one frame), starting and stopping the stream if it was
-        idle."""
+        idle. A reconnect in between resumes the stream (`stats.reconnects` tells the caller)."""
         was_streaming = self._state.streaming
         try:
             yield from self.stream(n)
         finally:
             if not was_streaming:
                 self.stop()
+
+    @_survives_outages
+    def _acquire(self, n: int) -> list[Frame]:
+        self.start()
+        return [self._next_frame() for _ in range(n)]
 
     def stream(self, n: int | None = None) -> Iterator[Frame]:
         """Yield complete frames (forever when ``n`` is None) while the stream runs."""
@@ -394,12 +517,11 @@ class Camera:
             yield self._next_frame()
             count += 1
 
+    @_survives_outages
     def _next_frame(self) -> Frame:
         in_row = 0
         while True:
             raw = self._fetch_one()
-            if raw is None:
-                continue
             if raw.complete:
                 self._state.stats.delivered += 1
                 return self._decode(raw)
@@ -408,42 +530,49 @@ class Camera:
             if in_row > self.policy.max_discarded_in_row:
                 raise DeviceError(f"{self.info.device_id}: {in_row} incomplete frames in a row")
 
-    def _fetch_one(self) -> RawFrame | None:
-        """One buffer, or None when the device had to be reconnected."""
+    def _fetch_one(self) -> RawFrame:
         if self._state.trigger == "software":
-            self.trigger()
+            self.transport.execute("TriggerSoftware")
         try:
             return self.transport.fetch(self.policy.timeout_s)
         except FrameTimeout as exc:
             raise DeviceError(f"{self.info.device_id}: acquisition timeout ({self.policy.timeout_s * 1e3:.0f} ms): {exc}") from exc
-        except DeviceLost:
-            self._reconnect()
-            return None
 
     def _decode(self, raw: RawFrame) -> Frame:
         fmt = pixel_format(raw.pixel_format)
         image = unpack(raw.data, fmt, raw.width, raw.height)
         return Frame(raw.frame_id, raw.timestamp_ns, image, fmt.name, self._state.in_force)
 
-    def _reconnect(self) -> None:
-        wanted = self._state.in_force
-        last: Exception | None = None
-        for attempt in range(self.policy.reconnect_attempts):
-            time.sleep(self.policy.reconnect_delay_s * 2**attempt)
+    # -- outages ------------------------------------------------------------------------------
+    def _reconnect(self, lost: DeviceLost) -> None:
+        """Reconnect with back-off within the policy's bounds, restore and verify the settings,
+        resume acquisition if it was running; else one `DeviceError`."""
+        policy = self.policy
+        wanted, streaming = self._state.in_force, self._state.streaming
+        self._state.streaming = False
+        noticed = time.monotonic()
+        last: Exception = lost
+        attempts = 0
+        while attempts < policy.reconnect_attempts and time.monotonic() - noticed < policy.outage_limit_s:
+            time.sleep(min(policy.backoff_s(attempts), max(policy.outage_limit_s - (time.monotonic() - noticed), 0.0)))
+            attempts += 1
             try:
                 self.transport.reconnect()
                 self._restore(wanted)
+                if streaming:
+                    self.start()
                 self._state.stats.reconnects += 1
                 return
             except DeviceError as exc:
                 last = exc
-        self._state.streaming = False
         raise DeviceError(
-            f"{self.info.device_id}: device lost mid-stream; {self.policy.reconnect_attempts} reconnect attempts failed ({last})"
+            f"{self.info.device_id}: device lost ({lost}); not back after {attempts} reconnect attempts over "
+            f"{time.monotonic() - noticed:.1f} s (limits: {policy.reconnect_attempts} attempts, "
+            f"{policy.outage_limit_s:g} s; last: {last})"
         )
 
     def _restore(self, wanted: Settings) -> None:
-        self._state.streaming = False
+        """Apply ``wanted`` to a freshly reconnected device and verify every setting by read-back."""
         self.auto_off()
         self.pixel_format = wanted.pixel_format
         if self.transport.has("BinningHorizontal"):
@@ -452,5 +581,9 @@ class Camera:
         for key, value in (("exposure_us", wanted.exposure_us), ("gain_db", wanted.gain_db), ("black_level", wanted.black_level)):
             if value is not None:
                 setattr(self, key, value)
+        if self._state.frame_rate_set and wanted.frame_rate_hz is not None:
+            self.frame_rate_hz = wanted.frame_rate_hz
         self.set_trigger(wanted.trigger)
-        self.start()
+        problems = wanted.disagreements(self.read_settings()) + self._auto_modes_left_on()
+        if problems:
+            raise DeviceError(f"{self.info.device_id}: settings not restored after reconnecting: {'; '.join(problems)}")

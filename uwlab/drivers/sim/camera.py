@@ -263,13 +263,18 @@ class SimSensor:
 @dataclass(frozen=True)
 class SimFaults:
     """Fault injection: every ``incomplete_every``-th frame arrives incomplete; after
-    ``timeout_after`` frames no frame arrives any more; after ``lost_after`` frames the device
-    disappears and its first ``failed_reconnects`` reconnect attempts fail."""
+    ``timeout_after`` frames no frame arrives any more; after ``lost_after`` frames, or at the
+    ``lost_at_operation``-th device operation (register read or write, command, acquisition
+    start, frame fetch; counted from 1 from the transport's creation), the device disappears for ``outage_s``
+    seconds and its first ``failed_reconnects`` reconnect attempts fail. A device that comes back
+    has power-cycled: every register holds its power-on value. Each loss happens once."""
 
     incomplete_every: int = 0
     timeout_after: int | None = None
     lost_after: int | None = None
     failed_reconnects: int = 0
+    lost_at_operation: int | None = None
+    outage_s: float = 0.0
 
 
 @dataclass
@@ -407,20 +412,41 @@ class SimTransport:
         self.sensor = sensor
         self.device_id = device_id
         self.faults = faults or SimFaults()
-        self.nodes = SimNodeMap(sensor.truth, serial=f"SIM{zlib.crc32(device_id.encode()) % 10000:04d}")
+        self.nodes = self._power_on()
         self._clock_ns = clock_ns
         self._streaming = False
         self._lost = False
+        self._back_at = 0.0
         self._closed = False
         self._reconnect_failures = 0
+        self._operations = 0
         self._frame_id = 0
         self._produced = 0
         self._next_ts = 0
         self._triggers = 0
 
+    def _power_on(self) -> SimNodeMap:
+        return SimNodeMap(self.sensor.truth, serial=f"SIM{zlib.crc32(self.device_id.encode()) % 10000:04d}")
+
+    @property
+    def operations(self) -> int:
+        """Device operations so far (what ``SimFaults.lost_at_operation`` counts)."""
+        return self._operations
+
+    def cut(self, outage_s: float, failed_reconnects: int = 0) -> None:
+        """Make the device disappear now for ``outage_s`` seconds (fault campaigns; any thread)."""
+        self._back_at = time.monotonic() + outage_s
+        self._reconnect_failures = failed_reconnects
+        self._streaming = False
+        self._lost = True
+
     def _alive(self) -> None:
         if self._closed:
             raise DeviceError(f"{self.device_id}: camera is closed")
+        self._operations += 1
+        if self.faults.lost_at_operation is not None and self._operations >= self.faults.lost_at_operation:
+            self.faults = replace(self.faults, lost_at_operation=None)
+            self.cut(self.faults.outage_s, self.faults.failed_reconnects)
         if self._lost:
             raise DeviceLost(f"{self.device_id}: device not responding")
 
@@ -466,8 +492,8 @@ class SimTransport:
         self._alive()
         faults = self.faults
         if faults.lost_after is not None and self._produced >= faults.lost_after:
-            self._lost = True
-            self._reconnect_failures = faults.failed_reconnects
+            self.faults = replace(faults, lost_after=None)
+            self.cut(faults.outage_s, faults.failed_reconnects)
             raise DeviceLost(f"{self.device_id}: device not responding")
         if not self._streaming or (faults.timeout_after is not None and self._produced >= faults.timeout_after):
             raise FrameTimeout(f"{self.device_id}: no frame within {timeout_s:g} s")
@@ -493,12 +519,18 @@ class SimTransport:
         return RawFrame(self._frame_id, ts, cfg.width, cfg.height, cfg.pixel_format, data, complete)
 
     def reconnect(self) -> None:
-        if self._reconnect_failures > 0:
-            self._reconnect_failures -= 1
-            raise DeviceError(f"{self.device_id}: no answer")
+        if self._closed:
+            raise DeviceError(f"{self.device_id}: camera is closed")
+        if not self._lost:
+            self._streaming = False
+            return
+        if time.monotonic() < self._back_at or self._reconnect_failures > 0:
+            self._reconnect_failures = max(self._reconnect_failures - 1, 0)
+            raise DeviceLost(f"{self.device_id}: no answer")
+        self.nodes = self._power_on()
         self._lost = False
         self._streaming = False
-        self.faults = replace(self.faults, lost_after=None)
+        self._triggers = 0
 
     def close(self) -> None:
         self._streaming = False

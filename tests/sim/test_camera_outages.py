@@ -1,0 +1,117 @@
+"""Camera outages for real: the GigE Vision camera server killed and restarted on its address, or frozen
+(SIGSTOP/SIGCONT), while Aravis drives it over loopback. The server restarts at its power-on registers, so
+a camera that only reconnected (without restoring its settings) would deliver frames of the wrong exposure."""
+from __future__ import annotations
+
+import subprocess
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from uwlab.drivers.camera import Policy, open_camera
+from uwlab.drivers.sim.camera import SensorConfig, sensor_from_rig
+from uwlab.errors import DeviceError
+from tests.sim.gige_server import Server
+
+OUTAGE_S = 10.0
+POLICY = Policy(timeout_s=2.0, reconnect_delay_s=0.2, reconnect_max_delay_s=2.0, outage_limit_s=30.0)
+ROI = (600, 500, 128, 64)
+EXPOSURE_US, GAIN_DB = 300.0, 6.0
+
+
+@pytest.fixture(scope="module")
+def truth_mean_dn():
+    mean_dn, _, _ = sensor_from_rig(None, seed=0).expected_dn(SensorConfig(EXPOSURE_US, GAIN_DB, 0.0, "Mono12p", *ROI))
+    return float(mean_dn.mean())
+
+
+def configure(cam) -> None:
+    cam.pixel_format = "Mono12p"
+    cam.set_roi(*ROI)
+    cam.exposure_us, cam.gain_db = EXPOSURE_US, GAIN_DB
+
+
+def register(address: str, name: str) -> str:
+    """A register read by another program (arv-tool), as the restarted device holds it."""
+    out = subprocess.run(["arv-tool-0.8", "-a", address, "control", name], capture_output=True, text=True, timeout=60)
+    return out.stdout.split(" min:")[0].strip()
+
+
+def check_frames(cam, frames, truth_mean_dn) -> None:
+    assert len(frames) == 3 and all(f.settings.exposure_us == EXPOSURE_US for f in frames)
+    assert np.mean([f.image.mean() for f in frames]) == pytest.approx(truth_mean_dn, rel=0.02)
+    settings = cam.read_settings()
+    assert (settings.exposure_us, settings.gain_db, settings.pixel_format) == (EXPOSURE_US, GAIN_DB, "Mono12p")
+    assert (settings.offset_x, settings.offset_y, settings.width, settings.height) == ROI
+
+
+def test_a_10_s_server_restart_mid_stream_is_ridden_out_with_settings_restored(truth_mean_dn):
+    servers = [Server()]
+    try:
+        with open_camera("aravis", servers[0].address, policy=POLICY) as cam:
+            configure(cam)
+            assert len(cam.acquire(2)) == 2
+            cam.start()
+            servers[0].kill()
+            restart = threading.Timer(OUTAGE_S, lambda: servers.append(servers[0].restarted()))
+            restart.start()
+            started = time.monotonic()
+            frames = cam.acquire(3)
+            assert time.monotonic() - started >= OUTAGE_S and cam.stats.reconnects == 1
+            check_frames(cam, frames, truth_mean_dn)
+            assert register(servers[-1].address, "ExposureTime") == f"ExposureTime = {EXPOSURE_US:g}"
+            restart.join()
+    finally:
+        for server in servers:
+            server.stop()
+
+
+def test_a_restart_noticed_at_a_register_write_is_ridden_out(truth_mean_dn):
+    servers = [Server()]
+    try:
+        with open_camera("aravis", servers[0].address, policy=POLICY) as cam:
+            configure(cam)
+            servers[0].kill()
+            servers.append(servers[0].restarted())
+            cam.gain_db = GAIN_DB
+            assert cam.stats.reconnects == 1
+            check_frames(cam, cam.acquire(3), truth_mean_dn)
+    finally:
+        for server in servers:
+            server.stop()
+
+
+def test_a_10_s_freeze_is_ridden_out_at_acquisition_start(truth_mean_dn):
+    server = Server()
+    try:
+        with open_camera("aravis", server.address, policy=POLICY) as cam:
+            configure(cam)
+            server.freeze()
+            thaw = threading.Timer(OUTAGE_S, server.thaw)
+            thaw.start()
+            started = time.monotonic()
+            frames = cam.acquire(3)
+            assert time.monotonic() - started >= OUTAGE_S and cam.stats.reconnects == 1
+            check_frames(cam, frames, truth_mean_dn)
+            thaw.join()
+    finally:
+        server.stop()
+
+
+def test_an_outage_past_the_limit_is_one_clear_error():
+    server = Server()
+    try:
+        with open_camera("aravis", server.address, policy=Policy(timeout_s=1.0, outage_limit_s=4.0)) as cam:
+            configure(cam)
+            server.freeze()
+            started = time.monotonic()
+            with pytest.raises(DeviceError) as info:
+                cam.acquire(1)
+            elapsed = time.monotonic() - started
+        message = str(info.value)
+        assert "device lost" in message and "limits: 12 attempts, 4 s" in message and "\n" not in message
+        assert 4.0 <= elapsed < 15.0
+    finally:
+        server.stop()
