@@ -1,11 +1,13 @@
 """harvesters backend, for real, against the GenTL producer ``viky.cti`` shipped in the genicam wheel."""
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import genicam
 import numpy as np
 import pytest
+from genicam import gentl
 
 from uwlab.drivers.camera import BackendUnavailable, Policy, discover, open_camera
 from uwlab.drivers.camera.harvesters_backend import cti_files
@@ -72,3 +74,57 @@ def test_unsupported_pixel_format_is_reported():
         assert cam.pixel_format == "RGBa8"
         with pytest.raises(ConfigError, match="pixel_format.*RGBa8.*unsupported"):
             cam.acquire(1)
+
+
+# -- harvesters' buffer contract (try_fetch, requeue, our own deadline) ---------------------------------------
+# viky always delivers complete buffers. To make the real producer's buffers incomplete, the one GenTL call
+# that reports completeness, `genicam.gentl.Buffer.is_complete`, is replaced: harvesters' own try_fetch then
+# discards and re-queues those buffers and emits INCOMPLETE_BUFFER, exactly as with a lossy link.
+
+def viky_at(frame_rate_hz: float, policy: Policy):
+    cam = open_camera("harvesters", "VikyTL_DEV_green", cti=[VIKY], policy=policy)
+    cam.pixel_format = "Mono8"
+    cam.set_roi(0, 0, 160, 120)
+    cam.frame_rate_hz = frame_rate_hz
+    return cam
+
+
+def test_incomplete_buffers_are_discarded_counted_and_requeued(monkeypatch):
+    monkeypatch.setattr(gentl.Buffer, "is_complete", lambda buffer: buffer.frame_id % 3 != 0)
+    with viky_at(200.0, Policy(timeout_s=5.0)) as cam:
+        frames = cam.acquire(12)
+        assert all(f.frame_id % 3 for f in frames) and len({f.frame_id for f in frames}) == 12
+        assert cam.stats.discarded == frames[-1].frame_id // 3 - (frames[0].frame_id - 1) // 3
+        assert cam.transport.incomplete.count == cam.stats.discarded
+        assert len(cam.acquire(12)) == 12  # the buffers went back to the pool: the stream did not run dry
+
+
+def test_a_link_delivering_only_incomplete_frames_fails_on_the_discard_limit(monkeypatch):
+    monkeypatch.setattr(gentl.Buffer, "is_complete", lambda buffer: False)
+    with viky_at(200.0, Policy(timeout_s=30.0, max_discarded_in_row=20)) as cam:
+        started = time.monotonic()
+        with pytest.raises(DeviceError, match="21 incomplete frames in a row"):
+            cam.acquire(1)
+        assert cam.stats.discarded == 21 and cam.stats.delivered == 0 and time.monotonic() - started < 5.0
+
+
+def test_a_link_delivering_only_incomplete_frames_times_out(monkeypatch):
+    monkeypatch.setattr(gentl.Buffer, "is_complete", lambda buffer: False)
+    with viky_at(100.0, Policy(timeout_s=1.0, max_discarded_in_row=10**6)) as cam:
+        started = time.monotonic()
+        with pytest.raises(DeviceError, match=r"acquisition timeout \(1000 ms, \d+ incomplete frames discarded\)"):
+            cam.acquire(1)
+        assert 1.0 <= time.monotonic() - started < 2.0 and cam.stats.discarded >= 50
+
+
+def test_a_silent_stream_times_out_on_our_deadline():
+    """The real producer, told to stop (AcquisitionStop on the device) while harvesters still streams."""
+    with viky_at(100.0, Policy(timeout_s=0.5)) as cam:
+        assert len(cam.acquire(2)) == 2
+        cam.start()
+        cam.transport.execute("AcquisitionStop")
+        started = time.monotonic()
+        with pytest.raises(DeviceError, match=r"acquisition timeout \(500 ms\)"):
+            for _ in range(10):  # buffers filled before the stop are still delivered, then silence
+                cam.acquire(1)
+        assert time.monotonic() - started < 10 * 0.5 + 1.0

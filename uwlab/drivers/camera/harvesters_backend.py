@@ -5,6 +5,14 @@ Producers come from the ``cti`` option (paths to ``.cti`` files or folders) or f
 GenTL standard (GenTL 1.5, section "Discovery") specifies. Device information the remote node
 map lacks (e.g. the Viky test producer has no ``DeviceVendorName``) comes from the GenTL device
 info. When a producer does not time-stamp buffers, host time is used (``CLOCK_REALTIME``).
+
+Buffers follow harvesters' non-blocking contract (``ImageAcquirer.try_fetch``): every call waits
+at most the time left before our own deadline and returns a complete buffer or None. harvesters
+re-queues an incomplete buffer itself, emits ``Events.INCOMPLETE_BUFFER`` and returns None; a
+callback counts those events, so each one becomes an incomplete `RawFrame` that `Camera`
+counts and discards. Every buffer we receive is queued back (``with buffer``). harvesters'
+blocking ``fetch`` is not used: it silently re-queues incomplete buffers and restarts its timeout,
+so a link delivering only incomplete frames would block it forever.
 """
 from __future__ import annotations
 
@@ -19,11 +27,14 @@ from uwlab.errors import ConfigError, DeviceError
 try:
     from genicam import gentl
     from genicam import genapi
-    from harvesters.core import Harvester
+    from harvesters.core import Callback, Harvester, ImageAcquirer
 except ImportError as exc:  # the caller reports the backend as unavailable
     raise ImportError(f"harvesters/genicam not importable: {exc}") from exc
 
 ENV_VAR = "GENICAM_GENTL64_PATH"
+POLL_S = 0.05
+LOST_ERRORS = (gentl.IoException, gentl.InvalidHandleException, gentl.NotInitializedException, gentl.ClosedException,
+               genapi.TimeoutException)
 
 
 def cti_files(cti: list[str] | tuple[str, ...] | None = None) -> list[Path]:
@@ -77,6 +88,16 @@ def open_transport(device_id: str | None = None, cti: list[str] | None = None, *
     return HarvestersTransport(h, device_id or ids[0], cti)
 
 
+class IncompleteBuffers(Callback):
+    """Counts harvesters' ``INCOMPLETE_BUFFER`` events (buffers it discarded and re-queued)."""
+
+    def __init__(self) -> None:
+        self.count = 0
+
+    def emit(self, context: object = None) -> None:
+        self.count += 1
+
+
 class HarvestersTransport:
     """`Transport` over one harvesters `ImageAcquirer`."""
 
@@ -97,6 +118,8 @@ class HarvestersTransport:
         self._tl_info = {"DeviceVendorName": _info_str(info, "vendor"), "DeviceModelName": _info_str(info, "model"),
                          "DeviceSerialNumber": _info_str(info, "serial_number"), "DeviceVersion": _info_str(info, "version")}
         self._nm = self._ia.remote_device.node_map
+        self.incomplete = IncompleteBuffers()
+        self._ia.add_callback(ImageAcquirer.Events.INCOMPLETE_BUFFER, self.incomplete)
 
     def _node(self, name: str) -> Any:
         return self._nm.get_node(name)
@@ -111,6 +134,8 @@ class HarvestersTransport:
             return self._tl_info[name]
         try:
             return self._node(name).value
+        except LOST_ERRORS as exc:
+            raise DeviceLost(f"harvesters: {self.device_id}: cannot read {name}: {exc}") from exc
         except genapi.GenericException as exc:
             raise DeviceError(f"harvesters: cannot read {name}: {exc}") from exc
 
@@ -119,6 +144,8 @@ class HarvestersTransport:
             self._node(name).value = value
         except (genapi.OutOfRangeException, genapi.InvalidArgumentException) as exc:
             raise ConfigError(name, value, str(exc).split(":")[0]) from exc
+        except LOST_ERRORS as exc:
+            raise DeviceLost(f"harvesters: {self.device_id}: cannot write {name}={value!r}: {exc}") from exc
         except genapi.GenericException as exc:
             raise DeviceError(f"harvesters: cannot write {name}={value!r}: {exc}") from exc
 
@@ -146,13 +173,20 @@ class HarvestersTransport:
             self._ia.stop()
 
     def fetch(self, timeout_s: float) -> RawFrame:
-        try:
-            with self._ia.fetch(timeout=timeout_s) as buffer:
-                return self._raw(buffer)
-        except gentl.TimeoutException as exc:
-            raise FrameTimeout(f"harvesters: no buffer within {timeout_s:g} s") from exc
-        except (gentl.IoException, gentl.InvalidHandleException, gentl.NotInitializedException) as exc:
-            raise DeviceLost(f"harvesters: {self.device_id}: {exc}") from exc
+        """The next buffer within ``timeout_s``: complete, or an incomplete one harvesters discarded."""
+        deadline = time.monotonic() + timeout_s
+        discarded = self.incomplete.count
+        while (remaining := deadline - time.monotonic()) > 0:
+            try:
+                buffer = self._ia.try_fetch(timeout=min(remaining, POLL_S))
+            except LOST_ERRORS as exc:
+                raise DeviceLost(f"harvesters: {self.device_id}: {exc}") from exc
+            if buffer is not None:
+                with buffer:
+                    return self._raw(buffer)
+            if self.incomplete.count > discarded:
+                return RawFrame(-1, time.time_ns(), 0, 0, "Mono8", b"", complete=False)
+        raise FrameTimeout(f"harvesters: no buffer within {timeout_s:g} s")
 
     def _raw(self, buffer: Any) -> RawFrame:
         module = buffer.module

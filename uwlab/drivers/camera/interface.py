@@ -519,9 +519,11 @@ class Camera:
 
     @_survives_outages
     def _next_frame(self) -> Frame:
+        """The next complete frame within ``policy.timeout_s`` (incomplete ones discarded meanwhile)."""
+        deadline = time.monotonic() + self.policy.timeout_s
         in_row = 0
         while True:
-            raw = self._fetch_one()
+            raw = self._fetch_one(deadline, in_row)
             if raw.complete:
                 self._state.stats.delivered += 1
                 return self._decode(raw)
@@ -530,13 +532,18 @@ class Camera:
             if in_row > self.policy.max_discarded_in_row:
                 raise DeviceError(f"{self.info.device_id}: {in_row} incomplete frames in a row")
 
-    def _fetch_one(self) -> RawFrame:
+    def _fetch_one(self, deadline: float, discarded: int) -> RawFrame:
+        timeout = f"acquisition timeout ({self.policy.timeout_s * 1e3:.0f} ms"
+        timeout += f", {discarded} incomplete frames discarded)" if discarded else ")"
+        remaining = deadline - time.monotonic()
+        if remaining <= 0:
+            raise DeviceError(f"{self.info.device_id}: {timeout}: no complete frame")
         if self._state.trigger == "software":
             self.transport.execute("TriggerSoftware")
         try:
-            return self.transport.fetch(self.policy.timeout_s)
+            return self.transport.fetch(remaining)
         except FrameTimeout as exc:
-            raise DeviceError(f"{self.info.device_id}: acquisition timeout ({self.policy.timeout_s * 1e3:.0f} ms): {exc}") from exc
+            raise DeviceError(f"{self.info.device_id}: {timeout}: {exc}") from exc
 
     def _decode(self, raw: RawFrame) -> Frame:
         fmt = pixel_format(raw.pixel_format)
