@@ -87,7 +87,11 @@ POINT_SCHEMA = pa.schema([
     ("dark_spatial_var_pixel_dn2", pa.float64()), ("mean_diff_dn", pa.float64()),
     ("saturated_fraction", pa.float64()), ("saturated", pa.bool_()),
     ("clip_level_dn", pa.float64()), ("clip_source", pa.string()),
-    ("exposure_us_readback", pa.float64()), ("gain_db_readback", pa.float64()), ("temperature_c", pa.float64()),
+    ("exposure_us_readback", pa.float64()), ("gain_db_readback", pa.float64()),
+    ("light_on_readback", pa.bool_()), ("light_level_readback", pa.float64()),
+    ("spectrometer_integration_ms_readback", pa.float64()), ("spectrometer_averaging_readback", pa.int64()),
+    ("readback_t_start_ns", pa.int64()), ("readback_t_end_ns", pa.int64()), ("attempts", pa.int64()),
+    ("temperature_c", pa.float64()),
     ("irradiance_w_m2", pa.float64()), ("irradiance_position", pa.string()),
     ("t_start_ns", pa.int64()), ("t_end_ns", pa.int64()), ("frame_ids", pa.list_(pa.int64())),
 ])

@@ -112,6 +112,12 @@ class FrameRecorder:
         self.counts[role] = number + 1
         return path
 
+    def forget(self, role: str) -> None:
+        """Drop the frames of ``role`` written so far (a measurement attempt that will not be recorded)."""
+        for path in self.staging.glob(f"{role}-*.tiff"):
+            path.unlink()
+        self.counts[role] = 0
+
     def link_darks(self, block: FrameRecorder) -> None:
         """Give this point the dark frames of a sweep's dark block (hard links, else copies)."""
         for source in sorted(block.staging.glob("dark-*.tiff")):

@@ -6,7 +6,8 @@ Schema (docs/sweeps.md has a commented example). Top level:
   simulated rig's ``[sim]``) or an EMVA 1288 bench (a ``[bench]`` table, `uwlab.model.bench`), relative to the plan
   file; ``[geometry]``: design sections overriding the rig for
   every sweep (``[geometry.light] distance_m = 1.2``);
-- ``[camera]``: ``backend``, ``id``, ``pixel_format``, ``window`` = [x, y, w, h] (device ROI), ``timeout_s``;
+- ``[camera]``: ``backend``, ``id``, ``pixel_format``, ``window`` = [x, y, w, h] (device ROI), ``timeout_s``,
+  ``reconnect_attempts`` and ``outage_limit_s`` (the reconnect bounds of `uwlab.drivers.camera.Policy`);
 - ``[instruments]``: ``light_port``, ``spectrometer_port``, ``protocol`` (real hardware; ``--sim`` replaces them);
 - ``[defaults]``: any sweep key, applied to every sweep unless the sweep sets it.
 
@@ -40,7 +41,7 @@ import numpy as np
 from pydantic import AfterValidator, BeforeValidator, ConfigDict, Field, StrictBool, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
-from uwlab.drivers.camera import BACKENDS
+from uwlab.drivers.camera import BACKENDS, Policy
 from uwlab.drivers.camera.pixels import PIXEL_FORMATS
 from uwlab.drivers.serial import PROTOCOLS
 from uwlab.drivers.serial.base import Averaging, IntegrationMs
@@ -63,6 +64,8 @@ MAX_POINTS = 10000
 OffsetPx = quantity(0, 100000, "px", hint="", integer=True)
 SizePx = quantity(2, 100000, "px", hint="", integer=True)
 TimeoutS = quantity(0.0, 600.0, "s", lo_open=True)
+OutageS = quantity(0.0, 86400.0, "s", lo_open=True)
+Attempts = quantity(0, 1000, "attempts", hint="", integer=True)
 DigitalNumber = quantity(0.0, 2.0**32, "DN", hint="")
 PointCount = quantity(1, MAX_POINTS, "points", hint="", integer=True)
 
@@ -94,6 +97,13 @@ class CameraSpec(Schema):
     pixel_format: Literal[tuple(PIXEL_FORMATS)] | None = Field(None, description="pixel format (default: the camera's)")
     window: Rectangle | None = Field(None, description="device region of interest [x, y, width, height] [px]")
     timeout_s: TimeoutS = Field(5.0, description="per-frame acquisition timeout [s]")
+    reconnect_attempts: Attempts = Field(Policy.reconnect_attempts, description="reconnect attempts per outage")
+    outage_limit_s: OutageS = Field(Policy.outage_limit_s, description="longest camera outage ridden out [s]")
+
+    def policy(self) -> Policy:
+        """The camera's fault-handling bounds (docs/cameras.md, "Reconnect policy")."""
+        return Policy(timeout_s=self.timeout_s, reconnect_attempts=self.reconnect_attempts,
+                      outage_limit_s=self.outage_limit_s)
 
 
 class Instruments(Schema):

@@ -37,7 +37,7 @@ from typing import Protocol
 
 import numpy as np
 
-from uwlab.drivers.camera import Camera, Policy, open_camera
+from uwlab.drivers.camera import Camera, open_camera
 from uwlab.drivers.camera.pixels import pixel_format
 from uwlab.drivers.serial import Light, Spectrometer, open_light, open_spectrometer
 from uwlab.drivers.sim.camera import SimFaults, SimSensor, SimTruth, flat_rate_map
@@ -105,7 +105,7 @@ class HardwareRig:
                 device.close()
 
     def open_camera(self, sweep: SweepSpec) -> Camera:
-        return open_camera(sweep.camera.backend, sweep.camera.device_id, policy=Policy(timeout_s=sweep.camera.timeout_s))
+        return open_camera(sweep.camera.backend, sweep.camera.device_id, policy=sweep.camera.policy())
 
     def _ask(self, key: str, value: object, message: str) -> None:
         if self.confirm is None:
@@ -177,6 +177,11 @@ class SimRig:
     def rig_state_path(self) -> Path:
         return self._serial.rig_state_path
 
+    @property
+    def serial_rig(self) -> SerialRig:
+        """The serial simulators (fault campaigns kill and restart them and read their true-state logs)."""
+        return self._serial
+
     def open_camera(self, sweep: SweepSpec) -> Camera:
         """The sweep's simulated camera: its sensor profile and lens, lit by the shared light state."""
         scene = load_scene(self.rig_path, RigState(self.rig_state_path))
@@ -185,7 +190,7 @@ class SimRig:
         self._scene, self._sweep = scene, sweep
         self._sensor = SimSensor(truth, self._rate_map(), lambda: scene.state.light.effective_fraction,
                                  seed=scene.sim.seed + self.seed)
-        return open_camera("sim", "sim0", policy=Policy(timeout_s=sweep.camera.timeout_s), sensor=self._sensor,
+        return open_camera("sim", "sim0", policy=sweep.camera.policy(), sensor=self._sensor,
                            faults=self.faults)
 
     def _rate_map(self):

@@ -14,11 +14,20 @@ one rule of `uwlab.experiments.saturation`; the row is built by `uwlab.experimen
 With ``save_frames``, every frame the point was computed from, bright and dark (a shared dark block linked into
 each point), is kept as TIFF with its settings (`uwlab.experiments.dataset_frames`), committed with the point.
 
+Read-backs (`uwlab.experiments.acquisition.readbacks`): a point's lit frames and spectrometer readings are one
+verified window — the light's output and level and the camera's settings are read back before and after it, and
+no instrument reset or reopen and no camera reconnect may happen within it; otherwise the point is measured
+again (at most 3 times, then one `DeviceError`; the frames of a void attempt are not kept). Dark frames and the
+spectrometer's dark references are verified windows of their own, with the light read back off. Each row records
+the read-backs it used (``light_on_readback``, ``light_level_readback``, ``exposure_us_readback``,
+``gain_db_readback``, ``spectrometer_integration_ms_readback``, ``spectrometer_averaging_readback``), the window
+(``readback_t_start_ns``, ``readback_t_end_ns``) and ``attempts``.
+
 Resume (`open_for_resume`): the dataset's lock is taken, it must pass its check
 (`uwlab.experiments.dataset_check`) and come from the same plan; points already in it are skipped. Every point is
 durable before the next starts, so Ctrl-C or a crash loses at most the point in progress. A device that
-disappears is reconnected by the camera layer (settings restored); a failed write raises `DatasetWriteError`
-with the dataset intact.
+disappears is reconnected by its driver (settings restored and verified) and the point in progress is measured
+again; a failed write raises `DatasetWriteError` with the dataset intact.
 """
 from __future__ import annotations
 
@@ -32,12 +41,13 @@ import pandas as pd
 
 from uwlab.drivers.camera import Camera, Frame
 from uwlab.drivers.camera.pixels import pixel_format
-from uwlab.drivers.serial.base import AVERAGING_RANGE
+from uwlab.drivers.serial.base import AVERAGING_RANGE, LightReadback, SpectrometerReadback
 from uwlab.errors import ConfigError
 from uwlab.experiments.dataset import Dataset, FrameRecorder, point_row, spectra_frame
 from uwlab.experiments.dataset_check import check
 from uwlab.experiments.acquisition.light_calibration import measure_unsaturated
 from uwlab.experiments.acquisition.plan import Plan, Point, SweepSpec, resolved_rig
+from uwlab.experiments.acquisition.readbacks import verified
 from uwlab.experiments.acquisition.rigs import Rig
 from uwlab.experiments.acquisition.roi import Rect, check_inside
 from uwlab.experiments.acquisition.spectra import irradiance_w_m2
@@ -56,6 +66,16 @@ class Progress:
     sweep_id: str
     point_index: int
     latest: dict
+
+
+@dataclass(frozen=True)
+class Reading:
+    """One spectrometer reading at ``position`` and the settings it reads back right after it."""
+
+    position: str
+    wavelength_nm: np.ndarray
+    irradiance_w_m2_nm: np.ndarray
+    readback: SpectrometerReadback
 
 
 def _crop(image: np.ndarray, roi: Rect) -> np.ndarray:
@@ -97,7 +117,7 @@ class SweepRunner:
                 block = None
                 if sweep.dark == "block":
                     block_frames = self.dataset.dark_block_recorder(sweep.id) if sweep.save_frames else None
-                    block = self._dark(sweep, camera, roi, self._keeper(block_frames, "dark", sweep, camera, roi))
+                    block = self._dark(sweep, camera, roi, block_frames)
                 for point in todo:
                     self._record(sweep, camera, roi, point, block, block_frames)
             finally:
@@ -160,6 +180,9 @@ class SweepRunner:
         self.rig.light.set_output(on)
         self.sleep(settle_s)
 
+    def _wanted_light(self, on: bool, level: float) -> LightReadback | None:
+        return LightReadback(on, level) if self.rig.light is not None else None
+
     def _roi(self, sweep: SweepSpec, camera: Camera) -> Rect:
         image = camera.acquire(1)[0].image
         height, width = image.shape
@@ -169,13 +192,21 @@ class SweepRunner:
             return check_inside(f"sweep.{sweep.id}.roi", self.rig.board_roi(sweep, camera, image), image.shape)
         return check_inside(f"sweep.{sweep.id}.roi", sweep.roi, image.shape)
 
-    def _dark(self, sweep: SweepSpec, camera: Camera, roi: Rect, keep: Callable[[Frame], None] | None = None
-              ) -> StackStatistics:
-        """Statistics of dark frames (light off), leaving the light as the sweep wants it; ``keep`` sees each
-        frame."""
-        self._set_light(False, sweep.light_level, sweep.settle_s)
-        stats = self._stack(sweep, camera, roi, sweep.dark_frames, keep)[0]
-        self._set_light(sweep.kind != "dark", sweep.light_level, 0.0)
+    def _dark(self, sweep: SweepSpec, camera: Camera, roi: Rect, recorder: FrameRecorder | None = None,
+              point: Point | None = None) -> StackStatistics:
+        """Statistics of dark frames (light read back off before and after), leaving the light as the sweep
+        wants it; with a ``recorder``, the frames of the recorded attempt are kept."""
+        level = sweep.light_level
+
+        def stack() -> StackStatistics:
+            if recorder is not None:
+                recorder.forget("dark")
+            return self._stack(sweep, camera, roi, sweep.dark_frames,
+                               self._keeper(recorder, "dark", sweep, camera, roi, point))[0]
+
+        stats, _ = verified(f"sweep {sweep.id}: dark frames", self.rig, camera, self._wanted_light(False, level),
+                            lambda: self._set_light(False, level, sweep.settle_s), stack)
+        self._set_light(sweep.kind != "dark", level, 0.0)
         return stats
 
     def _stack(self, sweep: SweepSpec, camera: Camera, roi: Rect, count: int,
@@ -206,24 +237,36 @@ class SweepRunner:
         return clip_level(frame.pixel_format, native_bits=sensor.bit_depth, profile_dn=profile_dn, image=image)
 
     def _apply(self, sweep: SweepSpec, camera: Camera, point: Point) -> None:
+        """Every setting the point depends on: camera exposure and gain, aperture, light output and level."""
         camera.exposure_us = point.exposure_us
         camera.gain_db = point.gain_db
         if sweep.kind == "aperture":
             self.rig.set_aperture(sweep, point.f_number)
-        if sweep.kind == "light-level":
-            self.rig.light.set_level(point.light_level)
+        self._set_light(point.light_on, point.light_level, 0.0)
         self.sleep(sweep.settle_s)
+
+    def _lit(self, sweep: SweepSpec, camera: Camera, roi: Rect, point: Point,
+             recorder: FrameRecorder | None) -> tuple[StackStatistics, ClipLevel, list[Frame], list[Reading]]:
+        """The point's own frames and spectrometer readings (the verified window)."""
+        if recorder is not None:
+            recorder.forget("bright")
+        bright, clip, frames = self._stack(sweep, camera, roi, sweep.frames_per_point,
+                                           self._keeper(recorder, "bright", sweep, camera, roi, point))
+        return bright, clip, frames, [self._reading(position) for position in sweep.spectrometer]
 
     def _measure(self, sweep: SweepSpec, camera: Camera, roi: Rect, point: Point, block: StackStatistics | None,
                  recorder: FrameRecorder | None) -> tuple[dict, pd.DataFrame]:
         t_start = time.time_ns()
-        self._apply(sweep, camera, point)
-        bright, clip, frames = self._stack(sweep, camera, roi, sweep.frames_per_point,
-                                           self._keeper(recorder, "bright", sweep, camera, roi, point))
-        readings = [self._spectrum(sweep, position) for position in sweep.spectrometer]
+        (bright, clip, frames, raw), window = verified(
+            f"sweep {sweep.id} point {point.index}", self.rig, camera,
+            self._wanted_light(point.light_on, point.light_level),
+            lambda: self._apply(sweep, camera, point), lambda: self._lit(sweep, camera, roi, point, recorder))
+        for reading in reversed(raw):  # the spectrometer is at the last position: measure its darks first
+            self._spectrometer_dark(sweep, camera, reading.position, reading.readback.integration_ms)
+        readings = [self._minus_dark(sweep, camera, reading) for reading in raw]
         dark = block
         if sweep.dark == "point":
-            dark = self._dark(sweep, camera, roi, self._keeper(recorder, "dark", sweep, camera, roi, point))
+            dark = self._dark(sweep, camera, roi, recorder, point)
         settings = frames[-1].settings
         lens = replace(sweep.lens, f_number=point.f_number)
         row = point_row(
@@ -237,6 +280,11 @@ class SweepRunner:
             bit_depth=pixel_format(settings.pixel_format).bits,
             roi_x=roi[0], roi_y=roi[1], roi_w=roi[2], roi_h=roi[3],
             exposure_us_readback=settings.exposure_us, gain_db_readback=settings.gain_db,
+            light_on_readback=window.light.on if window.light else None,
+            light_level_readback=window.light.level if window.light else None,
+            spectrometer_integration_ms_readback=raw[0].readback.integration_ms if raw else None,
+            spectrometer_averaging_readback=raw[0].readback.averaging if raw else None,
+            readback_t_start_ns=window.t_start_ns, readback_t_end_ns=window.t_end_ns, attempts=window.attempts,
             temperature_c=camera.temperature_c,
             irradiance_w_m2=irradiance_w_m2(readings[0][1], readings[0][2]) if readings else None,
             irradiance_position=readings[0][0] if readings else None,
@@ -244,28 +292,43 @@ class SweepRunner:
         )
         return row, spectra_frame(sweep.id, point.index, readings)
 
-    def _spectrum(self, sweep: SweepSpec, position: str) -> tuple[str, np.ndarray, np.ndarray]:
-        """A reading at `position`, minus the spectrometer's own light-off reading (see `_spectrometer_dark`)."""
+    def _reading(self, position: str) -> Reading:
+        """A spectrometer reading at ``position`` (integration halved while it saturates) and its read-back."""
         self.rig.place_spectrometer(position)
         wavelength_nm, irradiance = measure_unsaturated(self.rig.spectrometer)
-        dark_nm, dark = self._spectrometer_dark(sweep, position)
-        return position, wavelength_nm, irradiance - np.interp(wavelength_nm, dark_nm, dark)
+        return Reading(position, wavelength_nm, irradiance, self.rig.spectrometer.readback())
 
-    def _spectrometer_dark(self, sweep: SweepSpec, position: str) -> tuple[np.ndarray, np.ndarray]:
-        """What the spectrometer reports with the light off at its current integration time (its imperfectly
-        subtracted dark signal), measured once per sweep, position and integration time. It is read with
-        DARK_AVERAGING times the usual averaging (up to the instrument's limit): every reading of the sweep
-        shares its noise, which would otherwise bias the sweep's whole flux scale."""
+    def _minus_dark(self, sweep: SweepSpec, camera: Camera, reading: Reading) -> tuple[str, np.ndarray, np.ndarray]:
+        """The reading minus the spectrometer's own light-off reading (see `_spectrometer_dark`)."""
+        dark_nm, dark = self._spectrometer_dark(sweep, camera, reading.position, reading.readback.integration_ms)
+        return reading.position, reading.wavelength_nm, reading.irradiance_w_m2_nm - np.interp(
+            reading.wavelength_nm, dark_nm, dark)
+
+    def _spectrometer_dark(self, sweep: SweepSpec, camera: Camera, position: str,
+                           integration_ms: float) -> tuple[np.ndarray, np.ndarray]:
+        """What the spectrometer reports with the light off at ``integration_ms`` (its imperfectly subtracted
+        dark signal), measured once per sweep, position and integration time in a verified window (light read
+        back off). It is read with DARK_AVERAGING times the usual averaging (up to the instrument's limit): every
+        reading of the sweep shares its noise, which would otherwise bias the sweep's whole flux scale. The
+        spectrometer's integration time and averaging are left as they were."""
         spectrometer = self.rig.spectrometer
-        key = (sweep.id, position, spectrometer.integration_ms())
+        key = (sweep.id, position, integration_ms)
         if key not in self._spectrometer_darks:
-            self._set_light(False, sweep.light_level, sweep.settle_s)
-            averaging = spectrometer.averaging()
-            spectrometer.set_averaging(min(AVERAGING_RANGE[1], DARK_AVERAGING * averaging))
+            was = spectrometer.readback()
+
+            def prepare() -> None:
+                self._set_light(False, sweep.light_level, sweep.settle_s)
+                self.rig.place_spectrometer(position)
+                spectrometer.set_integration_ms(integration_ms)
+                spectrometer.set_averaging(min(AVERAGING_RANGE[1], DARK_AVERAGING * was.averaging))
+
             try:
-                self._spectrometer_darks[key] = spectrometer.read_spectrum()
+                self._spectrometer_darks[key], _ = verified(
+                    f"sweep {sweep.id}: spectrometer dark at the {position}", self.rig, camera,
+                    self._wanted_light(False, sweep.light_level), prepare, spectrometer.read_spectrum)
             finally:
-                spectrometer.set_averaging(averaging)
+                spectrometer.set_integration_ms(was.integration_ms)
+                spectrometer.set_averaging(was.averaging)
             self._set_light(sweep.kind != "dark", sweep.light_level, sweep.settle_s)
         return self._spectrometer_darks[key]
 
