@@ -8,7 +8,8 @@ Schema (docs/sweeps.md has a commented example). Top level:
   every sweep (``[geometry.light] distance_m = 1.2``);
 - ``[camera]``: ``backend``, ``id``, ``pixel_format``, ``window`` = [x, y, w, h] (device ROI), ``timeout_s``,
   ``reconnect_attempts`` and ``outage_limit_s`` (the reconnect bounds of `uwlab.drivers.camera.Policy`);
-- ``[instruments]``: ``light_port``, ``spectrometer_port``, ``protocol`` (real hardware; ``--sim`` replaces them);
+- ``[instruments]``: ``light_port``, ``spectrometer_port``, ``protocol``, ``reopen_s`` (how long a vanished port
+  may take to come back, default 5 s) (real hardware; ``--sim`` replaces them);
 - ``[defaults]``: any sweep key, applied to every sweep unless the sweep sets it.
 
 Each ``[[sweep]]``: ``id`` (unique), ``kind`` (exposure | aperture | gain | light-level | dark), ``values``
@@ -66,6 +67,7 @@ SizePx = quantity(2, 100000, "px", hint="", integer=True)
 TimeoutS = quantity(0.0, 600.0, "s", lo_open=True)
 OutageS = quantity(0.0, 86400.0, "s", lo_open=True)
 Attempts = quantity(0, 1000, "attempts", hint="", integer=True)
+ReopenS = quantity(0.0, 3600.0, "s")
 DigitalNumber = quantity(0.0, 2.0**32, "DN", hint="")
 PointCount = quantity(1, MAX_POINTS, "points", hint="", integer=True)
 
@@ -112,6 +114,7 @@ class Instruments(Schema):
     light_port: NonEmptyText | None = Field(None, description="serial port of the light controller")
     spectrometer_port: NonEmptyText | None = Field(None, description="serial port of the spectrometer")
     protocol: Literal[PROTOCOLS] = Field(PROTOCOLS[0], description="instrument protocol")
+    reopen_s: ReopenS = Field(5.0, description="how long a vanished serial port may take to come back [s]")
 
 
 class LensTable(Schema):

@@ -71,6 +71,7 @@ class Rig(Protocol):
 
 
 Confirm = Callable[[str], None]
+SIM_REOPEN_S = 30.0  # a restarted simulator is a new Python process: slower to come back than a USB adapter
 
 
 class HardwareRig:
@@ -91,9 +92,9 @@ class HardwareRig:
         ports = self.plan.instruments
         try:
             if ports.light_port is not None:
-                self.light = open_light(ports.light_port, ports.protocol)
+                self.light = open_light(ports.light_port, ports.protocol, reopen_s=ports.reopen_s)
             if ports.spectrometer_port is not None:
-                self.spectrometer = open_spectrometer(ports.spectrometer_port, ports.protocol)
+                self.spectrometer = open_spectrometer(ports.spectrometer_port, ports.protocol, reopen_s=ports.reopen_s)
         except BaseException:
             self.__exit__()
             raise
@@ -151,12 +152,13 @@ class SimRig:
         self._scene: RigScene | BenchScene | None = None
         self._sensor: SimSensor | None = None
         self._sweep: SweepSpec | None = None
+        self.camera: Camera | None = None
 
     def __enter__(self) -> SimRig:
         try:
             self._serial.start()
-            self.light = open_light(self._serial.ports["light"])
-            self.spectrometer = open_spectrometer(self._serial.ports["spectrometer"])
+            self.light = open_light(self._serial.ports["light"], reopen_s=SIM_REOPEN_S)
+            self.spectrometer = open_spectrometer(self._serial.ports["spectrometer"], reopen_s=SIM_REOPEN_S)
         except BaseException:
             self.close()
             raise
@@ -183,15 +185,16 @@ class SimRig:
         return self._serial
 
     def open_camera(self, sweep: SweepSpec) -> Camera:
-        """The sweep's simulated camera: its sensor profile and lens, lit by the shared light state."""
+        """The sweep's simulated camera: its sensor profile and lens, lit by the shared light state (kept as
+        ``camera`` while the sweep runs, for fault campaigns)."""
         scene = load_scene(self.rig_path, RigState(self.rig_state_path))
         scene.design = sweep.design
         truth = SimTruth.from_sensor_profile(scene.sensor)
         self._scene, self._sweep = scene, sweep
         self._sensor = SimSensor(truth, self._rate_map(), lambda: scene.state.light.effective_fraction,
                                  seed=scene.sim.seed + self.seed)
-        return open_camera("sim", "sim0", policy=sweep.camera.policy(), sensor=self._sensor,
-                           faults=self.faults)
+        self.camera = open_camera("sim", "sim0", policy=sweep.camera.policy(), sensor=self._sensor, faults=self.faults)
+        return self.camera
 
     def _rate_map(self):
         scene = self._scene
