@@ -194,6 +194,32 @@ class StuckExposureTransport(SimTransport):
             nodes, name, value)
 
 
+class FlappingTransport(SimTransport):
+    """A simulated camera that reconnects and takes its settings back, then is lost at the next frame (a flapping
+    link): every reconnect succeeds, no frame ever arrives."""
+
+    flap = False
+
+    def reconnect(self) -> None:
+        super().reconnect()
+        self.flap = True
+
+    def fetch(self, timeout_s: float) -> RawFrame:
+        if self.flap:
+            self.flap = False
+            self.cut(outage_s=0.0)
+        return super().fetch(timeout_s)
+
+
+def test_a_device_lost_again_after_every_reconnect_is_one_error_within_the_limits():
+    sensor = SimSensor(TRUTH, flat_rate_map(1e5), seed=0)
+    policy = Policy(timeout_s=0.1, reconnect_delay_s=0.001, reconnect_attempts=4)
+    with Camera(FlappingTransport(sensor), policy=policy) as cam:
+        cam.transport.cut(outage_s=0.0)
+        with pytest.raises(DeviceError, match="not back after 4 reconnect attempts"):
+            cam.acquire(1)
+
+
 def test_a_device_that_does_not_take_its_settings_back_is_one_clear_error():
     sensor = SimSensor(TRUTH, flat_rate_map(1e5), seed=0)
     with Camera(StuckExposureTransport(sensor), policy=Policy(timeout_s=0.1, reconnect_delay_s=0.001,

@@ -16,6 +16,7 @@ device from a plain timeout. The register cache is disabled, so every read is a 
 from __future__ import annotations
 
 import threading
+import time
 from typing import Any
 
 from uwlab.drivers.camera.interface import DeviceEntry, DeviceLost, FrameTimeout, RawFrame, unknown_device
@@ -31,6 +32,8 @@ except (ImportError, ValueError) as exc:  # the caller reports the backend as un
     raise ImportError(f"Aravis 0.8 GObject bindings not importable: {exc}") from exc
 
 N_BUFFERS = 8
+GVCP_CCP_REGISTER = 0x0A00  # GigE Vision 2.0 bootstrap: control channel privilege (bits 0-1: exclusive, control)
+SLOW_ANSWER_S = 0.5
 LOST_CODES = frozenset({Aravis.DeviceError.NOT_CONNECTED, Aravis.DeviceError.TIMEOUT, Aravis.DeviceError.NOT_FOUND,
                         Aravis.DeviceError.NOT_CONTROLLER, Aravis.DeviceError.PROTOCOL_ERROR_ACCESS_DENIED})
 REJECTED_CODES = frozenset({Aravis.DeviceError.INVALID_PARAMETER, Aravis.DeviceError.PROTOCOL_ERROR_INVALID_PARAMETER})
@@ -192,11 +195,21 @@ class AravisTransport:
                         int(buf.get_image_height()), fmt.name, buf.get_data())
 
     def _check_alive(self) -> None:
+        """After a frame timeout: `DeviceLost` if the device does not answer a register read at once (it was
+        unreachable: unplugged, frozen, rebooting) or, on GigE Vision, no longer grants us control (it restarted,
+        or dropped us after missed heartbeats; its CCP register is read, not Aravis's heartbeat view)."""
+        started = time.monotonic()
         try:
-            self._device.get_integer_feature_value("Width")
+            if isinstance(self._device, Aravis.GvDevice):
+                privilege = self._device.read_register(GVCP_CCP_REGISTER)
+            else:
+                self._device.get_integer_feature_value("Width")
         except GLib.Error as exc:
             raise DeviceLost(f"aravis: {self.device_id}: device not responding ({exc.message})") from exc
-        if isinstance(self._device, Aravis.GvDevice) and not self._device.is_controller():
+        answered_s = time.monotonic() - started
+        if answered_s > SLOW_ANSWER_S:
+            raise DeviceLost(f"aravis: {self.device_id}: device answered after {answered_s:.1f} s (unreachable)")
+        if isinstance(self._device, Aravis.GvDevice) and not (privilege & 0x3 and self._device.is_controller()):
             raise DeviceLost(f"aravis: {self.device_id}: control of the device lost (it restarted or was "
                              f"taken over)")
 

@@ -208,6 +208,15 @@ class _State:
 F = TypeVar("F", bound=Callable[..., Any])
 
 
+@dataclass
+class _Outage:
+    """One operation's outage: when the loss was first noticed and the reconnect attempts spent on it (a device
+    lost again right after a successful reconnect continues the same outage, within the same limits)."""
+
+    noticed: float
+    attempts: int = 0
+
+
 def _survives_outages(method: F) -> F:
     """Run a public operation; if the device is lost, reconnect (`Camera._reconnect`) and run it
     again from its start. Only the outermost operation does this: nested ones let `DeviceLost` pass."""
@@ -218,12 +227,14 @@ def _survives_outages(method: F) -> F:
         if state.operation_depth:
             return method(self, *args, **kwargs)
         state.operation_depth += 1
+        outage: _Outage | None = None
         try:
             while True:
                 try:
                     return method(self, *args, **kwargs)
                 except DeviceLost as lost:
-                    self._reconnect(lost)
+                    outage = outage or _Outage(time.monotonic())
+                    self._reconnect(lost, outage)
         finally:
             state.operation_depth -= 1
 
@@ -551,18 +562,17 @@ class Camera:
         return Frame(raw.frame_id, raw.timestamp_ns, image, fmt.name, self._state.in_force)
 
     # -- outages ------------------------------------------------------------------------------
-    def _reconnect(self, lost: DeviceLost) -> None:
-        """Reconnect with back-off within the policy's bounds, restore and verify the settings,
-        resume acquisition if it was running; else one `DeviceError`."""
+    def _reconnect(self, lost: DeviceLost, outage: _Outage) -> None:
+        """Reconnect with back-off within the policy's bounds (counted over the whole ``outage``), restore
+        and verify the settings, resume acquisition if it was running; else one `DeviceError`."""
         policy = self.policy
         wanted, streaming = self._state.in_force, self._state.streaming
         self._state.streaming = False
-        noticed = time.monotonic()
         last: Exception = lost
-        attempts = 0
-        while attempts < policy.reconnect_attempts and time.monotonic() - noticed < policy.outage_limit_s:
-            time.sleep(min(policy.backoff_s(attempts), max(policy.outage_limit_s - (time.monotonic() - noticed), 0.0)))
-            attempts += 1
+        while outage.attempts < policy.reconnect_attempts and time.monotonic() - outage.noticed < policy.outage_limit_s:
+            left_s = policy.outage_limit_s - (time.monotonic() - outage.noticed)
+            time.sleep(min(policy.backoff_s(outage.attempts), max(left_s, 0.0)))
+            outage.attempts += 1
             try:
                 self.transport.reconnect()
                 self._restore(wanted)
@@ -573,8 +583,8 @@ class Camera:
             except DeviceError as exc:
                 last = exc
         raise DeviceError(
-            f"{self.info.device_id}: device lost ({lost}); not back after {attempts} reconnect attempts over "
-            f"{time.monotonic() - noticed:.1f} s (limits: {policy.reconnect_attempts} attempts, "
+            f"{self.info.device_id}: device lost ({lost}); not back after {outage.attempts} reconnect attempts over "
+            f"{time.monotonic() - outage.noticed:.1f} s (limits: {policy.reconnect_attempts} attempts, "
             f"{policy.outage_limit_s:g} s; last: {last})"
         )
 

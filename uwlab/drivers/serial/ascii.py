@@ -8,8 +8,8 @@ interrupted command. A restored state that still disagrees is one `DeviceError` 
 """
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 

@@ -106,7 +106,8 @@ def wrong_points(points: pd.DataFrame, light_log: list[dict], spectrometer_log: 
         where = f"{row.sweep_id}#{row.point_index}"
         t0, t1 = int(row.readback_t_start_ns), int(row.readback_t_end_ns)
         if light_log and row.light_level is not None and not pd.isna(row.light_level):
-            if row.light_on_readback != row.light_on or abs(row.light_level_readback - row.light_level) > LEVEL_TOLERANCE:
+            level_error = abs(row.light_level_readback - row.light_level)
+            if row.light_on_readback != row.light_on or level_error > LEVEL_TOLERANCE:
                 wrong.append(f"{where}: read-back {row.light_on_readback}/{row.light_level_readback} recorded for "
                              f"{row.light_on}/{row.light_level}")
             for state in states_during(light_log, t0, t1):
