@@ -137,7 +137,8 @@ def test_reopened_port_gets_the_full_state_again_verified_by_read_back(rig, ligh
     light.transport.command("SIM:FAULT vanish")
     light.set_level(0.3)
     assert light.readback() == LightReadback(True, 0.3) and light.recoveries == recoveries + 1
-    assert received(rig, "light")[-8:] == ["LEV 0.3", "OUTP ON", "LEV 1.0", "OUTP?", "LEV?", "LEV 0.3", "OUTP?", "LEV?"]
+    assert received(rig, "light")[-9:] == ["LEV 0.3", "*IDN?", "OUTP ON", "LEV 1.0", "OUTP?", "LEV?", "LEV 0.3",
+                                           "OUTP?", "LEV?"]
 
 
 @pytest.mark.parametrize("fault", ["noreply", "garbage", "partial", "vanish", "reset"])

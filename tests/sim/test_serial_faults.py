@@ -7,6 +7,7 @@ import select
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -77,6 +78,22 @@ def test_restarted_spectrometer_reads_with_the_settings_it_was_given(rig):
         assert spectrometer.readback() == SpectrometerReadback(12.5, 3)
     reads = [e for e in rig.state_log("spectrometer").entries() if e["event"] == "read" and e["t_ns"] > t_read]
     assert [(e["integration_ms"], e["averaging"]) for e in reads] == [(12.5, 3)]
+
+
+def test_a_port_path_that_now_leads_to_another_instrument_is_not_used(rig):
+    """The spectrometer loses power and its device name comes back pointing at the light (USB re-enumeration, a
+    reused pty): the driver lets go and waits for its own instrument instead of sending it the light's commands."""
+    with open_spectrometer(rig.ports["spectrometer"], timeout_s=TIMEOUT_S, reopen_s=30.0) as spectrometer:
+        spectrometer.set_integration_ms(20.0)
+        light_events = len(rig.state_log("light").entries())
+        rig.kill("spectrometer")
+        os.symlink(os.path.realpath(rig.ports["light"]), rig.ports["spectrometer"])
+        comes_back = threading.Timer(1.0, rig.restart, args=("spectrometer",))
+        comes_back.start()
+        assert spectrometer.readback() == SpectrometerReadback(20.0, 1)
+        comes_back.join()
+    assert spectrometer.identity_at_open.startswith("UWLAB,SIM-SPECTROMETER")
+    assert len(rig.state_log("light").entries()) == light_events
 
 
 def test_instrument_that_keeps_resetting_is_one_clear_error(rig):

@@ -474,6 +474,17 @@ class Camera:
         """The settings read back after the last change (what a reconnect restores)."""
         return self._state.in_force
 
+    @_survives_outages
+    def verify_settings(self) -> Settings:
+        """Read every setting back and compare it with `settings_in_force`. A device whose settings changed
+        behind our back (it rebooted without our noticing, e.g. a GigE camera restarted between two reads) is
+        treated as lost: reconnected, its settings restored and verified (`stats.reconnects` counts it)."""
+        now = self.read_settings()
+        changed = self._state.in_force.disagreements(now)
+        if changed:
+            raise DeviceLost(f"{self.info.device_id}: settings changed behind our back ({'; '.join(changed)})")
+        return now
+
     # -- acquisition --------------------------------------------------------------------------
     @property
     def stats(self) -> AcquisitionStats:

@@ -1,13 +1,17 @@
 """``uwlab-ascii`` drivers (SCPI-style, docs/serial-protocol.md) for the light and the spectrometer.
 
-Each driver remembers the settings it sent. Whenever the transport finds that the instrument may have
-lost them — an unrequested reset (a banner line) or a reopened port (the instrument, or its USB adapter,
-restarted) — the driver sends all of them again and reads every one back; it repeats this until the
-read-backs agree with no further reset in between (at most `RESTORE_ATTEMPTS` times), then retries the
-interrupted command. A restored state that still disagrees is one `DeviceError` naming the setting.
+Each driver remembers the identity (``*IDN?``) found at open and the settings it sent. Whenever the
+transport finds that the instrument may have lost them — an unrequested reset (a banner line) or a
+reopened port (the instrument, or its USB adapter, restarted) — the driver first checks that the same
+instrument answers (a reopened device path may now lead to another one: USB re-enumeration, a reused
+pseudo-terminal), letting go of the port and trying again until ``reopen_s`` has passed; then it sends
+every setting again and reads each one back, until the read-backs agree with no further reset in between
+(at most `RESTORE_ATTEMPTS` times), then retries the interrupted command. A restored state that still
+disagrees, or another instrument on the port, is one `DeviceError`.
 """
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -33,6 +37,7 @@ from uwlab.errors import DeviceError
 PROTOCOL = "uwlab-ascii"
 SPECTRUM_MARGIN_S = 2.0
 RESTORE_ATTEMPTS = 3
+IDENTITY_RETRY_S = 0.2
 READBACK_TOLERANCE = 1e-9
 
 
@@ -60,6 +65,11 @@ class _AsciiInstrument:
         self.transport = LineTransport(
             port, timeout_s=timeout_s, retries=retries, reopen_s=reopen_s, on_recover=self._restore
         ).open()
+        try:
+            self.identity_at_open = self.identity()
+        except BaseException:
+            self.transport.close()
+            raise
 
     @property
     def recoveries(self) -> int:
@@ -81,7 +91,9 @@ class _AsciiInstrument:
         self._settings[header] = _Setting(command, query, parse, value)
 
     def _restore(self) -> None:
-        """Send every remembered setting again and read each back (called by the transport after a recovery)."""
+        """Check the instrument's identity, send every remembered setting again and read each back (called by
+        the transport after a recovery)."""
+        self._check_identity()
         disagreeing: list[str] = []
         for _ in range(RESTORE_ATTEMPTS):
             recoveries = self.transport.recoveries
@@ -97,6 +109,15 @@ class _AsciiInstrument:
         detail = "; ".join(disagreeing) or "the instrument kept resetting"
         raise DeviceError(f"{self.port}: settings not restored after a reset or reopen "
                           f"({RESTORE_ATTEMPTS} attempts): {detail}")
+
+    def _check_identity(self) -> None:
+        deadline = time.monotonic() + self.transport.reopen_s
+        while (found := self.identity()) != self.identity_at_open:
+            if time.monotonic() > deadline:
+                raise DeviceError(f"{self.port}: another instrument answers after a reopen ({found!r}; this port's "
+                                  f"was {self.identity_at_open!r})")
+            self.transport.close()
+            time.sleep(IDENTITY_RETRY_S)
 
 
 class AsciiLight(_AsciiInstrument, Light):

@@ -306,10 +306,11 @@ class SimulatorProcess:
         return SimulatorProcess(factory, self.link, command_log=command_log, vanish_s=vanish_s)
 
     def kill(self, timeout_s: float = 10.0) -> None:
-        """SIGKILL, as a power cut: no clean-up, the port symlink is left dangling."""
+        """SIGKILL, as a power cut: no clean-up by the process; its port disappears (as a USB device's node does)."""
         if self.process.is_alive():
             self.process.kill()
         self.process.join(timeout_s)
+        self.link.unlink(missing_ok=True)
 
     def start(self, timeout_s: float = START_TIMEOUT_S) -> SimulatorProcess:
         with _ctrl_c_deferred():

@@ -5,7 +5,8 @@ a *window* bracketed by read-backs (docs/sweeps.md, "What a point guarantees"):
 
 1. ``prepare()`` applies the settings (camera, aperture, light), then the read-backs are checked: the light's
    output and level against the values wanted, the camera's settings read from the device against those it
-   reported when they were set (`Camera.settings_in_force`);
+   reported when they were set (`Camera.verify_settings`: a camera whose settings changed behind our back is
+   reconnected and its settings restored and verified, which counts as a reconnect);
 2. the recovery counters are noted: each serial instrument's `recoveries` (resets and reopens after which its
    driver restored its settings) and the camera's `stats.reconnects`;
 3. ``measure()`` runs, between the window's wall-clock start and end;
@@ -56,12 +57,12 @@ def _marks(rig: Instruments, camera: Camera) -> dict[str, int]:
 
 
 def _readbacks(rig: Instruments, camera: Camera, light: LightReadback | None) -> tuple[LightReadback | None, list[str]]:
-    """The light's read-back and what disagrees: the light with ``light``, the camera with its settings in force."""
+    """The light's read-back and whether it disagrees with ``light``; the camera's settings verified."""
     got = rig.light.readback() if rig.light is not None else None
     problems = []
     if light is not None and got is not None and (got.on != light.on or abs(got.level - light.level) > LEVEL_TOLERANCE):
         problems.append(f"light reads back on={got.on} level={got.level:g}, want on={light.on} level={light.level:g}")
-    problems += [f"camera {d}" for d in camera.settings_in_force.disagreements(camera.read_settings())]
+    camera.verify_settings()
     return got, problems
 
 
