@@ -100,6 +100,25 @@ def test_a_10_s_freeze_is_ridden_out_at_acquisition_start(truth_mean_dn):
         server.stop()
 
 
+def test_a_short_freeze_at_a_register_read_is_ridden_out(truth_mean_dn):
+    """Frozen for 3 s, just longer than a register read's timeout and no longer than the device's heartbeat
+    timeout: the device still counts the old connection as its controller. The camera must give that control
+    up explicitly, or the new connection is locked out for good."""
+    server = Server()
+    try:
+        with open_camera("aravis", server.address, policy=POLICY) as cam:
+            configure(cam)
+            server.freeze()
+            thaw = threading.Timer(3.0, server.thaw)
+            thaw.start()
+            assert cam.verify_settings().exposure_us == EXPOSURE_US
+            assert cam.stats.reconnects == 1
+            check_frames(cam, cam.acquire(3), truth_mean_dn)
+            thaw.join()
+    finally:
+        server.stop()
+
+
 def test_an_outage_past_the_limit_is_one_clear_error():
     server = Server()
     try:

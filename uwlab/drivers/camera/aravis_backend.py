@@ -71,6 +71,19 @@ def _open_camera(device_id: str | None) -> Any:
         raise unknown_device("aravis", device_id, found) from exc
 
 
+def _release(connection: list) -> None:
+    """Let go of a lost connection ``[stream, camera, device]``: give up the GigE Vision control channel
+    explicitly (the device may answer again, e.g. after a freeze, and a forgotten controller would keep it
+    from us through its heartbeats), then drop the objects (Aravis finalises them)."""
+    device = connection[2]
+    if isinstance(device, Aravis.GvDevice) and device.is_controller():
+        try:
+            device.leave_control()
+        except GLib.Error:
+            pass
+    connection.clear()
+
+
 class AravisTransport:
     """`Transport` over one `Aravis.Camera`."""
 
@@ -214,18 +227,21 @@ class AravisTransport:
                              f"taken over)")
 
     def reconnect(self) -> None:
-        """Open the device again. The old connection is released in a background thread: Aravis
-        finalises it by talking to the lost device (stream channel, control release), seconds of
-        timeouts that need not delay the reconnect (PyGObject releases the GIL meanwhile)."""
+        """Open the device again. The old connection is released in a background thread (`_release`), as it
+        may take seconds of timeouts with the lost device; until then the new one may not be the device's
+        controller, which makes this attempt fail (`DeviceLost`) and the camera try again after its back-off."""
         old = [self._stream, self._camera, self._device]
         self._stream = self._camera = self._device = None
-        threading.Thread(target=old.clear, name="aravis-release", daemon=True).start()
+        threading.Thread(target=_release, args=(old,), name="aravis-release", daemon=True).start()
         del old
         try:
-            self._camera = _connect(self.device_id)
+            camera = _connect(self.device_id)
         except GLib.Error as exc:
             raise DeviceLost(f"aravis: {self.device_id}: not back yet ({exc.message})") from exc
-        self._device = self._camera.get_device()
+        device = camera.get_device()
+        if isinstance(device, Aravis.GvDevice) and not device.is_controller():
+            raise DeviceLost(f"aravis: {self.device_id}: back, but another controller still holds it")
+        self._camera, self._device = camera, device
 
     def close(self) -> None:
         self.stop()
