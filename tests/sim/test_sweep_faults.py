@@ -18,6 +18,7 @@ from uwlab.experiments.acquisition.plan import load_plan
 from uwlab.experiments.acquisition.rigs import HardwareRig, SimRig
 from uwlab.experiments.acquisition.sweep import SweepRunner
 from uwlab.experiments.dataset import Dataset
+from uwlab.experiments.dataset_frames import read_frame
 from tests.sim.gige_server import Server
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -110,9 +111,14 @@ def test_a_light_restart_inside_a_point_makes_the_sweep_measure_it_again(tmp_pat
         return read()
 
     monkeypatch.setattr(spectrometer, "read_spectrum", read_while_the_light_restarts)
-    points = sweep(tmp_path, rig, LEVELS.replace("NUM", "4"), "restart")
+    points = sweep(tmp_path, rig, LEVELS.replace("NUM", "4") + "save_frames = true\n", "restart")
     assert points["attempts"].tolist().count(2) == 1 and set(points["attempts"]) == {1, 2}
     assert truth_violations(serial, points) == [] and gamma_spread(points) < 0.01
+    data = Dataset.open(tmp_path / "restart")
+    for row in points.itertuples():  # only the recorded attempt's frames are kept
+        kept = data.frames(row.sweep_id, row.point_index)
+        assert [read_frame(path)[1]["frame_id"] for path in kept.bright] == list(row.frame_ids)
+        assert len(kept.dark) == row.dark_frames
 
 
 def test_a_read_back_that_keeps_disagreeing_stops_the_sweep_with_one_error(tmp_path, rig, monkeypatch):
