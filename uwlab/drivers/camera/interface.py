@@ -406,7 +406,8 @@ class Camera:
     def pixel_format(self, name: str) -> None:
         pixel_format(name)
         if name not in self.pixel_formats:
-            raise ConfigError("pixel_format", name, f"not offered by the device; offered: {', '.join(self.pixel_formats)}")
+            raise ConfigError("pixel_format", name,
+                              f"not offered by the device; offered: {', '.join(self.pixel_formats)}")
         self.transport.set("PixelFormat", name)
         self._refresh()
 
@@ -606,7 +607,8 @@ class Camera:
         if self.transport.has("BinningHorizontal"):
             self.set_binning(*wanted.binning)
         self.set_roi(wanted.offset_x, wanted.offset_y, wanted.width, wanted.height)
-        for key, value in (("exposure_us", wanted.exposure_us), ("gain_db", wanted.gain_db), ("black_level", wanted.black_level)):
+        for key, value in (("exposure_us", wanted.exposure_us), ("gain_db", wanted.gain_db),
+                           ("black_level", wanted.black_level)):
             if value is not None:
                 setattr(self, key, value)
         if self._state.frame_rate_set and wanted.frame_rate_hz is not None:

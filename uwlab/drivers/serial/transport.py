@@ -21,7 +21,8 @@ from __future__ import annotations
 
 import termios
 import time
-from typing import Callable, TypeVar
+from typing import TypeVar
+from collections.abc import Callable
 
 import serial
 

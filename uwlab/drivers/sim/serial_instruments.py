@@ -23,7 +23,7 @@ from __future__ import annotations
 import re
 import time
 from dataclasses import dataclass
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 
@@ -275,5 +275,5 @@ class SimSpectrometer(SimInstrument):
         self.record("read", light_on=light.on, light_level=light.level, flux_fraction=light.effective_fraction)
         irradiance = self.true_irradiance(light.effective_fraction)
         measured, saturated = self.detector.measure(irradiance, integration_s, self.averaging, self.rng)
-        rows = [f"{format_float(w)} {value:.6e}" for w, value in zip(self.wavelength_nm, measured)]
+        rows = [f"{format_float(w)} {value:.6e}" for w, value in zip(self.wavelength_nm, measured, strict=True)]
         return [f"{BLOCK_BEGIN} {len(rows)} {int(saturated)}", *rows, BLOCK_END]

@@ -42,7 +42,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
-from typing import Callable
+from collections.abc import Callable
 
 from uwlab.drivers.serial.protocol import (
     ERR_BAD_ARGUMENT,
@@ -362,7 +362,8 @@ class SerialSimSettings:
     def from_config(cls, path: str | os.PathLike | None, spectrometer_position: str = "target") -> SerialSimSettings:
         """Load and check the rig config (None: the default rig) and take its ``[sim] light_gamma``."""
         if spectrometer_position not in SPECTROMETER_POSITIONS:
-            raise ConfigError("spectrometer_position", spectrometer_position, f"must be one of {', '.join(SPECTROMETER_POSITIONS)}")
+            raise ConfigError("spectrometer_position", spectrometer_position,
+                              f"must be one of {', '.join(SPECTROMETER_POSITIONS)}")
         scene = load_scene(path)
         return cls(Path(path) if path is not None else None, scene.sim.light_gamma, spectrometer_position)
 
