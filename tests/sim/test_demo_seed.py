@@ -14,7 +14,7 @@ import pytest
 from uwlab.experiments.acquisition.plan import load_plan
 from uwlab.experiments.acquisition.rigs import SimRig
 from uwlab.experiments.acquisition.sweep import SweepRunner
-from uwlab.experiments.dataset import Dataset
+from uwlab.experiments.dataset import CLOCK_COLUMNS, Dataset
 from uwlab.experiments.demo import run_demo
 
 from tests.sim.conftest import ROOT
@@ -41,7 +41,6 @@ sensor = "imx250m"
 lens = {{ focal_length_mm = 12, f_number = 4.0, f_number_range = [1.4, 16.0] }}
 camera = {{ id = "blackfly-s", pixel_format = "Mono12", window = [1192, 1000, 32, 24] }}
 """
-CLOCK_COLUMNS = ["t_start_ns", "t_end_ns"]
 
 
 @pytest.fixture(scope="module")
@@ -58,7 +57,7 @@ def measure(plan_path, root, seed: int) -> tuple[pd.DataFrame, pd.DataFrame]:
             SimRig(plan.rig_path, seed=seed) as rig:
         SweepRunner(plan, dataset, rig).run()
     dataset = Dataset.open(root)
-    return dataset.points().drop(columns=CLOCK_COLUMNS), dataset.spectra()
+    return dataset.points().drop(columns=list(CLOCK_COLUMNS)), dataset.spectra()
 
 
 def test_equal_seeds_give_equal_measurements_and_other_seeds_other_ones(plan_path, tmp_path):

@@ -95,6 +95,9 @@ POINT_SCHEMA = pa.schema([
     ("irradiance_w_m2", pa.float64()), ("irradiance_position", pa.string()),
     ("t_start_ns", pa.int64()), ("t_end_ns", pa.int64()), ("frame_ids", pa.list_(pa.int64())),
 ])
+CLOCK_COLUMNS = ("readback_t_start_ns", "readback_t_end_ns", "t_start_ns", "t_end_ns")
+"""The point columns holding wall-clock times (ns since the epoch): the only ones two runs of one plan with one
+seed on the simulated rig may differ in."""
 SPECTRA_SCHEMA = pa.schema([
     ("sweep_id", pa.string()), ("point_index", pa.int64()), ("position", pa.string()),
     ("wavelength_nm", pa.float64()), ("irradiance_w_m2_nm", pa.float64()),
