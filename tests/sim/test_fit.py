@@ -5,7 +5,7 @@ import pytest
 
 from uwlab.errors import ConfigError, UwlabError
 from uwlab.experiments.calibration.coverage import interval_coverage
-from uwlab.experiments.calibration.fit import FitConfig, Posterior, fit_points
+from uwlab.experiments.calibration.fit import FitConfig, Posterior, config_offsets, fit_points
 from uwlab.experiments.calibration.forward import build_forward_model, relative_flux
 from uwlab.experiments.calibration.priors import HalfNormal, Normal, Uniform
 from uwlab.experiments.calibration.simulate import simulate_campaign
@@ -122,3 +122,36 @@ def test_credible_intervals_cover_the_truth_over_20_seeds():
     """Simulation-based calibration: truths drawn from the priors fall inside the 95 % intervals 90–99 % of the time."""
     result = interval_coverage(20)
     assert 0.90 <= result.fraction <= 0.99, result.misses
+
+
+def test_configuration_discrepancies_are_integrated_out_exactly(campaign):
+    """The closed-form marginal likelihood over each configuration's discrepancy δ_k ~ N(0, τ²) equals the
+    integral ∫ Π N(y | μ (1 + δ), σ²) N(δ | 0, τ²) dδ by quadrature (up to the constant n/2 ln 2π), and the
+    conditional draws of δ_k have that integrand's mean and variance."""
+    points, rigs = campaign
+    names = ("light_efficiency", "attenuation_scale", "K_dn_per_e:imx250m", "K_dn_per_e:icx285alm", "discrepancy",
+             "config_discrepancy")
+    model = build_forward_model(points[~points["saturated"]], rigs, names)
+    post = Posterior(model, {n: Uniform(lo=0.0, hi=100.0) for n in names})
+    theta = np.array([[0.83, 1.1, 0.35, 1.1, 0.004, 0.02]])
+    mu, tau = model.predict(theta)[0], 0.02
+    sigma = model.sigma(theta, mu[None])[0]
+    exact, moments = 0.0, []
+    for k in range(model.n_config):
+        sel = model.config == k
+        r, m, s = model.y[sel], mu[sel], sigma[sel]
+        centre = np.sum((r - m) * m / s**2) / (np.sum(m**2 / s**2) + 1 / tau**2)
+        delta = centre + np.linspace(-0.02, 0.02, 200001)
+        chi = ((r[:, None] - m[:, None] * (1 + delta)) / s[:, None]) ** 2 + np.log(2 * np.pi * s[:, None] ** 2)
+        log_f = -0.5 * np.sum(chi, axis=0) - 0.5 * (delta / tau) ** 2 - 0.5 * np.log(2 * np.pi * tau**2)
+        top = log_f.max()
+        weight = np.exp(log_f - top)
+        exact += top + np.log(np.trapezoid(weight, delta))
+        mean = np.trapezoid(weight * delta, delta) / np.trapezoid(weight, delta)
+        moments.append((mean, np.trapezoid(weight * (delta - mean) ** 2, delta) / np.trapezoid(weight, delta)))
+    closed = post.log_likelihood(theta)[0] - 0.5 * model.y.size * np.log(2 * np.pi)
+    assert closed == pytest.approx(exact, abs=1e-6)
+    draws = config_offsets(model, np.repeat(theta, 40000, axis=0), np.random.default_rng(0))
+    for k, (mean, var) in enumerate(moments):
+        assert draws[:, k].mean() == pytest.approx(mean, abs=5 * np.sqrt(var / 40000))
+        assert draws[:, k].var() == pytest.approx(var, rel=0.03)

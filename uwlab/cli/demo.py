@@ -16,6 +16,13 @@ def register(subparsers) -> None:
                               description="Simulated rig → exposure sweeps (IMX250, ICX285 × three lens settings) → "
                                           "Bayesian calibration → validation report. Prints the report's path.")
     p.add_argument("--out", metavar="DIR", help="new output directory (default: out/demo-<date>-<time>)")
+    p.add_argument("--world", choices=("ideal", "tank", "turbid"),
+                   help="what renders the simulated rig: ideal (the paper's model itself), tank (the tank renderer: "
+                        "real beam, refraction, backscatter, stray light, drift, sensor realism), turbid (the tank "
+                        "with added scatterers); default: the rig's, tank")
+    p.add_argument("--model", choices=("paper", "extended"),
+                   help="the chain the calibration fits: the paper's, or the extended one (lights' placement and "
+                        "beam, the board, backscatter, vignetting); default: the rig's, extended")
     p.add_argument("--seed", type=int, default=0, help="seed of all the simulated noise: camera, spectrometer "
                    "(default 0; equal seeds give equal numbers)")
     p.add_argument("--json", action="store_true", help="print summary.json")
@@ -38,7 +45,7 @@ def run(args) -> int:
 
     close_fit_bar, fit_progress = progress_bar("calibration")
     try:
-        summary = run_demo(out, sweep_progress, fit_progress, seed=args.seed)
+        summary = run_demo(out, sweep_progress, fit_progress, seed=args.seed, world=args.world, model=args.model)
     finally:
         for bar in bars:
             bar.close()
@@ -47,12 +54,19 @@ def run(args) -> int:
         json.dump(summary, sys.stdout, indent=2)
         sys.stdout.write("\n")
         return 0
+    verdict = "adequate" if summary["model_adequate"] else "NOT adequate"
+    print(f"{summary['model']} model in the {summary['world']} world: {verdict}")
     print(f"{'parameter':<24}{'truth':>10}{'median':>10}   95 % interval")
     for name, p in summary["parameters"].items():
         truth = "—" if p["truth"] is None else f"{p['truth']:.4g}"
         print(f"{name:<24}{truth:>10}{p['median']:>10.4g}   [{p['p2_5']:.4g}, {p['p97_5']:.4g}]")
     print(f"converged: {summary['converged']}")
+    coverage = summary["predictive_coverage"]["held_out_inside_95"]
+    print(f"held-out points inside their 95 % bands: {100 * coverage:.0f} %")
     for row in summary["cross_configuration"]:
-        print(f"  {row['sweep_id']:<18} {row['role']:<9} median error {100 * row['median_abs_rel_error']:.2f} %")
+        print(f"  {row['sweep_id']:<18} held out: median error {100 * row['median_abs_rel_error']:.2f} %, "
+              f"{100 * row['inside_95']:.0f} % inside")
+    for note in summary["warnings"]:
+        print(f"warning: {note}")
     print(summary["report"])
     return 0

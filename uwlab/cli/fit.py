@@ -14,7 +14,10 @@ def register(subparsers) -> None:
     p.add_argument("--config", metavar="FIT.toml", help="free parameters and priors (default: light efficiency, "
                    "attenuation scale, each camera's K, discrepancy; see configs/fit/default.toml)")
     p.add_argument("--out", metavar="DIR", help="output directory (default: DATASET/fit)")
-    p.add_argument("--train", action="append", metavar="SWEEP_ID", help="sweeps to fit in the cross-configuration check")
+    p.add_argument("--train", action="append", metavar="SWEEP_ID",
+                   help="sweeps the held-out check fits (it predicts the others; default: two folds of the sweeps)")
+    p.add_argument("--model", choices=("paper", "extended"),
+                   help="the chain to fit: the paper's or the extended one (default: the dataset's rigs' [model] kind)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(func=run)
 
@@ -45,7 +48,7 @@ def run(args) -> int:
     out = Path(args.out) if args.out else Path(args.dataset) / "fit"
     close_bar, update = progress_bar("sampling")
     try:
-        calibration = calibrate(args.dataset, args.config, out, args.train, progress=update)
+        calibration = calibrate(args.dataset, args.config, out, args.train, progress=update, model=args.model)
     finally:
         close_bar()
     summary = calibration.summary
@@ -54,6 +57,8 @@ def run(args) -> int:
         sys.stdout.write("\n")
         return 0
     print(f"calibration written to {out}")
+    print(f"{summary['model']} model: {'adequate' if summary['model_adequate'] else 'NOT adequate'}; "
+          f"{100 * summary['predictive_coverage']['held_out_inside_95']:.0f} % of held-out points inside their 95 % bands")
     print(f"converged: {summary['converged']} ({summary['steps']} steps, {summary['tau_multiple']:.0f} τ, "
           f"acceptance {summary['acceptance_fraction']:.2f})")
     print(f"{'parameter':<26}{'median':>12}{'68 % interval':>26}{'truth':>10}")

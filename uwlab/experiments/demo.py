@@ -1,26 +1,43 @@
 """The main job on the simulated rig: the paper's tank campaign, calibration, validation and report.
 
-1. Start the simulated rig — the simulated cameras through the real camera interface, the simulated light and
-   spectrometer as separate processes on pseudo-terminals talking to the real serial drivers — and run
-   `configs/plans/tank-exposure-sweep.toml`: IMX250 and ICX285 cameras × no lens / 30 mm F2.0 / 12 mm F4.0,
-   exposure sweeps, spectra at the target and at the camera.
-2. Calibrate the model against it (`uwlab.experiments.calibration.pipeline`), with the cross-configuration check.
-3. Write ``report.html`` and ``summary.json`` (per parameter: truth, median, 2.5/16/84/97.5th percentiles, τ;
-   converged; cross-configuration errors).
+1. Write the inputs into ``inputs/``: the rig (`configs/rigs/paper-tank.toml`) with the chosen world
+   (`uwlab.drivers.sim.world`: ``ideal``, ``tank``, ``turbid``) and the plan (`configs/plans/tank-exposure-sweep.toml`)
+   pointing at it. In the turbid world the rig's water also declares the added scatterers at the world's values,
+   as an experimenter who had measured them with a transmissometer would: the paper model then knows the water
+   attenuates more, and only the veiling light is missing from it.
+2. Start the simulated rig — the simulated cameras through the real camera interface, the simulated light and
+   spectrometer as separate processes on pseudo-terminals talking to the real serial drivers — and run the plan:
+   IMX250 and ICX285 cameras × no lens / 30 mm F2.0 / 12 mm F4.0, exposure sweeps, spectra at the target and at
+   the camera. All simulated noise is seeded from `seed`.
+3. Calibrate the chosen chain (``paper`` or ``extended``) against it, with posterior predictive checks, held-out
+   configurations and the verdict (`uwlab.experiments.calibration.pipeline`).
+4. Write ``report.html`` and ``summary.json`` (the verdict, per parameter truth, median and interval, the held-out
+   table and coverage, warnings).
 """
 from __future__ import annotations
 
 import json
+import tempfile
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
-from uwlab.experiments.calibration.pipeline import calibrate
-from uwlab.experiments.dataset import Dataset
-from uwlab.experiments.acquisition.plan import load_plan
-from uwlab.experiments.report import write_report
+import tomli_w
+
+from uwlab.drivers.sim.world import PRESETS, design_sections, world_settings
+from uwlab.errors import ConfigError
+from uwlab.experiments.acquisition.plan import load_plan, resolved_rig
 from uwlab.experiments.acquisition.rigs import SimRig
 from uwlab.experiments.acquisition.sweep import SweepRunner
-from uwlab.model.data import config_dir
+from uwlab.experiments.calibration.fit import default_config_for
+from uwlab.experiments.calibration.forward import MODELS
+from uwlab.experiments.calibration.pipeline import assess, calibrate
+from uwlab.experiments.calibration.simulate import simulate_campaign
+from uwlab.experiments.calibration.validation import default_folds
+from uwlab.experiments.dataset import Dataset
+from uwlab.experiments.report import write_report
+from uwlab.model.data import config_dir, read_toml, resolve_path
+from uwlab.model.design import build_design
+from uwlab.model.sensor import load_sensor_profile
 from uwlab.outputs import output_dir
 
 DEMO_PLAN = "plans/tank-exposure-sweep.toml"
@@ -29,26 +46,94 @@ DEMO_PLAN = "plans/tank-exposure-sweep.toml"
 def demo_summary(calibration_summary: dict, report: Path) -> dict:
     keep = ("truth", "median", "p2_5", "p16", "p84", "p97_5", "tau")
     return {
+        "world": calibration_summary["world"],
+        "model": calibration_summary["model"],
+        "model_adequate": calibration_summary["model_adequate"],
+        "predictive_coverage": calibration_summary["predictive_coverage"],
         "parameters": {name: {k: p.get(k) for k in keep} for name, p in calibration_summary["parameters"].items()},
         "converged": calibration_summary["converged"],
         "cross_configuration": calibration_summary["cross_configuration"],
-        "training_sweeps": calibration_summary["training_sweeps"],
+        "checks": calibration_summary["checks"],
         "warnings": calibration_summary["warnings"],
         "not_separable": calibration_summary["not_separable"],
         "report": str(report),
     }
 
 
+def target_tally(summaries: list[dict]) -> dict:
+    """The demo's targets over runs of one world and model: the held-out points inside their 95 % bands (pooled
+    over the runs), the parameters with a simulated truth inside their 95 % intervals, the runs judged adequate
+    and the runs whose warnings name backscatter."""
+    points = sum(r["points"] for s in summaries for r in s["cross_configuration"])
+    inside = sum(r["points"] * r["inside_95"] for s in summaries for r in s["cross_configuration"])
+    truths = [p["p2_5"] <= p["truth"] <= p["p97_5"] for s in summaries for p in s["parameters"].values()
+              if p.get("truth") is not None]
+    return {"runs": len(summaries), "held_out_inside_95": inside / points if points else None,
+            "truth_inside_95": sum(truths) / len(truths) if truths else None,
+            "adequate": sum(bool(s["model_adequate"]) for s in summaries),
+            "backscatter_named": sum(any("backscatter" in w for w in s["warnings"]) for s in summaries)}
+
+
+def quick_demo(world: str | None = None, model: str | None = None, seed: int = 0, directory: Path | None = None,
+               progress=None) -> dict:
+    """The demo's campaign without devices, a summary like `run_demo`'s: the same rig and world rendered in process
+    (`uwlab.experiments.calibration.simulate`: its sweeps span each configuration's own exposure range, the light
+    does not drift, there is no spectrometer), calibrated and judged like the demo (`assess`). For tests and quick
+    looks; `directory` receives the derived rig (default: a temporary one)."""
+    with tempfile.TemporaryDirectory(prefix="uwlab-quick-demo-") as tmp:
+        plan = write_inputs(config_dir() / DEMO_PLAN, world, Path(directory or tmp) / "inputs")
+        rig = load_plan(plan).rig_path
+        raw = read_toml(rig, "rig")
+        truth = {"light_efficiency": raw["sim"]["light_efficiency"]}
+        points, rigs = simulate_campaign(truth, seed=seed, rig=rig, world=None, points_per_sweep=10)
+        config = default_config_for(points[~points["saturated"]], rigs)
+        sweeps = list(dict.fromkeys(points["sweep_id"]))
+        assessment = assess(points, rigs, config, default_folds(sweeps, config.holdout.folds), model, progress)
+    summary = assessment.result.summary()
+    names = assessment.result.names
+    truths = {**{n: None for n in names}, **truth, "attenuation_scale": float(raw["water"]["attenuation_scale"]),
+              **{n: load_sensor_profile(n.split(":", 1)[1]).K_dn_per_e for n in names if n.startswith("K_dn_per_e:")}}
+    for name, entry in summary["parameters"].items():
+        entry["truth"] = truths.get(name)
+    return {**summary, **assessment.summary(), "world": world}
+
+
+def write_inputs(plan_path: Path, world: str | None, directory: Path) -> Path:
+    """The plan and its rig with the `world` preset (None: the rig's own; module docstring) written into
+    `directory`; the plan's path."""
+    plan_raw = read_toml(plan_path, "plan")
+    rig_path = resolve_path(plan_raw["rig"], plan_path.resolve().parent)
+    raw = read_toml(rig_path, "rig")
+    settings = world_settings(raw.get("world"), world)
+    rig = resolved_rig(build_design(design_sections(raw), rig_path.parent))
+    world_table = {**raw.get("world", {}), "preset": settings.preset,
+                   "lens_transmittance_csv": str(resolve_path(settings.lens_transmittance_csv, rig_path.parent))}
+    if settings.preset == "turbid":
+        rig["water"].update(particle_scattering_per_m=settings.particle_b550_per_m,
+                            particle_scattering_exponent=settings.particle_scattering_exponent,
+                            particle_phase_function=settings.particle_phase_function)
+    directory.mkdir(parents=True)
+    (directory / "rig.toml").write_text(tomli_w.dumps({**rig, "sim": raw.get("sim", {}), "world": world_table}))
+    (directory / "plan.toml").write_text(tomli_w.dumps({**plan_raw, "rig": "rig.toml"}))
+    return directory / "plan.toml"
+
+
 def run_demo(out: Path, sweep_progress: Callable | None = None, fit_progress: Callable | None = None,
-             plan_path: Path | None = None, seed: int = 0) -> dict:
-    """Run the campaign into `out` (which must not exist or be empty) on the simulated rig with all its noise seeded
-    from `seed` (equal seeds, equal numbers); returns the summary written to summary.json."""
+             plan_path: Path | None = None, seed: int = 0, world: str | None = None,
+             model: str | None = None) -> dict:
+    """Run the campaign into `out` (which must not exist or be empty) in `world`, fit `model` (None: the rig's own
+    [world] preset and [model] kind; the demo's rig has the tank world and the extended model), with all simulated
+    noise seeded from `seed` (equal seeds, equal numbers); returns the summary written to summary.json."""
+    if world is not None and world not in PRESETS:
+        raise ConfigError("--world", world, f"must be one of {', '.join(PRESETS)}")
+    if model is not None and model not in MODELS:
+        raise ConfigError("--model", model, f"must be one of {', '.join(MODELS)}")
     out = output_dir(out, "--out", empty=True)
-    plan = load_plan(plan_path or config_dir() / DEMO_PLAN)
+    plan = load_plan(write_inputs(plan_path or config_dir() / DEMO_PLAN, world, out / "inputs"))
     with Dataset.create(out / "dataset", plan.raw, plan_sha256=plan.sha256, sim=True) as dataset, \
             SimRig(plan.rig_path, seed=seed) as rig:
         SweepRunner(plan, dataset, rig, sweep_progress).run()
-    calibration = calibrate(out / "dataset", None, out / "fit", progress=fit_progress)
+    calibration = calibrate(out / "dataset", None, out / "fit", progress=fit_progress, model=model)
     report = write_report(out, out / "report.html")
     summary = demo_summary(calibration.summary, report)
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")

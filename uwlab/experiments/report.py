@@ -1,33 +1,41 @@
-"""The validation report: one self-contained HTML file (figures embedded as PNG data URIs).
+"""The validation report: one self-contained HTML file (figures embedded as PNG data URIs), rendered with jinja2
+from ``templates/report.html.j2``.
 
 `write_report(root, out)` looks under `root` (depth ≤ 2) for datasets (``metadata.json`` + ``manifest.json``),
 calibrations (``summary.json`` + ``samples.parquet`` from `uwlab fit`) and EMVA 1288 characterisations
-(``emva.json``), and reports: the set-up, measured against predicted response per camera and lens with 68 % /
-95 % bands and residuals, the posterior table beside the simulated truth, corner plot and traces, the
-cross-configuration table, the spectra at the target and the camera, the EMVA summary, and the provenance of
-every dataset.
+(``emva.json``), and reports: first the verdict of every calibration (adequate or not, the failing checks and the
+likely causes, `uwlab.experiments.calibration.adequacy`), then the set-up in words, per calibration its checks,
+the measured against predicted response per configuration with residuals in per cent and the fitted and held-out
+95 % bands, the held-out table, the posterior beside the simulated truth, the posterior predictive checks per
+configuration and the spectra; the EMVA summary; the provenance of every dataset.
 """
 from __future__ import annotations
 
 import base64
-import html
 import io
 import json
+import time
 from pathlib import Path
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
+from jinja2 import Environment, PackageLoader, StrictUndefined  # noqa: E402
 
 from uwlab.errors import UwlabError  # noqa: E402
 from uwlab.experiments.dataset_store import MANIFEST_FILE  # noqa: E402
 from uwlab.outputs import output_file  # noqa: E402
+from uwlab.experiments.calibration.forward import PERCENT_PARAMETERS, parameter_label  # noqa: E402
+from uwlab.experiments.calibration.output import configuration_label  # noqa: E402
+from uwlab.model.optics import BARE_SENSOR_F_NUMBER  # noqa: E402
 
-CSS = """body{font-family:sans-serif;max-width:1200px;margin:2em auto;color:#222}table{border-collapse:collapse;margin:1em 0}
-td,th{border:1px solid #ccc;padding:3px 8px;font-size:13px;text-align:right}th{background:#eee}td.l,th.l{text-align:left}
-img{max-width:100%}.warn{color:#a40}.note{color:#555;font-size:13px}h2{border-bottom:1px solid #ccc}"""
+EFFECT_NAMES = {"beam_profile": "the light's smooth beam", "vignetting": "vignetting",
+                "lens_transmission": "a spectral lens transmittance", "backscatter": "backscatter",
+                "stray_light": "stray light from the walls", "warmup_drift": "the light's warm-up drift",
+                "sensor_realism": "sensor non-linearity, hot pixels, DSNU and PRNU"}
 
 
 def _find(root: Path, marker: str, also: str | None = None) -> list[Path]:
@@ -35,122 +43,233 @@ def _find(root: Path, marker: str, also: str | None = None) -> list[Path]:
     return [p for p in dict.fromkeys(found) if also is None or (p / also).exists()]
 
 
+def _data_uri(png: bytes) -> str:
+    return "data:image/png;base64," + base64.b64encode(png).decode()
+
+
 def _img(path: Path) -> str:
-    data = base64.b64encode(path.read_bytes()).decode()
-    return f'<img src="data:image/png;base64,{data}" alt="{html.escape(path.name)}">'
+    return _data_uri(path.read_bytes())
 
 
 def _fig(fig) -> str:
     buffer = io.BytesIO()
-    fig.tight_layout()
-    fig.savefig(buffer, format="png", dpi=80)
+    fig.savefig(buffer, format="png", dpi=90, bbox_inches="tight")
     plt.close(fig)
-    return f'<img src="data:image/png;base64,{base64.b64encode(buffer.getvalue()).decode()}">'
+    return _data_uri(buffer.getvalue())
 
 
-def _fmt(value) -> str:
-    if value is None:
+def _number(value, digits: int = 4) -> str:
+    if value is None or (isinstance(value, float) and not np.isfinite(value)):
         return "—"
-    if isinstance(value, bool):
-        return "yes" if value else "no"
-    if isinstance(value, float):
-        return f"{value:.4g}"
-    return html.escape(str(value))
+    return f"{value:.{digits}g}"
 
 
-def _table(rows: list[dict], columns: list[str], left: int = 1) -> str:
-    head = "".join(f'<th class="{"l" if i < left else ""}">{html.escape(c)}</th>' for i, c in enumerate(columns))
-    body = "".join("<tr>" + "".join(f'<td class="{"l" if i < left else ""}">{_fmt(r.get(c))}</td>'
-                                    for i, c in enumerate(columns)) + "</tr>" for r in rows)
-    return f"<table><tr>{head}</tr>{body}</table>"
+def _percent(value, digits: int = 1) -> str:
+    return "—" if value is None or not np.isfinite(value) else f"{100 * value:.{digits}f} %"
 
 
-def _setup(metadata: dict) -> str:
+def _value(name: str, value) -> str:
+    return _percent(value, 2) if name in PERCENT_PARAMETERS else _number(value)
+
+
+def _is_bare(lens: dict) -> bool:
+    return lens.get("f_number") is not None and lens["f_number"] <= BARE_SENSOR_F_NUMBER
+
+
+def _lens(lens: dict) -> str:
+    return "none (bare sensor)" if _is_bare(lens) else f"{lens['focal_length_mm']:g} mm f/{lens['f_number']:g}"
+
+
+def _label(sweep_id: str, rig: dict) -> str:
+    lens = rig.get("lens", {})
+    bare = _is_bare(lens)
+    return configuration_label(rig.get("sensor", {}).get("profile", sweep_id), None if bare else lens.get("focal_length_mm"),
+                               None if bare else lens.get("f_number"))
+
+
+def _light(rig: dict) -> str:
+    light = rig.get("light", {})
+    if light.get("beam_half_angle_in_air_deg") is not None:
+        beam = f"{light['beam_half_angle_in_air_deg']:g}° half-angle in air"
+    else:
+        beam = f"{light.get('beam_half_angle_deg', 0):g}° half-angle"
+    count = light.get("count", 1)
+    flux = f"{light.get('luminous_flux_lm', 0):,.0f} lm"
+    return f"{count} × {flux}, {beam}, {light.get('beam_model', 'cone')} beam"
+
+
+def _water(rig: dict) -> str:
+    water = rig.get("water", {})
+    name = {"pure-fresh": "pure fresh water", "pure-sea": "pure sea water"}.get(water.get("type"), str(water.get("type")))
+    if water.get("particle_scattering_per_m"):
+        name += f" + scatterers b(550 nm) = {water['particle_scattering_per_m']:g} /m"
+    if water.get("attenuation_scale", 1.0) != 1.0:
+        name += f", attenuation × {water['attenuation_scale']:g}"
+    return name
+
+
+def _port(rig: dict) -> str:
+    housing = rig.get("housing", {})
+    if housing.get("port") == "dome":
+        return f"dome, {housing.get('dome_radius_mm', 0):g} mm radius"
+    parts = [f"flat, n = {housing.get('port_index', 1.49):g}"]
+    if housing.get("flat_thickness_mm"):
+        parts.append(f"{housing['flat_thickness_mm']:g} mm thick")
+    if housing.get("flat_air_gap_mm"):
+        parts.append(f"{housing['flat_air_gap_mm']:g} mm air gap")
+    return ", ".join(parts)
+
+
+def _setup(metadata: dict) -> list[dict]:
+    devices = metadata.get("devices") or {}
     rows = []
     for sweep_id, rig in (metadata.get("rigs") or {}).items():
-        light, lens, water = rig.get("light", {}), rig.get("lens", {}), rig.get("water", {})
-        rows.append({"sweep": sweep_id, "sensor": rig.get("sensor", {}).get("profile"),
-                     "light [lm]": light.get("luminous_flux_lm"), "beam half-angle [°]": light.get("beam_half_angle_deg"),
-                     "light→target [m]": light.get("distance_m"), "target→camera [m]": rig.get("operation", {}).get("altitude_m"),
-                     "water": water.get("type"), "focal length [mm]": lens.get("focal_length_mm"),
-                     "f-number": lens.get("f_number"), "port": rig.get("housing", {}).get("port"),
-                     "reflectance": rig.get("target", {}).get("reflectance")})
-    return _table(rows, list(rows[0]) if rows else ["sweep"], left=3) + \
-        '<p class="note">A "no lens" sweep is a bare sensor in the board\'s radiance field (recorded as f-number 0.5).</p>'
+        camera = devices.get(sweep_id, {}).get("camera", {})
+        model = f"{camera.get('vendor', '')} {camera.get('model', '')}".strip()
+        rows.append({"configuration": _label(sweep_id, rig),
+                     "camera": f"{rig.get('sensor', {}).get('profile', '').upper()}" + (f" ({model})" if model else ""),
+                     "lens": _lens(rig.get("lens", {})), "light": _light(rig),
+                     "light_distance": _number(rig.get("light", {}).get("distance_m") or rig.get("operation", {}).get("altitude_m"), 3),
+                     "camera_distance": _number(rig.get("operation", {}).get("altitude_m"), 3),
+                     "water": _water(rig), "port": _port(rig), "reflectance": _number(rig.get("target", {}).get("reflectance"))})
+    return rows
 
 
-def _provenance(path: Path, metadata: dict) -> str:
-    devices = metadata.get("devices") or {}
-    rows = [{"sweep": s, "camera": f"{d.get('camera', {}).get('vendor', '')} {d.get('camera', {}).get('model', '')}",
-             "serial": d.get("camera", {}).get("serial"), "firmware": d.get("camera", {}).get("firmware"),
-             "light": d.get("light"), "spectrometer": d.get("spectrometer")} for s, d in devices.items()]
-    software = ", ".join(f"{k} {v}" for k, v in (metadata.get("software") or {}).items())
-    return (f"<p><b>{html.escape(str(path))}</b>: plan sha256 <code>{_fmt(metadata.get('plan_sha256'))}</code>, uwlab "
-            f"{_fmt(metadata.get('uwlab_version'))}, host {_fmt(metadata.get('host'))}, "
-            f"{_fmt(metadata.get('started_utc'))} → {_fmt(metadata.get('finished_utc'))}, "
-            f"{'simulated rig' if metadata.get('sim') else 'tank'}</p>"
-            + _table(rows, ["sweep", "camera", "serial", "firmware", "light", "spectrometer"], left=6)
-            + f'<p class="note">software: {html.escape(software)}</p>')
+def _world(metadata: dict) -> str | None:
+    """The simulated world in words (None for a tank's data)."""
+    worlds = [t["world"] for t in (metadata.get("sim_truth") or {}).values() if t.get("world")]
+    if not metadata.get("sim"):
+        return None
+    if not worlds:
+        return "Simulated rig."
+    world = worlds[0]
+    if world["preset"] == "ideal":
+        return ("Simulated rig, ideal world: the paper's model itself renders the images (the model is checked "
+                "against itself).")
+    effects = [EFFECT_NAMES[e] for e, on in world["effects"].items() if on]
+    text = (f"Simulated rig, {world['preset']} world: the tank renderer (exact refraction through the wall, the light "
+            f"above the camera) with {', '.join(effects) if effects else 'no further effects'}")
+    if world.get("particle_scattering_per_m"):
+        text += f", and added scatterers, b(550 nm) = {world['particle_scattering_per_m']:g} /m"
+    return text + "."
 
 
-def _posterior(summary: dict) -> str:
-    rows = [{"parameter": n, "truth": p.get("truth"), "median": p["median"], "2.5 %": p["p2_5"], "16 %": p["p16"],
-             "84 %": p["p84"], "97.5 %": p["p97_5"], "τ [steps]": p["tau"], "R-hat": p["rhat"]}
-            for n, p in summary["parameters"].items()]
-    notes = "".join(f'<p class="warn">warning: {html.escape(w)}</p>' for w in summary.get("warnings", []))
-    pairs = "".join(f'<p class="warn">not separable by these data: {html.escape(p["a"])} and {html.escape(p["b"])} '
-                    f'(posterior correlation {p["rho"]:+.2f})</p>' for p in summary.get("not_separable", []))
-    return (_table(rows, list(rows[0])) + f'<p class="note">converged: {_fmt(summary["converged"])} — {summary["steps"]} '
-            f'steps × {summary["walkers"]} walkers, {summary["tau_multiple"]:.0f} autocorrelation times, acceptance '
-            f'{summary["acceptance_fraction"]:.2f}, {summary["points_used"]} points (saturated points excluded)</p>'
-            + notes + pairs)
+def _world_name(summary: dict) -> str:
+    world = summary.get("world")
+    if world is None:
+        return "this rig" if not summary.get("sim") else "the simulated rig"
+    return {"ideal": "the ideal simulated rig", "tank": "the simulated tank",
+            "turbid": "the simulated turbid tank"}.get(world, f"the {world} world")
 
 
-def _spectra_figure(path: Path) -> str:
+def _headline(summary: dict) -> str:
+    coverage = summary["predictive_coverage"]["held_out_inside_95"]
+    tau = summary["parameters"].get("config_discrepancy", {}).get("median")
+    held = len(summary.get("cross_configuration") or [])
+    text = (f"Each of the {held} configurations was predicted by a fit that did not see it: "
+            f"{_percent(coverage, 0)} of their points lie inside the 95 % bands")
+    if tau is not None:
+        text += f"; configurations differ from the model by {_percent(tau)} (τ)"
+    if summary["model_adequate"]:
+        return text + ". Every check passes: the bands of new configurations can be trusted."
+    return text + "."
+
+
+def _calibration(path: Path) -> dict:
+    summary = json.loads((path / "summary.json").read_text())
+    points = pd.read_parquet(path / "predictions.parquet")
+    metadata = {}
+    if summary.get("dataset") and (Path(summary["dataset"]) / "metadata.json").exists():
+        metadata = json.loads((Path(summary["dataset"]) / "metadata.json").read_text())
+    rigs = metadata.get("rigs") or {}
+    label = lambda sweep_id: _label(sweep_id, rigs[sweep_id]) if sweep_id in rigs else sweep_id  # noqa: E731
+    failing = [f"{c['name']}: {c['detail']}" for c in summary.get("checks", []) if not c["passed"]]
+    folds = {s: f for f in summary.get("folds", []) for s in f["held_out"]}
+    held_out = [{"configuration": label(r["sweep_id"]),
+                 "trained_on": ", ".join(label(s) for s in folds.get(r["sweep_id"], {}).get("trained_on", [])),
+                 "points": r["points"], "median_error": _percent(r["median_abs_rel_error"], 2),
+                 "worst_error": _percent(r["max_abs_rel_error"], 2), "inside": _percent(r["inside_95"], 0),
+                 "inside_ok": r["inside_95"] >= 0.75, "level": f"{r['level_offset_percent']:+.2f} %",
+                 "p": _number(r["level_p"], 2)} for r in summary.get("cross_configuration", [])]
+    posterior = []
+    for name, p in summary["parameters"].items():
+        truth = p.get("truth")
+        posterior.append({"label": parameter_label(name), "truth": _value(name, truth), "median": _value(name, p["median"]),
+                          "interval": f"{_value(name, p['p2_5'])} – {_value(name, p['p97_5'])}",
+                          "inside": None if truth is None else bool(p["p2_5"] <= truth <= p["p97_5"]),
+                          "tau": _number(p["tau"], 3), "rhat": f"{p['rhat']:.3f}"})
+    notes = [w for w in summary.get("warnings", []) if not w.startswith(("model inadequate", "likely cause"))]
+    notes += [f"not separable by these data: {parameter_label(p['a'])} and {parameter_label(p['b'])} (posterior "
+              f"correlation {p['rho']:+.2f})" for p in summary.get("not_separable", [])]
+    ppc = [{"configuration": label(r["sweep_id"]), "points": r["points"], "inside": _percent(r["inside_95"], 0),
+            "offset": f"{r['offset_percent']:+.2f} %", "p": _number(r["ppc_p"], 2)}
+           for r in summary.get("posterior_predictive_checks", [])]
+    delta = summary["parameters"].get("discrepancy", {}).get("median")
+    tau = summary["parameters"].get("config_discrepancy", {}).get("median")
+    model_name = {"paper": "the paper's model", "extended": "the extended model"}.get(summary.get("model"), "the model")
+    spectra = path / "spectra.parquet"
+    return {
+        "path": str(path), "dataset": summary.get("dataset") or "—", "adequate": bool(summary.get("model_adequate")),
+        "model_name": model_name, "world_name": _world_name(summary), "headline": _headline(summary),
+        "reasons": failing, "causes": summary.get("likely_causes", []) if failing else [],
+        "coverage": _percent(summary["predictive_coverage"]["held_out_inside_95"], 0), "tau": _percent(tau),
+        "delta": _percent(delta, 2), "converged": "converged" if summary["converged"] else "NOT converged",
+        "checks": summary.get("checks", []), "response_png": _img(path / "response.png"), "held_out": held_out,
+        "posterior": posterior, "notes": notes, "ppc": ppc,
+        "sampler": (f"{summary['steps']} steps × {summary['walkers']} walkers, {summary['tau_multiple']:.0f} "
+                    f"autocorrelation times, acceptance {summary['acceptance_fraction']:.2f}; "
+                    f"{summary['points_used']} points fitted, {int(points['saturated'].sum())} saturated points left out"),
+        "corner_png": _img(path / "corner.png"), "traces_png": _img(path / "traces.png"),
+        "spectra_png": _spectra_figure(spectra, label) if spectra.exists() else None,
+        "spectra": [{"configuration": label(r["sweep_id"]), "position": r["position"],
+                     "ratio": _number(r["measured_over_predicted"], 3), "shape": _percent(r["shape_rms_error"], 1)}
+                    for r in summary.get("spectra", [])],
+    }
+
+
+def _spectra_figure(path: Path, label) -> str:
     frame = pd.read_parquet(path)
     sweeps = list(dict.fromkeys(frame["sweep_id"]))[:6]
-    fig, axes = plt.subplots(2, len(sweeps), figsize=(3 * len(sweeps), 5), squeeze=False, sharex=True)
+    fig, axes = plt.subplots(2, len(sweeps), figsize=(3.4 * len(sweeps), 6), squeeze=False, sharex=True)
     for j, sweep_id in enumerate(sweeps):
         for i, position in enumerate(("target", "camera")):
             sel = frame[(frame["sweep_id"] == sweep_id) & (frame["position"] == position)]
             ax = axes[i, j]
-            ax.plot(sel["wavelength_nm"], sel["predicted_w_m2_nm"], label="predicted")
+            ax.plot(sel["wavelength_nm"], sel["predicted_w_m2_nm"], label="predicted", linewidth=1.5)
             if sel["irradiance_w_m2_nm"].notna().any():
-                ax.plot(sel["wavelength_nm"], sel["irradiance_w_m2_nm"], ".", markersize=2, label="measured")
-            ax.set_title(f"{sweep_id}: {position}", fontsize=8)
-            ax.tick_params(labelsize=7)
-    axes[0, 0].legend(fontsize=7)
-    axes[0, 0].set_ylabel("W/m²/nm at the target", fontsize=8)
-    axes[1, 0].set_ylabel("W/m²/nm at the camera", fontsize=8)
+                ax.plot(sel["wavelength_nm"], sel["irradiance_w_m2_nm"], ".", markersize=2.5, label="measured")
+            ax.set_title(f"{label(sweep_id)}\nat the {position}", fontsize=11)
+            ax.tick_params(labelsize=10)
+            if i == 1:
+                ax.set_xlabel("wavelength [nm]", fontsize=11)
+    axes[0, 0].legend(fontsize=10)
+    axes[0, 0].set_ylabel("irradiance at the target\n[W/m²/nm]", fontsize=11)
+    axes[1, 0].set_ylabel("π × radiance at the camera\n[W/m²/nm]", fontsize=11)
+    fig.tight_layout()
     return _fig(fig)
 
 
-def _calibration(path: Path) -> str:
-    summary = json.loads((path / "summary.json").read_text())
-    parts = [f"<h2>Calibration: {html.escape(str(path))}</h2>", f"<p class=note>dataset: {_fmt(summary.get('dataset'))}</p>",
-             "<h3>Measured against predicted response (68 % and 95 % bands) and residuals</h3>", _img(path / "response.png"),
-             "<h3>Posterior</h3>", _posterior(summary), _img(path / "corner.png"), "<h3>Traces</h3>", _img(path / "traces.png")]
-    cross = summary.get("cross_configuration") or []
-    if cross:
-        parts += [f"<h3>Cross-configuration prediction (fitted on {html.escape(', '.join(summary.get('training_sweeps', [])))})</h3>",
-                  _table(cross, ["sweep_id", "role", "points", "median_abs_rel_error", "max_abs_rel_error", "inside_95"], 2),
-                  '<p class="note">Relative error of the posterior median; "inside_95": fraction of measured points inside '
-                  'the 95 % posterior predictive band of a new measurement.</p>']
-    if (path / "spectra.parquet").exists():
-        parts += ["<h3>Spectra: predicted (posterior median) and measured</h3>", _spectra_figure(path / "spectra.parquet")]
-        if summary.get("spectra"):
-            parts.append(_table(summary["spectra"], ["sweep_id", "position", "measured_over_predicted", "shape_rms_error"], 2))
-    return "\n".join(parts)
-
-
-def _emva(path: Path) -> str:
+def _emva(path: Path) -> dict:
     doc = json.loads((path / "emva.json").read_text())
     keys = ("K_dn_per_e", "quantum_efficiency", "dark_noise_e", "saturation_e", "snr_max_db", "dynamic_range_db",
             "linearity_error_percent", "dark_current_e_per_s", "dsnu_e", "prnu_percent")
-    rows = [{"quantity": k, "value": doc.get(k), "std": doc.get(f"{k}_std")} for k in keys]
-    images = "".join(_img(path / n) for n in ("photon_transfer.png", "snr.png", "linearity.png", "dark_current.png")
-                     if (path / n).exists())
-    return f"<h2>EMVA 1288 characterisation: {html.escape(str(path))}</h2>" + _table(rows, ["quantity", "value", "std"]) + images
+    rows = [{"quantity": k, "value": _number(doc.get(k)), "std": _number(doc.get(f"{k}_std"))} for k in keys]
+    images = [_img(path / n) for n in ("photon_transfer.png", "snr.png", "linearity.png", "dark_current.png")
+              if (path / n).exists()]
+    return {"path": str(path), "rows": rows, "images": images}
+
+
+def _provenance(path: Path, metadata: dict) -> dict:
+    rigs = metadata.get("rigs") or {}
+    devices = [{"configuration": _label(s, rigs[s]) if s in rigs else s,
+                "camera": f"{d.get('camera', {}).get('vendor', '')} {d.get('camera', {}).get('model', '')}",
+                "serial": d.get("camera", {}).get("serial") or "—", "firmware": d.get("camera", {}).get("firmware") or "—",
+                "light": d.get("light") or "—", "spectrometer": d.get("spectrometer") or "—"}
+               for s, d in (metadata.get("devices") or {}).items()]
+    return {"path": str(path), "sha": metadata.get("plan_sha256") or "—", "version": metadata.get("uwlab_version") or "—",
+            "host": metadata.get("host") or "—", "started": metadata.get("started_utc") or "—",
+            "finished": metadata.get("finished_utc") or "—", "kind": "simulated rig" if metadata.get("sim") else "tank",
+            "devices": devices, "software": ", ".join(f"{k} {v}" for k, v in (metadata.get("software") or {}).items())}
 
 
 def write_report(root: str | Path, out: str | Path, *, replace: bool = False) -> Path:
@@ -165,15 +284,13 @@ def write_report(root: str | Path, out: str | Path, *, replace: bool = False) ->
     emva = _find(root, "emva.json")
     if not (datasets or calibrations or emva):
         raise UwlabError(f"{root}: no dataset, calibration or EMVA characterisation found")
-    parts = [f"<!doctype html><html><head><meta charset='utf-8'><title>uwlab validation report</title><style>{CSS}</style>"
-             f"</head><body><h1>uwlab validation report</h1><p class=note>{html.escape(str(root.resolve()))}</p>"]
     metadata = [(d, json.loads((d / "metadata.json").read_text())) for d in datasets]
-    if metadata:
-        parts += ["<h2>Set-up</h2>", _setup(metadata[0][1])]
-    parts += [_calibration(c) for c in calibrations]
-    parts += [_emva(e) for e in emva]
-    if metadata:
-        parts += ["<h2>Provenance</h2>"] + [_provenance(d, m) for d, m in metadata]
-    parts.append("</body></html>")
-    out.write_text("\n".join(parts))
+    environment = Environment(loader=PackageLoader("uwlab.experiments", "templates"), autoescape=True,
+                              undefined=StrictUndefined, trim_blocks=True, lstrip_blocks=True)
+    html = environment.get_template("report.html.j2").render(
+        root=str(root.resolve()), written=time.strftime("%Y-%m-%d %H:%M"),
+        calibrations=[_calibration(c) for c in calibrations],
+        setup=_setup(metadata[0][1]) if metadata else [], world=_world(metadata[0][1]) if metadata else None,
+        emva=[_emva(e) for e in emva], provenance=[_provenance(d, m) for d, m in metadata])
+    out.write_text(html)
     return out

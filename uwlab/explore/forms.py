@@ -95,12 +95,15 @@ def _field(section: str, name: str, schema: dict, required: bool) -> FormField:
 
 @cache
 def form(config: type[Schema] = DesignConfig) -> tuple[FormSection, ...]:
-    """The form of the design config (or another config schema of sections), sections and keys in its order."""
+    """The form of the design config (or another config schema of sections), sections and keys in its order. Arrays
+    of tables (the extended model's [[lights]]) are not form sections: they are edited in the TOML."""
     schema = config.model_json_schema()
     defs = schema.get("$defs", {})
     sections = []
     for name, prop in schema["properties"].items():
         body = _resolve(prop, defs)
+        if body.get("type") == "array":
+            continue
         required = set(body.get("required", ()))
         title = body.get("description", "").split("\n")[0]
         fields = tuple(_field(name, key, _resolve(sub, defs), key in required)

@@ -1,7 +1,14 @@
 """The design configuration: its schema (one pydantic model per section), overrides and loading.
 
 A design config is TOML with sections [spectral], [light], [water], [target], [housing], [lens], [sensor],
-[operation]. Every key carries its unit in its name and its meaning in its field's description. Numeric keys
+[operation], [model] and an optional array of [[lights]]. Every key carries its unit in its name and its meaning in
+its field's description.
+
+[model] kind selects the image-formation chain: ``paper`` (the default) is the paper's chain, which ignores every
+key marked "extended model" below; ``extended`` (`uwlab.model.extended`) places the lights (the [[lights]] array,
+else `light.separation_m`, else the paper's distance and incidence), gives them a beam profile, renders the target
+pixel by pixel (a finite board with a surround), adds the water's veiling light (backscatter) and mechanical
+vignetting. Numeric keys
 that `uwlab design --grid` can vary are `Grid` quantities: a number or a numpy array (an open mesh), validated
 element-wise. Physical plausibility limits (`uwlab.model.schema`) refuse values in a wrong unit. Errors are
 `ConfigError`s naming ``section.key`` and the offending value.
@@ -9,7 +16,7 @@ element-wise. Physical plausibility limits (`uwlab.model.schema`) refuse values 
 >>> validate({"light": {"luminous_flux_lm": 25000, "beam_half_angle_deg": 40}, "water": {"type": "jerlov-I"},
 ...           "target": {"reflectance": 0.2}, "lens": {"focal_length_mm": 8, "f_number": 2.8},
 ...           "sensor": {"profile": "imx250m"}, "operation": {"altitude_m": 2}})["lens"]
-{'focal_length_mm': 8.0, 'f_number': 2.8, 'transmittance': 1.0}
+{'focal_length_mm': 8.0, 'f_number': 2.8, 'transmittance': 1.0, 'mechanical_vignetting': 0.0}
 """
 from __future__ import annotations
 
@@ -22,10 +29,11 @@ from pydantic import BeforeValidator, Field, model_validator
 
 from uwlab.errors import ConfigError
 from uwlab.model.data import read_toml
+from uwlab.model.scattering import PHASE_FUNCTIONS
 from uwlab.model.schema import (BitDepth, BlurPx, CircleOfConfusionMm, DistanceM, ExposureS, FNumber, FocalLengthMm,
                                 Fraction, GainDb, Grid, HalfAngleDeg, HousingMm, IncidenceDeg, LuminousFluxLm,
-                                NonEmptyText, RefractiveIndex, Schema, SpectralStepNm, SpeedMS, Transmittance,
-                                WavelengthNm, invalid, number_or, parse, quantity)
+                                NonEmptyText, PositionM, RefractiveIndex, ScatteringPerM, Schema, SpectralStepNm,
+                                SpeedMS, Transmittance, WavelengthNm, invalid, number_or, parse, quantity)
 
 # Light count: one to a thousand lights of the same kind.
 LightCount = quantity(1, 1000, "lights", hint="", integer=True)
@@ -56,6 +64,11 @@ def _comma_list(value):
 
 Vector2Deg = Annotated[list[TiltDeg], Field(min_length=2, max_length=2), BeforeValidator(_comma_list)]
 Vector3Mm = Annotated[list[DecenterMm], Field(min_length=3, max_length=3), BeforeValidator(_comma_list)]
+# Spectral exponent of the particles' scattering, b ∝ λ^−γ: 0 (large particles) to 4 (Rayleigh).
+ScatteringExponent = quantity(0.0, 4.0, "", hint="")
+BeamModel = Literal["cone", "disk", "cos-power"]
+BEAM_MODEL = ("cone: uniform intensity in the beam; disk: flux spread over the beam's footprint; cos-power (extended "
+              "model; the paper model takes it as a cone): I ∝ cos^m ψ with half the peak intensity at the half-angle")
 
 
 def _section(model):
@@ -86,12 +99,17 @@ class Light(Schema):
         None, description="beam half-angle in water [deg] (give this or beam_half_angle_in_air_deg)")
     beam_half_angle_in_air_deg: Grid[HalfAngleDeg] | None = Field(
         None, description="beam half-angle as specified in air [deg], refracted into the water by the port")
-    beam_model: Literal["cone", "disk"] = Field(
-        "cone", description="cone: uniform intensity in the beam; disk: flux spread over the beam's footprint")
+    beam_model: BeamModel = Field("cone", description=BEAM_MODEL)
     count: Grid[LightCount] = Field(1, description="number of identical lights")
     distance_m: Grid[DistanceM] | None = Field(
         None, description="light → target distance [m] (default: the altitude)")
     incidence_deg: Grid[IncidenceDeg] = Field(0.0, description="angle of incidence of the light on the target [deg]")
+    separation_m: Grid[DistanceM] | None = Field(
+        None, description="extended model: the lights' distance from the optical axis [m], `count` lights spread "
+                          "evenly around it from above the camera, in the camera's plane")
+    aim: Literal["target", "parallel"] = Field(
+        "target", description="extended model: lights placed by separation_m aim at the target's centre or along "
+                              "the optical axis")
 
     @model_validator(mode="after")
     def _one_beam_angle(self):
@@ -101,11 +119,39 @@ class Light(Schema):
         return self
 
 
+class LightPlacement(Schema):
+    """Extended model: one light of the [[lights]] array, placed in the camera frame (x right, y down, z along the
+    optical axis from the camera's port) [m]; unset beam keys are [light]'s."""
+
+    position_m: tuple[PositionM, PositionM, PositionM] = Field(description="the light's position [x, y, z] [m]")
+    aim_m: tuple[PositionM, PositionM, PositionM] | None = Field(
+        None, description="a point the light is aimed at [m] (default: along the optical axis)")
+    luminous_flux_lm: LuminousFluxLm | None = Field(None, description="rated luminous flux [lm]")
+    beam_half_angle_deg: HalfAngleDeg | None = Field(None, description="beam half-angle in water [deg]")
+    beam_half_angle_in_air_deg: HalfAngleDeg | None = Field(None, description="beam half-angle in air [deg]")
+    beam_model: BeamModel | None = Field(None, description=BEAM_MODEL)
+    transmittance: Transmittance = Field(
+        1.0, description="fraction of the flux entering the water, e.g. through a window between light and water")
+
+    @model_validator(mode="after")
+    def _one_beam_angle(self):
+        if self.beam_half_angle_deg is not None and self.beam_half_angle_in_air_deg is not None:
+            raise invalid("beam_half_angle_deg", self.beam_half_angle_deg,
+                          "give at most one of beam_half_angle_deg and beam_half_angle_in_air_deg")
+        return self
+
+
 class Water(Schema):
-    """The water: its optical type and a scale on its attenuation."""
+    """The water: its optical type, a scale on its attenuation and suspended particles."""
 
     type: NonEmptyText = Field(description="water type (pure-fresh, pure-sea, jerlov-I … jerlov-9C) or a CSV file")
     attenuation_scale: Grid[AttenuationScale] = Field(1.0, description="factor on the beam attenuation c(λ)")
+    particle_scattering_per_m: ScatteringPerM = Field(
+        0.0, description="scattering coefficient b_p(550 nm) of added particles [1/m]: adds to the attenuation; "
+                         "extended model: also veiling light")
+    particle_scattering_exponent: ScatteringExponent = Field(1.0, description="γ of b_p(λ) = b_p(550) (550/λ)^γ")
+    particle_phase_function: Literal[PHASE_FUNCTIONS] = Field(
+        "fournier-forand", description="particles' phase function (fournier-forand: Petzold's average)")
 
 
 class Target(Schema):
@@ -113,6 +159,10 @@ class Target(Schema):
 
     reflectance: number_or(Grid[Fraction], NonEmptyText, NAME_OR_FILE) = Field(
         description="diffuse reflectance: a fraction, a named material or a CSV file")
+    board_size_m: tuple[DistanceM, DistanceM] | None = Field(
+        None, description="extended model: the target is a board [x, y] [m] centred on the axis (default: it fills "
+                          "the view)")
+    surround_reflectance: Fraction = Field(0.0, description="extended model: reflectance around the board")
 
 
 class Housing(Schema):
@@ -159,6 +209,8 @@ class Lens(Schema):
         1.0, description="lens transmittance: a fraction or a CSV file")
     min_focus_distance_m: Grid[DistanceM] | None = Field(
         None, description="the lens's closest focus [m] (for the close-up lens of the focusing aids)")
+    mechanical_vignetting: Grid[Fraction] = Field(
+        0.0, description="extended model: light lost at the image corner beyond cos⁴ (falls off as (r/r_corner)⁴)")
 
 
 class Sensor(Schema):
@@ -186,8 +238,15 @@ class Operation(Schema):
         None, description="acceptable circle of confusion on the sensor [mm] (default: the sensor diagonal / 1500)")
 
 
+class Model(Schema):
+    """The image-formation chain."""
+
+    kind: Literal["paper", "extended"] = Field("paper", description="paper: the paper's chain; extended: "
+                                                                    "`uwlab.model.extended`")
+
+
 class DesignConfig(Schema):
-    """A design config: one table per section."""
+    """A design config: one table per section, and the extended model's [[lights]]."""
 
     spectral: Spectral = _section(Spectral)
     light: Light = _section(Light)
@@ -197,12 +256,15 @@ class DesignConfig(Schema):
     lens: Lens = _section(Lens)
     sensor: Sensor = _section(Sensor)
     operation: Operation = _section(Operation)
+    model: Model = _section(Model)
+    lights: list[LightPlacement] = Field([], description=LightPlacement.__doc__.splitlines()[0])
 
 
-def validate(raw: dict) -> dict[str, dict]:
-    """Validate a raw config against `DesignConfig`, fill defaults; returns {section: {key: value}}."""
+def validate(raw: dict) -> dict:
+    """Validate a raw config against `DesignConfig`, fill defaults; returns {section: {key: value}} and, for
+    ``lights``, a list of such tables."""
     config = parse(DesignConfig, raw)
-    return {name: dict(section) for name, section in config}
+    return {name: [dict(light) for light in section] if name == "lights" else dict(section) for name, section in config}
 
 
 def parse_value(text: str):

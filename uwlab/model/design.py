@@ -32,7 +32,7 @@ from pathlib import Path
 
 import numpy as np
 
-from uwlab.model import focus, optics
+from uwlab.model import extended, focus, optics
 from uwlab.model import port as port_model
 from uwlab.model.config import apply_override, load_raw, validate
 from uwlab.model.data import resolve_path
@@ -64,7 +64,7 @@ class Design:
 
     def with_values(self, **dotted) -> "Design":
         """A copy with some numeric values replaced, e.g. ``with_values(**{"lens.f_number": 4.0})``."""
-        values = {s: dict(v) for s, v in self.values.items()}
+        values = {s: list(v) if isinstance(v, list) else dict(v) for s, v in self.values.items()}
         for name, value in dotted.items():
             section, key = name.split(".")
             values[section][key] = value
@@ -113,7 +113,8 @@ def load_design(path: str | Path, overrides: dict | None = None) -> Design:
 
 def _spectral_key(d: Design):
     return (d.grid, d["light.spectrum"], d["water.type"], _hashable(d["target.reflectance"]),
-            _hashable(d["lens.transmittance"]), id(d.sensor), d["sensor.channel"])
+            _hashable(d["lens.transmittance"]), id(d.sensor), d["sensor.channel"], d["water.particle_scattering_per_m"],
+            d["water.particle_scattering_exponent"])
 
 
 def _hashable(value):
@@ -125,12 +126,13 @@ def _hashable(value):
 class SpectralWeights:
     """Fixed spectral factors of the chain on the grid.
 
-    c: beam attenuation [1/m] (unscaled). W: columns (target irradiance, sensor irradiance, electron rate) per
-    unit luminous flux, with the spectral (tabulated) reflectance and lens transmittance folded in and
-    trapezoidal weights applied, so that exp(−D c) @ W integrates over wavelength; then the photon rate of the
-    source alone, × reflectance, × reflectance × lens transmittance (the stages of `light_budget`).
-    `reflectance` and `lens_transmittance` are the spectral curves when given as files, else ones (broadband
-    numbers stay outside).
+    c: beam attenuation [1/m] (unscaled): the water type's plus the added particles' scattering. W: columns
+    (target irradiance, sensor irradiance, electron rate) per unit luminous flux, with the spectral (tabulated)
+    reflectance and lens transmittance folded in and trapezoidal weights applied, so that exp(−D c) @ W integrates
+    over wavelength; then the photon rate of the source alone, × reflectance, × reflectance × lens transmittance
+    (the stages of `light_budget`). `reflectance` and `lens_transmittance` are the spectral curves when given as
+    files, else ones (broadband numbers stay outside). b_water, b_particles: the scattering coefficients [1/m]
+    (the extended model's veiling light).
     """
 
     c: np.ndarray
@@ -139,6 +141,8 @@ class SpectralWeights:
     reflectance: np.ndarray
     lens_transmittance: np.ndarray
     qe: np.ndarray
+    b_water: np.ndarray
+    b_particles: np.ndarray
 
     @cached_property
     def table(self) -> SpectralTable:
@@ -169,7 +173,9 @@ def spectral_weights(d: Design) -> SpectralWeights:
 def _compute_weights(d: Design) -> SpectralWeights:
     grid = d.grid
     s = radiant_per_lumen(relative_spectrum(d["light.spectrum"], grid), grid)
-    c = water_iop(d["water.type"], grid).c_per_m
+    iop = water_iop(d["water.type"], grid)
+    b_particles = extended.particles(d).b_per_m(grid.nm)
+    c = iop.c_per_m + b_particles
     m = reflectance(d["target.reflectance"], grid)
     t = transmittance(d["lens.transmittance"], grid)
     qe = d.sensor.qe_on(grid, d["sensor.channel"])
@@ -179,7 +185,8 @@ def _compute_weights(d: Design) -> SpectralWeights:
     photons = base * photons_per_joule(grid.nm)
     W = np.stack([base, base * m_spec * t_spec, photons * m_spec * t_spec * qe, photons, photons * m_spec,
                   photons * m_spec * t_spec], axis=1)
-    return SpectralWeights(c=c, W=W, s_per_lm=s, reflectance=m_spec, lens_transmittance=t_spec, qe=qe)
+    return SpectralWeights(c=c, W=W, s_per_lm=s, reflectance=m_spec, lens_transmittance=t_spec, qe=qe,
+                           b_water=iop.b_per_m, b_particles=b_particles)
 
 
 def _is_spectral(d: Design, dotted: str) -> bool:
@@ -187,7 +194,7 @@ def _is_spectral(d: Design, dotted: str) -> bool:
     return isinstance(d[dotted], str)
 
 
-def _broadband(d: Design, dotted: str):
+def broadband_factor(d: Design, dotted: str):
     """A broadband factor: the configured number, or 1 when the factor is spectral (already in W)."""
     return 1.0 if _is_spectral(d, dotted) else d[dotted]
 
@@ -211,9 +218,15 @@ def _irradiance_geometry(d: Design, beta, cos_incidence):
     """Target irradiance per unit spectral radiant flux without attenuation [1/m²] (steps 2 of the chain)."""
     count = d["light.count"]
     d_l = light_distance_m(d)
-    if d["light.beam_model"] == "cone":
+    if paper_beam_model(d) == "cone":
         return count * cos_incidence / (2 * np.pi * (1 - np.cos(beta)) * d_l**2)
     return count / (np.pi * (d_l * np.tan(beta)) ** 2)
+
+
+def paper_beam_model(d: Design) -> str:
+    """The paper chain's beam: "disk", or "cone" (a cos-power beam, an extended-model profile, counts as a cone of
+    its half-angle)."""
+    return "disk" if d["light.beam_model"] == "disk" else "cone"
 
 
 def light_distance_m(d: Design):
@@ -222,7 +235,8 @@ def light_distance_m(d: Design):
     return d["operation.altitude_m"] if value is None else value
 
 
-def _port_transmittance(d: Design):
+def housing_transmittance(d: Design):
+    """The camera port's transmittance: the configured number, or the Fresnel value at normal incidence."""
     value = d["housing.port_transmittance"]
     if isinstance(value, str):
         return port_model.port_transmittance(d["housing.water_index"], d["housing.port_index"])
@@ -231,9 +245,9 @@ def _port_transmittance(d: Design):
 
 def _radiance_to_sensor_factor(d: Design, weights: SpectralWeights):
     """Broadband factors from target irradiance to sensor irradiance: M/π · T_port/n_w² · T_lens · π/(4N²)."""
-    m = _broadband(d, "target.reflectance")
-    t = _broadband(d, "lens.transmittance")
-    return (m / np.pi) * _port_transmittance(d) / d["housing.water_index"] ** 2 * t * optics.lens_irradiance_factor(
+    m = broadband_factor(d, "target.reflectance")
+    t = broadband_factor(d, "lens.transmittance")
+    return (m / np.pi) * housing_transmittance(d) / d["housing.water_index"] ** 2 * t * optics.lens_irradiance_factor(
         d["lens.f_number"])
 
 
@@ -253,7 +267,7 @@ def _field_terms(d: Design, r_m):
     cos_air = 1 / np.sqrt(1 + tan_air**2)
     cos_w = 1 / np.sqrt(1 + tan_w**2)
     in_beam = np.arctan(tan_w) <= np.asarray(beta)[..., None]
-    return cos_air**4 * in_beam * (cos_w**3 if d["light.beam_model"] == "cone" else 1.0), 1 / cos_w
+    return cos_air**4 * in_beam * (cos_w**3 if paper_beam_model(d) == "cone" else 1.0), 1 / cos_w
 
 
 def _attenuating_path_m(d: Design):
@@ -299,7 +313,7 @@ class _ImageGeometry:
 
 def _image_geometry(d: Design, weights: SpectralWeights, focal_m: float, water_index: float) -> _ImageGeometry:
     flat = d["housing.port"] == "flat"
-    model = d["light.beam_model"]
+    model = paper_beam_model(d)
     key = (id(d.sensor), focal_m, water_index if flat else None, model)
     cache = weights.image_tables
     if key not in cache:
@@ -373,9 +387,48 @@ def _on_axis(d: Design, weights: SpectralWeights):
     return target, to_sensor * weights.table(path, 1), to_sensor * weights.table(path, 2) * d.sensor.pixel_area_m2
 
 
+def _extended_on_axis(d: Design, weights: SpectralWeights):
+    """The extended chain's (target irradiance at the target's centre [W/m²], sensor irradiance [W/m²], target
+    electron rate, veiling-light electron rate [e⁻/s]) of the on-axis pixel (of the bare sensor)."""
+    chain = extended.Chain(d, weights)
+    port = housing_transmittance(d)
+    if extended.is_bare(d):
+        direct, veil = chain.bare_rates(port)
+        irradiance = sum(chain.bare_rates(port, watts=True))
+    else:
+        lens = broadband_factor(d, "lens.transmittance")
+        centre = (np.zeros(1), np.zeros(1), port, lens)
+        direct, veil = (x[..., 0] for x in chain.pixel_rates(*centre))
+        irradiance = sum(chain.pixel_rates(*centre, watts=True))[..., 0]
+    return chain.target_irradiance(weights), irradiance, direct, veil
+
+
 def on_axis_electron_rate(d: Design):
-    """Electron rate [e⁻/s] of the on-axis pixel, before any clipping (μ_e = rate · t_exp)."""
-    return _on_axis(d, spectral_weights(d))[2]
+    """Electron rate [e⁻/s] of the on-axis pixel (extended: target and veiling light; the bare sensor's mean),
+    before any clipping (μ_e = rate · t_exp)."""
+    weights = spectral_weights(d)
+    if d["model.kind"] == "extended":
+        _, _, direct, veil = _extended_on_axis(d, weights)
+        return direct + veil
+    return _on_axis(d, weights)[2]
+
+
+def extended_image_rates(d: Design, weights: SpectralWeights | None = None):
+    """(target, veiling light) mean electron rates per pixel [e⁻/s] over the sensor in the extended chain (a
+    16 × 16 midpoint grid over the whole frame; the bare sensor is uniform)."""
+    weights = spectral_weights(d) if weights is None else weights
+    chain = extended.Chain(d, weights)
+    port = housing_transmittance(d)
+    if extended.is_bare(d):
+        return chain.bare_rates(port)
+    x, y = chain.image_positions()
+    direct, veil = chain.pixel_rates(x, y, port, broadband_factor(d, "lens.transmittance"))
+    return direct.mean(axis=-1), veil.mean(axis=-1)
+
+
+def paper(d: Design) -> Design:
+    """The design under the paper's chain ([model] kind = "paper"): every extended-model key is then ignored."""
+    return d.with_values(**{"model.kind": "paper"})
 
 
 def circle_of_confusion_m(d: Design):
@@ -430,18 +483,29 @@ def evaluate(d: Design) -> dict[str, np.ndarray]:
     min_focus = d["lens.min_focus_distance_m"]
     close_up = focus.close_up_lens_dpt(focus_image, min_focus) if min_focus is not None else None
 
-    target, sensor_irradiance, rate = _on_axis(d, weights)
     bits = d["sensor.bit_depth"]
     k = sensor.gain_k(d["sensor.gain_db"], bits)
     dark = sensor.dark_dn(bits)
-    mu_e_raw = rate * exposure
-    mu_y, saturated = response_dn(mu_e_raw, k, dark, sensor.saturation_e, bits)
-    mu_e = np.minimum(mu_e_raw, sensor.saturation_e)
-    snr_value = snr(mu_e, sensor.dark_noise_e, k)
-
-    image_raw = _image_average_rate(d, weights) * exposure
-    image_y, _ = response_dn(image_raw, k, dark, sensor.saturation_e, bits)
-    image_e = np.minimum(image_raw, sensor.saturation_e)
+    extras = {}
+    if d["model.kind"] == "extended":
+        target, sensor_irradiance, rate, veil = _extended_on_axis(d, weights)
+        mu_e, mu_y, saturated, snr_value, veil_e = _extended_response(rate, veil, exposure, k, dark, bits, sensor)
+        image_rate, image_veil = extended_image_rates(d, weights)
+        image_e, image_y, _, image_snr, image_veil_e = _extended_response(image_rate, image_veil, exposure, k, dark,
+                                                                          bits, sensor)
+        extras = {"veil_electrons": veil_e}
+        image_extras = {"veil_electrons": image_veil_e}
+    else:
+        target, sensor_irradiance, rate = _on_axis(d, weights)
+        mu_e_raw = rate * exposure
+        mu_y, saturated = response_dn(mu_e_raw, k, dark, sensor.saturation_e, bits)
+        mu_e = np.minimum(mu_e_raw, sensor.saturation_e)
+        snr_value = snr(mu_e, sensor.dark_noise_e, k)
+        image_raw = _image_average_rate(d, weights) * exposure
+        image_y, _ = response_dn(image_raw, k, dark, sensor.saturation_e, bits)
+        image_e = np.minimum(image_raw, sensor.saturation_e)
+        image_snr = snr(image_e, sensor.dark_noise_e, k)
+        image_extras = {}
     with np.errstate(divide="ignore"):
         snr_db = 20 * np.log10(snr_value)
     return {
@@ -465,9 +529,23 @@ def evaluate(d: Design) -> dict[str, np.ndarray]:
         "saturated": saturated,
         "snr": snr_value,
         "snr_db": snr_db,
-        "image_average": {"mean_electrons": image_e, "mean_dn": image_y, "snr": snr(image_e, sensor.dark_noise_e, k)},
+        **extras,
+        "image_average": {"mean_electrons": image_e, "mean_dn": image_y, "snr": image_snr, **image_extras},
         "light_budget_stops": light_budget(d, weights, fov_m),
     }
+
+
+def _extended_response(rate, veil, exposure, k, dark, bits, sensor):
+    """(μ_e, μ_y, saturated, SNR, μ_veil) of a pixel receiving target and veiling light: the camera records both;
+    the SNR is the target's signal over the shot noise of both (`uwlab.model.sensor.snr`). At saturation both are
+    clipped in proportion."""
+    total_raw = (rate + veil) * exposure
+    mu_y, saturated = response_dn(total_raw, k, dark, sensor.saturation_e, bits)
+    total = np.minimum(total_raw, sensor.saturation_e)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        share = np.where(total_raw > 0, veil * exposure / total_raw, 0.0)
+    veil_e = total * share
+    return total, mu_y, saturated, snr(total - veil_e, sensor.dark_noise_e, k, veil_e), veil_e
 
 
 SPECTROMETER_POSITIONS = ("target", "camera", "sensor")
@@ -507,11 +585,11 @@ def light_budget(d: Design, weights: SpectralWeights, fov_m: dict) -> dict[str, 
     fractions = {
         "beam_to_view": beam,
         "water_to_target": lit / source,
-        "reflectance": reflected / lit * _broadband(d, "target.reflectance"),
+        "reflectance": reflected / lit * broadband_factor(d, "target.reflectance"),
         "water_to_camera": returned / reflected,
-        "port": _port_transmittance(d) / d["housing.water_index"] ** 2 * (effective_focal_length_m(d) / focal) ** 2,
+        "port": housing_transmittance(d) / d["housing.water_index"] ** 2 * (effective_focal_length_m(d) / focal) ** 2,
         "aperture": focal**2 / (4 * np.asarray(d["lens.f_number"]) ** 2 * d_c**2),
-        "lens_transmittance": transmitted / returned * _broadband(d, "lens.transmittance"),
+        "lens_transmittance": transmitted / returned * broadband_factor(d, "lens.transmittance"),
         "quantum_efficiency": table(far, 2) / transmitted,
     }
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -521,9 +599,13 @@ def light_budget(d: Design, weights: SpectralWeights, fov_m: dict) -> dict[str, 
 def stage_spectra(d: Design) -> dict[str, np.ndarray]:
     """Spectra along the on-axis chain for a scalar design (for plots and the simulated spectrometer).
 
-    Keys: wavelength_nm; source_w_nm (Φe, all lights); target_irradiance_w_m2_nm (E_t); return_radiance_w_m2_sr_nm
-    (L_w at the camera, before the port); sensor_irradiance_w_m2_nm (E_s); absorbed_w_m2_nm (E_s η).
+    Keys: wavelength_nm; source_w_nm (Φe, all lights); target_irradiance_w_m2_nm (E_t); facing_light_w_m2_nm (the
+    irradiance on a board at the target's centre facing the light, E_t / cos θ_i; extended: of every light, on a
+    surface across its ray); return_radiance_w_m2_sr_nm (L_w at the camera, before the port; extended: with the
+    veiling light); sensor_irradiance_w_m2_nm (E_s); absorbed_w_m2_nm (E_s η).
     """
+    if d["model.kind"] == "extended":
+        return _extended_spectra(d)
     w = spectral_weights(d)
     grid = d.grid
     c = w.c * d["water.attenuation_scale"]
@@ -533,14 +615,29 @@ def stage_spectra(d: Design) -> dict[str, np.ndarray]:
     geometry = flux * _irradiance_geometry(d, beta, np.cos(np.radians(d["light.incidence_deg"])))
     d_l, d_c = light_distance_m(d), d["operation.altitude_m"]
     e_t = geometry * w.s_per_lm * np.exp(-c * d_l)
-    l_w = e_t * w.reflectance * _broadband(d, "target.reflectance") / np.pi * np.exp(-c * d_c)
-    e_s = (l_w * _port_transmittance(d) / d["housing.water_index"] ** 2 * w.lens_transmittance
-           * _broadband(d, "lens.transmittance") * optics.lens_irradiance_factor(d["lens.f_number"]))
+    l_w = e_t * w.reflectance * broadband_factor(d, "target.reflectance") / np.pi * np.exp(-c * d_c)
+    e_s = (l_w * housing_transmittance(d) / d["housing.water_index"] ** 2 * w.lens_transmittance
+           * broadband_factor(d, "lens.transmittance") * optics.lens_irradiance_factor(d["lens.f_number"]))
     return {
         "wavelength_nm": grid.nm,
         "source_w_nm": source,
         "target_irradiance_w_m2_nm": e_t,
+        "facing_light_w_m2_nm": e_t / np.cos(np.radians(d["light.incidence_deg"])),
         "return_radiance_w_m2_sr_nm": l_w,
         "sensor_irradiance_w_m2_nm": e_s,
         "absorbed_w_m2_nm": e_s * w.qe,
     }
+
+
+def _extended_spectra(d: Design) -> dict[str, np.ndarray]:
+    """`stage_spectra` of the extended chain: at the target's centre and along the on-axis ray (per wavelength)."""
+    w = spectral_weights(d)
+    chain = extended.Chain(d, w)
+    target, facing, radiance = chain.spectra(w)
+    lens = broadband_factor(d, "lens.transmittance") * w.lens_transmittance
+    e_s = radiance * housing_transmittance(d) / d["housing.water_index"] ** 2 * lens * optics.lens_irradiance_factor(
+        d["lens.f_number"])
+    flux = sum(np.asarray(light.flux_lm) * np.asarray(light.count) for light in chain.lights)
+    return {"wavelength_nm": d.grid.nm, "source_w_nm": flux * w.s_per_lm, "target_irradiance_w_m2_nm": target,
+            "facing_light_w_m2_nm": facing, "return_radiance_w_m2_sr_nm": radiance, "sensor_irradiance_w_m2_nm": e_s,
+            "absorbed_w_m2_nm": e_s * w.qe}

@@ -26,10 +26,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from uwlab.errors import ConfigError
 from uwlab.model import focus, optics
 from uwlab.model.design import circle_of_confusion_m, effective_focal_length_m, port_geometry
-from uwlab.model.raytrace import DomePort, FlatPort, Port, normalize
+from uwlab.model.raytrace import FlatPort, Port, normalize, port_from_housing
 
 PUPIL_OFFSET_M = 1e-4
 SLOPE_STEP = 1e-5
@@ -37,18 +36,7 @@ SLOPE_STEP = 1e-5
 
 def port_of(d) -> Port:
     """The exact port of a scalar design (`uwlab.model.design.Design`)."""
-    values = d.values["housing"]
-    for key in ("water_index", "port_index", "flat_thickness_mm", "flat_air_gap_mm", "dome_radius_mm",
-                "dome_thickness_mm"):
-        if np.ndim(values[key]) > 0:
-            raise ConfigError(f"housing.{key}", np.asarray(values[key]).tolist(),
-                              "must be a single value to trace rays")
-    n_w, n_p = float(values["water_index"]), float(values["port_index"])
-    if values["port"] == "dome":
-        return DomePort(values["dome_radius_mm"] * 1e-3, values["dome_thickness_mm"] * 1e-3, n_p, n_w,
-                        tuple(v * 1e-3 for v in values["dome_decenter_mm"]))
-    return FlatPort(values["flat_thickness_mm"] * 1e-3, values["flat_air_gap_mm"] * 1e-3, n_p, n_w,
-                    tuple(np.radians(values["flat_tilt_deg"])))
+    return port_from_housing(d.values["housing"])
 
 
 def pinhole_directions(xy_m, focal_length_m):

@@ -29,6 +29,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from uwlab.errors import ConfigError
+
 AIR_INDEX = 1.0
 _PROJECT_STEP = 1e-7
 
@@ -199,3 +201,18 @@ class DomePort(Port):
         centre = tuple(-np.asarray(self.decenter_m, float))
         return [(Sphere(centre, self.outer_radius_m - self.thickness_m), self.glass_index),
                 (Sphere(centre, self.outer_radius_m), self.water_index)]
+
+
+def port_from_housing(values: dict) -> Port:
+    """The exact port of a design's [housing] values (single values: a ray trace has one port)."""
+    for key in ("water_index", "port_index", "flat_thickness_mm", "flat_air_gap_mm", "dome_radius_mm",
+                "dome_thickness_mm"):
+        if np.ndim(values[key]) > 0:
+            raise ConfigError(f"housing.{key}", np.asarray(values[key]).tolist(),
+                              "must be a single value to trace rays")
+    n_w, n_p = float(values["water_index"]), float(values["port_index"])
+    if values["port"] == "dome":
+        return DomePort(values["dome_radius_mm"] * 1e-3, values["dome_thickness_mm"] * 1e-3, n_p, n_w,
+                        tuple(v * 1e-3 for v in values["dome_decenter_mm"]))
+    return FlatPort(values["flat_thickness_mm"] * 1e-3, values["flat_air_gap_mm"] * 1e-3, n_p, n_w,
+                    tuple(np.radians(values["flat_tilt_deg"])))

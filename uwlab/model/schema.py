@@ -35,6 +35,9 @@ Plausibility limits of the named quantities (a value outside is refused; the rea
 - `HousingMm` 0.5–1000 mm (port and dome sizes): a size in m (0.1) is below, in µm above.
 - `CircleOfConfusionMm` 1e-4–1 mm: typically 0.002–0.03 mm (a pixel or two); a value in µm is above.
 - `BlurPx` (0, 1000] px; `BitDepth` 1–32 bit; `DurationS` 0–1 h (settling times).
+- `PositionM` −100–100 m: a light's or instrument's position relative to the camera on a vehicle or in a tank; a
+  position in mm is outside. `ScatteringPerM` 0–100 1/m: clear ocean ~0.002 (pure water), harbours ~2, the
+  muddiest estuaries tens; a value in 1/km or 1/cm is outside.
 - `FrameCount` 2–10,000 frames per point (and dark frames): EMVA 1288 needs 2 for the photon transfer and ≥ 16
   for nonuniformities (Release 4.0 Linear, §8); more than 10,000 is hours per point at usual frame rates — a
   typo, refused before a sweep starts or anything is allocated.
@@ -239,6 +242,8 @@ BlurPx = quantity(0.0, 1000.0, "px", hint="", lo_open=True)
 BitDepth = quantity(1, 32, "bit", hint="", integer=True)
 FrameCount = quantity(2, 10000, "frames", hint="", integer=True)
 DurationS = quantity(0.0, 3600.0, "s")
+PositionM = quantity(-100.0, 100.0, "m")
+ScatteringPerM = quantity(0.0, 100.0, "1/m")
 
 
 # --- From ValidationError to ConfigError. ---------------------------------------------------------------------

@@ -137,10 +137,12 @@ def response_dn(mu_e, k_dn_per_e, dark_dn, saturation_e, bit_depth):
     return mu_y, (mu_e >= saturation_e) | (raw >= full)
 
 
-def snr(mu_e, dark_noise_e, k_dn_per_e):
-    """EMVA 1288 SNR = μ_e / √(σ_d² + σ_q²/K² + μ_e) with σ_q² = 1/12 DN²."""
+def snr(mu_e, dark_noise_e, k_dn_per_e, veil_e=None):
+    """EMVA 1288 SNR = μ_e / √(σ_d² + σ_q²/K² + μ_e) with σ_q² = 1/12 DN²; with `veil_e`, electrons of light that
+    carries no image of the target (veiling light) add their shot noise: μ_e / √(σ_d² + σ_q²/K² + μ_e + μ_veil)."""
     mu_e = np.asarray(mu_e, float)
-    return mu_e / np.sqrt(dark_noise_e**2 + (1.0 / 12.0) / np.asarray(k_dn_per_e, float) ** 2 + mu_e)
+    shot = mu_e if veil_e is None else mu_e + np.asarray(veil_e, float)
+    return mu_e / np.sqrt(dark_noise_e**2 + (1.0 / 12.0) / np.asarray(k_dn_per_e, float) ** 2 + shot)
 
 
 @lru_cache(maxsize=64)

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from uwlab.drivers.sim.rig_state import RigState
+from uwlab.drivers.sim.serial_instruments import WarmUp
 from uwlab.errors import ConfigError
 from uwlab.model.bench import Bench, build_bench
 from uwlab.model.schema import parse
@@ -38,6 +39,22 @@ class BenchScene:
     @property
     def sensor(self) -> SensorProfile:
         return self.design.sensor
+
+    def use(self, design: Bench, bare: bool) -> None:
+        """Put a sweep's bench on the rig (the bench's sensor is always bare)."""
+        self.design = design
+
+    def sensor_realism(self) -> dict:
+        """No `SimTruth` overrides: the bench characterises the sensor profile as it is."""
+        return {}
+
+    def warm_up(self) -> WarmUp:
+        """The bench's light does not drift (a stabilised source, as the standard's set-up assumes)."""
+        return WarmUp()
+
+    def flux_fraction(self) -> float:
+        """The light's current output as a fraction of its rated flux (0 when off)."""
+        return self.state.light.effective_fraction
 
     def on_axis_rate_e_per_s(self, flux_fraction: float = 1.0) -> float:
         return self.design.on_axis_rate_e_per_s(flux_fraction)

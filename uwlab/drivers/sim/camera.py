@@ -9,6 +9,8 @@ Physics (EMVA Standard 1288 release 4.0, "linear camera model"), per pixel and f
 * dark signal ``μ_d = I_dark[e-/s] · t_exp + DSNU map[e-]`` (DSNU: seeded Gaussian fixed
   pattern of std ``dsnu_e``; PRNU: seeded Gaussian gain pattern of std ``prnu_percent``);
 * temporal noise: shot noise of ``μ_p + I_dark·t_exp`` (Poisson) plus dark noise ``σ_d`` [e-];
+* optional hot pixels (the tank world's ``sensor_realism``): a seeded fraction ``hot_pixel_fraction`` of the
+  pixels whose dark current is ``hot_pixel_dark_current_e_per_s``;
 * electrons clipped at the full well ``saturation_e``; digital numbers
   ``DN = K0 · 10^(gain_db/20) · e + dark_offset_dn + black_level``, rounded to the sensor's
   ``bit_depth`` and clipped to its range; the output pixel format then shifts the native code
@@ -72,6 +74,8 @@ class SimTruth:
     temperature_c: float = 40.0
     nonlinearity: float = 0.0
     dark_current_doubling_c: float | None = None
+    hot_pixel_fraction: float = 0.0
+    hot_pixel_dark_current_e_per_s: float = 0.0
 
     @classmethod
     def from_sensor_profile(cls, profile: Any, **overrides: Any) -> SimTruth:
@@ -146,6 +150,11 @@ class SimSensor:
         rng = np.random.default_rng(seed)
         self.dsnu_map_e = (rng.standard_normal((height, width), np.float32) * np.float32(truth.dsnu_e))
         self.prnu_map = 1.0 + rng.standard_normal((height, width), np.float32) * np.float32(truth.prnu_percent / 100.0)
+        self.dark_current_map = None
+        if truth.hot_pixel_fraction > 0:
+            hot = np.random.default_rng(seed + 2).random((height, width)) < truth.hot_pixel_fraction
+            self.dark_current_map = np.where(hot, truth.hot_pixel_dark_current_e_per_s,
+                                             truth.dark_current_e_per_s).astype(np.float32)
         self._rng = np.random.default_rng(seed + 1)
         self._bank = np.empty(0, np.float32)
         self._work = np.empty((0, 0), np.float32)
@@ -161,12 +170,17 @@ class SimSensor:
         self.rate_e_per_s = rate
         self._cache: tuple[Any, tuple[np.ndarray, np.ndarray, float]] | None = None
 
+    def _dark_electrons(self, cfg: SensorConfig, t: float):
+        """Mean dark-current electrons per output pixel (a scalar without hot pixels)."""
+        if self.dark_current_map is None:
+            return np.float32(self.truth.dark_current_e_per_s * t * cfg.binning_h * cfg.binning_v)
+        return self._binned(self.dark_current_map, cfg) * np.float32(t)
+
     def electrons(self, cfg: SensorConfig, fraction: float) -> tuple[np.ndarray, np.ndarray]:
         """Mean electrons and temporal variance [e-²] per output pixel (before clipping)."""
         t = cfg.exposure_us * 1e-6
         photo = self._binned(self.rate_e_per_s * self.prnu_map, cfg) * np.float32(t * fraction)
-        n_bin = cfg.binning_h * cfg.binning_v
-        dark = np.float32(self.truth.dark_current_e_per_s * t * n_bin)
+        dark = self._dark_electrons(cfg, t)
         mean = photo + dark + self._binned(self.dsnu_map_e, cfg)
         var = photo + dark + np.float32(self.truth.dark_noise_e**2)
         return mean, var
@@ -231,9 +245,8 @@ class SimSensor:
 
     def _render_poisson(self, cfg: SensorConfig, fraction: float) -> np.ndarray:
         t = cfg.exposure_us * 1e-6
-        n_bin = cfg.binning_h * cfg.binning_v
         poisson_mean = self._binned(self.rate_e_per_s * self.prnu_map, cfg) * (t * fraction)
-        poisson_mean = poisson_mean + self.truth.dark_current_e_per_s * t * n_bin
+        poisson_mean = poisson_mean + self._dark_electrons(cfg, t)
         electrons = self._rng.poisson(np.maximum(poisson_mean, 0.0)).astype(np.float32)
         electrons += self._binned(self.dsnu_map_e, cfg)
         electrons += self._rng.standard_normal(electrons.shape, np.float32) * np.float32(self.truth.dark_noise_e)
@@ -546,9 +559,9 @@ def sensor_from_rig(config: str | None = None, seed: int = 0, shot_noise: str = 
     from uwlab.drivers.sim.scene import RigScene
 
     scene = RigScene.from_toml(config, RigState(rig_state) if rig_state else None)
-    truth = SimTruth.from_sensor_profile(scene.sensor)
-    return SimSensor(truth, lambda shape: scene.electron_rate_map(shape, 1.0),
-                     lambda: scene.state.light.effective_fraction, seed=seed, shot_noise=shot_noise)
+    truth = SimTruth.from_sensor_profile(scene.sensor, **scene.sensor_realism())
+    return SimSensor(truth, lambda shape: scene.electron_rate_map(shape, 1.0), scene.flux_fraction, seed=seed,
+                     shot_noise=shot_noise)
 
 
 SIM_DEVICE_IDS = ("sim0",)

@@ -4,6 +4,12 @@ The simulated light (a serial simulator in its own process) writes this state; t
 camera and spectrometer read it, so dimming the light dims the images. The state lives in a
 small JSON file replaced atomically (``os.replace``), which any process can read without locks.
 Without a file, the state is held in memory (a single-process rig).
+
+Warm-up drift: an LED's output falls as its junction heats (e.g. Narendran & Gu, "Life of LED-based white light
+sources", J. Display Technology 1(1), 167–171, 2005). The light's heat h ∈ [0, 1] (0 cold, 1 settled) is written
+by the light with its state; the emitted flux is flux_fraction · (1 + A (1 − h)): a cold light gives 1 + A times
+its settled output. The heat follows the light's use, not the wall clock, so that equal seeds give equal
+measurements (`uwlab.drivers.sim.serial_instruments.SimLight`).
 """
 from __future__ import annotations
 
@@ -22,10 +28,15 @@ class LightState:
     on: bool = True
     level: float = 1.0
     flux_fraction: float = 1.0
+    heat: float = 1.0
+    drift_amplitude: float = 0.0
 
     @property
     def effective_fraction(self) -> float:
-        return self.flux_fraction if self.on else 0.0
+        """Emitted flux / rated flux: 0 when off, else flux_fraction × the warm-up factor 1 + A (1 − h)."""
+        if not self.on:
+            return 0.0
+        return self.flux_fraction * (1.0 + self.drift_amplitude * (1.0 - self.heat))
 
 
 class RigState:

@@ -1,6 +1,9 @@
-"""The simulated rig's scene: what the simulated camera and spectrometer see, rendered from `uwlab.model`.
+"""The simulated rig's scene: what the simulated camera and spectrometer see.
 
-A rig config is a design config (the sections of `uwlab design`) plus a `[sim]` section:
+A rig config is a design config (the sections of `uwlab design`, the nominal rig a fit starts from) plus the
+simulation's ground truth: a ``[world]`` section (`uwlab.drivers.sim.world`: the ``ideal`` world renders from the
+design model's paper chain as described below, whatever the rig's [model]; ``tank`` and ``turbid`` from the tank
+renderer, `uwlab.drivers.sim.tank`) and a `[sim]` section:
 ``seed`` (fixed-pattern noise maps), ``light_gamma`` (flux fraction = level^γ), ``board_size_m`` [x, y] (the
 target board on the target plane, centred on the axis), ``surround_reflectance`` (outside the board) and
 ``light_efficiency`` (the true emitted flux as a fraction of the rated `light.luminous_flux_lm`: a ground truth
@@ -24,10 +27,13 @@ import numpy as np
 from pydantic import Field
 
 from uwlab.drivers.sim.rig_state import RigState
+from uwlab.drivers.sim.serial_instruments import WarmUp
+from uwlab.drivers.sim.tank import TankWorld
+from uwlab.drivers.sim.world import WorldSettings, design_sections, world_settings
 from uwlab.errors import ConfigError
 from uwlab.model.data import config_dir, read_toml
 from uwlab.model.design import (Design, build_design, effective_focal_length_m, electron_rate_at_radius,
-                                on_axis_electron_rate, SPECTROMETER_POSITIONS, stage_spectra)
+                                on_axis_electron_rate, paper, SPECTROMETER_POSITIONS, stage_spectra)
 from uwlab.model.optics import NO_LENS
 from uwlab.model.schema import DistanceM, FNumber, FocalLengthMm, Fraction, Schema, check, parse, quantity
 from uwlab.model.sensor import SensorProfile
@@ -54,26 +60,55 @@ class SimSettings(Schema):
 
 @dataclass(eq=False)
 class RigScene:
-    """The simulated rig: a scalar design, simulation settings and the shared light state."""
+    """The simulated rig: a scalar design, simulation settings, the world and the shared light state."""
 
     design: Design
     sim: SimSettings
     state: RigState = field(default_factory=RigState)
     no_lens: bool = False
+    world: WorldSettings = field(default_factory=WorldSettings)
+    tank: TankWorld | None = field(default=None, repr=False)
     _profile: tuple | None = field(default=None, repr=False)
 
     @classmethod
-    def from_toml(cls, path: str | Path | None = None, state: RigState | None = None) -> "RigScene":
-        """Load a rig config (None: the default simulated tank, configs/rigs/sim-tank.toml)."""
+    def from_toml(cls, path: str | Path | None = None, state: RigState | None = None,
+                  world: str | None = None) -> "RigScene":
+        """Load a rig config (None: the default simulated tank, configs/rigs/sim-tank.toml); `world` replaces its
+        [world] preset."""
         path = Path(path) if path is not None else config_dir() / DEFAULT_RIG
-        return cls.from_dict(read_toml(path, "--config"), path.resolve().parent, state)
+        return cls.from_dict(read_toml(path, "--config"), path.resolve().parent, state, world)
 
     @classmethod
-    def from_dict(cls, raw: dict, base_dir: Path | None = None, state: RigState | None = None) -> "RigScene":
-        """A rig from its config dict (design sections + [sim]); relative paths resolve against base_dir."""
+    def from_dict(cls, raw: dict, base_dir: Path | None = None, state: RigState | None = None,
+                  world: str | None = None) -> "RigScene":
+        """A rig from its config dict (design sections + [sim] + [world]); relative paths resolve against
+        base_dir; `world` replaces the [world] preset."""
         sim = parse(SimSettings, raw.get("sim", {}), "sim")
-        design = build_design({k: v for k, v in raw.items() if k != "sim"}, base_dir)
-        return cls(design=design, sim=sim, state=state or RigState())
+        settings = world_settings(raw.get("world"), world)
+        design = build_design(design_sections(raw), base_dir)
+        tank = None if settings.rendered_by_model else TankWorld(design, sim, settings, base_dir)
+        return cls(design=design, sim=sim, state=state or RigState(), world=settings, tank=tank)
+
+    def use(self, design: Design, bare: bool) -> None:
+        """Put a sweep's design on the rig (its sensor and lens; `bare`: no lens); images are re-rendered."""
+        self.design = design
+        self.no_lens = bare
+        self._profile = None
+
+    def sensor_realism(self) -> dict:
+        """`SimTruth` fields of the world's sensor realism (DSNU, PRNU, hot pixels, non-linearity); none unless the
+        world renders it."""
+        if self.tank is None or not self.world.on("sensor_realism"):
+            return {}
+        w = self.world
+        keys = ("dsnu_e", "prnu_percent", "hot_pixel_fraction", "hot_pixel_dark_current_e_per_s")
+        return {"nonlinearity": w.nonlinearity_at_full_well, **{key: getattr(w, key) for key in keys}}
+
+    def warm_up(self) -> WarmUp:
+        """The light's warm-up drift in this world (none unless the world renders it)."""
+        if self.tank is None or not self.world.on("warmup_drift"):
+            return WarmUp()
+        return WarmUp(self.world.warmup_amplitude, self.world.warmup_switch_ons)
 
     @property
     def sensor(self) -> SensorProfile:
@@ -105,8 +140,11 @@ class RigScene:
         return float(level) ** self.sim.light_gamma
 
     def on_axis_rate_e_per_s(self, flux_fraction: float = 1.0) -> float:
-        """The model's on-axis electron rate of a board pixel [e⁻/s] at this flux fraction."""
-        return flux_fraction * self.sim.light_efficiency * float(on_axis_electron_rate(self.design))
+        """The electron rate [e⁻/s] of the image centre (of a bare sensor) at this flux fraction: the model's
+        on-axis rate in the ideal world, the tank's in a tank world."""
+        if self.tank is not None:
+            return flux_fraction * self.tank.centre_rate(self.design, self.no_lens)
+        return flux_fraction * self.sim.light_efficiency * float(on_axis_electron_rate(paper(self.design)))
 
     def _magnification(self) -> float:
         """Object size on the target plane per unit image size (pinhole with the effective focal length)."""
@@ -119,9 +157,11 @@ class RigScene:
         return self._profile[1] * np.float32(flux_fraction)
 
     def _render(self, shape_yx: tuple[int, int]) -> np.ndarray:
+        if self.tank is not None:
+            return self.tank.rate_map(self.design, self.no_lens, shape_yx)
         if self.no_lens:
             return np.full(shape_yx, self.on_axis_rate_e_per_s(), np.float32)
-        d = self.design
+        d = paper(self.design)
         ny, nx = shape_yx
         size_x, size_y = d.sensor.size_m
         x = (np.arange(nx) + 0.5) / nx * size_x - size_x / 2
@@ -142,6 +182,8 @@ class RigScene:
 
     def board_roi(self, shape_yx: tuple[int, int]) -> tuple[int, int, int, int]:
         """The board's footprint in an image of `shape_yx` as (x, y, width, height) pixels."""
+        if self.tank is not None:
+            return self.tank.board_roi(self.design, shape_yx)
         d = self.design
         ny, nx = shape_yx
         size_x, size_y = d.sensor.size_m
@@ -154,10 +196,15 @@ class RigScene:
         """(wavelength_nm, irradiance_w_m2_nm) a spectrometer measures at `position` (`SPECTROMETER_POSITIONS`)."""
         if position not in SPECTROMETER_POSITIONS:
             raise ConfigError("position", position, f"must be one of {', '.join(SPECTROMETER_POSITIONS)}")
-        spectra = stage_spectra(self.design)
+        if self.tank is not None:
+            if position == "sensor":
+                raise ConfigError("position", position, "the tank world's spectrometer is at the target or the "
+                                  "camera; the sensor plane is the EMVA 1288 bench's (configs/rigs/sim-emva-bench.toml)")
+            wavelength_nm, irradiance = self.tank.spectral_irradiance(self.design, position)
+            return wavelength_nm, flux_fraction * irradiance
+        spectra = stage_spectra(paper(self.design))
         if position == "target":
-            cos_i = np.cos(np.radians(self.design["light.incidence_deg"]))
-            irradiance = spectra["target_irradiance_w_m2_nm"] / cos_i
+            irradiance = spectra["facing_light_w_m2_nm"]
         elif position == "sensor":
             irradiance = spectra["sensor_irradiance_w_m2_nm"]
         else:

@@ -7,8 +7,9 @@ tests can compare recorded data against what the instrument really did.
 
 Light: output on/off and level x ∈ [0, 1]; the emitted fraction of the rated flux follows the
 non-linear curve ``flux_fraction = x ** gamma`` (a gamma-law dimmer; gamma from the rig config key
-``[sim] light_gamma``). Every change is written to the shared `RigState`, so the simulated camera
-and spectrometer see it. Power-on / reset state: output off, level 0.
+``[sim] light_gamma``), times its warm-up factor (`uwlab.drivers.sim.rig_state`; amplitude and time constant
+from the rig's ``[world]``, none in the ideal world). Every change is written to the shared `RigState`, so the
+simulated camera and spectrometer see it. Power-on / reset state: output off, level 0, cold.
 
 Spectrometer: reports the spectral irradiance ``spectrum(position, flux_fraction)`` [W/m²/nm] of the
 rig model for the current light state, resampled to 380–780 nm in 1 nm steps, through a CCD-like
@@ -20,10 +21,11 @@ reference, which is off by ``dark_error`` (a relative error), and divides by ``k
 """
 from __future__ import annotations
 
+import math
 import re
 import time
-from dataclasses import dataclass
 from collections.abc import Callable
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -130,20 +132,36 @@ class SimInstrument:
         raise CommandError(ERR_UNKNOWN_COMMAND, f"{ERROR_CODES[ERR_UNKNOWN_COMMAND]} {_quoted(header)}")
 
 
+@dataclass(frozen=True)
+class WarmUp:
+    """The light's warm-up drift (`uwlab.drivers.sim.rig_state`): a cold light emits 1 + ``amplitude`` times its
+    settled output; each time it is switched on its heat h moves towards settled as if it ran for a nominal use,
+    h ← 1 − (1 − h) e^(−1/``switch_ons``), so it settles (1 − 1/e) in ``switch_ons`` uses. Tied to use rather
+    than the wall clock, the drift is the same in every run of a campaign."""
+
+    amplitude: float = 0.0
+    switch_ons: float = 20.0
+
+    def warmer(self, heat: float) -> float:
+        return 1.0 - (1.0 - heat) * math.exp(-1.0 / self.switch_ons)
+
+
 class SimLight(SimInstrument):
     """Gamma-law dimmable light writing its state to the rig state."""
 
     model = "SIM-LIGHT"
 
     def __init__(self, rig_state: RigState, gamma: float = 2.2, serial_number: str = "0001",
-                 state_log: StateLog | None = None):
+                 state_log: StateLog | None = None, drift: WarmUp | None = None):
         self.rig_state = rig_state
         self.gamma = gamma
+        self.drift = drift or WarmUp()
         super().__init__(serial_number, state_log)
 
     def set_power_on_state(self) -> None:
         self.on = False
         self.level = 0.0
+        self.light_state = LightState(False, 0.0, 0.0, heat=0.0, drift_amplitude=self.drift.amplitude)
         self._publish()
 
     def state(self) -> dict:
@@ -167,7 +185,10 @@ class SimLight(SimInstrument):
         return ["OK"]
 
     def _publish(self) -> None:
-        self.rig_state.set_light(LightState(self.on, self.level, self.level**self.gamma))
+        old = self.light_state
+        heat = self.drift.warmer(old.heat) if self.on and not old.on else old.heat
+        self.light_state = replace(old, on=self.on, level=self.level, flux_fraction=self.level**self.gamma, heat=heat)
+        self.rig_state.set_light(self.light_state)
 
 
 @dataclass(frozen=True)

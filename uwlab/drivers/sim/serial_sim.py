@@ -59,6 +59,7 @@ from uwlab.drivers.sim.serial_instruments import (
     SimLight,
     SimSpectrometer,
     SpectrumSource,
+    WarmUp,
 )
 from uwlab.drivers.sim.state_log import StateLog
 from uwlab.errors import ConfigError, DeviceError, UwlabError
@@ -352,11 +353,13 @@ class SimulatorProcess:
 
 @dataclass(frozen=True)
 class SerialSimSettings:
-    """What the serial simulators take from the rig: the config, the light's gamma, the spectrometer position."""
+    """What the serial simulators take from the rig: the config, the light's gamma and warm-up, the spectrometer
+    position."""
 
     config_path: Path | None = None
     light_gamma: float = 2.2
     spectrometer_position: str = "target"
+    warm_up: WarmUp = WarmUp()
 
     @classmethod
     def from_config(cls, path: str | os.PathLike | None, spectrometer_position: str = "target") -> SerialSimSettings:
@@ -365,7 +368,8 @@ class SerialSimSettings:
             raise ConfigError("spectrometer_position", spectrometer_position,
                               f"must be one of {', '.join(SPECTROMETER_POSITIONS)}")
         scene = load_scene(path)
-        return cls(Path(path) if path is not None else None, scene.sim.light_gamma, spectrometer_position)
+        return cls(Path(path) if path is not None else None, scene.sim.light_gamma, spectrometer_position,
+                   scene.warm_up())
 
 
 class SceneSpectrum:
@@ -382,8 +386,8 @@ class SceneSpectrum:
         return self._scene.spectral_irradiance(position, flux_fraction)
 
 
-def _make_light(rig_state_path: Path, gamma: float, state_log: Path) -> SimLight:
-    return SimLight(RigState(rig_state_path), gamma, state_log=StateLog(state_log))
+def _make_light(rig_state_path: Path, gamma: float, state_log: Path, warm_up: WarmUp) -> SimLight:
+    return SimLight(RigState(rig_state_path), gamma, state_log=StateLog(state_log), drift=warm_up)
 
 
 def _make_spectrometer(rig_state_path: Path, spectrum: SpectrumSource, position: str, seed: int | None,
@@ -407,7 +411,8 @@ class SerialRig:
         self.rig_state_path = self.directory / "rig-state.json"
         spectrum = spectrum if spectrum is not None else SceneSpectrum(settings.config_path)
         factories = {
-            "light": partial(_make_light, self.rig_state_path, settings.light_gamma, self.state_log("light").path),
+            "light": partial(_make_light, self.rig_state_path, settings.light_gamma, self.state_log("light").path,
+                             settings.warm_up),
             "spectrometer": partial(
                 _make_spectrometer, self.rig_state_path, spectrum, settings.spectrometer_position, seed,
                 self.state_log("spectrometer").path,

@@ -46,6 +46,7 @@ from uwlab.drivers.camera import BACKENDS, Policy
 from uwlab.drivers.camera.pixels import PIXEL_FORMATS
 from uwlab.drivers.serial import PROTOCOLS
 from uwlab.drivers.serial.base import Averaging, IntegrationMs
+from uwlab.drivers.sim.world import SIMULATION_SECTIONS, design_sections
 from uwlab.errors import ConfigError
 from uwlab.experiments.saturation import POINT_SATURATED_FRACTION
 from uwlab.jsonable import to_jsonable
@@ -209,8 +210,9 @@ class SweepTable(Schema):
 
 
 def _design_sections(value: dict) -> dict:
-    if "sim" in value:
-        raise invalid("sim", value["sim"], "the simulation settings belong to the rig, not the geometry")
+    for section in SIMULATION_SECTIONS:
+        if section in value:
+            raise invalid(section, value[section], "the simulation settings belong to the rig, not the geometry")
     return value
 
 
@@ -367,8 +369,7 @@ def _sweep(body: dict, number: int, rig_raw: dict, rig_dir: Path, geometry: dict
     lens = _lens(f"{prefix}.lens", table.lens, rig)
     _apply_sweep(rig, table, lens)
     try:
-        design = build_bench(rig, rig_dir) if is_bench(rig) else build_design(
-            {k: v for k, v in rig.items() if k != "sim"}, rig_dir)
+        design = build_bench(rig, rig_dir) if is_bench(rig) else build_design(design_sections(rig), rig_dir)
     except ConfigError as exc:
         raise ConfigError(f"{prefix}.rig.{exc.key}", exc.value, exc.reason) from None
     sensor = design.sensor
@@ -448,6 +449,9 @@ def _check_dark_mode(spec: SweepSpec) -> None:
 
 def resolved_rig(design: Design) -> dict:
     """The validated design of a sweep as plain TOML-able sections (defaults filled, paths absolute)."""
-    return {section: {k: to_jsonable(v) for k, v in body.items() if v is not None}
+    def table(body: dict) -> dict:
+        return {k: to_jsonable(v) for k, v in body.items() if v is not None}
+
+    return {section: [table(b) for b in body] if isinstance(body, list) else table(body)
             for section, body in design.values.items()}
 

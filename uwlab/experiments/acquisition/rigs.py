@@ -50,6 +50,7 @@ from uwlab.experiments.acquisition.plan import Plan, SweepSpec
 from uwlab.experiments.acquisition.roi import Rect, aruco_roi
 from uwlab.experiments.saturation import sensor_clip_dn
 from uwlab.lockfile import OwnerLock, is_stale, read_holder
+from uwlab.model.design import beam_half_angle_rad
 
 RIG_FOLDER_PREFIX = "uwlab-simrig-"
 OWNER_LOCK = "owner.lock"
@@ -188,11 +189,10 @@ class SimRig:
         """The sweep's simulated camera: its sensor profile and lens, lit by the shared light state (kept as
         ``camera`` while the sweep runs, for fault campaigns)."""
         scene = load_scene(self.rig_path, RigState(self.rig_state_path))
-        scene.design = sweep.design
-        truth = SimTruth.from_sensor_profile(scene.sensor)
+        scene.use(sweep.design, sweep.lens.bare)
+        truth = SimTruth.from_sensor_profile(scene.sensor, **scene.sensor_realism())
         self._scene, self._sweep = scene, sweep
-        self._sensor = SimSensor(truth, self._rate_map(), lambda: scene.state.light.effective_fraction,
-                                 seed=scene.sim.seed + self.seed)
+        self._sensor = SimSensor(truth, self._rate_map(), scene.flux_fraction, seed=scene.sim.seed + self.seed)
         self.camera = open_camera("sim", "sim0", policy=sweep.camera.policy(), sensor=self._sensor, faults=self.faults)
         return self.camera
 
@@ -245,9 +245,10 @@ class SimRig:
             "f_number": self._scene.design["lens.f_number"],
             "light_efficiency": self._scene.sim.light_efficiency,
             "attenuation_scale": float(self._scene.design["water.attenuation_scale"]),
-            "beam_half_angle_deg": float(self._scene.design["light.beam_half_angle_deg"]),
+            "beam_half_angle_deg": float(np.degrees(beam_half_angle_rad(self._scene.design))),
             "reflectance": float(self._scene.design["target.reflectance"]),
             "lens_transmittance": float(self._scene.design["lens.transmittance"]),
+            "world": self._scene.world.summary(),
         }
 
     def _window_rate(self, s) -> np.ndarray:

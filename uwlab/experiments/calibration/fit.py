@@ -1,13 +1,20 @@
 """Bayesian calibration of the image-formation model with emcee.
 
-Posterior p(θ | y) ∝ p(θ) ∏ N(y_i | μ_i(θ), σ_i(θ)²) with μ from `uwlab.experiments.calibration.forward` and
-σ_i² = σ²_meas,i + (δ μ_i)² (δ: fractional model discrepancy). Saturated points are excluded.
+Posterior p(θ | y) ∝ p(θ) ∏_k ∫ ∏_{i∈k} N(y_i | μ_i(θ)(1 + δ_k), σ_i(θ)²) N(δ_k | 0, τ²) dδ_k with μ from
+`uwlab.experiments.calibration.forward`, σ_i² = σ²_meas,i + (δ_w μ_i)² (δ_w: the fractional discrepancy of a point
+within its configuration, ``discrepancy``) and δ_k the fractional discrepancy of configuration k (a sweep's camera
+and lens), drawn from N(0, τ²) with the between-configuration scale τ (``config_discrepancy``): a hierarchical
+model, so that a configuration the fit has not seen is predicted with the spread the seen ones show. The δ_k are
+integrated out in closed form: with r = y − μ, w = 1/σ², A_k = Σ r μ w, S_k = Σ μ² w over the points of k,
+ln L_k = −½ [Σ r² w − τ² A_k² / (1 + τ² S_k) + ln(1 + τ² S_k) + Σ ln σ²] (Sherman–Morrison and the matrix determinant
+lemma for the covariance diag(σ²) + τ² μ μᵀ); given θ, δ_k ~ N(m_k, v_k) with v_k = τ²/(1 + τ² S_k), m_k = v_k A_k
+(`config_offsets`). Saturated points are excluded.
 
 - Start: the maximum a posteriori point (scipy.optimize, Nelder–Mead then Powell), walkers drawn from the
   Laplace approximation there (inverse of a finite-difference Hessian), falling back to a small ball.
 - Parametrisation: the multiplicative factors (light efficiency, reflectance, lens transmittance, K) are sampled
-  as u = ln θ; the attenuation scale s, the beam angle β and the discrepancy δ as they are (in ln δ the flat
-  likelihood below the measurement noise would leave a long tail). The response is ∝ ε K · S_k(s, β), where
+  as u = ln θ; the attenuation scale s, the beam angle β and the discrepancies δ_w, τ as they are (in ln δ the
+  flat likelihood below the measurement noise would leave a long tail). The response is ∝ ε K · S_k(s, β), where
   S_k is the nonlinear beam × water-transmission shape (`ForwardModel.shape`); with few path lengths the data fix
   ln ε + ln K + ln S_k almost exactly, a ridge that is curved in (ln ε, s) by more than its width, which stalls
   every ensemble move. So the anchor ε (or the reflectance when ε is fixed) is sampled as
@@ -37,12 +44,15 @@ from uwlab.errors import UwlabError
 from uwlab.experiments.calibration.forward import ForwardModel, build_forward_model
 from uwlab.experiments.calibration.priors import HalfNormal, LogNormal, Normal, Prior, PriorSpec
 from uwlab.model.data import read_toml
+from uwlab.model.sensor import load_sensor_profile
 from uwlab.model.schema import NonEmptyText, Schema, invalid, parse, quantity
 
 MIN_TAU_MULTIPLE = 50
+MAP_EVALUATIONS = 500
 CORRELATED = 0.9
 OVERDISPERSION = 4.0
-LINEAR = ("attenuation_scale", "beam_half_angle_deg", "discrepancy")
+LINEAR = ("attenuation_scale", "beam_half_angle_deg", "discrepancy", "config_discrepancy")
+DISCREPANCIES = ("discrepancy", "config_discrepancy")
 SHAPE_PARAMETERS = ("attenuation_scale", "beam_half_angle_deg")
 ANCHORS = ("light_efficiency", "reflectance")
 
@@ -53,6 +63,7 @@ Walkers = quantity(8, 10000, "walkers", hint="", integer=True)
 ChunkSteps = quantity(100, 10_000_000, "steps", hint="", integer=True)
 MaxSteps = quantity(1000, 100_000_000, "steps", hint="", integer=True)
 Seed = quantity(0, 2**32 - 1, "", hint="", integer=True)
+Folds = quantity(2, 100, "folds", hint="", integer=True)
 
 
 class Sampler(Schema):
@@ -68,7 +79,9 @@ class Holdout(Schema):
     """A fit config's [holdout] section."""
 
     train: list[NonEmptyText] = Field(
-        [], description="sweeps the cross-configuration check fits (it predicts the others)")
+        [], description="sweeps the held-out check fits (it predicts the others); default: `folds` folds")
+    folds: Folds = Field(2, description="folds of the held-out check: the sweeps dealt out in order, each fold "
+                                        "predicted from a fit of the others")
 
 
 class FitConfig(Schema):
@@ -99,20 +112,22 @@ class FitConfig(Schema):
 
 
 def default_fit_config(cameras: tuple[str, ...], nominal_k: dict[str, float]) -> FitConfig:
-    """Light efficiency (broad), attenuation scale, each camera's K (5 % around its profile) and discrepancy."""
+    """Light efficiency (broad), attenuation scale, each camera's K (5 % around its profile), the discrepancy
+    within a configuration and the scale of the discrepancy between configurations (both a few per cent)."""
     priors = {
         "light_efficiency": LogNormal(median=1.0, sigma=0.5),
         "attenuation_scale": LogNormal(median=1.0, sigma=0.3),
         **{f"K_dn_per_e:{c}": Normal(mean=nominal_k[c], sigma=0.05 * nominal_k[c], lo=0.0) for c in cameras},
         "discrepancy": HalfNormal(sigma=0.05),
+        "config_discrepancy": HalfNormal(sigma=0.05),
     }
     return FitConfig(priors=priors)
 
 
 def default_config_for(points, rigs: dict, base_dir: Path | None = None) -> FitConfig:
     """`default_fit_config` for the cameras of these points, K centred on their sensor profiles."""
-    probe = build_forward_model(points, rigs, (), base_dir)
-    return default_fit_config(probe.cameras, {c: probe.nominal[f"K_dn_per_e:{c}"] for c in probe.cameras})
+    cameras = tuple(sorted(points["sensor_profile"].astype(str).unique()))
+    return default_fit_config(cameras, {c: load_sensor_profile(c, base_dir).K_dn_per_e for c in cameras})
 
 
 def load_fit_config(path: str | Path) -> FitConfig:
@@ -140,10 +155,17 @@ class Posterior:
         return sum(prior.logpdf(theta[:, j]) for j, prior in enumerate(self.priors))
 
     def log_likelihood(self, theta: np.ndarray, shape: np.ndarray | None = None) -> np.ndarray:
+        """ln L(θ) with the configurations' discrepancies integrated out (module docstring)."""
         theta = np.atleast_2d(theta)
         mu = self.model.predict(theta, shape)
         sigma = self.model.sigma(theta, mu)
-        return -0.5 * np.sum(((self.model.y - mu) / sigma) ** 2 + 2 * np.log(sigma), axis=1)
+        r = self.model.y - mu
+        chi = np.sum((r / sigma) ** 2 + 2 * np.log(sigma), axis=1)
+        if "config_discrepancy" not in self.model.names:
+            return -0.5 * chi
+        tau2 = self.model.parameter(theta, "config_discrepancy")[:, None] ** 2
+        a, s = _config_sums(self.model, r, mu, sigma)
+        return -0.5 * (chi + np.sum(np.log1p(tau2 * s) - tau2 * a**2 / (1 + tau2 * s), axis=1))
 
     def __call__(self, theta: np.ndarray, shape: np.ndarray | None = None) -> np.ndarray:
         """ln p(θ | y) up to a constant; `shape` = `model.shape(θ)` when the caller has it already."""
@@ -191,8 +213,29 @@ class Posterior:
         return np.where(np.isnan(out), -np.inf, out)
 
 
+def _config_sums(model: ForwardModel, r: np.ndarray, mu: np.ndarray, sigma: np.ndarray):
+    """(A_k, S_k) per walker and configuration: Σ r μ/σ², Σ μ²/σ² over each configuration's points."""
+    w = 1.0 / sigma**2
+    return (r * mu * w) @ model.membership, (mu**2 * w) @ model.membership
+
+
+def config_offsets(model: ForwardModel, theta: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Draws of the configurations' discrepancies δ_k given θ and the data, N(m_k, v_k) (module docstring), shape
+    (n_walkers, n_config); zeros when the fit has no between-configuration scale."""
+    theta = np.atleast_2d(theta)
+    if "config_discrepancy" not in model.names:
+        return np.zeros((theta.shape[0], model.n_config))
+    mu = model.predict(theta)
+    sigma = model.sigma(theta, mu)
+    a, s = _config_sums(model, model.y - mu, mu, sigma)
+    tau2 = model.parameter(theta, "config_discrepancy")[:, None] ** 2
+    v = tau2 / (1 + tau2 * s)
+    return v * a + np.sqrt(v) * rng.standard_normal(v.shape)
+
+
 def find_map(log_density: Callable[[np.ndarray], np.ndarray], start: np.ndarray) -> np.ndarray:
-    """Maximum of a vectorised log density from `start` (Nelder–Mead, then Powell to polish)."""
+    """Maximum of a vectorised log density from `start` (Nelder–Mead, then Powell to polish), each with a budget of
+    `MAP_EVALUATIONS` evaluations per parameter: the mode only seeds the walkers, whose burn-in forgets it."""
     objective = lambda x: -float(log_density(x[None, :])[0])  # noqa: E731
     if not np.isfinite(objective(start)):
         raise UwlabError("the prior medians have zero posterior density: check the priors against the data")
@@ -200,9 +243,10 @@ def find_map(log_density: Callable[[np.ndarray], np.ndarray], start: np.ndarray)
     for method in ("Nelder-Mead", "Powell"):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
+            budget = MAP_EVALUATIONS * best.size
             result = optimize.minimize(objective, best, method=method,
-                                       options={"maxiter": 20000, "xatol": 1e-10, "fatol": 1e-10} if method == "Nelder-Mead"
-                                       else {"maxiter": 20000, "xtol": 1e-10, "ftol": 1e-12})
+                                       options={"maxfev": budget, "xatol": 1e-8, "fatol": 1e-10} if method == "Nelder-Mead"
+                                       else {"maxfev": budget, "xtol": 1e-8, "ftol": 1e-12})
         if np.isfinite(result.fun) and result.fun <= objective(best):
             best = result.x
     return best
@@ -291,7 +335,7 @@ class FitResult:
         for i, name in enumerate(self.names):
             prior = self.priors[name]
             tail = float(prior.cdf(q[2, i]))
-            if min(tail, 1 - tail) < 0.005 and name != "discrepancy":
+            if min(tail, 1 - tail) < 0.005 and name not in DISCREPANCIES:
                 notes.append(f"prior tension: {name} posterior median {q[2, i]:.4g} lies in the outer 1 % of its prior")
         if "discrepancy" in self.names:
             delta = q[2, self.names.index("discrepancy")]
@@ -325,7 +369,7 @@ def run_fit(model: ForwardModel, config: FitConfig, progress: Callable[[int, flo
     post = Posterior(model, config.priors)
     rng = np.random.default_rng(config.sampler.seed)
     medians = {n: config.priors[n].quantile(0.5) for n in model.names}
-    start = np.array([medians[n] if n != "discrepancy" else max(medians[n], 1e-3) for n in model.names])
+    start = np.array([medians[n] if n not in DISCREPANCIES else max(medians[n], 1e-3) for n in model.names])
     u_map = find_map(post.log_u, post.to_u(start))
     p0 = initial_walkers(post.log_u, u_map, config.walkers, rng)
     moves = [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
@@ -356,13 +400,14 @@ def run_fit(model: ForwardModel, config: FitConfig, progress: Callable[[int, flo
 
 
 def fit_points(points, rigs: dict, config: FitConfig | None = None, base_dir: Path | None = None,
-               progress=None) -> FitResult:
-    """Fit the unsaturated points of a dataset table; `config` None uses `default_fit_config`."""
+               progress=None, kind: str | None = None) -> FitResult:
+    """Fit the unsaturated points of a dataset table; `config` None uses `default_fit_config`; `kind` ("paper" or
+    "extended") replaces the rigs' chain."""
     used = points[~points["saturated"].astype(bool)]
     if used.empty:
         raise UwlabError("no unsaturated points to fit")
     config = config or default_config_for(used, rigs, base_dir)
-    model = build_forward_model(used, rigs, config.names, base_dir)
+    model = build_forward_model(used, rigs, config.names, base_dir, kind)
     if model.y.size <= len(config.names):
         raise UwlabError(f"{model.y.size} unsaturated points cannot constrain {len(config.names)} free parameters")
     result = run_fit(model, config, progress)

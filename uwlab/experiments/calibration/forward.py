@@ -1,44 +1,91 @@
 """The forward model of a calibration: predicted dark-subtracted mean response of every measured point, for
 many parameter vectors at once (emcee's ``vectorize=True``).
 
-For point i of configuration k (a sweep's rig with its lens setting), the model's on-axis electron rate at the
-nominal parameters, r_k = `uwlab.model.design.on_axis_electron_rate`, is rescaled analytically by the free
-parameters θ (every factor below is exact for the chain in `uwlab.model.design`):
+For point i of configuration k (a sweep's rig with its lens setting), the model's electron rate at the nominal
+parameters, r_k (the mean over the ROI, axis-centred), is rescaled by the free parameters θ:
 
-  r_k(θ) = r_k · ε · Ω(β₀)/Ω(β) · (M/M₀) · (T/T₀)^[lens] · G_k(s)/G_k(s₀) · v_k,
-  G_k(s) = ∫ W_k(λ) exp(−s c(λ) D_k) dλ,   μ_y,i − μ_y,dark,i = K_cam · 10^(g_i/20) · 2^(b_i − b_profile) · r_k(θ) · t_i,
+  r_k(θ) = r_k · ε · Ω(β₀)/Ω(β) · (M/M₀) · (T/T₀)^[lens] · G_k(s)/G_k(s₀),
+  μ_y,i − μ_y,dark,i = K_cam · 10^(g_i/20) · 2^(b_i − b_profile) · r_k(θ) · t_i,
 
 with ε the light efficiency (true/rated flux), β the beam half-angle (Ω = 2π(1 − cos β) for the cone model,
 π tan²β for the disk), M the target reflectance, T the lens transmittance (absent without a lens), s the
-attenuation scale over the light→target→camera path D_k, K the camera's system gain, and v_k the mean
-vignetting over the ROI (an ROI centred on the axis). Points taken with the light dimmed are scaled by the
-light's measured relative output (`relative_flux`). A "no lens" point (f_number null) is a bare sensor in the
-board's radiance field: N = 0.5, T = 1, no vignetting (`uwlab.model.optics.NO_LENS`).
+attenuation scale and K the camera's system gain. G_k(s) is the configuration's rate as a function of s alone:
+
+- ``paper`` chain (`uwlab.model.design`): G_k(s) = ∫ W_k(λ) e^(−s c(λ) D_k) dλ over the light → target → camera
+  path D_k, times the mean vignetting over the ROI; every factor is exact for that chain;
+- ``extended`` chain (`uwlab.model.extended`): the ROI's mean rate of target and veiling light (the veil grows
+  with s too); β and M are not free there (the lights' geometry and the veil do not scale with them).
+
+G_k is evaluated once on `S_GRID` (one vectorised evaluation of the chain) and interpolated by a cubic spline in
+(ln s, ln G): within 1e-8 of the chain. Points taken with the light dimmed are scaled by the light's measured
+relative output (`relative_flux`). A "no lens" point (f_number null) is a bare sensor: N = 0.5, T = 1, no
+vignetting (`uwlab.model.optics.NO_LENS`); the extended chain integrates its whole field of view.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from scipy.interpolate import CubicSpline
 
+from uwlab.drivers.sim.world import design_sections
 from uwlab.errors import ConfigError
+from uwlab.model import extended
 from uwlab.model.config import apply_override
-from uwlab.model.design import (Design, beam_half_angle_rad, build_design, electron_rate_at_radius, light_distance_m,
-                                on_axis_electron_rate, path_integrals, spectral_weights)
+from uwlab.model.design import (Design, beam_half_angle_rad, broadband_factor, build_design, housing_transmittance,
+                                electron_rate_at_radius, light_distance_m, on_axis_electron_rate, paper_beam_model,
+                                spectral_weights)
 from uwlab.model.optics import NO_LENS, LensSetting
 
 SHARED = ("light_efficiency", "beam_half_angle_deg", "attenuation_scale", "reflectance", "lens_transmittance",
-          "discrepancy")
+          "discrepancy", "config_discrepancy")
+NOT_EXTENDED = ("beam_half_angle_deg", "reflectance")
 PER_CAMERA = ("K_dn_per_e",)
+MODELS = ("paper", "extended")
 REQUIRED_COLUMNS = ("sweep_id", "exposure_us", "gain_db", "f_number", "focal_length_mm", "bit_depth", "sensor_profile",
                     "signal_dn", "temporal_var_dn2", "frames", "roi_w", "roi_h", "saturated")
+PARAMETER_LABELS = {
+    "light_efficiency": "light efficiency (true / rated flux)",
+    "beam_half_angle_deg": "beam half-angle in water [°]",
+    "attenuation_scale": "attenuation scale (× the water's c)",
+    "reflectance": "target reflectance",
+    "lens_transmittance": "lens transmittance",
+    "discrepancy": "discrepancy within a configuration",
+    "config_discrepancy": "discrepancy between configurations (τ)",
+}
+PERCENT_PARAMETERS = ("discrepancy", "config_discrepancy")
+S_GRID = np.geomspace(0.02, 50.0, 200)
+ROI_SAMPLES = 4
+
+
+@dataclass(frozen=True)
+class Transmission:
+    """G_k(s)/G_k(s₀) of every configuration k: one vector-valued cubic spline of ln G in ln s over `S_GRID` (NaN
+    outside it)."""
+
+    spline: CubicSpline
+    log_g0: np.ndarray
+
+    @classmethod
+    def from_values(cls, g: np.ndarray, s0: float) -> Transmission:
+        """From G on `S_GRID`, shape (len(S_GRID), n_config), normalised at the nominal scale s0."""
+        spline = CubicSpline(np.log(S_GRID), np.log(g), axis=0)
+        return cls(spline, spline(np.log(s0)))
+
+    def __call__(self, s) -> np.ndarray:
+        """G_k(s)/G_k(s₀) for scales s of shape (n,): shape (n, n_config)."""
+        log_s = np.log(np.asarray(s, float))
+        lo, hi = self.spline.x[0], self.spline.x[-1]
+        inside = ((log_s >= lo) & (log_s <= hi))[:, None]
+        return np.where(inside, np.exp(self.spline(np.clip(log_s, lo, hi)) - self.log_g0), np.nan)
 
 
 @dataclass
 class ForwardModel:
-    """Per-point constants and per-configuration spectral terms of a calibration data set."""
+    """Per-point constants and per-configuration terms of a calibration data set."""
 
     names: tuple[str, ...]
     nominal: dict[str, float]
@@ -48,15 +95,24 @@ class ForwardModel:
     config: np.ndarray           # configuration index per point
     camera: np.ndarray           # camera (sensor profile) index per point
     cameras: tuple[str, ...]
-    nominal_rate_e_per_s: np.ndarray  # per configuration: on-axis rate × ROI vignetting at nominal θ [e⁻/s]
+    nominal_rate_e_per_s: np.ndarray  # per configuration: mean rate over the ROI at nominal θ [e⁻/s]
     has_lens: np.ndarray         # per configuration
     omega_cone: bool
-    weights_e: np.ndarray        # (n_config, n_λ)
-    attenuation_per_m: np.ndarray  # (n_config, n_λ): beam attenuation c(λ) before the attenuation scale
-    path_length_m: np.ndarray    # (n_config,): light → target → camera
-    nominal_transmission: np.ndarray  # (n_config,): G_k(s₀)
+    kind: str                    # "paper" or "extended"
+    transmission: Transmission   # G_k(s)/G_k(s₀) of every configuration
     designs: list[Design] = field(repr=False, default_factory=list)
     points: pd.DataFrame = field(repr=False, default=None)
+
+    @property
+    def n_config(self) -> int:
+        return len(self.designs)
+
+    @cached_property
+    def membership(self) -> np.ndarray:
+        """(n_points, n_config) indicator of each point's configuration."""
+        out = np.zeros((self.config.size, self.n_config))
+        out[np.arange(self.config.size), self.config] = 1.0
+        return out
 
     def index(self, name: str) -> int:
         return self.names.index(name)
@@ -69,22 +125,22 @@ class ForwardModel:
 
     def shape(self, theta: np.ndarray) -> np.ndarray:
         """The nonlinear shared factors relative to nominal, per configuration, shape (n_walkers, n_config):
-        beam concentration (cone: solid-angle ratio; disk: tan² ratio) × water transmission G_k(s)/G_k(s₀), with
-        G_k(s) = Σ_λ W_k(λ) exp(−s c(λ) D_k) (D_k the light→target→camera path)."""
+        beam concentration (cone: solid-angle ratio; disk: tan² ratio; paper chain) × G_k(s)/G_k(s₀)."""
         theta = np.atleast_2d(theta)
+        g = self.transmission(self.parameter(theta, "attenuation_scale"))
+        if self.kind == "extended":
+            return g
         beta = np.radians(self.parameter(theta, "beam_half_angle_deg"))[:, None]
         beta0 = np.radians(self.nominal["beam_half_angle_deg"])
         if self.omega_cone:
             beam = (1 - np.cos(beta0)) / (1 - np.cos(beta))
         else:
             beam = np.tan(beta0) ** 2 / np.tan(beta) ** 2
-        s = self.parameter(theta, "attenuation_scale")[:, None, None]
-        g = np.einsum("wkl,kl->wk", np.exp(-s * (self.path_length_m[:, None] * self.attenuation_per_m)[None]), self.weights_e)
-        return beam * g / self.nominal_transmission[None, :]
+        return beam * g
 
     def mean_log(self, shape: np.ndarray) -> np.ndarray:
         """ln of a `shape` averaged over the points (each configuration weighted by its points), (n_walkers,)."""
-        share = np.bincount(self.config, minlength=self.nominal_transmission.size) / self.config.size
+        share = np.bincount(self.config, minlength=self.n_config) / self.config.size
         return np.log(shape) @ share
 
     def predict(self, theta: np.ndarray, shape: np.ndarray | None = None) -> np.ndarray:
@@ -100,9 +156,17 @@ class ForwardModel:
         return k[:, self.camera] * self.effective_exposure_s[None, :] * rate[:, self.config]
 
     def sigma(self, theta: np.ndarray, prediction: np.ndarray) -> np.ndarray:
-        """Per-point standard deviation: measurement noise of the ROI mean ⊕ fractional model discrepancy."""
+        """Per-point standard deviation: measurement noise of the ROI mean ⊕ fractional within-configuration
+        discrepancy (the between-configuration discrepancy is in `uwlab.experiments.calibration.fit`)."""
         delta = self.parameter(np.atleast_2d(theta), "discrepancy")[:, None]
         return np.sqrt(self.sigma_meas[None, :] ** 2 + (delta * prediction) ** 2)
+
+
+def parameter_label(name: str) -> str:
+    """A free parameter in words, e.g. ``system gain K of IMX250M [DN/e⁻]`` for ``K_dn_per_e:imx250m``."""
+    if name.startswith("K_dn_per_e:"):
+        return f"system gain K of {name.split(':', 1)[1].upper()} [DN/e⁻]"
+    return PARAMETER_LABELS.get(name, name)
 
 
 def _roi_vignetting(design: Design, roi_w: float, roi_h: float) -> float:
@@ -114,23 +178,57 @@ def _roi_vignetting(design: Design, roi_w: float, roi_h: float) -> float:
     return float(rates[1:].mean() / rates[0])
 
 
-def _configuration_design(rig: dict, base_dir: Path | None, sensor: str, focal_length_mm, f_number) -> tuple[Design, bool]:
-    raw = {s: dict(v) for s, v in rig.items() if s != "sim"}
+def _paper_rates(design: Design, lens: bool, roi_w: float, roi_h: float) -> tuple[float, np.ndarray]:
+    """(nominal ROI rate, G(S_GRID)) of the paper chain: on-axis rate × ROI vignetting; the path integral."""
+    weights = spectral_weights(design)
+    path_m = float(light_distance_m(design) + design["operation.altitude_m"])
+    vignetting = _roi_vignetting(design, roi_w, roi_h) if lens else 1.0
+    return float(on_axis_electron_rate(design)) * vignetting, weights.table(S_GRID * path_m, 2)
+
+
+def extended_roi_rates(design: Design, lens: bool, roi_w: float, roi_h: float) -> tuple[np.ndarray, np.ndarray]:
+    """(target, veiling light) mean electron rates [e⁻/s] of the extended chain over a `ROI_SAMPLES`² grid in an
+    axis-centred ROI of roi_w × roi_h pixels (or the bare sensor's), broadcast over the design's arrays."""
+    chain = extended.Chain(design, spectral_weights(design))
+    port = housing_transmittance(design)
+    if not lens:
+        return chain.bare_rates(port)
+    pitch = design.sensor.pixel_size_um * 1e-6
+    u = (np.arange(ROI_SAMPLES) + 0.5) / ROI_SAMPLES - 0.5
+    x, y = np.meshgrid(u * roi_w * pitch, u * roi_h * pitch)
+    direct, veil = chain.pixel_rates(x.ravel(), y.ravel(), port, broadband_factor(design, "lens.transmittance"))
+    return direct.mean(axis=-1), veil.mean(axis=-1)
+
+
+def _extended_rates(design: Design, lens: bool, roi_w: float, roi_h: float) -> tuple[float, np.ndarray]:
+    """(nominal ROI rate, rate(S_GRID)) of the extended chain: target and veiling light (`extended_roi_rates`)."""
+    scaled = design.with_values(**{"water.attenuation_scale": S_GRID})
+    return float(sum(extended_roi_rates(design, lens, roi_w, roi_h))), sum(extended_roi_rates(scaled, lens, roi_w, roi_h))
+
+
+def _configuration_design(rig: dict, base_dir: Path | None, sensor: str, focal_length_mm, f_number,
+                          kind: str | None) -> tuple[Design, bool]:
+    raw = {s: (list(v) if isinstance(v, list) else dict(v)) for s, v in design_sections(rig).items()}
     raw.setdefault("sensor", {})["profile"] = sensor
     has_lens = f_number is not None and np.isfinite(f_number)
     lens = LensSetting(float(focal_length_mm), float(f_number)) if has_lens else NO_LENS
     for key, value in lens.overrides().items():
         apply_override(raw, key, value)
+    if kind is not None:
+        apply_override(raw, "model.kind", kind)
     raw.setdefault("operation", {}).pop("exposure_s", None)
     return build_design(raw, base_dir), has_lens
 
 
 def build_forward_model(points: pd.DataFrame, rigs: dict[str, dict], names: tuple[str, ...],
-                        base_dir: Path | None = None) -> ForwardModel:
-    """Assemble the forward model for the points (contract columns) with the rigs {sweep_id: design config}."""
+                        base_dir: Path | None = None, kind: str | None = None) -> ForwardModel:
+    """Assemble the forward model for the points (contract columns) with the rigs {sweep_id: design config};
+    `kind` ("paper" or "extended") replaces the rigs' [model] kind."""
     missing = [c for c in REQUIRED_COLUMNS if c not in points.columns]
     if missing:
         raise ConfigError("dataset", ", ".join(missing), "missing column(s) in points")
+    if kind is not None and kind not in MODELS:
+        raise ConfigError("--model", kind, f"must be one of {', '.join(MODELS)}")
     cameras = tuple(sorted(points["sensor_profile"].astype(str).unique()))
     allowed = set(SHARED) | {f"{p}:{c}" for p in PER_CAMERA for c in cameras}
     for name in names:
@@ -140,22 +238,27 @@ def build_forward_model(points: pd.DataFrame, rigs: dict[str, dict], names: tupl
     key_tuples = [tuple(row) for row in keys.itertuples(index=False)]
     unique = list(dict.fromkeys(key_tuples))
     config = np.array([unique.index(k) for k in key_tuples])
-    designs, has_lens, rate0, w_e, c, path, g0 = [], [], [], [], [], [], []
+    designs, has_lens, rate0, transmission = [], [], [], []
     for sweep_id, sensor, focal, f_number in unique:
         if sweep_id not in rigs:
             raise ConfigError("dataset", sweep_id, "no rig recorded for this sweep in metadata.json")
-        design, lens = _configuration_design(rigs[sweep_id], base_dir, sensor, focal, f_number)
+        design, lens = _configuration_design(rigs[sweep_id], base_dir, sensor, focal, f_number, kind)
         rows = points[config == len(designs)]
-        vignetting = _roi_vignetting(design, rows["roi_w"].median(), rows["roi_h"].median()) if lens else 1.0
-        weights = spectral_weights(design)
-        path_m = float(light_distance_m(design) + design["operation.altitude_m"])
+        roi = (float(rows["roi_w"].median()), float(rows["roi_h"].median()))
+        rates = _extended_rates if design["model.kind"] == "extended" else _paper_rates
+        nominal_rate, curve = rates(design, lens, *roi)
         designs.append(design)
         has_lens.append(lens)
-        rate0.append(float(on_axis_electron_rate(design)) * vignetting)
-        w_e.append(weights.W[:, 2])
-        c.append(weights.c)
-        path.append(path_m)
-        g0.append(float(path_integrals(weights, design["water.attenuation_scale"] * path_m)[2]))
+        rate0.append(nominal_rate)
+        transmission.append(curve)
+    kinds = {d["model.kind"] for d in designs}
+    if len(kinds) > 1:
+        raise ConfigError("model.kind", sorted(kinds), "all sweeps of one fit must use the same chain (see --model)")
+    chain = kinds.pop()
+    if chain == "extended":
+        for name in NOT_EXTENDED:
+            if name in names:
+                raise ConfigError(f"parameters.{name}", name, "cannot be fitted with the extended model")
     first = designs[0]
     with_lens = next((d for d, lens in zip(designs, has_lens) if lens), None)
     nominal = {
@@ -165,6 +268,7 @@ def build_forward_model(points: pd.DataFrame, rigs: dict[str, dict], names: tupl
         "reflectance": _number(first, "target.reflectance"),
         "lens_transmittance": _number(with_lens, "lens.transmittance") if with_lens is not None else 1.0,
         "discrepancy": 0.0,
+        "config_discrepancy": 0.0,
     }
     camera = np.array([cameras.index(s) for s in points["sensor_profile"].astype(str)])
     profile_of = {}
@@ -179,7 +283,7 @@ def build_forward_model(points: pd.DataFrame, rigs: dict[str, dict], names: tupl
         dark = points["dark_temporal_var_dn2"].to_numpy(float) / (points["dark_frames"].to_numpy(float).clip(1) * n_pix)
         var_mean = var_mean + np.nan_to_num(dark)
     flux = points["relative_flux"].to_numpy(float) if "relative_flux" in points else relative_flux(points)
-    beam_model = {d["light.beam_model"] for d in designs}
+    beam_model = {paper_beam_model(d) for d in designs}
     if len(beam_model) > 1:
         raise ConfigError("light.beam_model", sorted(beam_model), "all sweeps of one fit must share a beam model")
     return ForwardModel(
@@ -187,8 +291,8 @@ def build_forward_model(points: pd.DataFrame, rigs: dict[str, dict], names: tupl
         effective_exposure_s=10 ** (points["gain_db"].to_numpy(float) / 20) * 2.0 ** (points["bit_depth"].to_numpy(float) - profile_bits)
         * points["exposure_us"].to_numpy(float) * 1e-6 * flux,
         config=config, camera=camera, cameras=cameras, nominal_rate_e_per_s=np.array(rate0), has_lens=np.array(has_lens),
-        omega_cone=beam_model == {"cone"}, weights_e=np.array(w_e), attenuation_per_m=np.array(c), path_length_m=np.array(path),
-        nominal_transmission=np.array(g0),
+        omega_cone=beam_model == {"cone"}, kind=chain,
+        transmission=Transmission.from_values(np.stack(transmission, axis=1), nominal["attenuation_scale"]),
         designs=designs, points=points.reset_index(drop=True),
     )
 
@@ -199,13 +303,15 @@ def relative_flux(points: pd.DataFrame) -> np.ndarray:
     The light's level→flux curve is not assumed: the median irradiance of the points of one sweep, position and
     level is divided by the median irradiance of all level-1 points at that position. Taking the median over a
     sweep's points at one level (assumed steady over a sweep; each point's reading stays in the dataset) keeps the
-    reading noise of a dimmed light (read-noise limited) out of the predictions. Points all at level 1 need no
-    readings.
+    reading noise of a dimmed light (read-noise limited) out of the predictions. The same normalisation, applied
+    to the level-1 sweeps, removes a drift of the light's output between sweeps (a lamp warming up). Points all at
+    level 1 without readings get 1.
     """
     levels = points["light_level"].to_numpy(float) if "light_level" in points else np.ones(len(points))
-    if np.all(levels == 1.0):
+    readings = "irradiance_w_m2" in points and points["irradiance_w_m2"].notna().all()
+    if np.all(levels == 1.0) and not readings:
         return np.ones(len(points))
-    if "irradiance_w_m2" not in points or points["irradiance_w_m2"].isna().any():
+    if not readings:
         raise ConfigError("light_level", sorted(set(levels)), "points below full light need spectrometer irradiance "
                           "(irradiance_w_m2) to scale the light's output")
     position = points["irradiance_position"].astype(str).to_numpy() if "irradiance_position" in points else np.full(

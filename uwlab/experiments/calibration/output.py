@@ -3,8 +3,9 @@
 Files in the output directory: ``samples.parquet`` (posterior samples, one column per parameter),
 ``summary.json`` (per parameter median, 2.5/16/84/97.5th percentiles, τ, R-hat; acceptance, converged flag,
 parameters that cannot be separated), ``predictions.parquet`` (measured vs predicted with bands at every point),
-``dense.parquet`` (bands along dense sweeps), ``corner.png``, ``traces.png``, ``response.png`` (measured vs
-predicted per configuration with 68 % / 95 % bands, and residuals).
+``dense.parquet`` (bands along dense sweeps), ``heldout.parquet`` (predictions of each configuration from a fit
+that did not see it), ``corner.png``, ``traces.png``, ``response.png`` (measured vs predicted per configuration,
+saturated points marked, and residuals in per cent with the fitted and held-out 95 % bands).
 """
 from __future__ import annotations
 
@@ -17,7 +18,7 @@ import corner  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
-from matplotlib.ticker import NullFormatter  # noqa: E402
+from matplotlib.ticker import FuncFormatter, NullFormatter  # noqa: E402
 
 from uwlab.errors import UwlabError  # noqa: E402
 from uwlab.experiments.calibration.fit import FitResult  # noqa: E402
@@ -25,8 +26,8 @@ from uwlab.experiments.calibration.validation import dense_sweeps, point_predict
 from uwlab.jsonable import dumps  # noqa: E402
 from uwlab.outputs import output_dir  # noqa: E402
 
-OUTPUT_FILES = ("samples.parquet", "summary.json", "predictions.parquet", "dense.parquet", "corner.png", "traces.png",
-                "response.png")
+OUTPUT_FILES = ("samples.parquet", "summary.json", "predictions.parquet", "dense.parquet", "heldout.parquet",
+                "corner.png", "traces.png", "response.png")
 
 
 def check_output_dir(out: Path) -> None:
@@ -62,44 +63,107 @@ def trace_plot(result: FitResult, path: Path) -> Path:
     return path
 
 
-def response_plot(predictions: pd.DataFrame, dense: pd.DataFrame, path: Path) -> Path:
+def configuration_label(sensor_profile: str, focal_length_mm, f_number) -> str:
+    """A configuration in words: ``IMX250M · 30 mm f/2`` or ``IMX250M · no lens``."""
+    sensor = str(sensor_profile).upper()
+    if f_number is None or not np.isfinite(f_number):
+        return f"{sensor} · no lens"
+    return f"{sensor} · {focal_length_mm:g} mm f/{f_number:g}"
+
+
+def configuration_labels(frame: pd.DataFrame) -> dict[str, str]:
+    """{sweep_id: `configuration_label`} of the rows of a points or predictions table."""
+    rows = frame.drop_duplicates("sweep_id")
+    return {r.sweep_id: configuration_label(r.sensor_profile, r.focal_length_mm, r.f_number) for r in rows.itertuples()}
+
+
+FITTED, HELD_OUT, SATURATED = "#1f77b4", "#e07b00", "#c0392b"
+RESIDUAL_LIMIT_PERCENT = 400.0
+
+
+def response_plot(predictions: pd.DataFrame, dense: pd.DataFrame, path: Path, held_out: pd.DataFrame | None = None) -> Path:
+    """Per configuration: the measured response against exposure with the fitted model (saturated points marked),
+    and below it the residuals in per cent of the model with its 95 % band of a new measurement, fitted and, where
+    given, predicted for the configuration held out of the fit. The residual axis is linear within ±1 % (or the
+    fitted band) and logarithmic beyond, so that bands of 0.1 % and errors of 100 % both show."""
     sweeps = list(dict.fromkeys(predictions["sweep_id"]))
-    fig, axes = plt.subplots(2, len(sweeps), figsize=(3.2 * len(sweeps), 5.5), squeeze=False,
-                             gridspec_kw={"height_ratios": [3, 1]})
+    labels = configuration_labels(predictions)
+    columns = min(3, len(sweeps))
+    rows = -(-len(sweeps) // columns)
+    fig = plt.figure(figsize=(4.6 * columns, 5.4 * rows))
+    outer = fig.add_gridspec(rows, columns, hspace=0.32, wspace=0.3, top=1 - 0.8 / (5.4 * rows))
     for j, sweep_id in enumerate(sweeps):
-        ax, res = axes[0, j], axes[1, j]
+        cell = outer[divmod(j, columns)].subgridspec(2, 1, height_ratios=[2.0, 1.7], hspace=0.06)
+        ax = fig.add_subplot(cell[0])
+        res = fig.add_subplot(cell[1], sharex=ax)
         band = dense[dense["sweep_id"] == sweep_id]
         here = predictions[predictions["sweep_id"] == sweep_id]
-        pts, clipped = here[~here["saturated"]], here[here["saturated"]]
-        ax.fill_between(band["exposure_us"], band["predicted_p2_5"], band["predicted_p97_5"], color="C0", alpha=0.2,
-                        label="95 %")
-        ax.fill_between(band["exposure_us"], band["predicted_p16"], band["predicted_p84"], color="C0", alpha=0.4,
-                        label="68 %")
-        ax.plot(band["exposure_us"], band["predicted_median"], color="C0", linewidth=1, label="predicted")
-        ax.plot(pts["exposure_us"], pts["measured_dn"], "k.", label="measured")
+        pts, clipped = here[~here["saturated"].astype(bool)], here[here["saturated"].astype(bool)]
+        ax.plot(band["exposure_us"], band["predicted_median"], color=FITTED, linewidth=1.5, label="model (fitted)")
+        ax.plot(pts["exposure_us"], pts["measured_dn"], "o", color="k", markersize=4, label="measured")
         if len(clipped):
-            ax.plot(clipped["exposure_us"], clipped["measured_dn"], "x", color="C3", label="saturated (not fitted)")
-        ax.set_title(sweep_id, fontsize=8)
-        res.axhline(0, color="C0")
-        res.plot(pts["exposure_us"], pts["residual_dn"] / pts["predicted_median"] * 100, "k.")
-        for a in (ax, res):
-            a.set_xscale("log")
-            a.xaxis.set_minor_formatter(NullFormatter())
+            ax.plot(clipped["exposure_us"], clipped["measured_dn"], "x", color=SATURATED, markersize=8, mew=2,
+                    label="saturated (not fitted)")
+        ax.set_title(labels.get(sweep_id, sweep_id), fontsize=12)
+        ax.set_xscale("log")
         ax.set_yscale("log")
         ax.yaxis.set_minor_formatter(NullFormatter())
-        res.set_xlabel("exposure [µs]", fontsize=8)
+        ax.tick_params(labelbottom=False, labelsize=10)
+        _residuals(res, pts, held_out[held_out["sweep_id"] == sweep_id] if held_out is not None else None)
+        res.set_xlabel("exposure [µs]", fontsize=11)
+        if j % columns == 0:
+            ax.set_ylabel("signal − dark [DN]", fontsize=11)
+            res.set_ylabel("residual [%]", fontsize=11)
         if j == 0:
-            ax.set_ylabel("mean response − dark [DN]", fontsize=8)
-            res.set_ylabel("residual [%]", fontsize=8)
-            ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=80)
+            handles = [h for a in (ax, res) for h in a.get_legend_handles_labels()[0]]
+            names = [n for a in (ax, res) for n in a.get_legend_handles_labels()[1]]
+            fig.legend(handles, names, loc="upper center", ncol=5, fontsize=11, frameon=False,
+                       bbox_to_anchor=(0.5, 1.0))
+    fig.savefig(path, dpi=90, bbox_inches="tight")
     plt.close(fig)
     return path
 
 
-def write_fit(result: FitResult, out: Path, truth: dict | None = None, extra: dict | None = None) -> dict:
-    """Write every calibration output to `out` (refusing to overwrite); returns the summary."""
+def _residuals(ax, pts: pd.DataFrame, held_out: pd.DataFrame | None) -> None:
+    """Residuals [%] of the measured points with the fitted band (shaded) and the held-out band (bars); values
+    beyond ±RESIDUAL_LIMIT_PERCENT drawn at the edge as triangles labelled with their value."""
+    x = pts["exposure_us"].to_numpy()
+    centre = pts["predicted_median"].to_numpy()
+    lo = 100 * (pts["observed_p2_5"].to_numpy() / centre - 1)
+    hi = 100 * (pts["observed_p97_5"].to_numpy() / centre - 1)
+    values = [lo, hi, pts["residual_percent"].to_numpy()]
+    if held_out is not None and len(held_out):
+        h = held_out.set_index("exposure_us").reindex(x)
+        h_lo = 100 * (h["observed_p2_5"].to_numpy() / centre - 1)
+        h_hi = 100 * (h["observed_p97_5"].to_numpy() / centre - 1)
+        ax.vlines(x, h_lo, h_hi, color=HELD_OUT, linewidth=5, alpha=0.5, label="95 % band, predicted held out",
+                  zorder=1)
+        values += [h_lo, h_hi]
+    ax.fill_between(x, lo, hi, color=FITTED, alpha=0.35, linewidth=0, label="95 % band, fitted", zorder=2)
+    ax.axhline(0, color=FITTED, linewidth=1, zorder=2)
+    finite = np.concatenate([np.abs(v[np.isfinite(v)]) for v in values])
+    limit = min(max(float(finite.max()) if finite.size else 1.0, 1.0) * 1.4, RESIDUAL_LIMIT_PERCENT)
+    residual = pts["residual_percent"].to_numpy()
+    inside = np.abs(residual) <= limit
+    ax.plot(x[inside], residual[inside], "o", color="k", markersize=4, zorder=3)
+    for xi, ri in zip(x[~inside], residual[~inside], strict=True):
+        edge = np.sign(ri) * limit
+        ax.plot(xi, edge, "^" if ri > 0 else "v", color="k", markersize=7, zorder=3, clip_on=False)
+        ax.annotate(f"{ri:+.0f} %", (xi, edge), textcoords="offset points", xytext=(4, -12 if ri > 0 else 4),
+                    fontsize=9)
+    threshold = max(1.0, float(np.nanmax(np.abs(np.concatenate([lo, hi])))) if len(lo) else 1.0)
+    ax.set_yscale("symlog", linthresh=threshold, linscale=1.0)
+    ax.set_ylim(-limit, limit)
+    ax.set_xscale("log")
+    ax.tick_params(labelsize=10)
+    ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:+.3g}" if v else "0"))
+
+
+def write_fit(result: FitResult, out: Path, truth: dict | None = None, extra: dict | None = None,
+              held_out: pd.DataFrame | None = None) -> dict:
+    """Write every calibration output to `out` (refusing to overwrite); returns the summary. `held_out`: the
+    held-out predictions (`uwlab.experiments.calibration.validation.cross_validation`), drawn in response.png and
+    written to heldout.parquet."""
     check_output_dir(out)
     out.mkdir(exist_ok=True)
     summary = result.summary()
@@ -114,6 +178,8 @@ def write_fit(result: FitResult, out: Path, truth: dict | None = None, extra: di
     dense.to_parquet(out / "dense.parquet", index=False)
     corner_plot(result, out / "corner.png", truth)
     trace_plot(result, out / "traces.png")
-    response_plot(predictions, dense, out / "response.png")
+    response_plot(predictions, dense, out / "response.png", held_out)
+    if held_out is not None:
+        held_out.to_parquet(out / "heldout.parquet", index=False)
     (out / "summary.json").write_text(dumps(summary, indent=2) + "\n")
     return summary

@@ -1,9 +1,13 @@
-"""Calibrating the model against a dataset: fit, validate, write — what `uwlab fit` and `uwlab demo` run.
+"""Calibrating the model against a dataset: fit, validate, judge, write — what `uwlab fit` and `uwlab demo` run.
 
 Outputs in the calibration directory: those of `uwlab.experiments.calibration.output`, plus ``cross.json`` (the
-cross-configuration table) and ``spectra.parquet`` (predicted and measured spectra). ``summary.json`` also
-records which dataset (path, plan hash), the training sweeps, the cross-configuration table, the spectra
-comparison and, per parameter, the simulated ground truth when the dataset comes from the simulated rig.
+held-out table), ``heldout.parquet`` (held-out predictions with their bands) and ``spectra.parquet`` (predicted and
+measured spectra). ``summary.json`` also records which dataset (path, plan hash), the world that rendered a
+simulated dataset (``world``), the chain fitted (``model``: paper or extended), the held-out folds and table, the
+posterior predictive checks per configuration, ``predictive_coverage`` (the fraction of all held-out points inside
+their 95 % bands and per configuration), the verdict ``model_adequate`` with its named ``checks`` and, when the
+model fails, the failing checks and likely causes in ``warnings`` (`uwlab.experiments.calibration.adequacy`),
+the spectra comparison and, per parameter, the simulated ground truth.
 """
 from __future__ import annotations
 
@@ -15,11 +19,13 @@ import numpy as np
 import pandas as pd
 
 from uwlab.errors import ConfigError
-from uwlab.experiments.dataset import Dataset
-from uwlab.experiments.calibration.fit import FitConfig, default_config_for, fit_points, load_fit_config
+from uwlab.experiments.calibration.adequacy import Verdict, verdict
+from uwlab.experiments.calibration.fit import FitConfig, FitResult, default_config_for, fit_points, load_fit_config
+from uwlab.experiments.calibration.forward import MODELS, relative_flux
 from uwlab.experiments.calibration.output import check_output_dir, write_fit
-from uwlab.experiments.calibration.forward import relative_flux
-from uwlab.experiments.calibration.validation import compare_spectra, cross_configuration, predicted_spectra
+from uwlab.experiments.calibration.validation import (CrossValidation, compare_spectra, cross_validation, default_folds,
+                                                      posterior_predictive_checks, predicted_spectra)
+from uwlab.experiments.dataset import Dataset
 
 
 def truth_from_metadata(metadata: dict, points: pd.DataFrame, names) -> dict:
@@ -46,17 +52,25 @@ def resolve_fit_config(config_path: str | Path | None, points: pd.DataFrame, rig
     return default_config_for(points[~points["saturated"].astype(bool)], rigs)
 
 
-def training_sweeps(points: pd.DataFrame, requested: list[str] | None, config: FitConfig) -> list[str]:
-    """The sweeps the cross-configuration check trains on: `requested` (``--train``), or the config's
-    ``[holdout] train``, or the first sweep with a lens; each must be a sweep of the dataset."""
-    sweeps = list(dict.fromkeys(points["sweep_id"]))
-    with_lens = list(dict.fromkeys(points.loc[points["f_number"].notna(), "sweep_id"]))
-    train = requested or config.holdout.train or (with_lens or sweeps)[:1]
-    unknown = sorted(set(train) - set(sweeps))
-    if unknown:
-        raise ConfigError("--train" if requested else "holdout.train", ", ".join(unknown),
-                          f"not a sweep of this dataset ({', '.join(sweeps)})")
-    return train
+def world_of(metadata: dict) -> str | None:
+    """The world preset that rendered a simulated dataset (None for a tank's data or an older dataset)."""
+    worlds = {t["world"]["preset"] for t in (metadata.get("sim_truth") or {}).values() if t.get("world")}
+    if len(worlds) == 1:
+        return worlds.pop()
+    return None
+
+
+def held_out_folds(sweeps: list[str], config: FitConfig, train_sweeps: list[str] | None) -> list[list[str]]:
+    """The held-out sweeps of each fold: everything but `train_sweeps` (or the config's [holdout] train), else
+    `[holdout] folds` folds dealt out in sweep order."""
+    train = train_sweeps or config.holdout.train
+    if train:
+        unknown = sorted(set(train) - set(sweeps))
+        if unknown:
+            raise ConfigError("--train" if train_sweeps else "holdout.train", ", ".join(unknown),
+                              f"not a sweep of this dataset ({', '.join(sweeps)})")
+        return [[s for s in sweeps if s not in train]]
+    return default_folds(sweeps, config.holdout.folds)
 
 
 @dataclass
@@ -67,11 +81,46 @@ class Calibration:
     out: Path
 
 
+@dataclass
+class Assessment:
+    """A fit with its checks: the result, the per-configuration checks, the held-out predictions, the verdict."""
+
+    result: FitResult
+    ppc: pd.DataFrame
+    cross: CrossValidation
+    verdict: Verdict
+
+    def summary(self) -> dict:
+        """The assessment's part of summary.json (module docstring)."""
+        table = self.cross.table
+        per_config = dict(zip(table["sweep_id"], table["inside_95"], strict=True)) if len(table) else {}
+        return {"model": self.result.model.kind,
+                "predictive_coverage": {"held_out_inside_95": self.cross.inside_95, "per_configuration": per_config},
+                **self.verdict.to_dict(),
+                "warnings": self.result.summary()["warnings"] + self.verdict.warnings(),
+                "cross_configuration": self.cross.table.to_dict(orient="records"), "folds": self.cross.folds,
+                "posterior_predictive_checks": self.ppc.to_dict(orient="records")}
+
+
+def assess(points: pd.DataFrame, rigs: dict, config: FitConfig, folds: list[list[str]], model: str | None = None,
+           progress=None) -> Assessment:
+    """Fit the points with the chain `model`, check every configuration, predict each held-out fold from a fit of
+    the others, and judge the model (`uwlab.experiments.calibration.adequacy`)."""
+    result = fit_points(points, rigs, config, progress=progress, kind=model)
+    ppc = posterior_predictive_checks(result)
+    cross = cross_validation(points, rigs, config, folds, kind=result.model.kind, progress=progress,
+                             seed=config.sampler.seed)
+    return Assessment(result, ppc, cross, verdict(result, ppc, cross))
+
+
 def calibrate(dataset_dir: str | Path, config_path: str | Path | None, out: str | Path, train_sweeps: list[str] | None = None,
-              progress=None) -> Calibration:
-    """Fit the whole dataset, then the cross-configuration check (training sweeps: `train_sweeps`, or the
-    config's [holdout] train, or the first sweep with a lens), then the spectra; write everything to `out`.
-    Every input is checked before sampling starts."""
+              progress=None, model: str | None = None) -> Calibration:
+    """Fit the whole dataset with the chain `model` ("paper", "extended"; None: the rigs' [model] kind), check it
+    per configuration, predict every configuration from a fit that did not see it (`held_out_folds`), judge the
+    model (`uwlab.experiments.calibration.adequacy`), compare the spectra; write everything to `out`. Every input
+    is checked before sampling starts."""
+    if model is not None and model not in MODELS:
+        raise ConfigError("--model", model, f"must be one of {', '.join(MODELS)}")
     dataset = Dataset.open(dataset_dir)
     out = Path(out)
     check_output_dir(out)
@@ -81,20 +130,21 @@ def calibrate(dataset_dir: str | Path, config_path: str | Path | None, out: str 
     points = points.assign(relative_flux=relative_flux(points))
     rigs = metadata.get("rigs") or {}
     config = resolve_fit_config(config_path, points, rigs)
-    train = training_sweeps(points, train_sweeps, config)
-    result = fit_points(points, rigs, config, progress=progress)
+    sweeps = list(dict.fromkeys(points.loc[~points["saturated"].astype(bool), "sweep_id"]))
+    folds = held_out_folds(sweeps, config, train_sweeps)
+    assessment = assess(points, rigs, config, folds, model, progress)
+    result, cross = assessment.result, assessment.cross
     truth = truth_from_metadata(metadata, points, result.names)
-    cross, _ = cross_configuration(points, rigs, config, train, progress=progress)
     predicted = predicted_spectra(result)
     measured = dataset.spectra()
     spectra_table = compare_spectra(predicted, measured)
     extra = {"dataset": str(Path(dataset_dir).resolve()), "plan_sha256": metadata.get("plan_sha256"),
-             "cross_configuration": cross.to_dict(orient="records"), "training_sweeps": train,
+             "world": world_of(metadata), **assessment.summary(),
              "spectra": spectra_table.to_dict(orient="records"), "sim": bool(metadata.get("sim"))}
-    summary = write_fit(result, out, truth, extra)
+    summary = write_fit(result, out, truth, extra, cross.points)
     merged = predicted.merge(measured.groupby(["sweep_id", "position", "wavelength_nm"], as_index=False)[
         "irradiance_w_m2_nm"].mean(), how="left", on=["sweep_id", "position", "wavelength_nm"]) if not measured.empty \
         else predicted.assign(irradiance_w_m2_nm=np.nan)
     merged.to_parquet(out / "spectra.parquet", index=False)
-    (out / "cross.json").write_text(json.dumps(cross.to_dict(orient="records"), indent=2) + "\n")
-    return Calibration(summary, cross, spectra_table, out)
+    (out / "cross.json").write_text(json.dumps(cross.table.to_dict(orient="records"), indent=2) + "\n")
+    return Calibration(summary, cross.table, spectra_table, out)

@@ -5,9 +5,11 @@ The frames come from the simulated camera (`uwlab.drivers.sim.camera.SimSensor`)
 --sim` — but rendered directly in a small axis-centred ROI, without the device and serial layers, so that many
 campaigns (one per seed) run in seconds. Rows follow the dataset contract of `uwlab.experiments.dataset`.
 
-The true rig differs from the nominal one (the rig config, which the fit starts from) by `truth`:
-``light_efficiency``, ``attenuation_scale``, ``beam_half_angle_deg``, ``reflectance``, ``lens_transmittance``
-and ``K_dn_per_e:<profile>``.
+The true rig differs from the nominal one (the rig config's design sections, which the fit starts from) by
+`truth`: ``light_efficiency``, ``attenuation_scale``, ``beam_half_angle_deg`` (in water), ``reflectance``,
+``lens_transmittance`` and ``K_dn_per_e:<profile>``, and by the world that renders it (`world`: the rig's
+[world] preset replaced, by default with ``ideal``, the design model; a tank world's sensor realism included, its
+light's warm-up drift not: there is no clock here).
 """
 from __future__ import annotations
 
@@ -19,6 +21,7 @@ import pandas as pd
 
 from uwlab.drivers.sim.camera import SensorConfig, SimSensor, SimTruth
 from uwlab.drivers.sim.scene import RigScene
+from uwlab.drivers.sim.world import design_sections
 from uwlab.experiments.dataset import point_row
 from uwlab.experiments.emva.stream import stack_statistics
 from uwlab.experiments.saturation import clip_level, sensor_clip_dn
@@ -34,15 +37,17 @@ _DESIGN_KEYS = {"attenuation_scale": ("water", "attenuation_scale"), "beam_half_
 PAPER_LENSES = (NO_LENS, LensSetting(30.0, 2.0), LensSetting(12.0, 4.0))
 
 
-def _true_scene(raw: dict, base_dir: Path, sensor: str, lens: LensSetting, truth: dict) -> RigScene:
+def _true_scene(raw: dict, base_dir: Path, sensor: str, lens: LensSetting, truth: dict, world: str | None) -> RigScene:
     raw = copy.deepcopy(raw)
     raw["sensor"]["profile"] = sensor
     for name, (section, key) in _DESIGN_KEYS.items():
         if name in truth:
             raw.setdefault(section, {})[key] = float(truth[name])
+    if "beam_half_angle_deg" in truth:
+        raw["light"].pop("beam_half_angle_in_air_deg", None)
     raw.setdefault("sim", {})["light_efficiency"] = float(truth.get("light_efficiency", raw.get("sim", {}).get(
         "light_efficiency", 1.0)))
-    scene = RigScene.from_dict(raw, base_dir)
+    scene = RigScene.from_dict(raw, base_dir, world=world)
     if lens.bare:
         scene.remove_lens()
     else:
@@ -52,22 +57,23 @@ def _true_scene(raw: dict, base_dir: Path, sensor: str, lens: LensSetting, truth
 
 def simulate_campaign(truth: dict, sensors=("imx250m", "icx285alm"), lenses=PAPER_LENSES, points_per_sweep: int = 12,
                       frames: int = 2, roi_px: int = 32, seed: int = 0, rig: str | Path | None = None,
-                      max_fraction: float = 1.1) -> tuple[pd.DataFrame, dict]:
+                      max_fraction: float = 1.1, world: str | None = "ideal") -> tuple[pd.DataFrame, dict]:
     """Exposure sweeps (log-spaced up to `max_fraction` of the saturation exposure) for every sensor × lens.
 
     Returns (points, rigs) where rigs maps sweep_id to the nominal rig config (what a fit starts from).
     """
     path = Path(rig) if rig is not None else config_dir() / "rigs" / "sim-tank.toml"
     raw = read_toml(path, "--config")
-    nominal = {s: v for s, v in raw.items() if s != "sim"}
+    nominal = design_sections(raw)
     rows, rigs = [], {}
     rng = np.random.default_rng(seed)
     for sensor in sensors:
         for lens in lenses:
             sweep_id = f"{sensor}-{lens.label}"
-            scene = _true_scene(raw, path.resolve().parent, sensor, lens, truth)
+            scene = _true_scene(raw, path.resolve().parent, sensor, lens, truth, world)
             k_true = truth.get(f"K_dn_per_e:{sensor}")
-            sim_truth = SimTruth.from_sensor_profile(scene.sensor, **({"K_dn_per_e": float(k_true)} if k_true else {}))
+            sim_truth = SimTruth.from_sensor_profile(scene.sensor, **scene.sensor_realism(),
+                                                     **({"K_dn_per_e": float(k_true)} if k_true else {}))
             width, height = sim_truth.resolution_px
             rate = scene.on_axis_rate_e_per_s()
             window = _centre_window(width, height, roi_px)

@@ -1,28 +1,38 @@
-"""Validation of a calibrated model: posterior predictive bands, cross-configuration prediction, spectra.
+"""Validation of a calibrated model: posterior predictive bands and checks, held-out configurations, spectra.
 
-- Posterior predictive: the predicted mean response (dark-subtracted) for every posterior sample; the median and
-  the 68 % (16–84th percentile) and 95 % (2.5–97.5th) credible bands at every measured point and along a dense
-  exposure sweep per configuration; residuals (measured − median) in DN and in units of the point's σ. "Inside 95 %" counts a measured point
-  against the posterior predictive band of a new measurement (mean + measurement noise ⊕ discrepancy).
-- Cross-configuration: fit on some configurations, predict the held-out ones from the posterior (parameters the
-  training data cannot reach — e.g. the gain K of a camera not in the training set — are drawn from their priors)
-  and report, per configuration, the median relative error and the fraction of points inside the 95 % band.
+- Posterior predictive (`predictive_draws`): for every posterior sample θ, the predicted mean response of each
+  point, μ(θ) (1 + δ_k), with its configuration's discrepancy δ_k drawn given θ and the data
+  (`uwlab.experiments.calibration.fit.config_offsets`), and a new measurement of it (+ measurement noise ⊕
+  within-configuration discrepancy). Bands: the 2.5/16/50/84/97.5th percentiles at every measured point and along a
+  dense exposure sweep per configuration; residuals (measured − median) in DN, per cent and units of σ. "Inside
+  95 %" counts a measured point against the band of a new measurement.
+- Posterior predictive check per configuration (Gelman, Meng & Stern, Statistica Sinica 6, 733–807, 1996):
+  T = Σ (y − μ(1 + δ_k))² / σ² of the measured points against the same statistic of replicated data, p = P(T_rep ≥
+  T_obs); a small p says the configuration's points scatter about the model more than its noise allows.
+- Held-out configurations (`cross_validation`): the configurations are split into folds (by default two,
+  alternating in sweep order, or the [holdout] train list); each fold is fitted on the others and predicts its own
+  configurations as new ones: δ_new ~ N(0, τ²) with the posterior's between-configuration scale τ, and parameters
+  the training data cannot reach (the gain K of a camera it has not seen) drawn from their priors. Per
+  configuration: the relative error of the median, the fraction of points inside the 95 % band, and a check of
+  the configuration's level: ρ = median(y / μ̂ − 1) against the same statistic of replicated data (two-sided p).
 - Spectra: the spectral irradiance the model predicts at the target (facing the light) and at the camera
   (π L_w), with the posterior median parameters, against what the spectrometer measured.
 """
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pandas as pd
 
-from uwlab.experiments.calibration.fit import FitConfig, FitResult, fit_points
+from uwlab.experiments.calibration.fit import FitConfig, FitResult, config_offsets, fit_points
 from uwlab.experiments.calibration.forward import ForwardModel, build_forward_model
 from uwlab.model.design import stage_spectra
 
 BANDS = (2.5, 16, 50, 84, 97.5)
+BAND_NAMES = ("p2_5", "p16", "median", "p84", "p97_5")
 MAX_PREDICTIVE_SAMPLES = 2000
+PREDICTION_COLUMNS = ("sweep_id", "sensor_profile", "lens_label", "focal_length_mm", "f_number", "exposure_us", "gain_db")
 
 
 def _thinned(samples: np.ndarray) -> np.ndarray:
@@ -30,59 +40,108 @@ def _thinned(samples: np.ndarray) -> np.ndarray:
     return samples[::step]
 
 
-def predictive_bands(model: ForwardModel, samples: np.ndarray, observed: bool = False, seed: int = 0) -> dict[str, np.ndarray]:
-    """Percentiles (2.5, 16, 50, 84, 97.5) of the predicted mean response at the model's points; with
-    `observed`, of a new measurement (mean + measurement noise ⊕ discrepancy), the posterior predictive."""
-    theta = _thinned(samples)
+def new_offsets(model: ForwardModel, theta: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Discrepancies of configurations the fit has not seen, δ ~ N(0, τ²) per sample, shape (n, n_config)."""
+    tau = model.parameter(theta, "config_discrepancy")[:, None]
+    return tau * rng.standard_normal((theta.shape[0], model.n_config))
+
+
+@dataclass(frozen=True)
+class Draws:
+    """Posterior predictive draws at a model's points: θ, the model's mean μ(θ), the configuration offsets, the
+    mean response μ (1 + δ_k) and a new measurement of it; arrays (n_samples, n_points)."""
+
+    theta: np.ndarray
+    model_mean: np.ndarray
+    offsets: np.ndarray
+    mean: np.ndarray
+    observed: np.ndarray
+    sigma: np.ndarray
+
+
+def predictive_draws(model: ForwardModel, theta: np.ndarray, seen: bool, seed: int = 0) -> Draws:
+    """Draws for configurations the fit has seen (offsets given the data) or not (`seen` False: new offsets)."""
+    rng = np.random.default_rng(seed)
     mu = model.predict(theta)
-    if observed:
-        mu = mu + model.sigma(theta, mu) * np.random.default_rng(seed).standard_normal(mu.shape)
-    q = np.percentile(mu, BANDS, axis=0)
-    return dict(zip(("p2_5", "p16", "median", "p84", "p97_5"), q))
+    offsets = config_offsets(model, theta, rng) if seen else new_offsets(model, theta, rng)
+    mean = mu * (1 + offsets[:, model.config])
+    sigma = model.sigma(theta, mu)
+    return Draws(theta, mu, offsets, mean, mean + sigma * rng.standard_normal(mu.shape), sigma)
+
+
+def _bands(values: np.ndarray) -> dict[str, np.ndarray]:
+    return dict(zip(BAND_NAMES, np.percentile(values, BANDS, axis=0)))
 
 
 def point_predictions(result: FitResult) -> pd.DataFrame:
     """Measured against predicted at every fitted point, with bands and residuals; the saturated points the fit
     left out follow with ``saturated`` true, their measured value and no prediction."""
     model = result.model
-    bands = predictive_bands(model, result.samples)
-    observed = predictive_bands(model, result.samples, observed=True)
-    columns = [c for c in ("sweep_id", "sensor_profile", "lens_label", "exposure_us", "gain_db") if c in model.points]
-    frame = model.points[columns].copy()
-    frame["measured_dn"] = model.y
-    for key, values in bands.items():
-        frame[f"predicted_{key}"] = values
-    frame["observed_p2_5"] = observed["p2_5"]
-    frame["observed_p97_5"] = observed["p97_5"]
-    median_theta = np.median(result.samples, axis=0)[None, :]
-    sigma = model.sigma(median_theta, model.predict(median_theta))[0]
-    frame["residual_dn"] = model.y - bands["median"]
-    frame["residual_sigma"] = frame["residual_dn"] / sigma
-    frame["saturated"] = False
+    draws = predictive_draws(model, _thinned(result.samples), seen=True)
+    frame = _prediction_frame(model, draws)
     if result.saturated is not None and len(result.saturated):
-        left_out = result.saturated[[c for c in columns if c in result.saturated]].copy()
+        columns = [c for c in PREDICTION_COLUMNS if c in result.saturated]
+        left_out = result.saturated[columns].copy()
         left_out["measured_dn"] = result.saturated["signal_dn"].to_numpy(float)
         left_out["saturated"] = True
         frame = pd.concat([frame, left_out], ignore_index=True)
     return frame
 
 
+def _prediction_frame(model: ForwardModel, draws: Draws) -> pd.DataFrame:
+    columns = [c for c in PREDICTION_COLUMNS if c in model.points]
+    frame = model.points[columns].copy()
+    frame["measured_dn"] = model.y
+    for key, values in _bands(draws.mean).items():
+        frame[f"predicted_{key}"] = values
+    observed = _bands(draws.observed)
+    frame["observed_p2_5"], frame["observed_p97_5"] = observed["p2_5"], observed["p97_5"]
+    frame["residual_dn"] = model.y - frame["predicted_median"]
+    frame["residual_percent"] = 100 * frame["residual_dn"] / frame["predicted_median"]
+    frame["residual_sigma"] = frame["residual_dn"] / np.median(draws.sigma, axis=0)
+    frame["inside_95"] = (model.y >= frame["observed_p2_5"]) & (model.y <= frame["observed_p97_5"])
+    frame["saturated"] = False
+    return frame
+
+
 def dense_sweeps(result: FitResult, n: int = 60) -> pd.DataFrame:
-    """Predicted bands along a dense log-spaced exposure sweep per configuration (fitted exposure range)."""
+    """Predicted bands along a dense log-spaced exposure sweep per configuration (fitted exposure range), with
+    each configuration's discrepancy drawn given the data."""
     model = result.model
+    theta = _thinned(result.samples)
+    offsets = config_offsets(model, theta, np.random.default_rng(0))
     rows = []
-    for k in range(len(model.designs)):
+    for k in range(model.n_config):
         sel = model.config == k
         exposures = np.geomspace(model.points.loc[sel, "exposure_us"].min(), model.points.loc[sel, "exposure_us"].max(), n)
         first = np.flatnonzero(sel)[0]
         per_point = model.effective_exposure_s[first] / (model.points.loc[first, "exposure_us"])
         dense = replace(model, effective_exposure_s=per_point * exposures, config=np.full(n, k), camera=np.full(n, model.camera[first]),
                         y=np.zeros(n), sigma_meas=np.zeros(n))
-        bands = predictive_bands(dense, result.samples)
+        bands = _bands(dense.predict(theta) * (1 + offsets[:, k:k + 1]))
         frame = pd.DataFrame({"sweep_id": model.points.loc[first, "sweep_id"], "configuration": k, "exposure_us": exposures,
                               **{f"predicted_{key}": v for key, v in bands.items()}})
         rows.append(frame)
     return pd.concat(rows, ignore_index=True)
+
+
+def posterior_predictive_checks(result: FitResult, seed: int = 0) -> pd.DataFrame:
+    """Per fitted configuration: points, fraction inside the 95 % band, the median discrepancy δ_k [%] and the
+    posterior predictive p-value of its χ² (module docstring)."""
+    model = result.model
+    draws = predictive_draws(model, _thinned(result.samples), seen=True, seed=seed)
+    replicated = draws.mean + draws.sigma * np.random.default_rng(seed + 1).standard_normal(draws.mean.shape)
+    observed_chi = ((model.y - draws.mean) / draws.sigma) ** 2 @ model.membership
+    replicated_chi = ((replicated - draws.mean) / draws.sigma) ** 2 @ model.membership
+    frame = _prediction_frame(model, draws)
+    rows = []
+    for k in range(model.n_config):
+        sel = model.config == k
+        rows.append({"sweep_id": str(model.points.loc[np.flatnonzero(sel)[0], "sweep_id"]), "points": int(sel.sum()),
+                     "inside_95": float(frame.loc[sel, "inside_95"].mean()),
+                     "offset_percent": float(100 * np.median(draws.offsets[:, k])),
+                     "ppc_p": float((np.sum(replicated_chi[:, k] >= observed_chi[:, k]) + 1) / (draws.theta.shape[0] + 1))})
+    return pd.DataFrame(rows)
 
 
 def _prior_columns(config: FitConfig, names: tuple[str, ...], samples: np.ndarray, train_names: tuple[str, ...],
@@ -96,41 +155,72 @@ def _prior_columns(config: FitConfig, names: tuple[str, ...], samples: np.ndarra
     return np.stack(columns, axis=1)
 
 
-def cross_configuration(points: pd.DataFrame, rigs: dict, config: FitConfig, train_sweeps: list[str],
-                        progress=None) -> tuple[pd.DataFrame, FitResult]:
-    """Fit on `train_sweeps`, predict the other sweeps; per-configuration errors."""
+def default_folds(sweeps: list[str], count: int = 2) -> list[list[str]]:
+    """The held-out sets of `count` folds: the sweeps dealt out in order (every fold trains on the others)."""
+    return [sweeps[i::count] for i in range(min(count, len(sweeps))) if sweeps[i::count]]
+
+
+@dataclass
+class CrossValidation:
+    """Held-out predictions: per configuration (`table`), per point (`points`, with bands) and the folds."""
+
+    table: pd.DataFrame
+    points: pd.DataFrame
+    folds: list[dict]
+
+    @property
+    def inside_95(self) -> float:
+        return float(self.points["inside_95"].mean()) if len(self.points) else float("nan")
+
+
+def cross_validation(points: pd.DataFrame, rigs: dict, config: FitConfig, held_out: list[list[str]],
+                     kind: str | None = None, progress=None, seed: int = 0) -> CrossValidation:
+    """For each fold (a list of sweeps held out), fit the other sweeps and predict the held-out ones as new
+    configurations (module docstring)."""
     usable = points[~points["saturated"].astype(bool)]
-    train = usable[usable["sweep_id"].isin(train_sweeps)]
-    test = usable[~usable["sweep_id"].isin(train_sweeps)]
-    cameras = tuple(sorted(train["sensor_profile"].astype(str).unique()))
-    train_config = config.model_copy(update={"priors": {n: p for n, p in config.priors.items()
-                                                       if not n.startswith("K_dn_per_e:") or n.split(":", 1)[1] in cameras}})
-    result = fit_points(train, rigs, train_config, progress=progress)
+    tables, frames, folds = [], [], []
+    for number, fold in enumerate(held_out):
+        train = usable[~usable["sweep_id"].isin(fold)]
+        test = usable[usable["sweep_id"].isin(fold)]
+        if train.empty or test.empty:
+            continue
+        cameras = tuple(sorted(train["sensor_profile"].astype(str).unique()))
+        priors = {n: p for n, p in config.priors.items() if not n.startswith("K_dn_per_e:") or n.split(":", 1)[1] in cameras}
+        result = fit_points(train, rigs, config.model_copy(update={"priors": priors}), progress=progress, kind=kind)
+        model = build_forward_model(test, rigs, config.names, kind=kind)
+        rng = np.random.default_rng(seed + number)
+        theta = _prior_columns(config, model.names, _thinned(result.samples), result.names, rng)
+        draws = predictive_draws(model, theta, seen=False, seed=seed + number)
+        frame = _prediction_frame(model, draws).assign(fold=number)
+        frames.append(frame)
+        tables.append(_held_out_table(model, draws, frame, number))
+        folds.append({"held_out": list(fold), "trained_on": sorted(set(train["sweep_id"])), "converged": result.converged,
+                      "config_discrepancy_median": _median(result, "config_discrepancy")})
+    table = pd.concat(tables, ignore_index=True) if tables else pd.DataFrame()
+    return CrossValidation(table, pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(), folds)
+
+
+def _median(result: FitResult, name: str) -> float | None:
+    return float(np.median(result.samples[:, result.names.index(name)])) if name in result.names else None
+
+
+def _held_out_table(model: ForwardModel, draws: Draws, frame: pd.DataFrame, fold: int) -> pd.DataFrame:
+    """Per held-out configuration: errors, inside-95 fraction and the level check (module docstring)."""
+    centre = np.median(draws.model_mean, axis=0)
     rows = []
-    if not test.empty:
-        model = build_forward_model(test, rigs, config.names)
-        theta = _prior_columns(config, model.names, _thinned(result.samples), result.names, np.random.default_rng(config.sampler.seed))
-        predicted = model.predict(theta)
-        observed = predicted + model.sigma(theta, predicted) * np.random.default_rng(config.sampler.seed).standard_normal(predicted.shape)
-        q = np.percentile(predicted, [2.5, 50, 97.5], axis=0)
-        q[[0, 2]] = np.percentile(observed, [2.5, 97.5], axis=0)
-        frame = test.reset_index(drop=True).assign(median=q[1], lo=q[0], hi=q[2])
-        for sweep_id, group in frame.groupby("sweep_id", sort=False):
-            rel = (group["median"] - group["signal_dn"]) / group["signal_dn"]
-            rows.append({"sweep_id": sweep_id, "role": "held out", "points": len(group),
-                         "median_abs_rel_error": float(np.median(np.abs(rel))),
-                         "max_abs_rel_error": float(np.max(np.abs(rel))),
-                         "inside_95": float(np.mean((group["signal_dn"] >= group["lo"]) & (group["signal_dn"] <= group["hi"])))})
-    bands = predictive_bands(result.model, result.samples, observed=True)
-    for sweep_id in train_sweeps:
-        sel = (result.model.points["sweep_id"] == sweep_id).to_numpy()
-        if sel.any():
-            rel = (bands["median"][sel] - result.model.y[sel]) / result.model.y[sel]
-            inside = (result.model.y[sel] >= bands["p2_5"][sel]) & (result.model.y[sel] <= bands["p97_5"][sel])
-            rows.append({"sweep_id": sweep_id, "role": "fitted", "points": int(sel.sum()),
-                         "median_abs_rel_error": float(np.median(np.abs(rel))), "max_abs_rel_error": float(np.max(np.abs(rel))),
-                         "inside_95": float(np.mean(inside))})
-    return pd.DataFrame(rows), result
+    for k in range(model.n_config):
+        sel = model.config == k
+        observed = np.median(model.y[sel] / centre[sel] - 1)
+        replicated = np.median(draws.observed[:, sel] / centre[sel] - 1, axis=1)
+        tail = min(np.sum(replicated <= observed), np.sum(replicated >= observed))
+        rel = (frame.loc[sel, "predicted_median"] - model.y[sel]) / model.y[sel]
+        rows.append({"sweep_id": str(model.points.loc[np.flatnonzero(sel)[0], "sweep_id"]), "fold": fold,
+                     "role": "held out", "points": int(sel.sum()),
+                     "median_abs_rel_error": float(np.median(np.abs(rel))), "max_abs_rel_error": float(np.max(np.abs(rel))),
+                     "inside_95": float(frame.loc[sel, "inside_95"].mean()),
+                     "level_offset_percent": float(100 * observed),
+                     "level_p": float(min(1.0, 2 * (tail + 1) / (replicated.size + 1)))})
+    return pd.DataFrame(rows)
 
 
 def predicted_spectra(result: FitResult) -> pd.DataFrame:
@@ -146,16 +236,16 @@ def predicted_spectra(result: FitResult) -> pd.DataFrame:
         if sweep_id in seen:
             continue
         seen.add(sweep_id)
-        fitted = design.with_values(**{"water.attenuation_scale": value("attenuation_scale"),
-                                       "light.beam_half_angle_deg": value("beam_half_angle_deg"),
-                                       "light.beam_half_angle_in_air_deg": None,
-                                       "target.reflectance": value("reflectance")})
+        changes = {"water.attenuation_scale": value("attenuation_scale"), "target.reflectance": value("reflectance")}
+        if "beam_half_angle_deg" in result.names:  # a fitted beam is in water
+            changes.update({"light.beam_half_angle_deg": value("beam_half_angle_deg"),
+                            "light.beam_half_angle_in_air_deg": None})
+        fitted = design.with_values(**changes)
         spectra = stage_spectra(fitted)
-        cos_i = np.cos(np.radians(design["light.incidence_deg"]))
         rows = model.points["sweep_id"] == sweep_id
         level = float(model.points.loc[rows, "relative_flux"].median()) if "relative_flux" in model.points else 1.0
         eff = value("light_efficiency") * level
-        for position, irradiance in (("target", spectra["target_irradiance_w_m2_nm"] / cos_i),
+        for position, irradiance in (("target", spectra["facing_light_w_m2_nm"]),
                                      ("camera", np.pi * spectra["return_radiance_w_m2_sr_nm"])):
             frames.append(pd.DataFrame({"sweep_id": sweep_id, "position": position, "wavelength_nm": spectra["wavelength_nm"],
                                         "predicted_w_m2_nm": eff * irradiance}))

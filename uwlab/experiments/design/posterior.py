@@ -9,9 +9,10 @@ correction factors, applied per posterior sample θ_s:
   learned in the tank, whose nominal scale is 1);
 - system gain K of a calibrated camera: when the design's sensor profile is one of the fit's cameras
   (``K_dn_per_e:<profile>``), K is multiplied by K_s / K_profile, i.e. the gain by 20 log₁₀(K_s / K_profile) dB;
-- fractional model discrepancy δ: the prediction of a new measurement is μ (1 + δ z), z ~ N(0, 1) (the fit's
-  likelihood, `uwlab.experiments.calibration.forward.ForwardModel.sigma`), applied to the flux with one seeded z
-  per sample.
+- fractional model discrepancy δ: the prediction of a new measurement is μ (1 + δ z), z ~ N(0, 1), applied to the
+  flux with one seeded z per sample. A design is a configuration the fit has not seen, so δ combines the fit's
+  discrepancy within a configuration δ_w and, when the fit has one, the scale τ of its discrepancies between
+  configurations (`uwlab.experiments.calibration.fit`): δ = √(δ_w² + τ²).
 
 Parameters the fit did not sample keep their design values. Other fitted parameters (beam angle, reflectance,
 lens transmittance) describe the tank's own light, board and lenses and are not carried over.
@@ -69,7 +70,8 @@ class DesignPosterior:
 
 
 def _arrays(design: Design) -> dict[str, np.ndarray]:
-    return {f"{s}.{k}": v for s, body in design.values.items() for k, v in body.items() if isinstance(v, np.ndarray)}
+    return {f"{s}.{k}": v for s, body in design.values.items() if isinstance(body, dict) for k, v in body.items()
+            if isinstance(v, np.ndarray)}
 
 
 def load_posterior(fit_dir: str | Path, design: Design, max_samples: int = MAX_SAMPLES,
@@ -97,12 +99,14 @@ def load_posterior(fit_dir: str | Path, design: Design, max_samples: int = MAX_S
     k_column = f"K_dn_per_e:{Path(profile).stem.lower()}"
     calibrated = k_column in samples
     k_factor = samples[k_column].to_numpy(float) / design.sensor.K_dn_per_e if calibrated else np.ones(n)
-    carried = tuple(name for name in ("light_efficiency", "attenuation_scale", "discrepancy") if name in samples)
+    carried = tuple(name for name in ("light_efficiency", "attenuation_scale", "discrepancy", "config_discrepancy")
+                    if name in samples)
     carried += (k_column,) if calibrated else ()
     posterior = DesignPosterior(
         fit_dir=fit_dir, light_efficiency=column("light_efficiency", 1.0),
         attenuation_scale=column("attenuation_scale", 1.0), k_factor=k_factor,
-        discrepancy=column("discrepancy", 0.0), z=np.random.default_rng(seed).standard_normal(n),
+        discrepancy=np.hypot(column("discrepancy", 0.0), column("config_discrepancy", 0.0)),
+        z=np.random.default_rng(seed).standard_normal(n),
         calibrated_camera=profile if calibrated else None, carried=carried)
     for name, values, lo in (("light_efficiency", posterior.light_efficiency, 0.0),
                              ("attenuation_scale", posterior.attenuation_scale, -1e-300),

@@ -63,6 +63,7 @@ OUTPUTS = (
     Output("saturated", "saturated", "", "{}"),
     Output("snr", "SNR", "", "{:.1f}"),
     Output("snr_db", "SNR", "dB", "{:.1f}"),
+    Output("veil_electrons", "veiling light (on axis)", "e-", "{:.1f}"),
     Output("image_average", "image average (e-, DN, SNR)", "", "{:.1f}"),
 )
 OUTPUT_BY_KEY = {o.key: o for o in OUTPUTS}

@@ -1,0 +1,28 @@
+"""The demo's targets on a reduced campaign (in process, `uwlab.experiments.demo.quick_demo`; the full demo over
+ten seeds is benchmarks/demo_targets.py): the extended model in the tank world predicts held-out configurations
+inside their bands and covers the simulated truths; the paper model in the turbid world is judged inadequate with
+backscatter named; the paper model in the ideal world (the model against itself) is adequate."""
+import pytest
+
+from uwlab.experiments.demo import quick_demo, target_tally
+
+
+@pytest.mark.slow
+def test_extended_model_in_the_tank_world_meets_the_targets():
+    tally = target_tally([quick_demo("tank", "extended", seed) for seed in range(3)])
+    assert tally["held_out_inside_95"] >= 0.90, tally
+    assert tally["truth_inside_95"] >= 0.90, tally
+    assert tally["adequate"] == 3, tally
+
+
+@pytest.mark.slow
+def test_paper_model_in_the_turbid_world_is_inadequate_and_names_backscatter():
+    summary = quick_demo("turbid", "paper", seed=0)
+    assert not summary["model_adequate"]
+    assert any("backscatter" in w for w in summary["warnings"]), summary["warnings"]
+
+
+@pytest.mark.slow
+def test_paper_model_in_the_ideal_world_is_adequate():
+    tally = target_tally([quick_demo("ideal", "paper", seed=0)])
+    assert tally["adequate"] == 1 and tally["truth_inside_95"] == 1.0, tally
