@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import json
 import sys
-from datetime import datetime, timezone
+from datetime import datetime, UTC
 
 from tqdm import tqdm
 
@@ -64,7 +64,7 @@ def run_calibrate(args) -> int:
             open_spectrometer(args.spectrometer, args.protocol) as spectrometer, \
             tqdm(total=len(levels), desc="light levels", unit="level", file=sys.stderr, disable=None) as bar:
         comments = [
-            f"uwlab light calibration, {datetime.now(timezone.utc).isoformat(timespec='seconds')}",
+            f"uwlab light calibration, {datetime.now(UTC).isoformat(timespec='seconds')}",
             f"light: {args.light} ({light.identity()})",
             f"spectrometer: {args.spectrometer} ({spectrometer.identity()})",
         ]
@@ -81,6 +81,6 @@ def run_calibrate(args) -> int:
     else:
         print(f"light calibration written to {out}")
         print(f"{'level':>8} {'irradiance_w_m2':>16} {'illuminance_lux':>16}")
-        for row in zip(result["level"], result["irradiance_w_m2"], result["illuminance_lux"]):
+        for row in zip(result["level"], result["irradiance_w_m2"], result["illuminance_lux"], strict=True):
             print(f"{row[0]:8.3f} {row[1]:16.6g} {row[2]:16.6g}")
     return 0

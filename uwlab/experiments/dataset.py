@@ -27,7 +27,7 @@ import os
 import platform
 import shutil
 import socket
-from datetime import datetime, timezone
+from datetime import datetime, UTC
 from importlib import metadata as importlib_metadata
 from pathlib import Path
 from typing import Any
@@ -120,7 +120,7 @@ def software_versions() -> dict[str, str]:
 
 
 def utc_now() -> str:
-    return datetime.now(timezone.utc).isoformat(timespec="seconds")
+    return datetime.now(UTC).isoformat(timespec="seconds")
 
 
 class DatasetLocked(UwlabError):

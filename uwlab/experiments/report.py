@@ -20,17 +20,17 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-from jinja2 import Environment, PackageLoader, StrictUndefined  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+from jinja2 import Environment, PackageLoader, StrictUndefined
 
-from uwlab.errors import UwlabError  # noqa: E402
-from uwlab.experiments.dataset_store import MANIFEST_FILE  # noqa: E402
-from uwlab.outputs import output_file  # noqa: E402
-from uwlab.experiments.calibration.forward import PERCENT_PARAMETERS, parameter_label  # noqa: E402
-from uwlab.experiments.calibration.output import configuration_label  # noqa: E402
-from uwlab.model.optics import BARE_SENSOR_F_NUMBER  # noqa: E402
+from uwlab.errors import UwlabError
+from uwlab.experiments.dataset_store import MANIFEST_FILE
+from uwlab.outputs import output_file
+from uwlab.experiments.calibration.forward import PERCENT_PARAMETERS, parameter_label
+from uwlab.experiments.calibration.output import configuration_label
+from uwlab.model.optics import BARE_SENSOR_F_NUMBER
 
 EFFECT_NAMES = {"beam_profile": "the light's smooth beam", "vignetting": "vignetting",
                 "lens_transmission": "a spectral lens transmittance", "backscatter": "backscatter",

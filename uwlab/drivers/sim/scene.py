@@ -72,7 +72,7 @@ class RigScene:
 
     @classmethod
     def from_toml(cls, path: str | Path | None = None, state: RigState | None = None,
-                  world: str | None = None) -> "RigScene":
+                  world: str | None = None) -> RigScene:
         """Load a rig config (None: the default simulated tank, configs/rigs/sim-tank.toml); `world` replaces its
         [world] preset."""
         path = Path(path) if path is not None else config_dir() / DEFAULT_RIG
@@ -80,7 +80,7 @@ class RigScene:
 
     @classmethod
     def from_dict(cls, raw: dict, base_dir: Path | None = None, state: RigState | None = None,
-                  world: str | None = None) -> "RigScene":
+                  world: str | None = None) -> RigScene:
         """A rig from its config dict (design sections + [sim] + [world]); relative paths resolve against
         base_dir; `world` replaces the [world] preset."""
         sim = parse(SimSettings, raw.get("sim", {}), "sim")

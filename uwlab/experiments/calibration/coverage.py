@@ -9,7 +9,7 @@ the simulation has none, a truth on its prior's boundary.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable
+from collections.abc import Callable
 
 import numpy as np
 

@@ -260,7 +260,7 @@ def build_forward_model(points: pd.DataFrame, rigs: dict[str, dict], names: tupl
             if name in names:
                 raise ConfigError(f"parameters.{name}", name, "cannot be fitted with the extended model")
     first = designs[0]
-    with_lens = next((d for d, lens in zip(designs, has_lens) if lens), None)
+    with_lens = next((d for d, lens in zip(designs, has_lens, strict=True) if lens), None)
     nominal = {
         "light_efficiency": 1.0,
         "beam_half_angle_deg": float(np.degrees(beam_half_angle_rad(first))),

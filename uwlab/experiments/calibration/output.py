@@ -14,17 +14,17 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import corner  # noqa: E402
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-from matplotlib.ticker import FuncFormatter, NullFormatter  # noqa: E402
+import corner
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+from matplotlib.ticker import FuncFormatter, NullFormatter
 
-from uwlab.errors import UwlabError  # noqa: E402
-from uwlab.experiments.calibration.fit import FitResult  # noqa: E402
-from uwlab.experiments.calibration.validation import dense_sweeps, point_predictions  # noqa: E402
-from uwlab.jsonable import dumps  # noqa: E402
-from uwlab.outputs import output_dir  # noqa: E402
+from uwlab.errors import UwlabError
+from uwlab.experiments.calibration.fit import FitResult
+from uwlab.experiments.calibration.validation import dense_sweeps, point_predictions
+from uwlab.jsonable import dumps
+from uwlab.outputs import output_dir
 
 OUTPUT_FILES = ("samples.parquet", "summary.json", "predictions.parquet", "dense.parquet", "heldout.parquet",
                 "corner.png", "traces.png", "response.png")

@@ -79,7 +79,7 @@ def simulate_campaign(truth: dict, sensors=("imx250m", "icx285alm"), lenses=PAPE
             window = _centre_window(width, height, roi_px)
             light = {"on": 1.0}
             sensor_sim = SimSensor(sim_truth, _window_map(scene, window, (height, width)),
-                                   lambda: light["on"], seed=int(rng.integers(2**31)))
+                                   lambda state=light: state["on"], seed=int(rng.integers(2**31)))
             t_sat = sim_truth.saturation_e / rate * 1e6
             lo = max(sim_truth.exposure_min_us, 0.02 * t_sat)
             exposures = np.geomspace(lo, max(lo * 1.01, min(max_fraction * t_sat, sim_truth.exposure_max_us)), points_per_sweep)

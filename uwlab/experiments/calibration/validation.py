@@ -70,7 +70,7 @@ def predictive_draws(model: ForwardModel, theta: np.ndarray, seen: bool, seed: i
 
 
 def _bands(values: np.ndarray) -> dict[str, np.ndarray]:
-    return dict(zip(BAND_NAMES, np.percentile(values, BANDS, axis=0)))
+    return dict(zip(BAND_NAMES, np.percentile(values, BANDS, axis=0), strict=True))
 
 
 def point_predictions(result: FitResult) -> pd.DataFrame:
@@ -227,7 +227,7 @@ def predicted_spectra(result: FitResult) -> pd.DataFrame:
     """Model spectra at the target and at the camera, per sweep, with the posterior median parameters and the
     sweep's measured relative light output."""
     model = result.model
-    median = dict(zip(result.names, np.median(result.samples, axis=0)))
+    median = dict(zip(result.names, np.median(result.samples, axis=0), strict=True))
     value = lambda name: median.get(name, model.nominal[name])  # noqa: E731
     frames = []
     seen = set()
