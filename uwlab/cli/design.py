@@ -2,16 +2,14 @@
 from __future__ import annotations
 
 import json
-import math
 import sys
 from pathlib import Path
 
-import numpy as np
 
 from uwlab.errors import ConfigError
 from uwlab.experiments.design.readout import design_warnings, table_text
 from uwlab.jsonable import to_jsonable
-from uwlab.model.config import apply_override, load_raw, parse_value, split_assignment
+from uwlab.model.config import apply_override, load_raw, parse_grid_values, parse_value, split_assignment
 
 
 def register(subparsers) -> None:
@@ -48,27 +46,6 @@ def register(subparsers) -> None:
     grid.add_argument("--dask", metavar="local|tcp://HOST:PORT",
                       help="evaluate the grid on a Dask cluster (a LocalCluster, or a scheduler address) into --out")
     p.set_defaults(func=run)
-
-
-def parse_grid_values(key: str, text: str) -> list:
-    """`start:stop:step` (inclusive of stop) or a comma list of TOML values / bare words."""
-    if text.count(":") == 2:
-        try:
-            start, stop, step = (float(x) for x in text.split(":"))
-        except ValueError:
-            raise ConfigError(key, text, "grid range must be START:STOP:STEP numbers") from None
-        if not all(math.isfinite(x) for x in (start, stop, step)):
-            raise ConfigError(key, text, "grid range must be finite START:STOP:STEP numbers")
-        if step <= 0 or stop < start:
-            raise ConfigError(key, text, "grid range needs step > 0 and stop >= start")
-        count = int(math.floor((stop - start) / step + 1e-9)) + 1
-        if count > 10_000_000:
-            raise ConfigError(key, text, f"{count} values in one axis is too many")
-        return list(start + step * np.arange(count))
-    values = [parse_value(v.strip()) for v in text.split(",") if v.strip()]
-    if not values:
-        raise ConfigError(key, text, "no grid values")
-    return values
 
 
 JSON_POINTS = 10_000

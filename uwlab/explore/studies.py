@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from uwlab.cli.design import parse_grid_values
+from uwlab.model.config import parse_grid_values
 from uwlab.errors import ConfigError
 from uwlab.experiments.design.grid import DesignGrid, flatten_outputs, in_memory_frame
 from uwlab.experiments.design.readout import output_leaves

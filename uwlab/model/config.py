@@ -16,10 +16,12 @@ element-wise. Physical plausibility limits (`uwlab.model.schema`) refuse values 
 >>> validate({"light": {"luminous_flux_lm": 25000, "beam_half_angle_deg": 40}, "water": {"type": "jerlov-I"},
 ...           "target": {"reflectance": 0.2}, "lens": {"focal_length_mm": 8, "f_number": 2.8},
 ...           "sensor": {"profile": "imx250m"}, "operation": {"altitude_m": 2}})["lens"]
-{'focal_length_mm': 8.0, 'f_number': 2.8, 'transmittance': 1.0, 'mechanical_vignetting': 0.0}
+{'focal_length_mm': 8.0, 'f_number': 2.8, 'transmittance': 1.0, 'min_focus_distance_m': None,
+ 'mechanical_vignetting': 0.0}
 """
 from __future__ import annotations
 
+import math
 import tomllib
 from pathlib import Path
 from typing import Annotated, Literal
@@ -273,6 +275,32 @@ def parse_value(text: str):
         return tomllib.loads(f"v = {text}")["v"]
     except tomllib.TOMLDecodeError:
         return text
+
+
+def parse_grid_values(key: str, text: str) -> list:
+    """A `--grid` axis: ``START:STOP:STEP`` (inclusive of stop, at most 10⁷ values) or a comma list of `--set`
+    values (TOML or bare words); a bad or unbounded range raises `ConfigError` naming ``key``.
+
+    >>> parse_grid_values("lens.f_number", "2:4:1")
+    [2.0, 3.0, 4.0]
+    """
+    if text.count(":") == 2:
+        try:
+            start, stop, step = (float(x) for x in text.split(":"))
+        except ValueError:
+            raise ConfigError(key, text, "grid range must be START:STOP:STEP numbers") from None
+        if not all(math.isfinite(x) for x in (start, stop, step)):
+            raise ConfigError(key, text, "grid range must be finite START:STOP:STEP numbers")
+        if step <= 0 or stop < start:
+            raise ConfigError(key, text, "grid range needs step > 0 and stop >= start")
+        count = int(math.floor((stop - start) / step + 1e-9)) + 1
+        if count > 10_000_000:
+            raise ConfigError(key, text, f"{count} values in one axis is too many")
+        return (start + step * np.arange(count)).tolist()
+    values = [parse_value(v.strip()) for v in text.split(",") if v.strip()]
+    if not values:
+        raise ConfigError(key, text, "no grid values")
+    return values
 
 
 def split_assignment(text: str, option: str) -> tuple[str, str]:
