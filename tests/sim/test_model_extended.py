@@ -83,6 +83,36 @@ def test_veiling_light_vanishes_with_scattering_and_grows_with_it(example_raw):
     assert float(evaluate(build_design(raw))["veil_electrons"]) == 0.0
 
 
+def test_a_water_types_excess_over_pure_water_scatters_as_particles(example_raw, tmp_path):
+    """A tabulated water whose b exceeds pure water's by a flat X scatters that excess with the particles' phase
+    function: the same veiling light as pure water's b plus added particles of b_p = X at every wavelength, the
+    absorption and the beam attenuation being equal. Were the excess scattered as pure water (which back-scatters
+    half its light, particles 1.8 %), the veil would be many times larger."""
+    from uwlab.model.water import pure_water_scattering
+
+    nm = np.arange(380.0, 781.0, 1.0)
+    b_w = pure_water_scattering(nm)
+    excess = 0.3
+
+    def water(name, b):
+        path = tmp_path / name
+        rows = "\n".join(f"{w},{0.05 + excess},{v}" for w, v in zip(nm, b, strict=True))
+        path.write_text("wavelength_nm,a_per_m,b_per_m\n" + rows + "\n")
+        return str(path)
+
+    raw = copy.deepcopy(example_raw)
+    raw["model"] = {"kind": "extended"}
+    raw["lights"] = [{"position_m": [0.0, -0.3, 0.0]}]
+    raw["water"] = {"type": water("turbid.csv", b_w + excess)}
+    tabulated = evaluate(build_design(raw))
+    raw["water"] = {"type": water("added.csv", b_w), "particle_scattering_per_m": excess,
+                    "particle_scattering_exponent": 0.0}
+    added = evaluate(build_design(raw))
+    assert tabulated["veil_electrons"] > 0
+    assert tabulated["veil_electrons"] == pytest.approx(added["veil_electrons"], rel=1e-9)
+    assert tabulated["mean_electrons"] == pytest.approx(added["mean_electrons"], rel=1e-9)
+
+
 def test_veiling_integral_against_brute_force_quadrature(example_raw):
     """The on-axis pixel's path radiance, by the trapezoidal rule on 20 001 points and the wavelength sum, written
     out independently of the chain: β(θ) E⊥ e^(−c (r + s)) along the ray."""

@@ -43,7 +43,7 @@ from uwlab.model.sensor import SensorProfile, load_sensor_profile, response_dn, 
 from uwlab.model.spectra import NAMED_SPECTRA, relative_spectrum
 from uwlab.model.spectral_table import LogHermiteTable, SpectralTable, image_table
 from uwlab.model.target import NAMED_REFLECTANCE, reflectance, transmittance
-from uwlab.model.water import WATER_TYPES, water_iop
+from uwlab.model.water import WATER_TYPES, scattering_parts, water_iop
 
 IMAGE_SAMPLES_PER_AXIS = 16
 
@@ -132,7 +132,8 @@ class SpectralWeights:
     over wavelength; then the photon rate of the source alone, × reflectance, × reflectance × lens transmittance
     (the stages of `light_budget`). `reflectance` and `lens_transmittance` are the spectral curves when given as
     files, else ones (broadband numbers stay outside). b_water, b_particles: the scattering coefficients [1/m]
-    (the extended model's veiling light).
+    (the extended model's veiling light): pure water's molecular part of the water type's b, and its particle
+    part plus the added particles' (`uwlab.model.water.scattering_parts`).
     """
 
     c: np.ndarray
@@ -174,8 +175,9 @@ def _compute_weights(d: Design) -> SpectralWeights:
     grid = d.grid
     s = radiant_per_lumen(relative_spectrum(d["light.spectrum"], grid), grid)
     iop = water_iop(d["water.type"], grid)
-    b_particles = extended.particles(d).b_per_m(grid.nm)
-    c = iop.c_per_m + b_particles
+    added = extended.particles(d).b_per_m(grid.nm)
+    b_water, b_suspended = scattering_parts(iop.b_per_m, grid.nm)
+    c = iop.c_per_m + added
     m = reflectance(d["target.reflectance"], grid)
     t = transmittance(d["lens.transmittance"], grid)
     qe = d.sensor.qe_on(grid, d["sensor.channel"])
@@ -186,7 +188,7 @@ def _compute_weights(d: Design) -> SpectralWeights:
     W = np.stack([base, base * m_spec * t_spec, photons * m_spec * t_spec * qe, photons, photons * m_spec,
                   photons * m_spec * t_spec], axis=1)
     return SpectralWeights(c=c, W=W, s_per_lm=s, reflectance=m_spec, lens_transmittance=t_spec, qe=qe,
-                           b_water=iop.b_per_m, b_particles=b_particles)
+                           b_water=b_water, b_particles=b_suspended + added)
 
 
 def _is_spectral(d: Design, dotted: str) -> bool:

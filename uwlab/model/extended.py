@@ -227,7 +227,8 @@ class Chain:
         self.altitude = np.asarray(d["operation.altitude_m"], float)
         self.n_w = np.asarray(d["housing.water_index"], float)
         self.phase = particles(d)
-        if np.any(weights.b_water * np.max(self.scale) > 0) or self.phase.b550_per_m > 0:
+        self.particles_scatter = bool(np.any(weights.b_particles > 0))
+        if np.max(self.scale) > 0 and (np.any(weights.b_water > 0) or self.particles_scatter):
             check_off_axis(d, self.lights)
         value = d["target.reflectance"]
         self.m_broadband = float(np.mean(weights.reflectance)) if isinstance(value, str) else value
@@ -312,7 +313,7 @@ class Chain:
             cos_theta = -np.sum(to_point * direction[..., None, :], axis=-1)
             path = scale * (r + s)
             scatter = pure_water_phase(cos_theta) * table(path, first + 1)
-            if self.phase.b550_per_m > 0:
+            if self.particles_scatter:
                 scatter = scatter + self.phase.phase_function(cos_theta) * table(path, first + 2)
             total = total + np.sum(weight * term * scatter, axis=-1)
         return total * _g(self.scale)

@@ -58,7 +58,7 @@ from uwlab.model.data import read_csv_columns, resolve_path
 from uwlab.model.design import Design, spectral_weights
 from uwlab.model.photometry import photons_per_joule
 from uwlab.model.scattering import ParticleScattering, pure_water_phase
-from uwlab.model.water import water_iop
+from uwlab.model.water import scattering_parts, water_iop
 
 RAY_GRID = (40, 48)          # coarse chief-ray grid (rows, columns) of a rendered image
 HEMISPHERE_GRID = (64, 96)   # bare sensor: sin²θ × azimuth samples
@@ -123,9 +123,10 @@ class TankWorld:
             weights = spectral_weights(design)
             iop = water_iop(design["water.type"], grid)
             scale = float(design["water.attenuation_scale"])
-            b_w = iop.b_per_m * scale
-            b_p = self.particles.b_per_m(grid.nm)
-            c = iop.c_per_m * scale + b_p
+            b_w, b_suspended = (scale * part for part in scattering_parts(iop.b_per_m, grid.nm))
+            added = self.particles.b_per_m(grid.nm)
+            b_p = b_suspended + added
+            c = iop.c_per_m * scale + added
             qe = design.sensor.qe_on(grid, design["sensor.channel"])
             lens = self._lens_transmittance(design, bare)
             w_e = weights.s_per_lm * lens * qe * photons_per_joule(grid.nm) * grid.w_nm

@@ -40,6 +40,14 @@ class Output:
     label: str
     unit: str
     fmt: str
+    parts: tuple[tuple[str, str], ...] = ()  # a table's keys and their short names, in the label as computed
+
+    def label_for(self, value) -> str:
+        """The label, with the short names of the table's parts that `value` holds, e.g. "image average (e-, DN)"."""
+        if not self.parts or not isinstance(value, dict):
+            return self.label
+        names = dict(self.parts)
+        return f"{self.label} ({', '.join(names.get(k, k) for k in value)})"
 
 
 OUTPUTS = (
@@ -64,7 +72,8 @@ OUTPUTS = (
     Output("snr", "SNR", "", "{:.1f}"),
     Output("snr_db", "SNR", "dB", "{:.1f}"),
     Output("veil_electrons", "veiling light (on axis)", "e-", "{:.1f}"),
-    Output("image_average", "image average (e-, DN, SNR)", "", "{:.1f}"),
+    Output("image_average", "image average", "", "{:.1f}",
+           (("mean_electrons", "e-"), ("mean_dn", "DN"), ("snr", "SNR"), ("veil_electrons", "veil e-"))),
 )
 OUTPUT_BY_KEY = {o.key: o for o in OUTPUTS}
 UNNAMED_FORMAT = "{:.4g}"
@@ -114,7 +123,8 @@ def rows(result: dict) -> list[Row]:
     light budget has its own readout, `budget_rows`)."""
     keys = [o.key for o in OUTPUTS if o.key in result]
     keys += [k for k in result if k not in OUTPUT_BY_KEY and k != BUDGET_KEY]
-    return [Row(k, _output(k).label, format_value(result[k], _output(k).fmt), _output(k).unit) for k in keys]
+    return [Row(k, _output(k).label_for(result[k]), format_value(result[k], _output(k).fmt), _output(k).unit)
+            for k in keys]
 
 
 def output_leaves(result: dict) -> list[dict]:
@@ -195,8 +205,10 @@ def table_text(result: dict, warnings: list[DesignWarning] = ()) -> str:
     for warning in warnings:
         notes.setdefault(warning.outputs[0], []).append(warning.message)
     lines = []
-    for row in rows(result):
-        line = f"{row.label:<32} {row.text} {row.unit}".rstrip()
+    table = rows(result)
+    width = max([32, *(len(row.label) for row in table)])
+    for row in table:
+        line = f"{row.label:<{width}} {row.text} {row.unit}".rstrip()
         if row.key in notes:
             line += "   ⚠ " + "; ".join(notes[row.key])
         lines.append(line)
