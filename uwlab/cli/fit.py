@@ -57,8 +57,10 @@ def run(args) -> int:
         sys.stdout.write("\n")
         return 0
     print(f"calibration written to {out}")
-    print(f"{summary['model']} model: {'adequate' if summary['model_adequate'] else 'NOT adequate'}; "
-          f"{100 * summary['predictive_coverage']['held_out_inside_95']:.0f} % of held-out points inside their 95 % bands")
+    print(
+        f"{summary['model']} model: {'adequate' if summary['model_adequate'] else 'NOT adequate'}; "
+        f"{100 * summary['predictive_coverage']['held_out_inside_95']:.0f} % of held-out points inside their 95 % bands"
+    )
     print(f"converged: {summary['converged']} ({summary['steps']} steps, {summary['tau_multiple']:.0f} τ, "
           f"acceptance {summary['acceptance_fraction']:.2f})")
     print(f"{'parameter':<26}{'median':>12}{'68 % interval':>26}{'truth':>10}")

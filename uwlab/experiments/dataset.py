@@ -330,7 +330,9 @@ class Dataset:
         self._require_writer()
         for key, value in changes.items():
             current = self.metadata.get(key)
-            self.metadata[key] = {**current, **value} if isinstance(current, dict) and isinstance(value, dict) else value
+            self.metadata[key] = (
+                {**current, **value} if isinstance(current, dict) and isinstance(value, dict) else value
+            )
         self._save_metadata()
 
     def finish(self) -> None:

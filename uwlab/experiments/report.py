@@ -39,7 +39,10 @@ EFFECT_NAMES = {"beam_profile": "the light's smooth beam", "vignetting": "vignet
 
 
 def _find(root: Path, marker: str, also: str | None = None) -> list[Path]:
-    found = [p.parent for p in sorted(root.glob(marker)) + sorted(root.glob(f"*/{marker}")) + sorted(root.glob(f"*/*/{marker}"))]
+    found = [
+        p.parent
+        for p in sorted(root.glob(marker)) + sorted(root.glob(f"*/{marker}")) + sorted(root.glob(f"*/*/{marker}"))
+    ]
     return [p for p in dict.fromkeys(found) if also is None or (p / also).exists()]
 
 
@@ -83,8 +86,11 @@ def _lens(lens: dict) -> str:
 def _label(sweep_id: str, rig: dict) -> str:
     lens = rig.get("lens", {})
     bare = _is_bare(lens)
-    return configuration_label(rig.get("sensor", {}).get("profile", sweep_id), None if bare else lens.get("focal_length_mm"),
-                               None if bare else lens.get("f_number"))
+    return configuration_label(
+        rig.get("sensor", {}).get("profile", sweep_id),
+        None if bare else lens.get("focal_length_mm"),
+        None if bare else lens.get("f_number"),
+    )
 
 
 def _light(rig: dict) -> str:
@@ -100,7 +106,9 @@ def _light(rig: dict) -> str:
 
 def _water(rig: dict) -> str:
     water = rig.get("water", {})
-    name = {"pure-fresh": "pure fresh water", "pure-sea": "pure sea water"}.get(water.get("type"), str(water.get("type")))
+    name = {"pure-fresh": "pure fresh water", "pure-sea": "pure sea water"}.get(
+        water.get("type"), str(water.get("type"))
+    )
     if water.get("particle_scattering_per_m"):
         name += f" + scatterers b(550 nm) = {water['particle_scattering_per_m']:g} /m"
     if water.get("attenuation_scale", 1.0) != 1.0:
@@ -126,12 +134,21 @@ def _setup(metadata: dict) -> list[dict]:
     for sweep_id, rig in (metadata.get("rigs") or {}).items():
         camera = devices.get(sweep_id, {}).get("camera", {})
         model = f"{camera.get('vendor', '')} {camera.get('model', '')}".strip()
-        rows.append({"configuration": _label(sweep_id, rig),
-                     "camera": f"{rig.get('sensor', {}).get('profile', '').upper()}" + (f" ({model})" if model else ""),
-                     "lens": _lens(rig.get("lens", {})), "light": _light(rig),
-                     "light_distance": _number(rig.get("light", {}).get("distance_m") or rig.get("operation", {}).get("altitude_m"), 3),
-                     "camera_distance": _number(rig.get("operation", {}).get("altitude_m"), 3),
-                     "water": _water(rig), "port": _port(rig), "reflectance": _number(rig.get("target", {}).get("reflectance"))})
+        rows.append(
+            {
+                "configuration": _label(sweep_id, rig),
+                "camera": f"{rig.get('sensor', {}).get('profile', '').upper()}" + (f" ({model})" if model else ""),
+                "lens": _lens(rig.get("lens", {})),
+                "light": _light(rig),
+                "light_distance": _number(
+                    rig.get("light", {}).get("distance_m") or rig.get("operation", {}).get("altitude_m"), 3
+                ),
+                "camera_distance": _number(rig.get("operation", {}).get("altitude_m"), 3),
+                "water": _water(rig),
+                "port": _port(rig),
+                "reflectance": _number(rig.get("target", {}).get("reflectance")),
+            }
+        )
     return rows
 
 
@@ -194,10 +211,17 @@ def _calibration(path: Path) -> dict:
     posterior = []
     for name, p in summary["parameters"].items():
         truth = p.get("truth")
-        posterior.append({"label": parameter_label(name), "truth": _value(name, truth), "median": _value(name, p["median"]),
-                          "interval": f"{_value(name, p['p2_5'])} – {_value(name, p['p97_5'])}",
-                          "inside": None if truth is None else bool(p["p2_5"] <= truth <= p["p97_5"]),
-                          "tau": _number(p["tau"], 3), "rhat": f"{p['rhat']:.3f}"})
+        posterior.append(
+            {
+                "label": parameter_label(name),
+                "truth": _value(name, truth),
+                "median": _value(name, p["median"]),
+                "interval": f"{_value(name, p['p2_5'])} – {_value(name, p['p97_5'])}",
+                "inside": None if truth is None else bool(p["p2_5"] <= truth <= p["p97_5"]),
+                "tau": _number(p["tau"], 3),
+                "rhat": f"{p['rhat']:.3f}",
+            }
+        )
     notes = [w for w in summary.get("warnings", []) if not w.startswith(("model inadequate", "likely cause"))]
     notes += [f"not separable by these data: {parameter_label(p['a'])} and {parameter_label(p['b'])} (posterior "
               f"correlation {p['rho']:+.2f})" for p in summary.get("not_separable", [])]
@@ -209,21 +233,41 @@ def _calibration(path: Path) -> dict:
     model_name = {"paper": "the paper's model", "extended": "the extended model"}.get(summary.get("model"), "the model")
     spectra = path / "spectra.parquet"
     return {
-        "path": str(path), "dataset": summary.get("dataset") or "—", "adequate": bool(summary.get("model_adequate")),
-        "model_name": model_name, "world_name": _world_name(summary), "headline": _headline(summary),
-        "reasons": failing, "causes": summary.get("likely_causes", []) if failing else [],
-        "coverage": _percent(summary["predictive_coverage"]["held_out_inside_95"], 0), "tau": _percent(tau),
-        "delta": _percent(delta, 2), "converged": "converged" if summary["converged"] else "NOT converged",
-        "checks": summary.get("checks", []), "response_png": _img(path / "response.png"), "held_out": held_out,
-        "posterior": posterior, "notes": notes, "ppc": ppc,
-        "sampler": (f"{summary['steps']} steps × {summary['walkers']} walkers, {summary['tau_multiple']:.0f} "
-                    f"autocorrelation times, acceptance {summary['acceptance_fraction']:.2f}; "
-                    f"{summary['points_used']} points fitted, {int(points['saturated'].sum())} saturated points left out"),
-        "corner_png": _img(path / "corner.png"), "traces_png": _img(path / "traces.png"),
+        "path": str(path),
+        "dataset": summary.get("dataset") or "—",
+        "adequate": bool(summary.get("model_adequate")),
+        "model_name": model_name,
+        "world_name": _world_name(summary),
+        "headline": _headline(summary),
+        "reasons": failing,
+        "causes": summary.get("likely_causes", []) if failing else [],
+        "coverage": _percent(summary["predictive_coverage"]["held_out_inside_95"], 0),
+        "tau": _percent(tau),
+        "delta": _percent(delta, 2),
+        "converged": "converged" if summary["converged"] else "NOT converged",
+        "checks": summary.get("checks", []),
+        "response_png": _img(path / "response.png"),
+        "held_out": held_out,
+        "posterior": posterior,
+        "notes": notes,
+        "ppc": ppc,
+        "sampler": (
+            f"{summary['steps']} steps × {summary['walkers']} walkers, {summary['tau_multiple']:.0f} "
+            f"autocorrelation times, acceptance {summary['acceptance_fraction']:.2f}; "
+            f"{summary['points_used']} points fitted, {int(points['saturated'].sum())} saturated points left out"
+        ),
+        "corner_png": _img(path / "corner.png"),
+        "traces_png": _img(path / "traces.png"),
         "spectra_png": _spectra_figure(spectra, label) if spectra.exists() else None,
-        "spectra": [{"configuration": label(r["sweep_id"]), "position": r["position"],
-                     "ratio": _number(r["measured_over_predicted"], 3), "shape": _percent(r["shape_rms_error"], 1)}
-                    for r in summary.get("spectra", [])],
+        "spectra": [
+            {
+                "configuration": label(r["sweep_id"]),
+                "position": r["position"],
+                "ratio": _number(r["measured_over_predicted"], 3),
+                "shape": _percent(r["shape_rms_error"], 1),
+            }
+            for r in summary.get("spectra", [])
+        ],
     }
 
 
@@ -261,15 +305,28 @@ def _emva(path: Path) -> dict:
 
 def _provenance(path: Path, metadata: dict) -> dict:
     rigs = metadata.get("rigs") or {}
-    devices = [{"configuration": _label(s, rigs[s]) if s in rigs else s,
-                "camera": f"{d.get('camera', {}).get('vendor', '')} {d.get('camera', {}).get('model', '')}",
-                "serial": d.get("camera", {}).get("serial") or "—", "firmware": d.get("camera", {}).get("firmware") or "—",
-                "light": d.get("light") or "—", "spectrometer": d.get("spectrometer") or "—"}
-               for s, d in (metadata.get("devices") or {}).items()]
-    return {"path": str(path), "sha": metadata.get("plan_sha256") or "—", "version": metadata.get("uwlab_version") or "—",
-            "host": metadata.get("host") or "—", "started": metadata.get("started_utc") or "—",
-            "finished": metadata.get("finished_utc") or "—", "kind": "simulated rig" if metadata.get("sim") else "tank",
-            "devices": devices, "software": ", ".join(f"{k} {v}" for k, v in (metadata.get("software") or {}).items())}
+    devices = [
+        {
+            "configuration": _label(s, rigs[s]) if s in rigs else s,
+            "camera": f"{d.get('camera', {}).get('vendor', '')} {d.get('camera', {}).get('model', '')}",
+            "serial": d.get("camera", {}).get("serial") or "—",
+            "firmware": d.get("camera", {}).get("firmware") or "—",
+            "light": d.get("light") or "—",
+            "spectrometer": d.get("spectrometer") or "—",
+        }
+        for s, d in (metadata.get("devices") or {}).items()
+    ]
+    return {
+        "path": str(path),
+        "sha": metadata.get("plan_sha256") or "—",
+        "version": metadata.get("uwlab_version") or "—",
+        "host": metadata.get("host") or "—",
+        "started": metadata.get("started_utc") or "—",
+        "finished": metadata.get("finished_utc") or "—",
+        "kind": "simulated rig" if metadata.get("sim") else "tank",
+        "devices": devices,
+        "software": ", ".join(f"{k} {v}" for k, v in (metadata.get("software") or {}).items()),
+    }
 
 
 def write_report(root: str | Path, out: str | Path, *, replace: bool = False) -> Path:

@@ -62,7 +62,9 @@ def discover(backends: tuple[str, ...] = tuple(BACKENDS), **options: Any) -> tup
     return found, unavailable
 
 
-def open_camera(backend: str = "sim", device_id: str | None = None, policy: Policy | None = None, **options: Any) -> Camera:
+def open_camera(
+    backend: str = "sim", device_id: str | None = None, policy: Policy | None = None, **options: Any
+) -> Camera:
     """Open ``device_id`` (first found when None) on ``backend``; options go to the backend
     (``cti`` for harvesters, ``config``/``faults``/``sensor`` for sim, ``address`` for aravis)."""
     transport = backend_module(backend).open_transport(device_id, **options)

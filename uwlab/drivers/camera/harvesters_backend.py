@@ -115,8 +115,12 @@ class HarvestersTransport:
         except gentl.GenericException as exc:
             raise DeviceError(f"harvesters: cannot open {self.device_id}: {exc}") from exc
         info = next(d for d in self._h.device_info_list if _info_str(d, "id_") == self.device_id)
-        self._tl_info = {"DeviceVendorName": _info_str(info, "vendor"), "DeviceModelName": _info_str(info, "model"),
-                         "DeviceSerialNumber": _info_str(info, "serial_number"), "DeviceVersion": _info_str(info, "version")}
+        self._tl_info = {
+            "DeviceVendorName": _info_str(info, "vendor"),
+            "DeviceModelName": _info_str(info, "model"),
+            "DeviceSerialNumber": _info_str(info, "serial_number"),
+            "DeviceVersion": _info_str(info, "version"),
+        }
         self._nm = self._ia.remote_device.node_map
         self.incomplete = IncompleteBuffers()
         self._ia.add_callback(ImageAcquirer.Events.INCOMPLETE_BUFFER, self.incomplete)

@@ -181,4 +181,9 @@ def unpack(raw: np.ndarray | bytes | memoryview, fmt: PixelFormat, width: int, h
     need = n * fmt.dtype.itemsize
     if data.size < need:
         raise ConfigError("payload", data.size, f"too short for {width}x{height} {fmt.name} ({need} bytes)")
-    return data[:need].view("<u2" if fmt.dtype.itemsize == 2 else np.uint8).astype(fmt.dtype, copy=False).reshape(height, width)
+    return (
+        data[:need]
+        .view("<u2" if fmt.dtype.itemsize == 2 else np.uint8)
+        .astype(fmt.dtype, copy=False)
+        .reshape(height, width)
+    )

@@ -190,7 +190,11 @@ class SimSensor:
         k = self.truth.system_gain(cfg.gain_db)
         offset = self.truth.dark_offset_dn + cfg.black_level_dn
         mean_e, var_e = self.electrons(cfg, fraction)
-        return mean_e * np.float32(k) + np.float32(offset), np.sqrt(var_e) * np.float32(k), k * self.truth.saturation_e + offset
+        return (
+            mean_e * np.float32(k) + np.float32(offset),
+            np.sqrt(var_e) * np.float32(k),
+            k * self.truth.saturation_e + offset,
+        )
 
     def render(self, cfg: SensorConfig) -> np.ndarray:
         """One image, decoded, in ``cfg.pixel_format`` (uint8 or uint16, shape (height, width))."""
@@ -317,13 +321,18 @@ class SimNodeMap:
             "BinningHorizontal": _Node("int", 1, lambda: (1, 4)),
             "BinningVertical": _Node("int", 1, lambda: (1, 4)),
             "Width": _Node("int", width, lambda: (8, width // self.value("BinningHorizontal") - self.value("OffsetX"))),
-            "Height": _Node("int", height, lambda: (8, height // self.value("BinningVertical") - self.value("OffsetY"))),
+            "Height": _Node(
+                "int", height, lambda: (8, height // self.value("BinningVertical") - self.value("OffsetY"))
+            ),
             "OffsetX": _Node("int", 0, lambda: (0, width // self.value("BinningHorizontal") - self.value("Width"))),
             "OffsetY": _Node("int", 0, lambda: (0, height // self.value("BinningVertical") - self.value("Height"))),
             "PixelFormat": _Node("enum", "Mono8" if truth.bit_depth <= 8 else "Mono16", entries=fmts),
             "PayloadSize": _Node("int", 0, writable=False),
-            "ExposureTime": _Node("float", min(max(10000.0, truth.exposure_min_us), truth.exposure_max_us),
-                                  lambda: (truth.exposure_min_us, truth.exposure_max_us)),
+            "ExposureTime": _Node(
+                "float",
+                min(max(10000.0, truth.exposure_min_us), truth.exposure_max_us),
+                lambda: (truth.exposure_min_us, truth.exposure_max_us),
+            ),
             "ExposureAuto": _Node("enum", "Continuous", entries=("Off", "Continuous")),
             "Gain": _Node("float", truth.gain_min_db, lambda: (truth.gain_min_db, truth.gain_max_db)),
             "GainAuto": _Node("enum", "Continuous", entries=("Off", "Continuous")),
@@ -571,8 +580,10 @@ def discover(config: str | None = None, sensor: SimSensor | None = None, **_: An
     """The in-process simulated camera(s) of the rig."""
     truth = (sensor or sensor_from_rig(config)).truth
     nodes = SimNodeMap(truth)
-    return [DeviceEntry("sim", dev, "uwlab", nodes.value("DeviceModelName"), f"SIM{zlib.crc32(dev.encode()) % 10000:04d}")
-            for dev in SIM_DEVICE_IDS]
+    return [
+        DeviceEntry("sim", dev, "uwlab", nodes.value("DeviceModelName"), f"SIM{zlib.crc32(dev.encode()) % 10000:04d}")
+        for dev in SIM_DEVICE_IDS
+    ]
 
 
 def open_transport(device_id: str | None = None, config: str | None = None, seed: int = 0,

@@ -42,7 +42,14 @@ from uwlab.drivers.sim.gige_xml import (
 from uwlab.errors import ConfigError, DeviceError
 
 GVCP_PORT = 3956
-CMD_DISCOVERY, CMD_PACKETRESEND, CMD_READREG, CMD_WRITEREG, CMD_READMEM, CMD_WRITEMEM = 0x02, 0x40, 0x80, 0x82, 0x84, 0x86
+CMD_DISCOVERY, CMD_PACKETRESEND, CMD_READREG, CMD_WRITEREG, CMD_READMEM, CMD_WRITEMEM = (
+    0x02,
+    0x40,
+    0x80,
+    0x82,
+    0x84,
+    0x86,
+)
 STATUS_OK, STATUS_NOT_IMPLEMENTED, STATUS_INVALID_PARAMETER, STATUS_INVALID_ADDRESS, STATUS_WRITE_PROTECT = (
     0x0000, 0x8001, 0x8002, 0x8003, 0x8004)
 STATUS_ACCESS_DENIED = 0x8006
@@ -395,7 +402,9 @@ class GigeCameraServer:
         bodies = [payload[i : i + chunk] for i in range(0, len(payload), chunk)]
         parts = [(GVSP_LEADER, leader), *((GVSP_PAYLOAD, b) for b in bodies),
                  (GVSP_TRAILER, struct.pack(">HHI", 0, 0x0001, cfg.height))]
-        return [struct.pack(">HHI", 0, block_id, (fmt_id << 24) | pid) + body for pid, (fmt_id, body) in enumerate(parts)]
+        return [
+            struct.pack(">HHI", 0, block_id, (fmt_id << 24) | pid) + body for pid, (fmt_id, body) in enumerate(parts)
+        ]
 
     def _stream_target(self) -> tuple[str, int] | None:
         port = struct.unpack_from(">I", self._bootstrap, REG_SCP)[0] & 0xFFFF

@@ -56,7 +56,11 @@ def register_map() -> dict[int, Register]:
     regs: dict[int, Register] = {}
     names = list(INT_FEATURES) + [f"{n}{p}" for n in DYNAMIC_BOUNDS for p in ("Min", "Max")]
     for i, name in enumerate(names):
-        base, part = (name[:-3], name[-3:].lower()) if name.endswith(("Min", "Max")) and name[:-3] in DYNAMIC_BOUNDS else (name, "value")
+        base, part = (
+            (name[:-3], name[-3:].lower())
+            if name.endswith(("Min", "Max")) and name[:-3] in DYNAMIC_BOUNDS
+            else (name, "value")
+        )
         regs[INT_BASE + 4 * i] = Register(base, "int", part)
     for i, name in enumerate(FLOAT_FEATURES):
         regs[FLOAT_BASE + 8 * i] = Register(name, "float")
@@ -81,24 +85,33 @@ def _feature_xml(name: str, nodes: object, addr: dict[tuple[str, str], int]) -> 
         return [f'<Enumeration Name="{name}" NameSpace="Standard">{entries}<pValue>{name}Reg</pValue></Enumeration>',
                 _int_reg(name, addr[(name, "value")], "RW")]
     if node.kind == "cmd":
-        return [f'<Command Name="{name}" NameSpace="Standard"><pValue>{name}Reg</pValue><CommandValue>1</CommandValue></Command>',
-                _int_reg(name, addr[(name, "value")], "WO")]
+        return [
+            f'<Command Name="{name}" NameSpace="Standard"><pValue>{name}Reg</pValue>'
+            "<CommandValue>1</CommandValue></Command>",
+            _int_reg(name, addr[(name, "value")], "WO"),
+        ]
     if node.kind == "bool":
         return [f'<Boolean Name="{name}" NameSpace="Standard"><pValue>{name}Reg</pValue><OnValue>1</OnValue>'
                 f"<OffValue>0</OffValue></Boolean>", _int_reg(name, addr[(name, "value")], "RW")]
     if node.kind == "int":
         if name in DYNAMIC_BOUNDS:
             limits = f"<pMin>{name}MinReg</pMin><pMax>{name}MaxReg</pMax>"
-            extra = [_int_reg(f"{name}Min", addr[(name, "min")], "RO"), _int_reg(f"{name}Max", addr[(name, "max")], "RO")]
+            extra = [
+                _int_reg(f"{name}Min", addr[(name, "min")], "RO"),
+                _int_reg(f"{name}Max", addr[(name, "max")], "RO"),
+            ]
         else:
             limits, extra = "", []
         return [f'<Integer Name="{name}" NameSpace="Standard"><pValue>{name}Reg</pValue>{limits}<Inc>1</Inc></Integer>',
                 _int_reg(name, addr[(name, "value")], access), *extra]
     if node.kind == "float":
         lo, hi = node.bounds() if node.bounds else (-1e300, 1e300)
-        return [f'<Float Name="{name}" NameSpace="Standard"><pValue>{name}Reg</pValue><Min>{lo!r}</Min><Max>{hi!r}</Max></Float>',
-                f'<FloatReg Name="{name}Reg"><Address>0x{addr[(name, "value")]:X}</Address><Length>8</Length>'
-                f"<AccessMode>{access}</AccessMode><pPort>Device</pPort><Endianess>BigEndian</Endianess></FloatReg>"]
+        return [
+            f'<Float Name="{name}" NameSpace="Standard"><pValue>{name}Reg</pValue>'
+            f"<Min>{lo!r}</Min><Max>{hi!r}</Max></Float>",
+            f'<FloatReg Name="{name}Reg"><Address>0x{addr[(name, "value")]:X}</Address><Length>8</Length>'
+            f"<AccessMode>{access}</AccessMode><pPort>Device</pPort><Endianess>BigEndian</Endianess></FloatReg>",
+        ]
     address, length = STRING_REGISTERS[name]
     return [f'<StringReg Name="{name}" NameSpace="Standard"><Address>0x{address:X}</Address><Length>{length}</Length>'
             f"<AccessMode>RO</AccessMode><pPort>Device</pPort></StringReg>"]
@@ -109,8 +122,10 @@ def genicam_xml(nodes: object) -> bytes:
     addr = _addresses()
     names = [n for n in nodes.nodes if n in STRING_REGISTERS or n in INT_FEATURES or n in FLOAT_FEATURES]
     body = [part for n in names for part in _feature_xml(n, nodes, addr)]
-    body.append(f'<Integer Name="GevSCPSPacketSize" NameSpace="Standard"><pValue>GevSCPSPacketSizeReg</pValue>'
-                f"<Min>576</Min><Max>65500</Max><Inc>4</Inc></Integer>{_int_reg('GevSCPSPacketSize', SCPS_ADDRESS, 'RW')}")
+    body.append(
+        f'<Integer Name="GevSCPSPacketSize" NameSpace="Standard"><pValue>GevSCPSPacketSizeReg</pValue>'
+        f"<Min>576</Min><Max>65500</Max><Inc>4</Inc></Integer>{_int_reg('GevSCPSPacketSize', SCPS_ADDRESS, 'RW')}"
+    )
     features = "".join(f"<pFeature>{n}</pFeature>" for n in [*names, "GevSCPSPacketSize"])
     vendor = escape(str(nodes.value("DeviceVendorName")))
     model = escape(str(nodes.value("DeviceModelName")))

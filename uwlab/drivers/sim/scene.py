@@ -198,8 +198,12 @@ class RigScene:
             raise ConfigError("position", position, f"must be one of {', '.join(SPECTROMETER_POSITIONS)}")
         if self.tank is not None:
             if position == "sensor":
-                raise ConfigError("position", position, "the tank world's spectrometer is at the target or the "
-                                  "camera; the sensor plane is the EMVA 1288 bench's (configs/rigs/sim-emva-bench.toml)")
+                raise ConfigError(
+                    "position",
+                    position,
+                    "the tank world's spectrometer is at the target or the "
+                    "camera; the sensor plane is the EMVA 1288 bench's (configs/rigs/sim-emva-bench.toml)",
+                )
             wavelength_nm, irradiance = self.tank.spectral_irradiance(self.design, position)
             return wavelength_nm, flux_fraction * irradiance
         spectra = stage_spectra(paper(self.design))

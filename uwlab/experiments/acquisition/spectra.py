@@ -190,7 +190,9 @@ def write_spectrum_csv(path: str | Path, wavelength_nm: np.ndarray, irradiance_w
         with open(path, "x", newline="") as fh:
             writer = csv.writer(fh)
             writer.writerow(CSV_COLUMNS)
-            writer.writerows((repr(float(w)), repr(float(e))) for w, e in zip(wavelength_nm, irradiance_w_m2_nm, strict=True))
+            writer.writerows(
+                (repr(float(w)), repr(float(e))) for w, e in zip(wavelength_nm, irradiance_w_m2_nm, strict=True)
+            )
     except FileExistsError:
         raise ConfigError("out", str(path), "file exists; refusing to overwrite it") from None
     except OSError as exc:

@@ -18,9 +18,12 @@ from uwlab.experiments.calibration.priors import HalfNormal, LogNormal, Normal, 
 from uwlab.experiments.calibration.simulate import simulate_campaign
 from uwlab.model.optics import NO_LENS, LensSetting
 
-COVERAGE_PRIORS = {"light_efficiency": LogNormal(median=0.8, sigma=0.2), "attenuation_scale": LogNormal(median=1.0, sigma=0.3),
-                   "K_dn_per_e:imx250m": Normal(mean=0.3473, sigma=0.0174, lo=0.0),
-                   "discrepancy": HalfNormal(sigma=0.05)}
+COVERAGE_PRIORS = {
+    "light_efficiency": LogNormal(median=0.8, sigma=0.2),
+    "attenuation_scale": LogNormal(median=1.0, sigma=0.3),
+    "K_dn_per_e:imx250m": Normal(mean=0.3473, sigma=0.0174, lo=0.0),
+    "discrepancy": HalfNormal(sigma=0.05),
+}
 COVERAGE_LENSES = (LensSetting(30.0, 2.0), NO_LENS)
 
 

@@ -22,8 +22,9 @@ lemma for the covariance diag(σ²) + τ² μ μᵀ); given θ, δ_k ~ N(m_k, v_
   it freely. The map u → θ stays triangular, so ln p(u) = ln p(θ) + Σ ln θ over the logged parameters.
 - Sampler: emcee's ensemble sampler (Foreman-Mackey et al. 2013), ``vectorize=True``, with differential-evolution
   moves (ter Braak 2006; 80 %) and snooker moves (ter Braak & Vrugt 2008; 20 %), which mix faster than the
-  stretch move (Goodman & Weare 2010) on this problem's elongated posteriors. The run extends itself in chunks until the chain is at
-  least 50 integrated autocorrelation times long (τ by emcee's estimator, Sokal 1997) and τ has stabilised.
+  stretch move (Goodman & Weare 2010) on this problem's elongated posteriors. The run extends itself in chunks until
+  the chain is at least 50 integrated autocorrelation times long (τ by emcee's estimator, Sokal 1997) and τ has
+  stabilised.
 - Diagnostics: τ per parameter, mean acceptance fraction, split-chain R-hat (Gelman et al., Bayesian Data
   Analysis, 3rd ed., §11.4) over the walkers, posterior correlations (|ρ| > 0.9 flagged as not separable).
 """
@@ -244,9 +245,14 @@ def find_map(log_density: Callable[[np.ndarray], np.ndarray], start: np.ndarray)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
             budget = MAP_EVALUATIONS * best.size
-            result = optimize.minimize(objective, best, method=method,
-                                       options={"maxfev": budget, "xatol": 1e-8, "fatol": 1e-10} if method == "Nelder-Mead"
-                                       else {"maxfev": budget, "xtol": 1e-8, "ftol": 1e-12})
+            result = optimize.minimize(
+                objective,
+                best,
+                method=method,
+                options={"maxfev": budget, "xatol": 1e-8, "fatol": 1e-10}
+                if method == "Nelder-Mead"
+                else {"maxfev": budget, "xtol": 1e-8, "ftol": 1e-12},
+            )
         if np.isfinite(result.fun) and result.fun <= objective(best):
             best = result.x
     return best
@@ -331,7 +337,9 @@ class FitResult:
         """Plain-language problems: unconverged chains, posteriors pushed into a prior's tail, a poor model fit."""
         notes = []
         if not self.converged:
-            notes.append(f"not converged: {self.steps} steps are {self.steps / np.max(self.tau):.0f} τ (< {MIN_TAU_MULTIPLE})")
+            notes.append(
+                f"not converged: {self.steps} steps are {self.steps / np.max(self.tau):.0f} τ (< {MIN_TAU_MULTIPLE})"
+            )
         for i, name in enumerate(self.names):
             prior = self.priors[name]
             tail = float(prior.cdf(q[2, i]))

@@ -150,8 +150,14 @@ class ForwardModel:
         shape = self.shape(theta) if shape is None else shape
         p = lambda name: self.parameter(theta, name)[:, None]  # noqa: E731
         lens = np.where(self.has_lens[None, :], p("lens_transmittance") / self.nominal["lens_transmittance"], 1.0)
-        rate = (self.nominal_rate_e_per_s[None, :] * p("light_efficiency") * p("reflectance") / self.nominal["reflectance"]
-                * lens * shape)
+        rate = (
+            self.nominal_rate_e_per_s[None, :]
+            * p("light_efficiency")
+            * p("reflectance")
+            / self.nominal["reflectance"]
+            * lens
+            * shape
+        )
         k = np.stack([self.parameter(theta, f"K_dn_per_e:{cam}") for cam in self.cameras], axis=1)
         return k[:, self.camera] * self.effective_exposure_s[None, :] * rate[:, self.config]
 
@@ -203,7 +209,9 @@ def extended_roi_rates(design: Design, lens: bool, roi_w: float, roi_h: float) -
 def _extended_rates(design: Design, lens: bool, roi_w: float, roi_h: float) -> tuple[float, np.ndarray]:
     """(nominal ROI rate, rate(S_GRID)) of the extended chain: target and veiling light (`extended_roi_rates`)."""
     scaled = design.with_values(**{"water.attenuation_scale": S_GRID})
-    return float(sum(extended_roi_rates(design, lens, roi_w, roi_h))), sum(extended_roi_rates(scaled, lens, roi_w, roi_h))
+    return float(sum(extended_roi_rates(design, lens, roi_w, roi_h))), sum(
+        extended_roi_rates(scaled, lens, roi_w, roi_h)
+    )
 
 
 def _configuration_design(rig: dict, base_dir: Path | None, sensor: str, focal_length_mm, f_number,
@@ -233,8 +241,12 @@ def build_forward_model(points: pd.DataFrame, rigs: dict[str, dict], names: tupl
     allowed = set(SHARED) | {f"{p}:{c}" for p in PER_CAMERA for c in cameras}
     for name in names:
         if name not in allowed:
-            raise ConfigError(f"parameters.{name}", name, f"unknown parameter; this dataset allows {', '.join(sorted(allowed))}")
-    keys = points[["sweep_id", "sensor_profile", "focal_length_mm", "f_number"]].astype(object).where(points.notna(), None)
+            raise ConfigError(
+                f"parameters.{name}", name, f"unknown parameter; this dataset allows {', '.join(sorted(allowed))}"
+            )
+    keys = (
+        points[["sweep_id", "sensor_profile", "focal_length_mm", "f_number"]].astype(object).where(points.notna(), None)
+    )
     key_tuples = [tuple(row) for row in keys.itertuples(index=False)]
     unique = list(dict.fromkeys(key_tuples))
     config = np.array([unique.index(k) for k in key_tuples])
@@ -287,13 +299,25 @@ def build_forward_model(points: pd.DataFrame, rigs: dict[str, dict], names: tupl
     if len(beam_model) > 1:
         raise ConfigError("light.beam_model", sorted(beam_model), "all sweeps of one fit must share a beam model")
     return ForwardModel(
-        names=tuple(names), nominal=nominal, y=points["signal_dn"].to_numpy(float), sigma_meas=np.sqrt(var_mean),
-        effective_exposure_s=10 ** (points["gain_db"].to_numpy(float) / 20) * 2.0 ** (points["bit_depth"].to_numpy(float) - profile_bits)
-        * points["exposure_us"].to_numpy(float) * 1e-6 * flux,
-        config=config, camera=camera, cameras=cameras, nominal_rate_e_per_s=np.array(rate0), has_lens=np.array(has_lens),
-        omega_cone=beam_model == {"cone"}, kind=chain,
+        names=tuple(names),
+        nominal=nominal,
+        y=points["signal_dn"].to_numpy(float),
+        sigma_meas=np.sqrt(var_mean),
+        effective_exposure_s=10 ** (points["gain_db"].to_numpy(float) / 20)
+        * 2.0 ** (points["bit_depth"].to_numpy(float) - profile_bits)
+        * points["exposure_us"].to_numpy(float)
+        * 1e-6
+        * flux,
+        config=config,
+        camera=camera,
+        cameras=cameras,
+        nominal_rate_e_per_s=np.array(rate0),
+        has_lens=np.array(has_lens),
+        omega_cone=beam_model == {"cone"},
+        kind=chain,
         transmission=Transmission.from_values(np.stack(transmission, axis=1), nominal["attenuation_scale"]),
-        designs=designs, points=points.reset_index(drop=True),
+        designs=designs,
+        points=points.reset_index(drop=True),
     )
 
 
@@ -324,7 +348,9 @@ def relative_flux(points: pd.DataFrame) -> np.ndarray:
         here = position == pos
         reference = irradiance.to_numpy()[here & (levels == 1.0)]
         if reference.size == 0:
-            raise ConfigError("light_level", pos, "no level-1 spectrometer reading at this position to normalise against")
+            raise ConfigError(
+                "light_level", pos, "no level-1 spectrometer reading at this position to normalise against"
+            )
         out[here] = level_median[here] / np.median(reference)
     return out
 

@@ -81,7 +81,9 @@ FITTED, HELD_OUT, SATURATED = "#1f77b4", "#e07b00", "#c0392b"
 RESIDUAL_LIMIT_PERCENT = 400.0
 
 
-def response_plot(predictions: pd.DataFrame, dense: pd.DataFrame, path: Path, held_out: pd.DataFrame | None = None) -> Path:
+def response_plot(
+    predictions: pd.DataFrame, dense: pd.DataFrame, path: Path, held_out: pd.DataFrame | None = None
+) -> Path:
     """Per configuration: the measured response against exposure with the fitted model (saturated points marked),
     and below it the residuals in per cent of the model with its 95 % band of a new measurement, fitted and, where
     given, predicted for the configuration held out of the fit. The residual axis is linear within ±1 % (or the

@@ -113,8 +113,14 @@ def assess(points: pd.DataFrame, rigs: dict, config: FitConfig, folds: list[list
     return Assessment(result, ppc, cross, verdict(result, ppc, cross))
 
 
-def calibrate(dataset_dir: str | Path, config_path: str | Path | None, out: str | Path, train_sweeps: list[str] | None = None,
-              progress=None, model: str | None = None) -> Calibration:
+def calibrate(
+    dataset_dir: str | Path,
+    config_path: str | Path | None,
+    out: str | Path,
+    train_sweeps: list[str] | None = None,
+    progress=None,
+    model: str | None = None,
+) -> Calibration:
     """Fit the whole dataset with the chain `model` ("paper", "extended"; None: the rigs' [model] kind), check it
     per configuration, predict every configuration from a fit that did not see it (`held_out_folds`), judge the
     model (`uwlab.experiments.calibration.adequacy`), compare the spectra; write everything to `out`. Every input

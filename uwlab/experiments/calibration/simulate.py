@@ -30,8 +30,12 @@ from uwlab.model.optics import NO_LENS, LensSetting
 
 BLACK_LEVEL_DN = 16.0  # native DN, so that dark frames are not clipped at zero
 FORMAT = "Mono16"  # frames are read as Mono16 (MSB-aligned)
-_DESIGN_KEYS = {"attenuation_scale": ("water", "attenuation_scale"), "beam_half_angle_deg": ("light", "beam_half_angle_deg"),
-                "reflectance": ("target", "reflectance"), "lens_transmittance": ("lens", "transmittance")}
+_DESIGN_KEYS = {
+    "attenuation_scale": ("water", "attenuation_scale"),
+    "beam_half_angle_deg": ("light", "beam_half_angle_deg"),
+    "reflectance": ("target", "reflectance"),
+    "lens_transmittance": ("lens", "transmittance"),
+}
 
 
 PAPER_LENSES = (NO_LENS, LensSetting(30.0, 2.0), LensSetting(12.0, 4.0))
@@ -82,7 +86,9 @@ def simulate_campaign(truth: dict, sensors=("imx250m", "icx285alm"), lenses=PAPE
                                    lambda state=light: state["on"], seed=int(rng.integers(2**31)))
             t_sat = sim_truth.saturation_e / rate * 1e6
             lo = max(sim_truth.exposure_min_us, 0.02 * t_sat)
-            exposures = np.geomspace(lo, max(lo * 1.01, min(max_fraction * t_sat, sim_truth.exposure_max_us)), points_per_sweep)
+            exposures = np.geomspace(
+                lo, max(lo * 1.01, min(max_fraction * t_sat, sim_truth.exposure_max_us)), points_per_sweep
+            )
             profile = scene.sensor  # what the experimenter knows (the truth's K may differ)
             profile_dn = sensor_clip_dn(profile.K_dn_per_e, profile.saturation_e,
                                         profile.dark_offset_dn + BLACK_LEVEL_DN, profile.bit_depth, FORMAT)

@@ -32,7 +32,15 @@ from uwlab.model.design import stage_spectra
 BANDS = (2.5, 16, 50, 84, 97.5)
 BAND_NAMES = ("p2_5", "p16", "median", "p84", "p97_5")
 MAX_PREDICTIVE_SAMPLES = 2000
-PREDICTION_COLUMNS = ("sweep_id", "sensor_profile", "lens_label", "focal_length_mm", "f_number", "exposure_us", "gain_db")
+PREDICTION_COLUMNS = (
+    "sweep_id",
+    "sensor_profile",
+    "lens_label",
+    "focal_length_mm",
+    "f_number",
+    "exposure_us",
+    "gain_db",
+)
 
 
 def _thinned(samples: np.ndarray) -> np.ndarray:
@@ -113,14 +121,28 @@ def dense_sweeps(result: FitResult, n: int = 60) -> pd.DataFrame:
     rows = []
     for k in range(model.n_config):
         sel = model.config == k
-        exposures = np.geomspace(model.points.loc[sel, "exposure_us"].min(), model.points.loc[sel, "exposure_us"].max(), n)
+        exposures = np.geomspace(
+            model.points.loc[sel, "exposure_us"].min(), model.points.loc[sel, "exposure_us"].max(), n
+        )
         first = np.flatnonzero(sel)[0]
         per_point = model.effective_exposure_s[first] / (model.points.loc[first, "exposure_us"])
-        dense = replace(model, effective_exposure_s=per_point * exposures, config=np.full(n, k), camera=np.full(n, model.camera[first]),
-                        y=np.zeros(n), sigma_meas=np.zeros(n))
+        dense = replace(
+            model,
+            effective_exposure_s=per_point * exposures,
+            config=np.full(n, k),
+            camera=np.full(n, model.camera[first]),
+            y=np.zeros(n),
+            sigma_meas=np.zeros(n),
+        )
         bands = _bands(dense.predict(theta) * (1 + offsets[:, k:k + 1]))
-        frame = pd.DataFrame({"sweep_id": model.points.loc[first, "sweep_id"], "configuration": k, "exposure_us": exposures,
-                              **{f"predicted_{key}": v for key, v in bands.items()}})
+        frame = pd.DataFrame(
+            {
+                "sweep_id": model.points.loc[first, "sweep_id"],
+                "configuration": k,
+                "exposure_us": exposures,
+                **{f"predicted_{key}": v for key, v in bands.items()},
+            }
+        )
         rows.append(frame)
     return pd.concat(rows, ignore_index=True)
 
@@ -137,10 +159,15 @@ def posterior_predictive_checks(result: FitResult, seed: int = 0) -> pd.DataFram
     rows = []
     for k in range(model.n_config):
         sel = model.config == k
-        rows.append({"sweep_id": str(model.points.loc[np.flatnonzero(sel)[0], "sweep_id"]), "points": int(sel.sum()),
-                     "inside_95": float(frame.loc[sel, "inside_95"].mean()),
-                     "offset_percent": float(100 * np.median(draws.offsets[:, k])),
-                     "ppc_p": float((np.sum(replicated_chi[:, k] >= observed_chi[:, k]) + 1) / (draws.theta.shape[0] + 1))})
+        rows.append(
+            {
+                "sweep_id": str(model.points.loc[np.flatnonzero(sel)[0], "sweep_id"]),
+                "points": int(sel.sum()),
+                "inside_95": float(frame.loc[sel, "inside_95"].mean()),
+                "offset_percent": float(100 * np.median(draws.offsets[:, k])),
+                "ppc_p": float((np.sum(replicated_chi[:, k] >= observed_chi[:, k]) + 1) / (draws.theta.shape[0] + 1)),
+            }
+        )
     return pd.DataFrame(rows)
 
 
@@ -185,7 +212,9 @@ def cross_validation(points: pd.DataFrame, rigs: dict, config: FitConfig, held_o
         if train.empty or test.empty:
             continue
         cameras = tuple(sorted(train["sensor_profile"].astype(str).unique()))
-        priors = {n: p for n, p in config.priors.items() if not n.startswith("K_dn_per_e:") or n.split(":", 1)[1] in cameras}
+        priors = {
+            n: p for n, p in config.priors.items() if not n.startswith("K_dn_per_e:") or n.split(":", 1)[1] in cameras
+        }
         result = fit_points(train, rigs, config.model_copy(update={"priors": priors}), progress=progress, kind=kind)
         model = build_forward_model(test, rigs, config.names, kind=kind)
         rng = np.random.default_rng(seed + number)
@@ -194,8 +223,14 @@ def cross_validation(points: pd.DataFrame, rigs: dict, config: FitConfig, held_o
         frame = _prediction_frame(model, draws).assign(fold=number)
         frames.append(frame)
         tables.append(_held_out_table(model, draws, frame, number))
-        folds.append({"held_out": list(fold), "trained_on": sorted(set(train["sweep_id"])), "converged": result.converged,
-                      "config_discrepancy_median": _median(result, "config_discrepancy")})
+        folds.append(
+            {
+                "held_out": list(fold),
+                "trained_on": sorted(set(train["sweep_id"])),
+                "converged": result.converged,
+                "config_discrepancy_median": _median(result, "config_discrepancy"),
+            }
+        )
     table = pd.concat(tables, ignore_index=True) if tables else pd.DataFrame()
     return CrossValidation(table, pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(), folds)
 
@@ -214,12 +249,19 @@ def _held_out_table(model: ForwardModel, draws: Draws, frame: pd.DataFrame, fold
         replicated = np.median(draws.observed[:, sel] / centre[sel] - 1, axis=1)
         tail = min(np.sum(replicated <= observed), np.sum(replicated >= observed))
         rel = (frame.loc[sel, "predicted_median"] - model.y[sel]) / model.y[sel]
-        rows.append({"sweep_id": str(model.points.loc[np.flatnonzero(sel)[0], "sweep_id"]), "fold": fold,
-                     "role": "held out", "points": int(sel.sum()),
-                     "median_abs_rel_error": float(np.median(np.abs(rel))), "max_abs_rel_error": float(np.max(np.abs(rel))),
-                     "inside_95": float(frame.loc[sel, "inside_95"].mean()),
-                     "level_offset_percent": float(100 * observed),
-                     "level_p": float(min(1.0, 2 * (tail + 1) / (replicated.size + 1)))})
+        rows.append(
+            {
+                "sweep_id": str(model.points.loc[np.flatnonzero(sel)[0], "sweep_id"]),
+                "fold": fold,
+                "role": "held out",
+                "points": int(sel.sum()),
+                "median_abs_rel_error": float(np.median(np.abs(rel))),
+                "max_abs_rel_error": float(np.max(np.abs(rel))),
+                "inside_95": float(frame.loc[sel, "inside_95"].mean()),
+                "level_offset_percent": float(100 * observed),
+                "level_p": float(min(1.0, 2 * (tail + 1) / (replicated.size + 1))),
+            }
+        )
     return pd.DataFrame(rows)
 
 
@@ -247,8 +289,16 @@ def predicted_spectra(result: FitResult) -> pd.DataFrame:
         eff = value("light_efficiency") * level
         for position, irradiance in (("target", spectra["facing_light_w_m2_nm"]),
                                      ("camera", np.pi * spectra["return_radiance_w_m2_sr_nm"])):
-            frames.append(pd.DataFrame({"sweep_id": sweep_id, "position": position, "wavelength_nm": spectra["wavelength_nm"],
-                                        "predicted_w_m2_nm": eff * irradiance}))
+            frames.append(
+                pd.DataFrame(
+                    {
+                        "sweep_id": sweep_id,
+                        "position": position,
+                        "wavelength_nm": spectra["wavelength_nm"],
+                        "predicted_w_m2_nm": eff * irradiance,
+                    }
+                )
+            )
     return pd.concat(frames, ignore_index=True)
 
 

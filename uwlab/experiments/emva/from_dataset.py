@@ -9,10 +9,10 @@ the sensor plane* (§6.4: a calibrated photodiode "put at the place of the image
 explicit override (`IrradianceOverride`: a number in W/m² at one wavelength, or a spectrum, both meant at the sensor
 plane; for a ``light-level`` sweep it is the irradiance at ``light_level`` = 1, scaled by each row's
 ``light_level``), the point's spectrometer spectrum read at the ``sensor`` position (the dataset's ``spectra``
-table), or its integrated ``irradiance_w_m2`` at the given wavelength when ``irradiance_position`` is ``sensor``. Irradiance read
-anywhere else (``target``: on the board; ``camera``: π L_w in the water in front of the port, which differs from the
-sensor plane by the port, the lens and n_w²) is refused with a one-line error: nothing converts it silently. The
-pixel area comes from ``pixel_size_um`` or from the dataset's sensor profile.
+table), or its integrated ``irradiance_w_m2`` at the given wavelength when ``irradiance_position`` is ``sensor``.
+Irradiance read anywhere else (``target``: on the board; ``camera``: π L_w in the water in front of the port, which
+differs from the sensor plane by the port, the lens and n_w²) is refused with a one-line error: nothing converts it
+silently. The pixel area comes from ``pixel_size_um`` or from the dataset's sensor profile.
 
 Per point, the highpassed spatial variance split (``spatial_var_{row,col,pixel}_dn2`` and the ``dark_`` ones), the
 saturated fraction, μ[0] − μ[1] and the temperature are taken when recorded. The dark series (for the dark noise and
