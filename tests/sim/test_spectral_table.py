@@ -95,6 +95,55 @@ def test_image_average_over_many_lens_geometries_matches_the_wavelength_sum(exam
     assert out == pytest.approx(_image_reference(grid), rel=ACCURACY)
 
 
+def _reference_in_pieces(design, keys, piece=200):
+    """`_image_reference` of a 1-D design (every key an array of the same length), in pieces (it sums every
+    sample × every wavelength)."""
+    size = np.size(design[keys[0]])
+    return np.concatenate([_image_reference(design.with_values(**{k: design[k][s:s + piece] for k in keys}))
+                           for s in range(0, size, piece)])
+
+
+@pytest.mark.parametrize("port, model, water", [("flat", "cone", "jerlov-II"), ("dome", "cone", "jerlov-5C"),
+                                                ("flat", "disk", "pure-fresh"), ("flat", "cone", "jerlov-9C")])
+def test_image_average_with_a_lens_geometry_per_point_matches_the_wavelength_sum(example_raw, port, model, water):
+    """Every point its own focal length, water index, beam and path (the Gauss-rule route): narrow to very wide
+    fields (f = 1 to 60 mm on a 2/3" sensor: up to 80° off axis) and paths to 300 m, against the float64 sum over
+    every image sample and wavelength."""
+    example_raw["water"]["type"] = water
+    example_raw["light"]["beam_model"] = model
+    example_raw["housing"].update(port=port, dome_radius_mm=60.0, dome_thickness_mm=6.0)
+    rng = np.random.default_rng(11)
+    n = 400
+    values = {"lens.focal_length_mm": np.exp(rng.uniform(0.0, np.log(60.0), n)),
+              "housing.water_index": rng.uniform(1.0, 1.5, n),
+              "operation.altitude_m": np.exp(rng.uniform(np.log(0.1), np.log(150.0), n)),
+              "light.beam_half_angle_deg": rng.uniform(1.0, 89.0, n)}
+    grid = build_design(example_raw).with_values(**values)
+    out = design_module._image_average_rate(grid, spectral_weights(grid))
+    reference = _reference_in_pieces(grid, list(values))
+    lit = reference > 1e-250  # the rest underflows in both (e^(−cD) past float64 at long paths in turbid water)
+    assert lit.sum() > n // 2 and np.all(out[~lit] < 1e-250)
+    assert out[lit] == pytest.approx(reference[lit], rel=ACCURACY)
+
+
+def test_a_grid_with_a_lens_geometry_per_point_equals_point_by_point(example_raw):
+    """altitude × focal length × water index × beam (the benchmark's geometry_per_point grid, small) against
+    scalar evaluations of every point."""
+    example_raw["operation"]["exposure_s"] = 1e-4
+    base = build_design(example_raw)
+    axes = {"operation.altitude_m": np.array([0.5, 3.0, 10.0]),
+            "lens.focal_length_mm": np.array([2.0, 4.0, 12.0, 50.0]),
+            "housing.water_index": np.array([1.33, 1.34, 1.35]), "light.beam_half_angle_deg": np.array([15.0, 60.0])}
+    shaped = {k: v.reshape([-1 if i == j else 1 for j in range(4)]) for i, (k, v) in enumerate(axes.items())}
+    out = evaluate(base.with_values(**shaped))
+    for index in np.ndindex(3, 4, 3, 2):
+        point = evaluate(base.with_values(**{k: float(v[i]) for (k, v), i in zip(axes.items(), index, strict=True)}))
+        assert np.broadcast_to(out["mean_electrons"], (3, 4, 3, 2))[index] == pytest.approx(
+            float(point["mean_electrons"]), rel=1e-12)
+        for key in ("mean_electrons", "mean_dn", "snr"):
+            assert out["image_average"][key][index] == pytest.approx(float(point["image_average"][key]), rel=1e-12)
+
+
 def test_grid_evaluation_equals_point_by_point(example_raw):
     """The hard grid (every point its own spectral path) against scalar evaluations of sampled points."""
     example_raw["operation"]["exposure_s"] = 1e-4
