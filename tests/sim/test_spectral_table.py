@@ -95,6 +95,17 @@ def test_image_average_over_many_lens_geometries_matches_the_wavelength_sum(exam
     assert out == pytest.approx(_image_reference(grid), rel=ACCURACY)
 
 
+def test_image_average_over_many_beams_per_lens_geometry_matches_the_wavelength_sum(example_raw):
+    """Many beam angles per path and geometry (the samples summed once per path, shared by the beams)."""
+    example_raw["water"]["type"] = "jerlov-III"
+    base = build_design(example_raw)
+    grid = base.with_values(**{"lens.focal_length_mm": np.array([3.0, 8.0, 30.0])[:, None, None],
+                               "operation.altitude_m": np.array([0.4, 3.0, 20.0])[None, :, None],
+                               "light.beam_half_angle_deg": np.linspace(2.0, 88.0, 96)[None, None, :]})
+    out = design_module._image_average_rate(grid, spectral_weights(grid))
+    assert out == pytest.approx(_image_reference(grid), rel=ACCURACY)
+
+
 def _reference_in_pieces(design, keys, piece=200):
     """`_image_reference` of a 1-D design (every key an array of the same length), in pieces (it sums every
     sample × every wavelength)."""

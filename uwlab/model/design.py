@@ -153,6 +153,13 @@ class SpectralWeights:
         return SpectralTable(self.c, self.W)
 
     @cached_property
+    def electron_mean_rate_per_m(self) -> float:
+        """c̄ = −d ln G_e/dD at D = 0 = Σ W_e c / Σ W_e [1/m]: the electron-rate-weighted mean attenuation, the
+        steepest slope of the convex ln G_e (0 when the column is zero)."""
+        total = self.W[:, 2].sum()
+        return float(self.W[:, 2] @ self.c / total) if total > 0 else 0.0
+
+    @cached_property
     def image_tables(self) -> dict:
         """Image-average sample geometries and tables by lens/port geometry (`_image_geometry`), a small cache."""
         return {}
@@ -336,39 +343,50 @@ def _image_average_rate(d: Design, weights: SpectralWeights):
     """Mean electron rate per pixel over the sensor [e⁻/s]: the mean of `electron_rate_at_radius` over the
     image samples (`image_radii_m`), with the spectral integral from the interpolation table.
 
-    When the grid has many path lengths per lens/port geometry (altitude, attenuation or beam-angle axes), each
-    geometry gets a table of the cumulative sums over the samples sorted by field angle
-    (`uwlab.model.spectral_table.image_table`): the samples inside a beam are a prefix, and a point costs one
-    lookup. When it has few (a single design, or a lens/port geometry per point), the sum over the samples is
-    taken by a Gauss rule of the sample radii (`_image_sum`): a few lookups per point. Both agree with the
-    wavelength sum over every sample to 1e-8 (tests/sim/test_spectral_table.py)."""
+    Three routes, by the shape of the grid; all agree with the wavelength sum over every sample to 1e-8
+    (tests/sim/test_spectral_table.py).
+    - Many path lengths per lens/port geometry (altitude or attenuation axes): each geometry gets a table of the
+      cumulative sums over the samples sorted by field angle (`uwlab.model.spectral_table.image_table`); the
+      samples inside a beam are a prefix, and a point costs one lookup.
+    - Many beam angles per path and geometry: the samples are summed directly, one lookup per sample and path,
+      shared by the beams.
+    - Otherwise (a single design, or a lens/port geometry per point): a Gauss rule of the sample radii
+      (`_image_sum`), 8 to 24 lookups per point."""
     path = _attenuating_path_m(d)
     focal = np.asarray(d["lens.focal_length_mm"] * 1e-3, float)
     water = np.asarray(d["housing.water_index"], float) if d["housing.port"] == "flat" else np.asarray(1.0)
     beta = np.asarray(beam_half_angle_rad(d), float)
+    radii = image_radii_m(d.sensor)
     geometries = np.broadcast_shapes(focal.shape, water.shape)
     pairs = int(np.prod(np.broadcast_shapes(path.shape, geometries)))
-    if pairs <= IMAGE_DIRECT_PATHS * int(np.prod(geometries)):
-        total = _image_sum(d, weights, path, focal, water, beta)
-    else:
+    points = int(np.prod(np.broadcast_shapes(path.shape, geometries, beta.shape)))
+    lit = int(np.prod(np.broadcast_shapes(geometries, beta.shape)))
+    if pairs > IMAGE_DIRECT_PATHS * int(np.prod(geometries)):
         total = np.empty(np.broadcast_shapes(beta.shape, path.shape, geometries))
         for index in np.ndindex(geometries):
             where = _mesh_index(index, geometries, total.ndim)
             geometry = _image_geometry(d, weights, _pick(focal, where).item(), _pick(water, where).item())
             in_beam = np.searchsorted(geometry.alpha_w, _pick(beta, where), side="right")
             total[where] = geometry.table.at_columns(_pick(path, where), in_beam)
+    elif pairs * radii.size * 2 <= points * IMAGE_RULES[0][0] and max(pairs, lit) * radii.size <= IMAGE_SAMPLES_MAX:
+        angular, secant = _field_terms(d, radii)
+        total = np.einsum("...i,...i->...", weights.table(path[..., None] * secant, 2), angular)
+    else:
+        total = _image_sum(d, weights, path, focal, water, beta)
     total *= weights.table.nonzero[2]
-    return _image_prefactor(d, weights) * total / image_radii_m(d.sensor).size
+    return _image_prefactor(d, weights) * total / radii.size
 
 
 IMAGE_RULES = ((8, 1.0, 2.0), (12, 2.0, 8.0), (16, 4.0, 8.0), (24, 9.0, 16.0))
-"""Gauss rules of the image average, (nodes, largest tan²α_air, largest κ) each: a point takes the first rule
-whose bounds hold for its last sample inside the beam, and otherwise every sample (`_image_sum`). κ = c̄ D
+"""Gauss rules of the image average, (nodes, largest tan²α_air, largest κ) each, the bounds growing from rule to
+rule: a point takes the first rule whose bounds hold for its last sample inside the beam, and otherwise every
+sample (`_image_sum`). κ = c̄ D
 (sec α_w − 1) bounds the drop of ln G across the field (c̄ = −d ln G/dD at D = 0, the largest slope of the convex
 ln G). Within these bounds the rules match the sum over the samples to < 5e-9 relative (Jerlov I–9C and pure
 water, f ≥ 1 mm on a 2/3" sensor, paths up to 300 m, flat and dome ports, cone and disk beams; checked in
 tests/sim/test_spectral_table.py)."""
 IMAGE_PIECE = 1 << 14  # points per pass of `_image_sum` (bounds the (points × nodes) temporaries)
+IMAGE_SAMPLES_MAX = 1 << 22  # the largest (points × samples) array of the direct route
 
 
 @dataclass(frozen=True)
@@ -418,31 +436,27 @@ def _image_sum(d: Design, weights: SpectralWeights, path, focal, water, beta) ->
     prefix = np.searchsorted(rules.radius_m, focal * water * np.tan(beta), side="right")
     x_last = rules.x_m2[np.maximum(prefix, 1) - 1]
     tan2_air = x_last / focal**2
-    rate = -float(weights.table.table.log_slope(np.zeros(1), 2)[0])
-    kappa = rate * path * (np.sqrt(1 + tan2_air / water**2) - 1)
-    choice = np.full(shape, len(IMAGE_RULES))
-    for r, (_, tan2_max, kappa_max) in reversed(list(enumerate(IMAGE_RULES))):
-        choice[np.broadcast_to((tan2_air <= tan2_max) & (kappa <= kappa_max), shape)] = r
-    flat = {k: np.broadcast_to(v, shape).ravel() for k, v in
-            {"path": path, "focal": focal, "water": water, "prefix": prefix}.items()}
-    choice = choice.ravel()
+    kappa = weights.electron_mean_rate_per_m * path * (np.sqrt(1 + tan2_air / water**2) - 1)
+    choice = sum(~((tan2_air <= tan2_max) & (kappa <= kappa_max)) for _, tan2_max, kappa_max in IMAGE_RULES)
+    path, f2, n2, prefix, choice = (np.broadcast_to(v, shape).ravel()
+                                    for v in (path, focal**2, water**2, prefix, choice))
     total = np.empty(choice.size)
-    for r in np.unique(choice):
-        members = np.flatnonzero(choice == r)
+    used = np.unique(choice)
+    for r in used:
+        members = np.arange(choice.size) if used.size == 1 else np.flatnonzero(choice == r)
         nodes, node_weights = rules.rule(int(r))
         piece = max(1, IMAGE_PIECE * 8 // nodes.shape[1])
         for s in range(0, members.size, piece):
             at = members[s:s + piece]
-            p = flat["prefix"][at]
-            f2, n2 = (flat["focal"][at] ** 2)[:, None], (flat["water"][at] ** 2)[:, None]
+            p = prefix[at]
+            f2n2 = (f2[at] * n2[at])[:, None]
             x = nodes[p]
-            cos2_air = f2 / (f2 + x)
-            cos2_w = f2 * n2 / (f2 * n2 + x)
+            cos2_w = f2n2 / (f2n2 + x)
             sec_w = 1 / np.sqrt(cos2_w)
-            term = node_weights[p] * cos2_air**2
+            term = node_weights[p] * (f2[at][:, None] / (f2[at][:, None] + x)) ** 2
             if cone:
                 term *= cos2_w / sec_w
-            term *= weights.table(flat["path"][at][:, None] * sec_w, 2)
+            term *= weights.table(path[at][:, None] * sec_w, 2)
             total[at] = term.sum(axis=-1)
     return total.reshape(shape)
 
