@@ -48,28 +48,32 @@ class Window:
     light: LightReadback | None
 
 
-def _marks(rig: Instruments, camera: Camera) -> dict[str, int]:
-    marks = {"camera reconnects": camera.stats.reconnects}
+def _marks(rig: Instruments, camera: Camera | None) -> dict[str, int]:
+    marks = {} if camera is None else {"camera reconnects": camera.stats.reconnects}
     for name, device in (("light", rig.light), ("spectrometer", rig.spectrometer)):
         if device is not None:
             marks[f"{name} resets/reopens"] = device.recoveries
     return marks
 
 
-def _readbacks(rig: Instruments, camera: Camera, light: LightReadback | None) -> tuple[LightReadback | None, list[str]]:
-    """The light's read-back and whether it disagrees with ``light``; the camera's settings verified."""
+def _readbacks(rig: Instruments, camera: Camera | None,
+               light: LightReadback | None) -> tuple[LightReadback | None, list[str]]:
+    """The light's read-back and whether it disagrees with ``light``; the camera's settings verified (if it takes
+    part)."""
     got = rig.light.readback() if rig.light is not None else None
     problems = []
     if light is not None and got is not None and (got.on != light.on or abs(got.level - light.level) > LEVEL_TOLERANCE):
         problems.append(f"light reads back on={got.on} level={got.level:g}, want on={light.on} level={light.level:g}")
-    camera.verify_settings()
+    if camera is not None:
+        camera.verify_settings()
     return got, problems
 
 
-def verified(what: str, rig: Instruments, camera: Camera, light: LightReadback | None,
+def verified(what: str, rig: Instruments, camera: Camera | None, light: LightReadback | None,
              prepare: Callable[[], None], measure: Callable[[], T]) -> tuple[T, Window]:
     """``measure()``'s result and its `Window`, from the first attempt whose read-backs held (module docstring);
-    ``light`` is the light state wanted (None: the rig has no light)."""
+    ``camera`` is the camera the measurement uses (None: a spectrometer-only measurement, which a camera outage
+    does not void); ``light`` is the light state wanted (None: the rig has no light)."""
     problems: list[str] = []
     for attempt in range(1, ATTEMPTS + 1):
         prepare()

@@ -262,8 +262,8 @@ class SweepRunner:
             self._wanted_light(point.light_on, point.light_level),
             lambda: self._apply(sweep, camera, point), lambda: self._lit(sweep, camera, roi, point, recorder))
         for reading in reversed(raw):  # the spectrometer is at the last position: measure its darks first
-            self._spectrometer_dark(sweep, camera, reading.position, reading.readback.integration_ms)
-        readings = [self._minus_dark(sweep, camera, reading) for reading in raw]
+            self._spectrometer_dark(sweep, reading.position, reading.readback.integration_ms)
+        readings = [self._minus_dark(sweep, reading) for reading in raw]
         dark = block
         if sweep.dark == "point":
             dark = self._dark(sweep, camera, roi, recorder, point)
@@ -298,13 +298,13 @@ class SweepRunner:
         wavelength_nm, irradiance = measure_unsaturated(self.rig.spectrometer)
         return Reading(position, wavelength_nm, irradiance, self.rig.spectrometer.readback())
 
-    def _minus_dark(self, sweep: SweepSpec, camera: Camera, reading: Reading) -> tuple[str, np.ndarray, np.ndarray]:
+    def _minus_dark(self, sweep: SweepSpec, reading: Reading) -> tuple[str, np.ndarray, np.ndarray]:
         """The reading minus the spectrometer's own light-off reading (see `_spectrometer_dark`)."""
-        dark_nm, dark = self._spectrometer_dark(sweep, camera, reading.position, reading.readback.integration_ms)
+        dark_nm, dark = self._spectrometer_dark(sweep, reading.position, reading.readback.integration_ms)
         return reading.position, reading.wavelength_nm, reading.irradiance_w_m2_nm - np.interp(
             reading.wavelength_nm, dark_nm, dark)
 
-    def _spectrometer_dark(self, sweep: SweepSpec, camera: Camera, position: str,
+    def _spectrometer_dark(self, sweep: SweepSpec, position: str,
                            integration_ms: float) -> tuple[np.ndarray, np.ndarray]:
         """What the spectrometer reports with the light off at ``integration_ms`` (its imperfectly subtracted
         dark signal), measured once per sweep, position and integration time in a verified window (light read
@@ -324,7 +324,7 @@ class SweepRunner:
 
             try:
                 self._spectrometer_darks[key], _ = verified(
-                    f"sweep {sweep.id}: spectrometer dark at the {position}", self.rig, camera,
+                    f"sweep {sweep.id}: spectrometer dark at the {position}", self.rig, None,
                     self._wanted_light(False, sweep.light_level), prepare, spectrometer.read_spectrum)
             finally:
                 spectrometer.set_integration_ms(was.integration_ms)
