@@ -64,7 +64,7 @@ class Design:
         section, key = dotted.split(".")
         return self.values[section][key]
 
-    def with_values(self, **dotted) -> "Design":
+    def with_values(self, **dotted) -> Design:
         """A copy with some numeric values replaced, e.g. ``with_values(**{"lens.f_number": 4.0})``."""
         values = {s: list(v) if isinstance(v, list) else dict(v) for s, v in self.values.items()}
         for name, value in dotted.items():
@@ -558,8 +558,8 @@ def evaluate(d: Design) -> dict[str, np.ndarray]:
     sensor = d.sensor
     op = d.values["operation"]
     f_eff = effective_focal_length_m(d)
-    size = dict(zip("xy", sensor.size_m))
-    res = dict(zip("xy", sensor.resolution_px))
+    size = dict(zip("xy", sensor.size_m, strict=True))
+    res = dict(zip("xy", sensor.resolution_px, strict=True))
     fov = {a: optics.angular_fov_rad(size[a], f_eff) for a in "xy"}
     d_c = op["altitude_m"]
     fov_m = {a: optics.spatial_fov_m(fov[a], d_c) for a in "xy"}

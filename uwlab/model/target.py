@@ -25,7 +25,8 @@ def reflectance(spec, grid: WavelengthGrid, key: str = "target.reflectance"):
         return NAMED_REFLECTANCE[spec]
     path = Path(spec)
     if path.suffix.lower() != ".csv":
-        raise ConfigError(key, str(spec), f"unknown reflectance; use a number in [0, 1], one of {', '.join(NAMED_REFLECTANCE)} or a .csv file")
+        raise ConfigError(key, str(spec), "unknown reflectance; use a number in [0, 1], one of "
+                          f"{', '.join(NAMED_REFLECTANCE)} or a .csv file")
     table = read_csv_columns(path, ("wavelength_nm", "reflectance"), key)
     if np.any((table["reflectance"] < 0) | (table["reflectance"] > 1)):
         raise ConfigError(key, str(spec), "reflectance outside [0, 1]")

@@ -7,15 +7,15 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-from matplotlib.ticker import ScalarFormatter  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+from matplotlib.ticker import ScalarFormatter
 
-from uwlab.errors import ConfigError  # noqa: E402
-from uwlab.experiments.figures import save_figure  # noqa: E402
-from uwlab.experiments.design.curves import (dof_curves, operation_curves, quantum_efficiency,  # noqa: E402
+from uwlab.errors import ConfigError
+from uwlab.experiments.figures import save_figure
+from uwlab.experiments.design.curves import (dof_curves, operation_curves, quantum_efficiency,
                                              water_attenuation)
-from uwlab.model.design import Design, stage_spectra  # noqa: E402
+from uwlab.model.design import Design, stage_spectra
 from uwlab.outputs import output_dir
 
 
@@ -37,8 +37,9 @@ def plot_stages(design: Design, path: Path) -> Path:
     fig, axes = plt.subplots(5, 1, figsize=(7, 10), sharex=True)
     panels = [("source_w_nm", "source Φe [W/nm]"), ("target_irradiance_w_m2_nm", "at target E_t [W/m²/nm]"),
               ("return_radiance_w_m2_sr_nm", "after return path L_w [W/m²/sr/nm]"),
-              ("sensor_irradiance_w_m2_nm", "after lens E_s [W/m²/nm]"), ("absorbed_w_m2_nm", "absorbed E_s·η [W/m²/nm]")]
-    for ax, (key, label) in zip(axes, panels):
+              ("sensor_irradiance_w_m2_nm", "after lens E_s [W/m²/nm]"),
+              ("absorbed_w_m2_nm", "absorbed E_s·η [W/m²/nm]")]
+    for ax, (key, label) in zip(axes, panels, strict=True):
         ax.plot(nm, spectra[key])
         ax.set_ylabel(label, fontsize=8)
     axes[-1].set_xlabel("wavelength [nm]")
