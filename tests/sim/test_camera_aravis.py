@@ -46,7 +46,14 @@ def test_frames_follow_the_physics_of_the_registers(server, truth_sensor):
         cam.exposure_us, cam.gain_db = 60.0, 6.0
         frames = cam.acquire(4)
     s = frames[0].settings
-    assert (s.exposure_us, s.gain_db, s.width, s.height, s.offset_x, s.pixel_format) == (60.0, 6.0, 256, 128, 600, "Mono12p")
+    assert (s.exposure_us, s.gain_db, s.width, s.height, s.offset_x, s.pixel_format) == (
+        60.0,
+        6.0,
+        256,
+        128,
+        600,
+        "Mono12p",
+    )
     assert all(f.image.shape == (128, 256) and f.image.dtype == np.uint16 for f in frames)
     ids = [f.frame_id for f in frames]
     assert ids == sorted(ids) and len(set(ids)) == 4
@@ -128,4 +135,6 @@ def test_grab_cli_over_aravis(server, tmp_path):
     assert out.returncode == 0, out.stderr
     doc = json.loads(out.stdout)
     assert doc["device"]["backend"] == "aravis" and len(doc["frames"]) == 2
-    assert {(f["width"], f["height"], f["pixel_format"], f["exposure_us"]) for f in doc["frames"]} == {(128, 64, "Mono16", 1500.0)}
+    assert {(f["width"], f["height"], f["pixel_format"], f["exposure_us"]) for f in doc["frames"]} == {
+        (128, 64, "Mono16", 1500.0)
+    }

@@ -41,7 +41,13 @@ def test_grab_json_keys_roi_and_settings(capsys):
             "min", "max", "saturated_fraction", "clip_level_dn", "clip_source"}
     assert len(doc["frames"]) == 3 and all(set(f) == keys for f in doc["frames"])
     f = doc["frames"][0]
-    assert (f["width"], f["height"], f["pixel_format"], f["exposure_us"], f["gain_db"]) == (128, 64, "Mono12p", 100.0, 3.0)
+    assert (f["width"], f["height"], f["pixel_format"], f["exposure_us"], f["gain_db"]) == (
+        128,
+        64,
+        "Mono12p",
+        100.0,
+        3.0,
+    )
     assert f["min"] <= f["mean"] <= f["max"] and f["std"] > 0 and 0.0 <= f["saturated_fraction"] <= 1.0
 
 

@@ -38,7 +38,7 @@ def test_frames_carry_settings_read_back_from_the_device():
         cam.set_roi(8, 4, 32, 16)
         frames = cam.acquire(3)
         assert [f.frame_id for f in frames] == [1, 2, 3]
-        assert all(b.timestamp_ns > a.timestamp_ns for a, b in zip(frames, frames[1:]))
+        assert all(b.timestamp_ns > a.timestamp_ns for a, b in zip(frames, frames[1:], strict=False))
         for f in frames:
             assert f.image.shape == (16, 32) and f.image.dtype == np.uint16 and f.pixel_format == "Mono12p"
             s = f.settings
@@ -250,7 +250,10 @@ class DictTransport:
 
     def has(self, name): return name in self.features
     def get(self, name): return self.features[name]
-    def set(self, name, value): self.writes.append((name, value)); self.features[name] = value
+    def set(self, name, value):
+        self.writes.append((name, value))
+        self.features[name] = value
+
     def bounds(self, name): return self._bounds.get(name)
     def entries(self, name): return ("Off", "Continuous") if name.endswith("Auto") else ()
     def execute(self, name): pass
@@ -281,7 +284,11 @@ def test_allied_vision_legacy_names_through_the_same_interface():
     assert cam.profile.name == "allied-vision-gt" and cam.info.serial == "02-2142A"
     assert ("ExposureAuto", "Off") in t.writes and ("GainAuto", "Off") in t.writes
     cam.exposure_us, cam.gain_db = 5000.0, 12.0
-    assert t.features["ExposureTimeAbs"] == 5000.0 and t.features["GainRaw"] == 12 and isinstance(t.features["GainRaw"], int)
+    assert (
+        t.features["ExposureTimeAbs"] == 5000.0
+        and t.features["GainRaw"] == 12
+        and isinstance(t.features["GainRaw"], int)
+    )
     assert cam.frame_rate_hz == 20.0 and cam.black_level is None
     with pytest.raises(ConfigError, match="GainRaw.*allowed \\[0, 26\\]"):
         cam.gain_db = 30.0

@@ -79,11 +79,15 @@ def test_light_fraction_is_read_every_frame():
 
 
 def test_roi_and_binning_select_and_sum_charge():
-    ramp = lambda shape: np.broadcast_to(np.arange(shape[1], dtype=np.float32) * 1000.0, shape).copy()
+    def ramp(shape):
+        return np.broadcast_to(np.arange(shape[1], dtype=np.float32) * 1000.0, shape).copy()
+
     sensor = SimSensor(TRUTH, ramp, seed=5)
     mean, _, _ = sensor.expected_dn(cfg(offset_x=10, width=20, height=8))
     dark = TRUTH.dark_current_e_per_s * 0.01
-    np.testing.assert_allclose(mean[0], TRUTH.K_dn_per_e * (np.arange(10, 30) * 10.0 + dark) + TRUTH.dark_offset_dn, rtol=1e-5)
+    np.testing.assert_allclose(
+        mean[0], TRUTH.K_dn_per_e * (np.arange(10, 30) * 10.0 + dark) + TRUTH.dark_offset_dn, rtol=1e-5
+    )
     binned, _, _ = sensor.expected_dn(cfg(offset_x=1, width=4, height=2, binning_h=2, binning_v=2))
     cols = np.arange(2, 10).reshape(4, 2).sum(axis=1) * 10.0 * 2
     np.testing.assert_allclose(binned[0], TRUTH.K_dn_per_e * (cols + 4 * dark) + TRUTH.dark_offset_dn, rtol=1e-5)

@@ -143,14 +143,18 @@ def test_light_profiles_have_one_spectrum_and_provenance(name):
 def test_paper_led_matches_the_paper():
     with open(CONFIGS / "lights" / "paper-tank-led.toml", "rb") as fh:
         light = tomllib.load(fh)
-    assert (light["luminous_flux_lm"], light["beam_half_angle_deg"], light["spectrum"]) == (25000.0, 40.0, "generic-led")
+    assert (light["luminous_flux_lm"], light["beam_half_angle_deg"], light["spectrum"]) == (
+        25000.0,
+        40.0,
+        "generic-led",
+    )
 
 
 def test_jerlov_table_is_complete_on_the_source_grid():
     table = jerlov()
     assert list(table.columns) == ["water_type", "wavelength_nm", "a_per_m", "b_per_m", "a_filled", "b_filled"]
     assert not table.isna().any().any()
-    assert sorted(zip(table.water_type, table.wavelength_nm)) == sorted(
+    assert sorted(zip(table.water_type, table.wavelength_nm, strict=True)) == sorted(
         (t, w) for t in JERLOV_TYPES for w in JERLOV_NM)
     assert (table[["a_per_m", "b_per_m"]] > 0).all().all()
 
@@ -159,7 +163,10 @@ def test_jerlov_filled_flags_are_exactly_the_known_gaps():
     table = jerlov()
     assert table.a_filled.dtype == bool and table.b_filled.dtype == bool
     for column in ("a_filled", "b_filled"):
-        flagged = {(t, int(w)) for t, w in zip(table.water_type[table[column]], table.wavelength_nm[table[column]])}
+        flagged = {
+            (t, int(w))
+            for t, w in zip(table.water_type[table[column]], table.wavelength_nm[table[column]], strict=True)
+        }
         assert flagged == KNOWN_GAPS
 
 

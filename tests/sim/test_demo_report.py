@@ -35,8 +35,16 @@ def test_demo_recovers_the_simulated_truth(demo):
 
 def test_report_is_self_contained(demo):
     html = (demo / "report.html").read_text()
-    for heading in ("Adequate:", "Set-up", "Checks", "Measured against predicted", "predicted by a fit that did not see it",
-                    "Posterior", "Spectra", "Provenance"):
+    for heading in (
+        "Adequate:",
+        "Set-up",
+        "Checks",
+        "Measured against predicted",
+        "predicted by a fit that did not see it",
+        "Posterior",
+        "Spectra",
+        "Provenance",
+    ):
         assert heading in html
     assert html.index("Adequate:") < html.index("Set-up")  # the verdict first
     assert "none (bare sensor)" in html and "IMX250M · 30 mm f/2" in html

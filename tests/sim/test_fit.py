@@ -1,4 +1,5 @@
-"""Model calibration: the forward model's rescaling is exact, fits recover the simulated truth, bad fits are reported."""
+"""Model calibration: the forward model's rescaling is exact, fits recover the simulated truth, bad fits are named."""
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -80,8 +81,12 @@ def test_a_wrong_prior_is_reported(campaign):
     """A prior that excludes what the data need is not hidden: the discrepancy absorbs the misfit and the
     summary says the model does not fit."""
     points, rigs = campaign
-    priors = {"light_efficiency": Normal(mean=2.0, sigma=0.02, lo=0.0), "K_dn_per_e:imx250m": Normal(mean=0.36, sigma=0.001),
-              "K_dn_per_e:icx285alm": Normal(mean=1.05, sigma=0.003), "discrepancy": HalfNormal(sigma=0.05)}
+    priors = {
+        "light_efficiency": Normal(mean=2.0, sigma=0.02, lo=0.0),
+        "K_dn_per_e:imx250m": Normal(mean=0.36, sigma=0.001),
+        "K_dn_per_e:icx285alm": Normal(mean=1.05, sigma=0.003),
+        "discrepancy": HalfNormal(sigma=0.05),
+    }
     result = fit_points(points, rigs, FitConfig(priors=priors))
     notes = " ".join(result.summary()["warnings"])
     assert "poor fit" in notes
@@ -89,7 +94,9 @@ def test_a_wrong_prior_is_reported(campaign):
 
 
 def test_relative_flux_needs_a_level_one_reference():
-    points = pd.DataFrame({"light_level": [1.0, 0.5], "irradiance_w_m2": [10.0, 2.5], "irradiance_position": ["target"] * 2})
+    points = pd.DataFrame(
+        {"light_level": [1.0, 0.5], "irradiance_w_m2": [10.0, 2.5], "irradiance_position": ["target"] * 2}
+    )
     assert relative_flux(points).tolist() == [1.0, 0.25]
     sweeps = pd.DataFrame({"sweep_id": ["a", "a", "b", "b", "b", "c"], "light_level": [1.0, 1.0, 0.5, 0.5, 0.5, 0.5],
                            "irradiance_w_m2": [9.0, 11.0, 2.4, 2.7, 2.5, 3.0], "irradiance_position": ["target"] * 6})
@@ -111,7 +118,9 @@ def test_sampling_coordinates_round_trip_with_the_stated_jacobian(campaign):
     assert not np.allclose(u[:, 0], np.log(theta[:, 0]))
     h = 1e-6
     for row in u:
-        jac = np.column_stack([(post.to_theta(row + h * e) - post.to_theta(row - h * e)) / (2 * h) for e in np.eye(len(row))])
+        jac = np.column_stack(
+            [(post.to_theta(row + h * e) - post.to_theta(row - h * e)) / (2 * h) for e in np.eye(len(row))]
+        )
         expected = np.log(abs(np.linalg.det(jac)))
         theta_row = post.to_theta(row)[None, :]
         assert post.log_u(row[None, :])[0] - post(theta_row)[0] == pytest.approx(expected, abs=1e-6)

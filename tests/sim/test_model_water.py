@@ -27,7 +27,9 @@ def test_jerlov_anchor_cells_are_unchanged_from_the_reference():
     ours = pd.read_csv(ROOT / "configs/water/jerlov.csv", comment="#")
     merged = ref.merge(ours, on=["water_type", "wavelength_nm"], suffixes=("_ref", ""))
     assert len(merged) == len(ref)
-    assert np.allclose(merged["a_per_m"], merged["a_per_m_ref"]) and np.allclose(merged["b_per_m"], merged["b_per_m_ref"])
+    assert np.allclose(merged["a_per_m"], merged["a_per_m_ref"]) and np.allclose(
+        merged["b_per_m"], merged["b_per_m_ref"]
+    )
 
 
 def test_red_extension_is_continuous_and_rises_with_water_absorption():

@@ -56,7 +56,9 @@ def test_a_sensor_clipping_below_its_profile_is_detected_from_the_pixels():
     mean_e, var_e = sensor.electrons(cfg, 1.0)
     truly_clipped = np.mean(mean_e >= truth.saturation_e)  # more than half the pixels, by the model's mean
     assert clip.fraction(image) == pytest.approx(truly_clipped, abs=0.1)
-    assert clip_level("Mono16", native_bits=12, profile_dn=profile).fraction(image) == 0.0  # what the profile alone misses
+    assert (
+        clip_level("Mono16", native_bits=12, profile_dn=profile).fraction(image) == 0.0
+    )  # what the profile alone misses
 
 
 def test_an_unclipped_distribution_near_the_top_is_not_taken_for_a_clip():

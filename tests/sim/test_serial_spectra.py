@@ -62,7 +62,7 @@ def test_dark_spectrum_has_no_cct():
 def test_illuminance_matches_colour_science():
     wavelength_nm = np.arange(380.0, 781.0)
     irradiance = 1e-3 * planck(wavelength_nm, 3500.0) / planck(np.array([555.0]), 3500.0)
-    sd = colour.SpectralDistribution(dict(zip(wavelength_nm, irradiance)))
+    sd = colour.SpectralDistribution(dict(zip(wavelength_nm, irradiance, strict=True)))
     assert illuminance_lux(wavelength_nm, irradiance) == pytest.approx(
         colour.luminous_flux(sd, K_m=683.002), rel=1e-3
     )

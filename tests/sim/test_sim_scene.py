@@ -36,7 +36,9 @@ def test_spectra_integrate_to_model_irradiance(scene):
     nm, target = scene.spectral_irradiance("target", 0.25)
     out = evaluate(scene.design)
     efficiency = scene.sim.light_efficiency
-    assert scene.design.grid.integrate(target) == pytest.approx(0.25 * efficiency * float(out["target_irradiance_w_m2"]))
+    assert scene.design.grid.integrate(target) == pytest.approx(
+        0.25 * efficiency * float(out["target_irradiance_w_m2"])
+    )
     nm, camera = scene.spectral_irradiance("camera")
     assert 0 < scene.design.grid.integrate(camera) < scene.design.grid.integrate(target / 0.25)
     with pytest.raises(ConfigError, match="position"):
