@@ -15,7 +15,8 @@ from uwlab.experiments.dataset import POINT_SCHEMA, Dataset, spectra_frame
 from uwlab.experiments.dataset_check import check, repair, summarize
 from uwlab.experiments.dataset_store import PartDamaged
 
-ROOT = Path(__file__).resolve().parents[2]
+from tests.sim.plans import write_plan
+
 PLAN = {"name": "unit", "sweep": [{"id": "a", "kind": "exposure", "values": {"start": 1, "stop": 14, "num": 14}}]}
 
 
@@ -115,10 +116,8 @@ def test_parquet_page_checksums_catch_flips_for_any_reader(tmp_path):
 
 
 def test_resume_refuses_a_damaged_dataset_and_repair_keeps_the_intact_points(tmp_path):
-    plan_path = tmp_path / "plan.toml"
-    plan_path.write_text(f'rig = "{ROOT / "configs" / "rigs" / "sim-tank.toml"}"\n[[sweep]]\nid = "a"\n'
-                         'kind = "exposure"\nvalues = {start = 100, stop = 1400, num = 14}\ndark = "none"\n')
-    plan = load_plan(plan_path)
+    sweep = {"id": "a", "kind": "exposure", "values": {"start": 100, "stop": 1400, "num": 14}, "dark": "none"}
+    plan = load_plan(write_plan(tmp_path / "plan.toml", None, [sweep]))
     root = dataset(tmp_path / "d", points=20 - 6, plan=plan.raw, sha=plan.sha256, sim=True)
     data = Dataset.open(root)
     damaged = data.store.parts[-1]  # the last point's part

@@ -13,50 +13,22 @@ import pytest
 
 from uwlab.experiments.acquisition.plan import load_plan
 from uwlab.experiments.acquisition.rigs import SimRig
-from uwlab.experiments.acquisition.sweep import SweepRunner
-from uwlab.experiments.dataset import CLOCK_COLUMNS, Dataset
+from uwlab.experiments.dataset import CLOCK_COLUMNS
 from uwlab.experiments.demo import run_demo
 
-from tests.sim.conftest import ROOT
-
-PLAN = f"""
-name = "seeded"
-rig = "{ROOT / 'configs' / 'rigs' / 'sim-tank.toml'}"
-[defaults]
-kind = "exposure"
-values = {{ start = 20, stop = 1500, num = 8, spacing = "log" }}
-frames_per_point = 2
-dark = "point"
-dark_frames = 2
-spectrometer = ["target", "camera"]
-spectrometer_integration_ms = 10
-[[sweep]]
-id = "imx250-30mm-f2"
-sensor = "imx250m"
-lens = {{ focal_length_mm = 30, f_number = 2.0, f_number_range = [2.0, 16.0] }}
-camera = {{ id = "blackfly-s", pixel_format = "Mono12", window = [1192, 1000, 32, 24] }}
-[[sweep]]
-id = "imx250-12mm-f4"
-sensor = "imx250m"
-lens = {{ focal_length_mm = 12, f_number = 4.0, f_number_range = [1.4, 16.0] }}
-camera = {{ id = "blackfly-s", pixel_format = "Mono12", window = [1192, 1000, 32, 24] }}
-"""
+from tests.sim.plans import record, write_campaign
 
 
 @pytest.fixture(scope="module")
 def plan_path(tmp_path_factory):
-    path = tmp_path_factory.mktemp("seeded") / "plan.toml"
-    path.write_text(PLAN)
-    return path
+    return write_campaign(tmp_path_factory.mktemp("seeded") / "plan.toml", "seeded")
 
 
 def measure(plan_path, root, seed: int) -> tuple[pd.DataFrame, pd.DataFrame]:
     """The plan's sweeps on the simulated rig: (points without their clock times, spectra)."""
     plan = load_plan(plan_path)
-    with Dataset.create(root, plan.raw, plan_sha256=plan.sha256, sim=True) as dataset, \
-            SimRig(plan.rig_path, seed=seed) as rig:
-        SweepRunner(plan, dataset, rig).run()
-    dataset = Dataset.open(root)
+    with SimRig(plan.rig_path, seed=seed) as rig:
+        dataset = record(plan, root, rig)
     return dataset.points().drop(columns=list(CLOCK_COLUMNS)), dataset.spectra()
 
 

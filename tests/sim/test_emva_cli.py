@@ -15,9 +15,9 @@ from uwlab.experiments.dataset import Dataset
 from uwlab.experiments.emva.simulate import simulate_photon_transfer
 from uwlab.model.sensor import load_sensor_profile
 
-from tests.sim.conftest import EXAMPLE
+from tests.sim.conftest import EXAMPLE, ROOT
+from tests.sim.plans import write_plan
 
-ROOT = Path(__file__).resolve().parents[2]
 # The result names of the EMVA 1288 reference implementation (github.com/EMVA1288/emva1288,
 # doc/datasets/datasets_results.rst and the emva1288 tags of process/results.py), by section.
 REFERENCE_NAMES = {
@@ -195,37 +195,19 @@ def test_shipped_plan_on_the_bench_measures_the_true_quantum_efficiency(tmp_path
     assert doc["dark_current_exposures"] >= 6
 
 
-FRAMES_PLAN = """
-name = "emva-frames"
-rig = "{rig}"
-[camera]
-backend = "aravis"
-id = "blackfly-s"
-pixel_format = "Mono12"
-window = [1200, 1000, 48, 40]
-[instruments]
-light_port = "/dev/ttyUSB0"
-spectrometer_port = "/dev/ttyUSB1"
-[defaults]
-sensor = "imx250m"
-lens = "none"
-black_level_dn = 32
-frames_per_point = 2
-dark = "point"
-dark_frames = 2
-save_frames = true
-[[sweep]]
-id = "photon-transfer"
-kind = "exposure"
-values = {{ start = 20, stop = 4600, num = 16, spacing = "linear" }}
-spectrometer = ["sensor"]
-spectrometer_integration_ms = 10
-[[sweep]]
-id = "dark-current"
-kind = "dark"
-values = {{ start = 500000, stop = 3000000, num = 6, spacing = "linear" }}
-dark = "none"
-"""
+# The bench's photon-transfer and dark-current sweeps, their frames saved (`save_frames`).
+FRAMES_PLAN = {
+    "rig": ROOT / "configs" / "rigs" / "sim-emva-bench.toml",
+    "camera": {"backend": "aravis", "id": "blackfly-s", "pixel_format": "Mono12", "window": [1200, 1000, 48, 40]},
+    "instruments": {"light_port": "/dev/ttyUSB0", "spectrometer_port": "/dev/ttyUSB1"},
+    "defaults": {"sensor": "imx250m", "lens": "none", "black_level_dn": 32, "frames_per_point": 2, "dark": "point",
+                 "dark_frames": 2, "save_frames": True},
+    "sweeps": [{"id": "photon-transfer", "kind": "exposure",
+                "values": {"start": 20, "stop": 4600, "num": 16, "spacing": "linear"}, "spectrometer": ["sensor"],
+                "spectrometer_integration_ms": 10},
+               {"id": "dark-current", "kind": "dark",
+                "values": {"start": 500000, "stop": 3000000, "num": 6, "spacing": "linear"}, "dark": "none"}],
+}
 
 
 def test_export_writes_the_recorded_frames(tmp_path, capsys):
@@ -234,8 +216,7 @@ def test_export_writes_the_recorded_frames(tmp_path, capsys):
     from uwlab.experiments.emva.descriptor import photon_transfer_from_descriptor
     from uwlab.experiments.emva.from_dataset import load_dataset_input
 
-    plan = tmp_path / "plan.toml"
-    plan.write_text(FRAMES_PLAN.format(rig=ROOT / "configs" / "rigs" / "sim-emva-bench.toml"))
+    plan = write_plan(tmp_path / "plan.toml", "emva-frames", **FRAMES_PLAN)
     data = tmp_path / "data"
     assert main(["sweep", str(plan), "--sim", "--out", str(data)]) == 0
     capsys.readouterr()

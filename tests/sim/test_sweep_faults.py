@@ -4,7 +4,6 @@ sweep never reads, and the images' physics. The heavy campaign is benchmarks/fau
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -15,55 +14,34 @@ from uwlab.drivers.sim.serial_sim import SerialRig, SerialSimSettings
 from uwlab.errors import DeviceError
 from uwlab.experiments.acquisition.fault_campaign import FaultInjector, camera_outage, serial_restart, wrong_points
 from uwlab.experiments.acquisition.plan import load_plan
-from uwlab.experiments.acquisition.rigs import HardwareRig, SimRig
+from uwlab.experiments.acquisition.rigs import HardwareRig
 from uwlab.experiments.acquisition.sweep import SweepRunner
 from uwlab.experiments.dataset import Dataset
 from uwlab.experiments.dataset_frames import read_frame
+from tests.sim.conftest import SIM_TANK
 from tests.sim.gige_server import Server
+from tests.sim.plans import camera, record, write_plan
 
-ROOT = Path(__file__).resolve().parents[2]
-RIG = ROOT / "configs" / "rigs" / "sim-tank.toml"
-HEADER = f"""
-name = "faults"
-rig = "{RIG}"
-[camera]
-pixel_format = "Mono12"
-window = [1192, 1000, 64, 48]
-[defaults]
-black_level_dn = 32
-frames_per_point = 4
-"""
-LEVELS = """
-[[sweep]]
-id = "levels"
-kind = "light-level"
-exposure_us = 400
-values = { start = 0.4, stop = 1.0, num = NUM }
-spectrometer = ["target"]
-dark = "point"
-"""
-EXPOSURES = """
-[[sweep]]
-id = "exposures"
-kind = "exposure"
-values = { start = 50, stop = 400, num = NUM }
-spectrometer = ["target"]
-dark = "point"
-"""
+DEFAULTS = {"black_level_dn": 32, "frames_per_point": 4}
 
 
-@pytest.fixture(scope="module")
-def rig():
-    with SimRig(RIG) as simulated:
-        yield simulated
+def levels(num: int, **settings) -> dict:
+    return {"id": "levels", "kind": "light-level", "exposure_us": 400,
+            "values": {"start": 0.4, "stop": 1.0, "num": num}, "spectrometer": ["target"], "dark": "point", **settings}
 
 
-def sweep(tmp_path: Path, rig, body: str, name: str, header: str = HEADER) -> pd.DataFrame:
-    (tmp_path / f"{name}.toml").write_text(header + body)
-    plan = load_plan(tmp_path / f"{name}.toml")
-    data = Dataset.create(tmp_path / name, plan.raw, plan_sha256=plan.sha256, sim=True)
-    SweepRunner(plan, data, rig).run()
-    points = Dataset.open(tmp_path / name).points()
+def exposures(num: int) -> dict:
+    return {"id": "exposures", "kind": "exposure", "values": {"start": 50, "stop": 400, "num": num},
+            "spectrometer": ["target"], "dark": "point"}
+
+
+def plan_file(path, sweep: dict, **tables):
+    return write_plan(path, "faults", [sweep], **{"camera": camera(64, 48), "defaults": DEFAULTS, **tables})
+
+
+def sweep(tmp_path, rig, table: dict, name: str) -> pd.DataFrame:
+    plan = load_plan(plan_file(tmp_path / f"{name}.toml", table))
+    points = record(plan, tmp_path / name, rig).points()
     assert len(points) == plan.total_points()
     return points
 
@@ -99,8 +77,8 @@ def test_the_truth_check_flags_what_the_logs_contradict():
     assert len(wrong_points(pd.DataFrame([{**row, "light_level": 0.6}]), light, spectrometer)) == 3
 
 
-def test_a_light_restart_inside_a_point_makes_the_sweep_measure_it_again(tmp_path, rig, monkeypatch):
-    spectrometer, serial = rig.spectrometer, rig.serial_rig
+def test_a_light_restart_inside_a_point_makes_the_sweep_measure_it_again(tmp_path, sim_rig, monkeypatch):
+    spectrometer, serial = sim_rig.spectrometer, sim_rig.serial_rig
     read, calls = spectrometer.read_spectrum, []
 
     def read_while_the_light_restarts():
@@ -111,7 +89,7 @@ def test_a_light_restart_inside_a_point_makes_the_sweep_measure_it_again(tmp_pat
         return read()
 
     monkeypatch.setattr(spectrometer, "read_spectrum", read_while_the_light_restarts)
-    points = sweep(tmp_path, rig, LEVELS.replace("NUM", "4") + "save_frames = true\n", "restart")
+    points = sweep(tmp_path, sim_rig, levels(4, save_frames=True), "restart")
     assert points["attempts"].tolist().count(2) == 1 and set(points["attempts"]) == {1, 2}
     assert truth_violations(serial, points) == [] and gamma_spread(points) < 0.01
     data = Dataset.open(tmp_path / "restart")
@@ -121,51 +99,50 @@ def test_a_light_restart_inside_a_point_makes_the_sweep_measure_it_again(tmp_pat
         assert len(kept.dark) == row.dark_frames
 
 
-def test_a_read_back_that_keeps_disagreeing_stops_the_sweep_with_one_error(tmp_path, rig, monkeypatch):
-    readback = rig.light.readback
-    monkeypatch.setattr(rig.light, "readback", lambda: LightReadback(readback().on, 0.123))
-    (tmp_path / "p.toml").write_text(HEADER + LEVELS.replace("NUM", "3"))
-    plan = load_plan(tmp_path / "p.toml")
+def test_a_read_back_that_keeps_disagreeing_stops_the_sweep_with_one_error(tmp_path, sim_rig, monkeypatch):
+    readback = sim_rig.light.readback
+    monkeypatch.setattr(sim_rig.light, "readback", lambda: LightReadback(readback().on, 0.123))
+    plan = load_plan(plan_file(tmp_path / "p.toml", levels(3)))
     data = Dataset.create(tmp_path / "d", plan.raw, plan_sha256=plan.sha256, sim=True)
     with pytest.raises(DeviceError) as info:
-        SweepRunner(plan, data, rig).run()
+        SweepRunner(plan, data, sim_rig).run()
     assert str(info.value).startswith("sweep levels point 0: read-backs disagree after 3 attempts (light reads back "
                                       "on=True level=0.123, want on=True level=0.4)")
     assert len(Dataset.open(tmp_path / "d").points()) == 0
 
 
-def test_serial_restarts_at_random_moments_never_leave_a_wrong_point(tmp_path, rig):
-    serial = rig.serial_rig
+def test_serial_restarts_at_random_moments_never_leave_a_wrong_point(tmp_path, sim_rig):
+    serial = sim_rig.serial_rig
     faults = [serial_restart(serial, "light"), serial_restart(serial, "spectrometer")]
     trials, runs = [], 0
     while len(trials) < 20:  # the issue's ≥ 20 restarts, each at a random moment of a sweep
         runs += 1
         with FaultInjector(faults, seed=runs, every_s=(0.2, 1.0)) as injector:
-            points = sweep(tmp_path, rig, LEVELS.replace("NUM", "48"), f"run{runs}")
+            points = sweep(tmp_path, sim_rig, levels(48), f"run{runs}")
         trials += injector.trials
         assert truth_violations(serial, points) == [], injector.trials
         assert gamma_spread(points) < 0.01
         assert runs < 12
 
 
-def test_camera_outages_within_the_limit_complete_the_sweep(tmp_path, rig, monkeypatch):
-    monkeypatch.setattr(rig, "camera", None)  # no camera of an earlier sweep: the faults wait for this one's
-    with FaultInjector([camera_outage(lambda: rig.camera, (0.5, 3.0))], seed=5, every_s=(0.3, 1.0),
+def test_camera_outages_within_the_limit_complete_the_sweep(tmp_path, sim_rig, monkeypatch):
+    monkeypatch.setattr(sim_rig, "camera", None)  # no camera of an earlier sweep: the faults wait for this one's
+    with FaultInjector([camera_outage(lambda: sim_rig.camera, (0.5, 3.0))], seed=5, every_s=(0.3, 1.0),
                        limit=3) as injector:
         started = time.monotonic()
-        points = sweep(tmp_path, rig, EXPOSURES.replace("NUM", "24"), "camera")
+        points = sweep(tmp_path, sim_rig, exposures(24), "camera")
         finished_ns = time.time_ns()
     assert len(injector.trials) == 3 and all(t["t_ns"] < finished_ns for t in injector.trials)
     assert time.monotonic() - started > sum(t["down_s"] for t in injector.trials)
-    assert rig.camera.stats.reconnects >= 2
+    assert sim_rig.camera.stats.reconnects >= 2
     per_us = points["signal_dn"] / points["exposure_us"]
     assert float(per_us.std() / per_us.mean()) < 0.01
-    assert truth_violations(rig.serial_rig, points) == []
+    assert truth_violations(sim_rig.serial_rig, points) == []
 
 
 def test_a_sweep_over_gige_and_serial_ptys_rides_out_a_camera_restart_and_a_light_restart(tmp_path):
     (tmp_path / "serial").mkdir()
-    with SerialRig(tmp_path / "serial", SerialSimSettings.from_config(RIG)) as serial:
+    with SerialRig(tmp_path / "serial", SerialSimSettings.from_config(SIM_TANK)) as serial:
         servers = [Server("--rig-state", str(serial.rig_state_path))]
 
         def restart_camera(rng):
@@ -174,12 +151,10 @@ def test_a_sweep_over_gige_and_serial_ptys_rides_out_a_camera_restart_and_a_ligh
             servers.append(servers[-1].restarted())
             return {"fault": "camera restart"}
 
-        header = HEADER.replace('[camera]\n', f'[camera]\nbackend = "aravis"\nid = "{servers[0].address}"\n'
-                                              f'timeout_s = 2.0\n')
-        header += f'[instruments]\nlight_port = "{serial.ports["light"]}"\n' \
-                  f'spectrometer_port = "{serial.ports["spectrometer"]}"\nreopen_s = 30\n'
-        (tmp_path / "hw.toml").write_text(header + EXPOSURES.replace("NUM", "16"))
-        plan = load_plan(tmp_path / "hw.toml")
+        plan = load_plan(plan_file(tmp_path / "hw.toml", exposures(16),
+                                   camera=camera(64, 48, backend="aravis", id=servers[0].address, timeout_s=2.0),
+                                   instruments={"light_port": serial.ports["light"],
+                                                "spectrometer_port": serial.ports["spectrometer"], "reopen_s": 30}))
         data = Dataset.create(tmp_path / "hw", plan.raw, plan_sha256=plan.sha256, sim=False)
         try:
             with HardwareRig(plan, confirm=lambda message: None) as hardware:

@@ -1,52 +1,23 @@
 """Raw frames of a sweep on the simulated rig (``save_frames = true``): every frame a point was computed from, bright
 and dark, stored with its settings, found through `Dataset.frames`."""
 import os
-from pathlib import Path
 
 import numpy as np
 
 from uwlab.experiments.acquisition.plan import load_plan
-from uwlab.experiments.acquisition.rigs import SimRig
-from uwlab.experiments.acquisition.sweep import SweepRunner
-from uwlab.experiments.dataset import Dataset
 from uwlab.experiments.dataset_check import check
 from uwlab.experiments.dataset_frames import read_frame
 
-ROOT = Path(__file__).resolve().parents[2]
-PLAN = f"""
-name = "frames"
-rig = "{ROOT / 'configs' / 'rigs' / 'sim-tank.toml'}"
-[camera]
-pixel_format = "Mono12"
-window = [1192, 1000, 24, 20]
-[defaults]
-black_level_dn = 32
-frames_per_point = 4
-dark_frames = 2
-save_frames = true
-roi = [2, 3, 16, 12]
-[[sweep]]
-id = "per-point"
-kind = "exposure"
-values = [100, 300]
-dark = "point"
-[[sweep]]
-id = "block"
-kind = "light-level"
-values = [0.5, 1.0]
-exposure_us = 200
-dark = "block"
-"""
+from tests.sim.plans import camera, record, write_plan
+
+DEFAULTS = {"black_level_dn": 32, "frames_per_point": 4, "dark_frames": 2, "save_frames": True, "roi": [2, 3, 16, 12]}
+SWEEPS = [{"id": "per-point", "kind": "exposure", "values": [100, 300], "dark": "point"},
+          {"id": "block", "kind": "light-level", "values": [0.5, 1.0], "exposure_us": 200, "dark": "block"}]
 
 
-def test_saved_frames_are_the_frames_each_point_was_computed_from(tmp_path):
-    path = tmp_path / "plan.toml"
-    path.write_text(PLAN)
-    plan = load_plan(path)
-    with Dataset.create(tmp_path / "d", plan.raw, plan_sha256=plan.sha256, sim=True) as data, \
-            SimRig(plan.rig_path) as rig:
-        SweepRunner(plan, data, rig).run()
-    data = Dataset.open(tmp_path / "d")
+def test_saved_frames_are_the_frames_each_point_was_computed_from(tmp_path, sim_rig):
+    plan = load_plan(write_plan(tmp_path / "plan.toml", "frames", SWEEPS, camera=camera(24, 20), defaults=DEFAULTS))
+    data = record(plan, tmp_path / "d", sim_rig)
     assert check(data).ok
     for point in data.points().itertuples():
         frames = data.frames(point.sweep_id, point.point_index)

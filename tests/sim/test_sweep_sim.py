@@ -1,7 +1,6 @@
 """Sweeps on the simulated rig (serial light and spectrometer on pseudo-terminals, in-process camera):
 statistics against the EMVA 1288 model, the light path, apertures, device loss, disk full, resume."""
 import errno
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,46 +10,27 @@ from uwlab.errors import ConfigError
 from uwlab.experiments import dataset_store
 from uwlab.experiments.dataset import Dataset, DatasetWriteError
 from uwlab.experiments.acquisition.plan import load_plan
-from uwlab.experiments.acquisition.rigs import HardwareRig, SimRig
+from uwlab.experiments.acquisition.rigs import HardwareRig
 from uwlab.experiments.acquisition.sweep import SweepRunner, check_resumable, open_for_resume
 
-ROOT = Path(__file__).resolve().parents[2]
-HEADER = f"""
-name = "sim-unit"
-rig = "{ROOT / 'configs' / 'rigs' / 'sim-tank.toml'}"
-[camera]
-pixel_format = "Mono12"
-window = [1192, 1000, 64, 48]
-[defaults]
-black_level_dn = 32
-frames_per_point = 4
-"""
-EXPOSURE = """
-[[sweep]]
-id = "exposure"
-kind = "exposure"
-values = [50, 100, 200, 300, 400]
-spectrometer = ["target", "camera"]
-"""
+from tests.sim.plans import camera, record, write_plan
+
+EXPOSURE = {"id": "exposure", "kind": "exposure", "values": [50, 100, 200, 300, 400],
+            "spectrometer": ["target", "camera"]}
 
 
-@pytest.fixture(scope="module")
-def rig():
-    with SimRig(ROOT / "configs" / "rigs" / "sim-tank.toml") as simulated:
-        yield simulated
+def plan_file(path, *sweeps: dict):
+    return write_plan(path, "sim-unit", sweeps, camera=camera(64, 48),
+                      defaults={"black_level_dn": 32, "frames_per_point": 4})
 
 
-def run(tmp_path, rig, sweeps: str, name="d"):
-    path = tmp_path / f"{name}.toml"
-    path.write_text(HEADER + sweeps)
-    plan = load_plan(path)
-    data = Dataset.create(tmp_path / name, plan.raw, plan_sha256=plan.sha256, sim=True)
-    SweepRunner(plan, data, rig).run()
-    return plan, Dataset.open(tmp_path / name)
+def run(tmp_path, rig, *sweeps: dict, name="d"):
+    plan = load_plan(plan_file(tmp_path / f"{name}.toml", *sweeps))
+    return plan, record(plan, tmp_path / name, rig)
 
 
-def test_exposure_sweep_agrees_with_the_emva_model(tmp_path, rig):
-    _, data = run(tmp_path, rig, EXPOSURE)
+def test_exposure_sweep_agrees_with_the_emva_model(tmp_path, sim_rig):
+    _, data = run(tmp_path, sim_rig, EXPOSURE)
     points = data.points()
     truth = data.metadata["sim_truth"]["exposure"]
     k = truth["K_dn_per_e_output"]
@@ -76,16 +56,15 @@ def test_exposure_sweep_agrees_with_the_emva_model(tmp_path, rig):
     assert data.metadata["finished_utc"] is not None
 
 
-def test_saturation_is_flagged(tmp_path, rig):
-    _, data = run(tmp_path, rig, '[[sweep]]\nid = "s"\nkind = "exposure"\nvalues = [100, 5000]\n')
+def test_saturation_is_flagged(tmp_path, sim_rig):
+    _, data = run(tmp_path, sim_rig, {"id": "s", "kind": "exposure", "values": [100, 5000]})
     points = data.points()
     assert points["saturated"].tolist() == [False, True]
     assert points["saturated_fraction"].iloc[1] > 0.9
 
 
-def test_light_level_sweep_dims_the_images_through_the_serial_light(tmp_path, rig):
-    _, data = run(tmp_path, rig, '[[sweep]]\nid = "l"\nkind = "light-level"\nvalues = [0.25, 0.5, 1.0]\n'
-                                 'exposure_us = 300\n')
+def test_light_level_sweep_dims_the_images_through_the_serial_light(tmp_path, sim_rig):
+    _, data = run(tmp_path, sim_rig, {"id": "l", "kind": "light-level", "values": [0.25, 0.5, 1.0], "exposure_us": 300})
     points = data.points()
     gamma = data.metadata["sim_truth"]["l"]["light_gamma"]
     ratios = points["signal_dn"].to_numpy() / points["signal_dn"].iloc[-1]
@@ -93,38 +72,37 @@ def test_light_level_sweep_dims_the_images_through_the_serial_light(tmp_path, ri
     assert points["light_level"].tolist() == [0.25, 0.5, 1.0]
 
 
-def test_aperture_sweep_follows_the_inverse_square_of_the_f_number(tmp_path, rig):
-    _, data = run(tmp_path, rig, '[[sweep]]\nid = "a"\nkind = "aperture"\nvalues = [4.0, 8.0]\nexposure_us = 2000\n'
-                                 'dark = "block"\nroi = "aruco"\n'
-                                 'lens = {focal_length_mm = 12, f_number = 4.0, f_number_range = [1.4, 16]}\n')
+def test_aperture_sweep_follows_the_inverse_square_of_the_f_number(tmp_path, sim_rig):
+    _, data = run(tmp_path, sim_rig, {"id": "a", "kind": "aperture", "values": [4.0, 8.0], "exposure_us": 2000,
+                                       "dark": "block", "roi": "aruco",
+                                       "lens": {"focal_length_mm": 12, "f_number": 4.0, "f_number_range": [1.4, 16]}})
     points = data.points()
     assert points["signal_dn"].iloc[1] / points["signal_dn"].iloc[0] == pytest.approx(0.25, rel=0.03)
     assert points["lens_label"].tolist() == ["12mm-F4.0", "12mm-F8.0"]
     assert points["roi_w"].iloc[0] == 64  # the board covers the whole window
 
 
-def test_device_lost_mid_sweep_reconnects_and_completes(tmp_path, rig, monkeypatch):
+def test_device_lost_mid_sweep_reconnects_and_completes(tmp_path, sim_rig, monkeypatch):
     cameras = []
-    original = rig.open_camera
+    original = sim_rig.open_camera
 
     def open_and_keep(sweep):
         camera = original(sweep)
         cameras.append(camera)
         return camera
 
-    monkeypatch.setattr(rig, "faults", SimFaults(lost_after=7, failed_reconnects=1))
-    monkeypatch.setattr(rig, "open_camera", open_and_keep)
-    _, data = run(tmp_path, rig, '[[sweep]]\nid = "e"\nkind = "exposure"\nvalues = [100, 200, 300]\n')
+    monkeypatch.setattr(sim_rig, "faults", SimFaults(lost_after=7, failed_reconnects=1))
+    monkeypatch.setattr(sim_rig, "open_camera", open_and_keep)
+    _, data = run(tmp_path, sim_rig, {"id": "e", "kind": "exposure", "values": [100, 200, 300]})
     assert cameras[0].stats.reconnects == 1
     points = data.points()
     assert len(points) == 3 and (points["exposure_us_readback"] == points["exposure_us"]).all()
     np.testing.assert_allclose(points["signal_dn"] / points["exposure_us"], points["signal_dn"].iloc[0] / 100, rtol=0.02)
 
 
-def test_disk_full_keeps_the_points_and_resume_completes(tmp_path, rig, monkeypatch):
-    path = tmp_path / "p.toml"
-    path.write_text(HEADER + '[[sweep]]\nid = "e"\nkind = "exposure"\nvalues = [100, 200, 300, 400]\ndark = "none"\n')
-    plan = load_plan(path)
+def test_disk_full_keeps_the_points_and_resume_completes(tmp_path, sim_rig, monkeypatch):
+    plan = load_plan(plan_file(tmp_path / "p.toml", {"id": "e", "kind": "exposure", "values": [100, 200, 300, 400],
+                                                     "dark": "none"}))
     data = Dataset.create(tmp_path / "d", plan.raw, plan_sha256=plan.sha256, sim=True)
     parts = []
     real_write = dataset_store.write_durable
@@ -138,19 +116,18 @@ def test_disk_full_keeps_the_points_and_resume_completes(tmp_path, rig, monkeypa
 
     monkeypatch.setattr(dataset_store, "write_durable", fill_up)
     with pytest.raises(DatasetWriteError, match="No space left on device.*--resume"):
-        SweepRunner(plan, data, rig).run()
+        SweepRunner(plan, data, sim_rig).run()
     monkeypatch.undo()
     data.close()
     assert Dataset.open(tmp_path / "d").completed() == {("e", 0), ("e", 1)}
     with open_for_resume(tmp_path / "d", plan, sim=True) as resumed:
-        SweepRunner(plan, resumed, rig).run()
+        SweepRunner(plan, resumed, sim_rig).run()
     assert sorted(Dataset.open(tmp_path / "d").points()["point_index"]) == [0, 1, 2, 3]
 
 
-def test_foreign_dataset_is_refused(tmp_path, rig):
-    plan, data = run(tmp_path, rig, '[[sweep]]\nid = "e"\nkind = "exposure"\nvalues = [100]\ndark = "none"\n')
-    other = tmp_path / "other.toml"
-    other.write_text(HEADER + '[[sweep]]\nid = "e"\nkind = "exposure"\nvalues = [100, 200]\ndark = "none"\n')
+def test_foreign_dataset_is_refused(tmp_path, sim_rig):
+    plan, data = run(tmp_path, sim_rig, {"id": "e", "kind": "exposure", "values": [100], "dark": "none"})
+    other = plan_file(tmp_path / "other.toml", {"id": "e", "kind": "exposure", "values": [100, 200], "dark": "none"})
     with pytest.raises(ConfigError, match="different plan"):
         check_resumable(data, load_plan(other), sim=True)
     with pytest.raises(ConfigError, match="simulated rig"):
@@ -158,10 +135,9 @@ def test_foreign_dataset_is_refused(tmp_path, rig):
 
 
 def test_manual_aperture_prompts_the_operator_or_refuses(tmp_path):
-    path = tmp_path / "hw.toml"
-    path.write_text(HEADER + '[[sweep]]\nid = "a"\nkind = "aperture"\nvalues = [4.0, 8.0]\ndark = "none"\n'
-                             'lens = {focal_length_mm = 12, f_number = 4.0}\n')
-    plan = load_plan(path)
+    manual = {"id": "a", "kind": "aperture", "values": [4.0, 8.0], "dark": "none",
+              "lens": {"focal_length_mm": 12, "f_number": 4.0}}
+    plan = load_plan(plan_file(tmp_path / "hw.toml", manual))
     data = Dataset.create(tmp_path / "d", plan.raw, plan_sha256=plan.sha256)
     with HardwareRig(plan, confirm=None) as rig, pytest.raises(ConfigError, match="--non-interactive"):
         SweepRunner(plan, data, rig).run()
