@@ -11,12 +11,11 @@ do not stop, so as root that is ``/sys/fs`` (sysfs refuses new files to everyone
 """
 from __future__ import annotations
 
+import math
 import os
 import signal
 import subprocess
-import sys
 import tempfile
-import time
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -28,45 +27,17 @@ from uwlab.experiments.dataset import Dataset
 from uwlab.experiments.emva.simulate import simulate_photon_transfer
 from uwlab.model.sensor import load_sensor_profile
 
+from tests.sim.cli_process import finish, run, uwlab, wait_until
 from tests.sim.conftest import EXAMPLE, ROOT
+from tests.sim.plans import CAMPAIGN_DEFAULTS, write_campaign
 
 SEKONIC = ROOT / "tests" / "sim" / "data" / "sekonic_c7000_synthetic.csv"
 DOME = ROOT / "configs" / "design" / "dome-8mm.toml"
-TIMEOUT_S = 180
-PLAN = f"""
-name = "bad-inputs"
-rig = "{ROOT / 'configs' / 'rigs' / 'sim-tank.toml'}"
-[defaults]
-kind = "exposure"
-values = {{ start = 20, stop = 1500, num = 8, spacing = "log" }}
-frames_per_point = 2
-dark = "point"
-dark_frames = 2
-spectrometer = ["target"]
-spectrometer_integration_ms = 10
-[[sweep]]
-id = "imx250-30mm-f2"
-sensor = "imx250m"
-lens = {{ focal_length_mm = 30, f_number = 2.0, f_number_range = [2.0, 16.0] }}
-camera = {{ id = "blackfly-s", pixel_format = "Mono12", window = [1192, 1000, 32, 24] }}
-"""
 
 
-def uwlab(*args, **kwargs) -> subprocess.Popen:
-    argv = [a if isinstance(a, bytes) else str(a) for a in args]
-    return subprocess.Popen([sys.executable, "-m", "uwlab.cli.main", *argv], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, start_new_session=True, **kwargs)
-
-
-def finish(process: subprocess.Popen, timeout_s: float = TIMEOUT_S) -> tuple[int, str, str]:
-    """Exit code, stdout and stderr (decoded with backslash escapes); the process group is killed if it hangs."""
-    try:
-        out, err = process.communicate(timeout=timeout_s)
-    finally:
-        if process.poll() is None:
-            os.killpg(process.pid, signal.SIGKILL)
-            process.communicate()
-    return process.returncode, out.decode(errors="backslashreplace"), err.decode(errors="backslashreplace")
+def write_sweep_plan(path: Path, **defaults) -> Path:
+    """The rows' sweep plan: the small campaign's first sweep with spectra at the target only; ``defaults`` changed."""
+    return write_campaign(path, "bad-inputs", sweeps=1, spectrometer=["target"], **defaults)
 
 
 def assert_one_line(err: str, out: str, *names: str) -> None:
@@ -96,10 +67,9 @@ def ctx(tmp_path_factory, read_only_dir):
     """Inputs shared by the rows: a simulated sweep's dataset (fit, report), an EMVA photon-transfer dataset, an
     empty dataset, the plan, an existing file."""
     base = tmp_path_factory.mktemp("bad-inputs")
-    plan = base / "plan.toml"
-    plan.write_text(PLAN)
+    plan = write_sweep_plan(base / "plan.toml")
     sweep = base / "sweep"
-    code, out, err = finish(uwlab("sweep", plan, "--sim", "--out", sweep, "--non-interactive"))
+    code, out, err = run("sweep", plan, "--sim", "--out", sweep, "--non-interactive")
     assert code == 0, err
     truth = SimTruth.from_sensor_profile(load_sensor_profile("imx250m"), resolution_px=(32, 32))
     emva = base / "emva"
@@ -116,11 +86,9 @@ def ctx(tmp_path_factory, read_only_dir):
     short.write_text("".join(line for line in sekonic if not line.startswith("Spectral Data"))
                      + "".join([line for line in sekonic if line.startswith("Spectral Data")][:3]))
 
-    def plan_with(old: str, new: str) -> Path:
-        assert old in PLAN
-        path = base / f"plan-{abs(hash(new))}.toml"
-        path.write_text(PLAN.replace(old, new))
-        return path
+    def plan_with(**defaults) -> Path:
+        assert set(defaults) <= set(CAMPAIGN_DEFAULTS), defaults  # a changed value, not an unknown key
+        return write_sweep_plan(base / f"plan-{abs(hash(repr(defaults)))}.toml", **defaults)
 
     return SimpleNamespace(plan=plan, sweep=sweep, emva=emva, empty=empty, existing=existing, ro=read_only_dir,
                            plan_with=plan_with, stray=stray, short=short, base=base)
@@ -165,13 +133,14 @@ ROWS = [
     ("sweep --out read-only", lambda c, s: ["sweep", c.plan, "--sim", "--out", c.ro / "dataset"], ["--out"]),
     ("sweep --resume read-only", lambda c, s: ["sweep", c.plan, "--sim", "--resume", c.ro], ["--resume"]),
     ("frames_per_point 200000",
-     lambda c, s: ["sweep", c.plan_with("frames_per_point = 2", "frames_per_point = 200000"), "--sim", "--out",
-                   s / "d"], ["frames_per_point", "200000"]),
+     lambda c, s: ["sweep", c.plan_with(frames_per_point=200000), "--sim", "--out", s / "d"],
+     ["frames_per_point", "200000"]),
     ("dark_frames 999999",
-     lambda c, s: ["sweep", c.plan_with("dark_frames = 2", "dark_frames = 999999"), "--sim", "--out", s / "d"],
+     lambda c, s: ["sweep", c.plan_with(dark_frames=999999), "--sim", "--out", s / "d"],
      ["dark_frames", "999999"]),
     ("range to inf",
-     lambda c, s: ["sweep", c.plan_with("stop = 1500", "stop = inf"), "--sim", "--out", s / "d"], ["stop", "inf"]),
+     lambda c, s: ["sweep", c.plan_with(values={**CAMPAIGN_DEFAULTS["values"], "stop": math.inf}), "--sim", "--out",
+                   s / "d"], ["stop", "inf"]),
     ("design --out read-only", lambda c, s: ["design", EXAMPLE, "--out", c.ro / "design.parquet"],
      ["--out", "cannot write"]),
     ("design grid --out read-only",
@@ -211,7 +180,7 @@ def test_bad_input_is_one_line_and_exit_2(ctx, tmp_path, argv, names):
     scratch = tmp_path / "scratch"
     scratch.mkdir()
     before = ctx.existing.read_text()
-    code, out, err = finish(uwlab(*argv(ctx, scratch)))
+    code, out, err = run(*argv(ctx, scratch))
     assert code == 2, err
     assert_one_line(err, out, *names)
     assert list(scratch.iterdir()) == [], "written before refusing"
@@ -222,8 +191,8 @@ def test_a_second_gige_server_on_the_same_address_is_refused():
     address = f"127.0.{os.getpid() % 200 + 1}.251"
     first = uwlab("sim", "camera", "--gige", "--json", "--address", address)
     try:
-        assert address in first.stdout.readline().decode()
-        code, out, err = finish(uwlab("sim", "camera", "--gige", "--address", address))
+        assert address in first.stdout.readline()
+        code, out, err = run("sim", "camera", "--gige", "--address", address)
         assert code == 2
         assert_one_line(err, out, address, "in use", f"process {first.pid}")
         assert first.poll() is None, "the first server must keep serving"
@@ -247,16 +216,6 @@ def _children(pid: int) -> list[tuple[int, str]]:
     return found
 
 
-def _wait_until(condition, process: subprocess.Popen, what: str) -> None:
-    deadline = time.monotonic() + TIMEOUT_S
-    while time.monotonic() < deadline:
-        if condition():
-            return
-        assert process.poll() is None, f"exited ({process.returncode}) before {what}"
-        time.sleep(0.005)
-    raise AssertionError(f"timed out waiting until {what}")
-
-
 def assert_interrupted(process: subprocess.Popen, verb: str) -> None:
     code, out, err = finish(process)
     assert code == 130, err
@@ -271,14 +230,14 @@ def test_ctrl_c_at_start_up():
     def importing() -> bool:
         return "_multiarray_umath" in Path(f"/proc/{process.pid}/maps").read_text()
 
-    _wait_until(importing, process, "numpy is being imported")
+    wait_until(importing, process, "numpy is being imported", every_s=0.005)
     process.send_signal(signal.SIGINT)
     assert_interrupted(process, "sim")
 
 
 def test_ctrl_c_stops_sim_serial_and_removes_its_ports():
     process = uwlab("sim", "serial", "--json")
-    ports = process.stdout.readline().decode()
+    ports = process.stdout.readline()
     assert '"light"' in ports
     os.killpg(process.pid, signal.SIGINT)  # as a terminal does: the simulator processes get it too
     assert_interrupted(process, "sim")
@@ -287,14 +246,14 @@ def test_ctrl_c_stops_sim_serial_and_removes_its_ports():
 
 def test_ctrl_c_stops_sim_camera():
     process = uwlab("sim", "camera", "--gige", "--json", "--address", f"127.0.{os.getpid() % 200 + 1}.250")
-    assert '"address"' in process.stdout.readline().decode()
+    assert '"address"' in process.stdout.readline()
     os.killpg(process.pid, signal.SIGINT)
     assert_interrupted(process, "sim")
 
 
 def test_ctrl_c_stops_explore():
     process = uwlab("explore", "--no-browser", "--json", "--port", "0")
-    assert '"url"' in process.stdout.readline().decode()
+    assert '"url"' in process.stdout.readline()
     os.killpg(process.pid, signal.SIGINT)
     assert_interrupted(process, "explore")
 
@@ -302,13 +261,12 @@ def test_ctrl_c_stops_explore():
 def test_ctrl_c_while_the_sweeps_simulator_processes_start(tmp_path):
     """The terminal's SIGINT reaches the sweep and its simulator processes while these still import: no traceback
     from any of them, one line from the sweep."""
-    plan = tmp_path / "plan.toml"
-    plan.write_text(PLAN)
+    plan = write_sweep_plan(tmp_path / "plan.toml")
     process = uwlab("sweep", plan, "--sim", "--out", tmp_path / "d")
 
     def simulator_starting() -> bool:
         return any("spawn_main" in cmdline for _, cmdline in _children(process.pid))
 
-    _wait_until(simulator_starting, process, "a simulator process was spawned")
+    wait_until(simulator_starting, process, "a simulator process was spawned", every_s=0.005)
     os.killpg(process.pid, signal.SIGINT)
     assert_interrupted(process, "sweep")

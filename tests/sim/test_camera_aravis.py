@@ -3,7 +3,6 @@ from __future__ import annotations
 
 import json
 import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -11,6 +10,7 @@ import pytest
 from uwlab.drivers.camera import Policy, open_camera
 from uwlab.drivers.sim.camera import SensorConfig, sensor_from_rig
 from uwlab.errors import ConfigError, DeviceError
+from tests.sim.cli_process import run
 from tests.sim.gige_server import Server
 
 FAST = Policy(timeout_s=3.0, reconnect_attempts=2, reconnect_delay_s=0.2)
@@ -129,11 +129,10 @@ def test_server_stopped_mid_stream_gives_bounded_reconnect_then_error():
 
 
 def test_grab_cli_over_aravis(server, tmp_path):
-    cmd = [sys.executable, "-m", "uwlab.cli.main", "grab", "--backend", "aravis", "--device", server.address,
-           "--frames", "2", "--roi", "0,0,128,64", "--pixel-format", "Mono16", "--exposure-us", "1500", "--json"]
-    out = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
-    assert out.returncode == 0, out.stderr
-    doc = json.loads(out.stdout)
+    code, out, err = run("grab", "--backend", "aravis", "--device", server.address, "--frames", "2", "--roi",
+                         "0,0,128,64", "--pixel-format", "Mono16", "--exposure-us", "1500", "--json", timeout_s=120)
+    assert code == 0, err
+    doc = json.loads(out)
     assert doc["device"]["backend"] == "aravis" and len(doc["frames"]) == 2
     assert {(f["width"], f["height"], f["pixel_format"], f["exposure_us"]) for f in doc["frames"]} == {
         (128, 64, "Mono16", 1500.0)

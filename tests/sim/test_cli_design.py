@@ -1,12 +1,11 @@
 """`uwlab design` end to end: JSON keys, grids, plots, and one-line errors with exit code 2."""
 import json
-import subprocess
-import sys
 
 import pandas as pd
 import pytest
 
 from uwlab.cli.main import main
+from tests.sim.cli_process import run
 from tests.sim.conftest import EXAMPLE
 
 KEYS = {"effective_focal_length_mm", "fov_deg", "fov_m", "max_exposure_s", "exposure_s", "min_framerate_hz", "dof_m",
@@ -93,6 +92,6 @@ def test_missing_config_file_and_bad_grid(capsys, tmp_path):
 def test_console_script_exit_code_without_traceback(tmp_path):
     bad = tmp_path / "bad.toml"
     bad.write_text(EXAMPLE.read_text().replace("f_number = 2.0", "f_number = -1"))
-    proc = subprocess.run([sys.executable, "-m", "uwlab.cli.main", "design", str(bad)], capture_output=True, text=True)
-    assert proc.returncode == 2
-    assert proc.stderr.strip().splitlines() == [proc.stderr.strip()] and "lens.f_number" in proc.stderr
+    code, _, err = run("design", bad)
+    assert code == 2
+    assert err.strip().splitlines() == [err.strip()] and "lens.f_number" in err

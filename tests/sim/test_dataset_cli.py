@@ -18,45 +18,14 @@ from uwlab.experiments.dataset import Dataset, spectra_frame
 from uwlab.experiments.dataset_check import check
 from uwlab.lockfile import read_holder
 
-ROOT = Path(__file__).resolve().parents[2]
-RIG = ROOT / "configs" / "rigs" / "sim-tank.toml"
-TIMEOUT_S = 180
+from tests.sim.cli_process import finish, points_recorded, run, uwlab, wait_until
+from tests.sim.plans import camera, write_plan
 
 
-def plan_file(tmp_path: Path, points: int, settle_s: float = 0.0, name: str = "plan", extra: str = "") -> Path:
-    path = tmp_path / f"{name}.toml"
-    path.write_text(f'name = "{name}"\nrig = "{RIG}"\n{extra}[camera]\npixel_format = "Mono12"\n'
-                    f'window = [1192, 1000, 16, 16]\n[[sweep]]\nid = "a"\nkind = "exposure"\n'
-                    f'values = {{start = 50, stop = 400, num = {points}}}\nsettle_s = {settle_s}\ndark = "none"\n')
-    return path
-
-
-def uwlab(*args, **kwargs):
-    return subprocess.Popen([sys.executable, "-m", "uwlab.cli.main", *map(str, args)], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, start_new_session=True, **kwargs)
-
-
-def finish(process, timeout=TIMEOUT_S):
-    try:
-        out, err = process.communicate(timeout=timeout)
-    finally:
-        if process.poll() is None:
-            os.killpg(process.pid, signal.SIGKILL)
-            process.communicate()
-    return process.returncode, out, err
-
-
-def wait_until(condition, process, what: str) -> None:
-    deadline = time.monotonic() + TIMEOUT_S
-    while time.monotonic() < deadline and process.poll() is None:
-        if condition():
-            return
-        time.sleep(0.05)
-    raise AssertionError(f"{what} did not happen; exit code {process.poll()}")
-
-
-def points_recorded(out: Path) -> int:
-    return len(Dataset.open(out).completed()) if (out / "metadata.json").exists() else 0
+def plan_file(tmp_path: Path, points: int, settle_s: float = 0.0, name: str = "plan", **tables) -> Path:
+    sweep = {"id": "a", "kind": "exposure", "values": {"start": 50, "stop": 400, "num": points}, "settle_s": settle_s,
+             "dark": "none"}
+    return write_plan(tmp_path / f"{name}.toml", name, [sweep], camera=camera(16, 16), **tables)
 
 
 def one_line(err: str) -> bool:
@@ -96,7 +65,7 @@ def test_ctrl_c_at_start_up_and_while_measuring_exits_130_in_one_line_and_the_da
     code, _, err = finish(measuring)
     assert code == 130 and err == "uwlab sweep: interrupted\n", err
     kept = Dataset.open(out).completed()
-    code, stdout, err = finish(uwlab("sweep", plan, "--sim", "--resume", out, "--json"))
+    code, stdout, err = run("sweep", plan, "--sim", "--resume", out, "--json")
     assert code == 0, err
     assert json.loads(stdout)["state"] == "complete" and Dataset.open(out).completed() >= kept
 
@@ -121,7 +90,7 @@ def test_after_sigkill_the_lock_is_taken_over_and_only_stale_rig_folders_are_rem
                              "print('held', flush=True); time.sleep(600)"], stdout=subprocess.PIPE, text=True)
     try:
         assert live.stdout.readline() == "held\n"
-        code, _, err = finish(uwlab("sweep", plan, "--sim", "--resume", out, env=env))
+        code, _, err = run("sweep", plan, "--sim", "--resume", out, env=env)
         assert code == 0, err
         assert sorted(p.name for p in temp.iterdir()) == ["uwlab-simrig-live", "uwlab-simrig-young"]
     finally:
@@ -152,14 +121,14 @@ def test_resume_into_read_only_output_is_one_line_and_changes_nothing(tmp_path):
 
 
 def test_a_sweep_whose_devices_never_opened_leaves_an_empty_dataset_the_same_command_reuses(tmp_path):
-    hardware = plan_file(tmp_path, points=2, name="hardware", extra='[instruments]\nlight_port = "/nonexistent/tty9"\n')
+    hardware = plan_file(tmp_path, points=2, name="hardware", instruments={"light_port": "/nonexistent/tty9"})
     out = tmp_path / "data"
     for _ in range(2):  # the same command fails the same way: on the device, not on the dataset it left
-        code, _, err = finish(uwlab("sweep", hardware, "--out", out))
+        code, _, err = run("sweep", hardware, "--out", out)
         assert code == 2 and one_line(err) and "/nonexistent/tty9" in err and "--force" not in err, err
-    code, stdout, _ = finish(uwlab("dataset", "show", out))
+    code, stdout, _ = run("dataset", "show", out)
     assert code == 0 and ": empty" in stdout and "finished: no" in stdout and "points 0/2" in stdout
-    code, _, err = finish(uwlab("sweep", plan_file(tmp_path, points=2), "--sim", "--out", out))
+    code, _, err = run("sweep", plan_file(tmp_path, points=2), "--sim", "--out", out)
     assert code == 0, err
     assert len(Dataset.open(out).completed()) == 2
 
@@ -176,22 +145,22 @@ def test_dataset_check_finds_damage_resume_refuses_repair_sets_it_aside_and_resu
     content = bytearray(damaged.read_bytes())
     content[len(content) // 2] ^= 0x10
     damaged.write_bytes(bytes(content))
-    code, stdout, _ = finish(uwlab("dataset", "check", out))
+    code, stdout, _ = run("dataset", "check", out)
     assert code == 1 and damaged.name in stdout and "SHA-256" in stdout
-    code, _, err = finish(uwlab("sweep", plan_path, "--sim", "--resume", out))
+    code, _, err = run("sweep", plan_path, "--sim", "--resume", out)
     assert code == 2 and one_line(err) and "--repair" in err, err
-    code, stdout, err = finish(uwlab("dataset", "check", out, "--repair", "--json"))
+    code, stdout, err = run("dataset", "check", out, "--repair", "--json")
     report = json.loads(stdout)
     assert code == 0 and report["ok"] and report["points"] == {"a": {"done": 2, "total": 4}}, err
     assert list((out / "quarantine").rglob(damaged.name))
-    code, stdout, err = finish(uwlab("sweep", plan_path, "--sim", "--resume", out, "--json"))
+    code, stdout, err = run("sweep", plan_path, "--sim", "--resume", out, "--json")
     assert code == 0 and json.loads(stdout)["state"] == "complete", err
-    code, stdout, _ = finish(uwlab("dataset", "check", "--json", tmp_path / "not-there"))
+    code, stdout, _ = run("dataset", "check", "--json", tmp_path / "not-there")
     assert code == 2
 
 
 @pytest.mark.parametrize("args", [("dataset", "show"), ("dataset", "check"), ("sweep", "PLAN", "--sim", "--resume")])
 def test_a_folder_that_is_not_a_dataset_is_one_line_exit_2(tmp_path, args):
     plan = plan_file(tmp_path, points=2)
-    code, _, err = finish(uwlab(*[plan if a == "PLAN" else a for a in args], tmp_path))
+    code, _, err = run(*[plan if a == "PLAN" else a for a in args], tmp_path)
     assert code == 2 and one_line(err) and "not a dataset" in err and not (tmp_path / "lock").exists()

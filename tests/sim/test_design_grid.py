@@ -12,6 +12,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from tests.sim.cli_process import run
 from tests.sim.conftest import EXAMPLE, ROOT
 from uwlab.cli.main import main
 from uwlab.errors import UwlabError
@@ -166,16 +167,12 @@ def test_scheduler_and_worker_processes_on_localhost(tmp_path):
             args = ["design", str(EXAMPLE), "--grid", "operation.altitude_m=0.5:5:0.5", "--grid",
                     "water.attenuation_scale=0.5,1,1.5", "--grid", "light.beam_half_angle_deg=20,40", "--json"]
             env = dict(os.environ, PYTHONPATH=str(ROOT))
-            remote = subprocess.run([sys.executable, "-m", "uwlab.cli.main", *args, "--dask", address, "--out",
-                                     str(tmp_path / "remote.parquet")], capture_output=True, text=True, env=env,
-                                    timeout=300)
-            assert remote.returncode == 0, remote.stderr
-            summary = json.loads(remote.stdout)
+            code, out, err = run(*args, "--dask", address, "--out", tmp_path / "remote.parquet", env=env, timeout_s=300)
+            assert code == 0, err
+            summary = json.loads(out)
             assert summary["points"] == 60 and summary["workers"] == 2
-            here = subprocess.run([sys.executable, "-m", "uwlab.cli.main", *args, "--out",
-                                   str(tmp_path / "here.parquet")],
-                                  capture_output=True, text=True, env=env, timeout=300)
-            assert here.returncode == 0, here.stderr
+            code, _, err = run(*args, "--out", tmp_path / "here.parquet", env=env, timeout_s=300)
+            assert code == 0, err
             assert parts_bytes(tmp_path / "remote.parquet") == parts_bytes(tmp_path / "here.parquet")
         finally:
             for process in (worker, scheduler):

@@ -3,10 +3,8 @@ from __future__ import annotations
 
 import json
 import os
-import select
 import signal
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -19,6 +17,8 @@ from uwlab.drivers.sim.scene import RigScene
 from uwlab.drivers.sim.serial_sim import SerialRig, SerialSimSettings
 from uwlab.experiments.acquisition.light_calibration import load_light_calibration
 from uwlab.experiments.acquisition.spectra import irradiance_w_m2
+
+from tests.sim.cli_process import read_line, uwlab
 
 GAMMA = 1.8
 SEKONIC_SAMPLE = Path(__file__).parent / "data" / "sekonic_c7000_synthetic.csv"
@@ -119,17 +119,10 @@ def test_sim_serial_bad_config_is_one_line(capsys, tmp_path):
     assert str(tmp_path / "none.toml") in run_error(capsys, ["sim", "serial", "--config", str(tmp_path / "none.toml")])
 
 
-def _first_line(process: subprocess.Popen, timeout_s: float) -> str:
-    ready, _, _ = select.select([process.stdout], [], [], timeout_s)
-    assert ready, "uwlab sim serial printed nothing"
-    return process.stdout.readline()
-
-
 def test_sim_serial_subprocess_ports_work_and_sigterm_cleans_up():
-    process = subprocess.Popen([sys.executable, "-m", "uwlab.cli.main", "sim", "serial", "--json"],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    process = uwlab("sim", "serial", "--json")
     try:
-        info = json.loads(_first_line(process, 120))
+        info = json.loads(read_line(process.stdout, 120, "uwlab sim serial"))
         assert list(info)[:2] == ["light", "spectrometer"]
         scene = RigScene.from_toml(None)
         expected = irradiance_w_m2(*scene.spectral_irradiance("target", 1.0))

@@ -3,10 +3,7 @@ from __future__ import annotations
 
 import json
 import os
-import select
 import signal
-import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
@@ -20,6 +17,8 @@ from uwlab.drivers.sim.rig_state import RigState
 from uwlab.drivers.sim.serial_sim import MAX_FAULT_COUNT, SerialRig, SerialSimSettings
 from uwlab.drivers.sim.state_log import states_during
 from uwlab.errors import DeviceError
+
+from tests.sim.cli_process import read_line, uwlab
 
 TIMEOUT_S = 0.75
 
@@ -167,23 +166,14 @@ def _holder_of(pty: str, pids: list[int]) -> int:
     raise AssertionError(f"no process holds {pty}")
 
 
-def _stderr_line(process: subprocess.Popen, timeout_s: float) -> str:
-    ready, _, _ = select.select([process.stderr], [], [], timeout_s)
-    assert ready, "no line on stderr"
-    return process.stderr.readline()
-
-
 def test_sim_serial_restarts_a_dead_simulator_then_stops_on_a_crash_loop():
-    process = subprocess.Popen([sys.executable, "-m", "uwlab.cli.main", "sim", "serial", "--json"],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    process = uwlab("sim", "serial", "--json")
     try:
-        ready, _, _ = select.select([process.stdout], [], [], 120)
-        assert ready
-        info = json.loads(process.stdout.readline())
+        info = json.loads(read_line(process.stdout, 120, "uwlab sim serial"))
         for death in range(1, 5):
             pid = _holder_of(os.path.realpath(info["light"]), _children(process.pid))
             os.kill(pid, signal.SIGKILL)
-            line = _stderr_line(process, 60)
+            line = read_line(process.stderr, 60, "uwlab sim serial's stderr")
             if death <= 3:
                 assert line == (f"uwlab sim serial: the light simulator died (exit code -9); restarted at its "
                                 f"power-on state on {info['light']}\n")

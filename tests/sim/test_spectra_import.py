@@ -1,8 +1,6 @@
 """Sekonic C-7000 CSV import refuses what it cannot trust, naming the line: strays, out-of-range wavelengths and
 values, gaps, repeats, short files. The sample is `tests/sim/data/sekonic_c7000_synthetic.csv` (a 5 nm block on
 lines 10–90, a 1 nm block on lines 92–492, both 380–780 nm)."""
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -10,6 +8,8 @@ import pytest
 
 from uwlab.errors import ConfigError
 from uwlab.experiments.acquisition.spectra import read_sekonic_csv
+
+from tests.sim.cli_process import run
 
 SAMPLE = Path(__file__).parent / "data" / "sekonic_c7000_synthetic.csv"
 LINES = SAMPLE.read_text().splitlines()
@@ -70,7 +70,6 @@ def test_a_lone_5_nm_block_is_used(tmp_path):
 def test_the_cli_refuses_in_one_line_with_exit_2(tmp_path, name):
     lines, line, _ = CASES[name]
     path = edited(tmp_path, lines)
-    result = subprocess.run([sys.executable, "-m", "uwlab.cli.main", "spectrum", "--import", str(path), "--json"],
-                            capture_output=True, text=True, timeout=120)
-    assert result.returncode == 2 and result.stdout == ""
-    assert len(result.stderr.strip().splitlines()) == 1 and f"line {line}" in result.stderr
+    code, out, err = run("spectrum", "--import", path, "--json", timeout_s=120)
+    assert code == 2 and out == ""
+    assert len(err.strip().splitlines()) == 1 and f"line {line}" in err
