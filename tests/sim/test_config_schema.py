@@ -17,6 +17,7 @@ from uwlab.experiments.acquisition.plan import load_plan
 from uwlab.experiments.calibration.fit import load_fit_config
 from uwlab.experiments.saturation import POINT_SATURATED_FRACTION
 from uwlab.model.bench import is_bench
+from uwlab.model.components import load_lens_profile
 from uwlab.model.config import apply_override, validate
 from uwlab.model.design import build_design
 from uwlab.model.schema import (ExposureUs, FocalLengthMm, FrameCount, GainDb, PixelSizeUm, WavelengthNm, check,
@@ -69,6 +70,23 @@ def test_bad_design_values_name_the_key(example_raw, dotted, value, key, shown, 
     with pytest.raises(ConfigError) as info:
         build_design(example_raw)
     assert_one_line(info.value, key, shown, words)
+
+
+def test_mutually_exclusive_keys_are_refused(example_raw, tmp_path):
+    """A light placed with both a beam angle in water and one in air, a lens profile with both a number and a CSV
+    for its transmittance: one line naming the first key."""
+    example_raw["model"] = {"kind": "extended"}
+    example_raw["lights"] = [{"position_m": [0.0, -0.2, 0.0], "beam_half_angle_deg": 30.0,
+                              "beam_half_angle_in_air_deg": 40.0}]
+    with pytest.raises(ConfigError) as info:
+        build_design(example_raw)
+    assert_one_line(info.value, "lights[0].beam_half_angle_deg", 30.0,
+                    "give at most one of beam_half_angle_deg and beam_half_angle_in_air_deg")
+    lens = tmp_path / "lens.toml"
+    lens.write_text('name = "L"\nfocal_length_mm = 12\ntransmittance = 0.9\ntransmittance_csv = "t.csv"\n')
+    with pytest.raises(ConfigError) as info:
+        load_lens_profile(lens)
+    assert "transmittance = 0.9: give at most one of transmittance and transmittance_csv" in str(info.value)
 
 
 def test_missing_sections_and_required_keys(example_raw):

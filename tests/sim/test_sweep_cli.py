@@ -46,7 +46,7 @@ def test_crash_then_interrupt_then_resume_completes_exactly_the_missing_points(t
     assert code == 0, err
     points = Dataset.open(out).points()
     expected = {(s.id, p.index) for s in load_plan(plan_path).sweeps for p in s.points()}
-    keys = list(zip(points["sweep_id"], points["point_index"]))
+    keys = list(zip(points["sweep_id"], points["point_index"], strict=True))
     assert len(keys) == len(set(keys)) and set(keys) == expected  # as a non-interrupted run
     summary = json.loads(stdout)
     assert summary["points_done"] == summary["points_total"] == 11 and summary["finished_utc"]

@@ -16,7 +16,7 @@ def plan_file(tmp_path, sweeps: list[dict], name: str | None = "unit", **top):
 def test_shipped_plans_parse_with_the_papers_cameras_and_lenses():
     tank = load_plan(ROOT / "configs" / "plans" / "tank-exposure-sweep.toml")
     pairs = {(s.sensor_profile, s.lens.label) for s in tank.sweeps}
-    assert pairs == {(c, l) for c in ("imx250m", "icx285alm") for l in ("no-lens", "30mm-F2.0", "12mm-F4.0")}
+    assert pairs == {(c, lens) for c in ("imx250m", "icx285alm") for lens in ("no-lens", "30mm-F2.0", "12mm-F4.0")}
     assert all(s.spectrometer == ("target", "camera") and s.kind == "exposure" for s in tank.sweeps)
     emva = load_plan(ROOT / "configs" / "plans" / "emva-photon-transfer.toml")
     transfer, dark = emva.sweeps
@@ -29,7 +29,10 @@ def test_shipped_plans_parse_with_the_papers_cameras_and_lenses():
 def test_values_ranges_and_point_counts():
     assert expand_values("v", {"start": 1, "stop": 100, "num": 3, "spacing": "log"}) == pytest.approx((1, 10, 100))
     assert expand_values("v", {"start": 0, "stop": 1, "num": 5}) == tuple(np.linspace(0, 1, 5))
-    raw = {"defaults": {"values": [1, 2]}, "sweep": [{"id": "a"}, {"id": "b", "values": {"start": 1, "stop": 2, "num": 7}}]}
+    raw = {
+        "defaults": {"values": [1, 2]},
+        "sweep": [{"id": "a"}, {"id": "b", "values": {"start": 1, "stop": 2, "num": 7}}],
+    }
     assert point_counts(raw) == {"a": 2, "b": 7}
 
 
@@ -76,6 +79,9 @@ def test_points_follow_the_kind(tmp_path):
         {"id": "levels", "kind": "light-level", "values": [0.25, 1.0], "exposure_us": 500},
         {"id": "dark", "kind": "dark", "values": [100, 200]}]))
     levels, dark = plan.sweeps
-    assert [(p.light_level, p.exposure_us, p.light_on) for p in levels.points()] == [(0.25, 500, True), (1.0, 500, True)]
+    assert [(p.light_level, p.exposure_us, p.light_on) for p in levels.points()] == [
+        (0.25, 500, True),
+        (1.0, 500, True),
+    ]
     assert [(p.exposure_us, p.light_on) for p in dark.points()] == [(100, False), (200, False)]
     assert plan.total_points() == 4 and len(plan.sha256) == 64

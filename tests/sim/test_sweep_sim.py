@@ -97,7 +97,9 @@ def test_device_lost_mid_sweep_reconnects_and_completes(tmp_path, sim_rig, monke
     assert cameras[0].stats.reconnects == 1
     points = data.points()
     assert len(points) == 3 and (points["exposure_us_readback"] == points["exposure_us"]).all()
-    np.testing.assert_allclose(points["signal_dn"] / points["exposure_us"], points["signal_dn"].iloc[0] / 100, rtol=0.02)
+    np.testing.assert_allclose(
+        points["signal_dn"] / points["exposure_us"], points["signal_dn"].iloc[0] / 100, rtol=0.02
+    )
 
 
 def test_disk_full_keeps_the_points_and_resume_completes(tmp_path, sim_rig, monkeypatch):

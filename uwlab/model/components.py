@@ -20,7 +20,7 @@ from pydantic import Field, model_validator
 from uwlab.model.config import NAME_OR_FILE
 from uwlab.model.data import config_dir, read_toml
 from uwlab.model.schema import (FocalLengthMm, HalfAngleDeg, LuminousFluxLm, NonEmptyText, Schema, Transmittance,
-                                invalid, number_or, parse)
+                                at_most_one, invalid, number_or, parse)
 
 
 class LightProfile(Schema):
@@ -59,10 +59,7 @@ class LensProfile(Schema):
 
     @model_validator(mode="after")
     def _one_transmittance(self):
-        if self.transmittance is not None and self.transmittance_csv is not None:
-            raise invalid("transmittance", self.transmittance,
-                          "give at most one of transmittance and transmittance_csv")
-        return self
+        return at_most_one(self, "transmittance", "transmittance_csv")
 
     def design_values(self, folder: Path) -> dict[str, object]:
         """The design config values of this lens (``section.key`` → value)."""

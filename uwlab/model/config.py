@@ -35,7 +35,7 @@ from uwlab.model.scattering import PHASE_FUNCTIONS
 from uwlab.model.schema import (BitDepth, BlurPx, CircleOfConfusionMm, DistanceM, ExposureS, FNumber, FocalLengthMm,
                                 Fraction, GainDb, Grid, HalfAngleDeg, HousingMm, IncidenceDeg, LuminousFluxLm,
                                 NonEmptyText, PositionM, RefractiveIndex, ScatteringPerM, Schema, SpectralStepNm,
-                                SpeedMS, Transmittance, WavelengthNm, invalid, number_or, parse, quantity)
+                                SpeedMS, Transmittance, WavelengthNm, at_most_one, invalid, number_or, parse, quantity)
 
 # Light count: one to a thousand lights of the same kind.
 LightCount = quantity(1, 1000, "lights", hint="", integer=True)
@@ -137,10 +137,7 @@ class LightPlacement(Schema):
 
     @model_validator(mode="after")
     def _one_beam_angle(self):
-        if self.beam_half_angle_deg is not None and self.beam_half_angle_in_air_deg is not None:
-            raise invalid("beam_half_angle_deg", self.beam_half_angle_deg,
-                          "give at most one of beam_half_angle_deg and beam_half_angle_in_air_deg")
-        return self
+        return at_most_one(self, "beam_half_angle_deg", "beam_half_angle_in_air_deg")
 
 
 class Water(Schema):

@@ -299,6 +299,14 @@ def invalid(key: str, value: Any, reason: str) -> PydanticCustomError:
     return PydanticCustomError("invalid", reason, {"key": key, "value": value})
 
 
+def at_most_one(model: Any, first: str, second: str) -> Any:
+    """`model` unless it sets both of two mutually exclusive fields (then an `invalid` error naming ``first``);
+    for ``@model_validator(mode="after")``."""
+    if getattr(model, first) is not None and getattr(model, second) is not None:
+        raise invalid(first, getattr(model, first), f"give at most one of {first} and {second}")
+    return model
+
+
 def config_error(exc: ValidationError, data: Any, model: Any, prefix: str = "") -> ConfigError:
     """The one-line `ConfigError` of the first error of `exc` (validating `data` against `model`); the key is
     `prefix` followed by the error's location."""
@@ -420,11 +428,14 @@ def _child(annotation, node, part):
 
 
 def _key_parts(model, data, loc: tuple, kind: str) -> list[str]:
-    """The config key of an error location: field and table names kept; list indices (the key names the list,
-    the value is the element) and union members' tags dropped."""
+    """The config key of an error location: field and table names kept; the index of a table in an array of tables
+    kept as ``name[i]`` (``lights[1].beam_half_angle_deg``); other list indices (the key names the list, the value
+    is the element) and union members' tags dropped."""
     parts, annotation, node = [], model, data
     for i, part in enumerate(loc):
         if isinstance(part, int):
+            if parts and isinstance(node, list) and part < len(node) and isinstance(node[part], dict):
+                parts[-1] = f"{parts[-1]}[{part}]"
             annotation, node = _child(annotation, node, part)
             continue
         fields = _model_for(annotation, node)
