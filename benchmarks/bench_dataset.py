@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from uwlab.experiments.acquisition.plan import load_plan
-from uwlab.experiments.acquisition.rigs import SimRig
+from uwlab.experiments.acquisition.sim_rig import SimRig
 from uwlab.experiments.acquisition.sweep import SweepRunner
 from uwlab.experiments.dataset import Dataset, spectra_frame
 

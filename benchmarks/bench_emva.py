@@ -1,7 +1,7 @@
 """EMVA 1288 benchmarks (JSON on stdout).
 
 1. ``stream``: a stack of 2448×2048 Mono16 frames (12-bit data, generated on the fly from a small bank of distinct
-   noisy frames, so the stack never exists in memory) reduced by `uwlab.experiments.emva.stream.StackAccumulator`:
+   noisy frames, so the stack never exists in memory) reduced by `uwlab.experiments.frames.stack.StackAccumulator`:
    mean, temporal variances (eq. 18, eq. 65), spatial variances of the highpassed mean image and their split
    (eq. 36–44), saturated fraction. Throughput (MB/s of frame data, generation excluded) and peak memory: the
    tracemalloc peak of the accumulator in frames.
@@ -34,7 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
-from uwlab.experiments.emva.stream import StackAccumulator
+from uwlab.experiments.frames.stack import StackAccumulator
 
 WIDTH, HEIGHT = 2448, 2048
 BANK = 3
@@ -95,7 +95,7 @@ def write_descriptor_dataset(root: Path) -> Path:
     """The 100-image dataset of the module docstring, rendered by the simulated camera."""
     import tifffile
 
-    from uwlab.drivers.sim.camera import SimTruth
+    from uwlab.sim.devices.camera import SimTruth
     from uwlab.experiments.emva.descriptor import DESCRIPTOR_NAME, Block, Descriptor, format_descriptor
     from uwlab.experiments.emva.simulate import DirectBench
     from uwlab.model.sensor import load_sensor_profile

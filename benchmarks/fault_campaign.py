@@ -29,7 +29,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from uwlab.drivers.sim.serial_sim import SerialRig, SerialSimSettings
+from uwlab.sim.devices.serial_sim import SerialRig, SerialSimSettings
 from uwlab.errors import UwlabError
 from uwlab.experiments.acquisition.fault_campaign import FaultInjector, serial_restart, wrong_points
 from uwlab.experiments.acquisition.plan import load_plan

@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-from uwlab.experiments.acquisition.rigs import SimRig
+from uwlab.experiments.acquisition.sim_rig import SimRig
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLE = ROOT / "configs" / "design" / "example.toml"

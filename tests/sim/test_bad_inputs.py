@@ -22,7 +22,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from uwlab.drivers.sim.camera import SimTruth
+from uwlab.sim.devices.camera import SimTruth
 from uwlab.experiments.dataset import Dataset
 from uwlab.experiments.emva.simulate import simulate_photon_transfer
 from uwlab.model.sensor import load_sensor_profile

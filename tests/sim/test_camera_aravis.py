@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from uwlab.drivers.camera import Policy, open_camera
-from uwlab.drivers.sim.camera import SensorConfig, sensor_from_rig
+from uwlab.sim.devices.camera import SensorConfig, sensor_from_rig
 from uwlab.errors import ConfigError, DeviceError
 from tests.sim.cli_process import run
 from tests.sim.gige_server import Server

@@ -11,7 +11,7 @@ import pytest
 from uwlab.drivers.camera import Camera, Policy, open_camera
 from uwlab.drivers.camera.interface import Frame, FrameTimeout, RawFrame, Settings
 from uwlab.drivers.camera.profiles import GENERIC_SFNC, select_profile
-from uwlab.drivers.sim.camera import SimFaults, SimNodeMap, SimSensor, SimTransport, SimTruth, flat_rate_map
+from uwlab.sim.devices.camera import SimFaults, SimNodeMap, SimSensor, SimTransport, SimTruth, flat_rate_map
 from uwlab.errors import ConfigError, DeviceError
 
 TRUTH = SimTruth("t", (64, 48), 12, 0.5, 64.0, 2.0, 7000.0, 10.0, 0.0, 0.0, 10.0, 1e6, 0.0, 24.0)

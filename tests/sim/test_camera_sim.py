@@ -4,9 +4,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from uwlab.drivers.sim.camera import SensorConfig, SimSensor, SimTruth, flat_rate_map, sensor_from_rig
-from uwlab.drivers.sim.scene import RigScene
-from uwlab.drivers.sim.rig_state import LightState, RigState
+from uwlab.sim.devices.camera import SensorConfig, SimSensor, SimTruth, flat_rate_map, sensor_from_rig
+from uwlab.sim.scene import RigScene
+from uwlab.sim.rig_state import LightState, RigState
 from uwlab.model.sensor import load_sensor_profile
 
 TRUTH = SimTruth("test", (96, 64), 12, 0.5, 100.0, 3.0, 7000.0, 50.0, 0.0, 0.0, 10.0, 1e7, 0.0, 24.0)

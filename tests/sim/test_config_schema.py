@@ -10,8 +10,8 @@ import tomllib
 import numpy as np
 import pytest
 
-from uwlab.drivers.sim.scene import RigScene, load_scene
-from uwlab.drivers.sim.world import design_sections
+from uwlab.sim.scene import RigScene, load_scene
+from uwlab.model.config import design_sections
 from uwlab.errors import ConfigError
 from uwlab.experiments.acquisition.plan import load_plan
 from uwlab.experiments.calibration.fit import load_fit_config

@@ -12,7 +12,7 @@ from uwlab.errors import ConfigError
 from uwlab.experiments.acquisition.plan import load_plan
 from uwlab.experiments.acquisition.sweep import open_for_resume
 from uwlab.experiments.dataset import POINT_SCHEMA, Dataset, spectra_frame
-from uwlab.experiments.dataset_check import check, repair, summarize
+from uwlab.experiments.acquisition.dataset_check import check, repair, summarize
 from uwlab.experiments.dataset_store import PartDamaged
 
 from tests.sim.plans import write_plan

@@ -15,7 +15,7 @@ import pytest
 
 from uwlab.experiments.acquisition.plan import load_plan
 from uwlab.experiments.dataset import Dataset, spectra_frame
-from uwlab.experiments.dataset_check import check
+from uwlab.experiments.acquisition.dataset_check import check
 from uwlab.lockfile import read_holder
 
 from tests.sim.cli_process import finish, points_recorded, run, uwlab, wait_until

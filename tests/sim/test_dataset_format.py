@@ -21,7 +21,7 @@ from uwlab.experiments.dataset import (
     DatasetWriteError,
     spectra_frame,
 )
-from uwlab.experiments.dataset_check import check
+from uwlab.experiments.acquisition.dataset_check import check
 from uwlab.experiments.dataset_frames import read_frame
 from uwlab.experiments.dataset_store import MANIFEST_FILE, MAX_LEVEL
 

@@ -12,7 +12,7 @@ import pandas as pd
 import pytest
 
 from uwlab.experiments.acquisition.plan import load_plan
-from uwlab.experiments.acquisition.rigs import SimRig
+from uwlab.experiments.acquisition.sim_rig import SimRig
 from uwlab.experiments.dataset import CLOCK_COLUMNS
 from uwlab.experiments.demo import run_demo
 

@@ -8,7 +8,7 @@ from selenium.webdriver.chrome.options import Options
 from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.by import By
 
-from uwlab.drivers.sim.camera import SimTruth
+from uwlab.sim.devices.camera import SimTruth
 from uwlab.experiments.emva.analysis import characterize
 from uwlab.experiments.emva.datasheet import SheetInfo
 from uwlab.experiments.emva.output import output_paths, write_characterization

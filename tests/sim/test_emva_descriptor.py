@@ -18,7 +18,7 @@ from uwlab.experiments.emva.descriptor import (
 )
 from uwlab.experiments.emva.export import write_descriptor
 from uwlab.experiments.emva.simulate import DirectBench
-from uwlab.drivers.sim.camera import SimTruth
+from uwlab.sim.devices.camera import SimTruth
 from uwlab.model.sensor import load_sensor_profile
 
 

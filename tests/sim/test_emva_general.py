@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from scipy.interpolate import BSpline
 
-from uwlab.drivers.sim.camera import SimTruth
+from uwlab.sim.devices.camera import SimTruth
 from uwlab.errors import ConfigError
 from uwlab.experiments.emva.analysis import characterize
-from uwlab.experiments.emva.nonuniformity import white_noise_gain
+from uwlab.experiments.frames.nonuniformity import white_noise_gain
 from uwlab.experiments.emva.regression import bspline_regression
 from uwlab.experiments.emva.simulate import DirectBench
 from uwlab.model.sensor import load_sensor_profile

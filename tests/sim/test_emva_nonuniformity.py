@@ -6,7 +6,7 @@ import pytest
 from scipy.ndimage import uniform_filter
 
 from uwlab.errors import ConfigError
-from uwlab.experiments.emva.nonuniformity import (
+from uwlab.experiments.frames.nonuniformity import (
     HIGHPASS_MARGIN,
     accumulated_histogram,
     highpass,
@@ -17,7 +17,7 @@ from uwlab.experiments.emva.nonuniformity import (
     spectrogram,
     white_noise_gain,
 )
-from uwlab.experiments.emva.stream import StackAccumulator, stack_statistics
+from uwlab.experiments.frames.stack import StackAccumulator, stack_statistics
 
 
 def test_highpass_is_the_three_filters_subtracted():

@@ -7,11 +7,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from uwlab.drivers.sim.camera import SimTruth
+from uwlab.sim.devices.camera import SimTruth
 from uwlab.experiments.dataset import Dataset
 from uwlab.experiments.emva.analysis import characterize
 from uwlab.experiments.emva.from_dataset import IrradianceOverride, photon_transfer_from_points
-from uwlab.experiments.emva.nonuniformity import white_noise_gain
+from uwlab.experiments.frames.nonuniformity import white_noise_gain
 from uwlab.experiments.emva.simulate import DirectBench, sim_truth_of, simulate_photon_transfer
 from uwlab.model.sensor import load_sensor_profile
 

@@ -12,7 +12,7 @@ import pytest
 from starlette.testclient import TestClient
 
 from uwlab.cli.main import main
-from uwlab.drivers.sim.camera import SimTruth
+from uwlab.sim.devices.camera import SimTruth
 from uwlab.experiments.emva.simulate import simulate_photon_transfer
 from uwlab.explore.app import create_app
 from uwlab.explore.catalog import Catalog

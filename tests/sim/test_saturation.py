@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from uwlab.cli.main import main
-from uwlab.drivers.sim.camera import SensorConfig, SimSensor, SimTruth, flat_rate_map
+from uwlab.sim.devices.camera import SensorConfig, SimSensor, SimTruth, flat_rate_map
 from uwlab.errors import ConfigError
 from uwlab.experiments.dataset import point_row
 from uwlab.experiments.emva.simulate import simulate_photon_transfer
-from uwlab.experiments.emva.stream import stack_statistics
+from uwlab.experiments.frames.stack import stack_statistics
 from uwlab.experiments.saturation import (
     POINT_SATURATED_FRACTION,
     ClipLevel,

@@ -12,9 +12,9 @@ import pytest
 
 from uwlab.cli.main import main
 from uwlab.drivers.serial import open_light, open_spectrometer
-from uwlab.drivers.sim.rig_state import RigState
-from uwlab.drivers.sim.scene import RigScene
-from uwlab.drivers.sim.serial_sim import SerialRig, SerialSimSettings
+from uwlab.sim.rig_state import RigState
+from uwlab.sim.scene import RigScene
+from uwlab.sim.devices.serial_sim import SerialRig, SerialSimSettings
 from uwlab.experiments.acquisition.light_calibration import load_light_calibration
 from uwlab.experiments.acquisition.spectra import irradiance_w_m2
 

@@ -6,9 +6,9 @@ import pytest
 
 from uwlab.drivers.serial import open_light, open_spectrometer
 from uwlab.drivers.serial.base import LightReadback
-from uwlab.drivers.sim.rig_state import RigState
-from uwlab.drivers.sim.serial_instruments import DetectorModel
-from uwlab.drivers.sim.serial_sim import SerialRig, SerialSimSettings
+from uwlab.sim.rig_state import RigState
+from uwlab.sim.devices.serial_instruments import DetectorModel
+from uwlab.sim.devices.serial_sim import SerialRig, SerialSimSettings
 from uwlab.errors import ConfigError, DeviceError
 from uwlab.experiments.acquisition.light_calibration import measure_unsaturated
 

@@ -13,9 +13,9 @@ import serial
 
 from uwlab.drivers.serial import open_light, open_spectrometer
 from uwlab.drivers.serial.base import LightReadback, SpectrometerReadback
-from uwlab.drivers.sim.rig_state import RigState
-from uwlab.drivers.sim.serial_sim import MAX_FAULT_COUNT, SerialRig, SerialSimSettings
-from uwlab.drivers.sim.state_log import states_during
+from uwlab.sim.rig_state import RigState
+from uwlab.sim.devices.serial_sim import MAX_FAULT_COUNT, SerialRig, SerialSimSettings
+from uwlab.sim.state_log import states_during
 from uwlab.errors import DeviceError
 
 from tests.sim.cli_process import read_line, uwlab

@@ -18,8 +18,8 @@ from uwlab.drivers.serial.protocol import (
     parse_reply,
     parse_spectrum_lines,
 )
-from uwlab.drivers.sim.rig_state import RigState
-from uwlab.drivers.sim.serial_instruments import DetectorModel, SimLight, SimSpectrometer
+from uwlab.sim.rig_state import RigState
+from uwlab.sim.devices.serial_instruments import DetectorModel, SimLight, SimSpectrometer
 from uwlab.errors import ConfigError
 
 

@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from uwlab.drivers.sim.rig_state import LightState, RigState
-from uwlab.drivers.sim.scene import RigScene
+from uwlab.sim.rig_state import LightState, RigState
+from uwlab.sim.scene import RigScene
 from uwlab.errors import ConfigError
 from uwlab.model.design import evaluate
 

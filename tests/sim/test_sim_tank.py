@@ -5,11 +5,12 @@ import copy
 import numpy as np
 import pytest
 
-from uwlab.drivers.sim.camera import SensorConfig, SimSensor, SimTruth, flat_rate_map
-from uwlab.drivers.sim.rig_state import RigState
-from uwlab.drivers.sim.scene import RigScene
-from uwlab.drivers.sim.serial_instruments import SimLight, WarmUp
-from uwlab.drivers.sim.world import EFFECTS, world_settings
+from uwlab.sim.devices.camera import SensorConfig, SimSensor, SimTruth, flat_rate_map
+from uwlab.sim.rig_state import RigState
+from uwlab.sim.scene import RigScene
+from uwlab.sim.devices.serial_instruments import SimLight
+from uwlab.sim.rig_state import WarmUp
+from uwlab.sim.world import EFFECTS, world_settings
 from uwlab.errors import ConfigError
 from uwlab.experiments.calibration.forward import _configuration_design, extended_roi_rates
 from uwlab.model.data import read_toml

@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from uwlab.drivers.serial.base import LightReadback
-from uwlab.drivers.sim.serial_sim import SerialRig, SerialSimSettings
+from uwlab.sim.devices.serial_sim import SerialRig, SerialSimSettings
 from uwlab.errors import DeviceError
 from uwlab.experiments.acquisition.fault_campaign import FaultInjector, camera_outage, serial_restart, wrong_points
 from uwlab.experiments.acquisition.plan import load_plan

@@ -5,7 +5,7 @@ import os
 import numpy as np
 
 from uwlab.experiments.acquisition.plan import load_plan
-from uwlab.experiments.dataset_check import check
+from uwlab.experiments.acquisition.dataset_check import check
 from uwlab.experiments.dataset_frames import read_frame
 
 from tests.sim.plans import camera, record, write_plan

@@ -5,7 +5,7 @@ import errno
 import numpy as np
 import pytest
 
-from uwlab.drivers.sim.camera import SimFaults
+from uwlab.sim.devices.camera import SimFaults
 from uwlab.errors import ConfigError
 from uwlab.experiments import dataset_store
 from uwlab.experiments.dataset import Dataset, DatasetWriteError

@@ -5,7 +5,7 @@ import json
 from collections import Counter
 
 from uwlab.experiments.dataset import Dataset
-from uwlab.experiments.dataset_check import check, repair, summarize
+from uwlab.experiments.acquisition.dataset_check import check, repair, summarize
 
 LISTED_PROBLEMS = 20
 

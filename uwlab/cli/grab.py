@@ -120,7 +120,7 @@ def run(args) -> int:
     if args.backend == "sim":
         options["config"] = args.config
         if sensor is None:
-            from uwlab.drivers.sim.scene import RigScene
+            from uwlab.sim.scene import RigScene
 
             sensor = RigScene.from_toml(args.config).sensor
     with open_camera(args.backend, args.device, policy=Policy(timeout_s=args.timeout_s), **options) as cam:

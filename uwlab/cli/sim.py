@@ -11,7 +11,7 @@ import time
 from uwlab.cli.sim_camera import add_sim_camera_parser
 from uwlab.cli.sim_charuco import add_sim_charuco_parser
 from uwlab.model.design import SPECTROMETER_POSITIONS
-from uwlab.drivers.sim.serial_sim import SerialRig, SerialSimSettings
+from uwlab.sim.devices.serial_sim import SerialRig, SerialSimSettings
 from uwlab.errors import DeviceError
 
 RESTARTS_ALLOWED = 3

@@ -6,8 +6,8 @@ import json
 import signal
 import threading
 
-from uwlab.drivers.sim.camera import sensor_from_rig
-from uwlab.drivers.sim.gige import GVCP_PORT, GigeCameraServer, GigeFaults
+from uwlab.sim.devices.camera import sensor_from_rig
+from uwlab.sim.devices.gige import GVCP_PORT, GigeCameraServer, GigeFaults
 from uwlab.errors import ConfigError
 
 LOOPBACK = ipaddress.IPv4Network("127.0.0.0/8")

@@ -8,10 +8,11 @@ from tqdm import tqdm
 
 from uwlab.errors import ConfigError
 from uwlab.experiments.acquisition.plan import load_plan
-from uwlab.experiments.acquisition.rigs import HardwareRig, SimRig
+from uwlab.experiments.acquisition.rigs import HardwareRig
+from uwlab.experiments.acquisition.sim_rig import SimRig
 from uwlab.experiments.acquisition.sweep import Progress, SweepRunner, open_for_resume
 from uwlab.experiments.dataset import Dataset
-from uwlab.experiments.dataset_check import summarize
+from uwlab.experiments.acquisition.dataset_check import summarize
 from uwlab.outputs import output_dir
 
 

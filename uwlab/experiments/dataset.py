@@ -10,7 +10,7 @@ Layout (docs/sweeps.md, "Dataset contract"):
 - ``metadata.json``: the plan and its hash, device identities, resolved rigs, host, times, software versions;
 - ``frames/``: the raw frames of plans with ``save_frames`` (`uwlab.experiments.dataset_frames`);
 - ``lock``: names the one writer (`uwlab.lockfile`); ``quarantine/``: what ``uwlab dataset check --repair`` set
-  aside (`uwlab.experiments.dataset_check`).
+  aside (`uwlab.experiments.acquisition.dataset_check`).
 
 A point is recorded when `Dataset.append_point` returns: its frames, spectra and row are durable together (the
 manifest is the commit point), so a crash or SIGKILL at any moment leaves a readable dataset whose recorded
@@ -56,7 +56,7 @@ from uwlab.experiments.dataset_store import (
     PartStore,
     write_atomic,
 )
-from uwlab.experiments.emva.stream import StackStatistics
+from uwlab.experiments.frames.stack import StackStatistics
 from uwlab.experiments.saturation import POINT_SATURATED_FRACTION, ClipLevel, point_saturated
 from uwlab.jsonable import dumps
 from uwlab.lockfile import LockHeld, OwnerLock
@@ -152,7 +152,7 @@ def point_row(*, sweep_id: str, point_index: int, kind: str, bright: StackStatis
               clip: ClipLevel, saturation_threshold: float = POINT_SATURATED_FRACTION, **columns: Any) -> dict:
     """The dataset row of one measured point — the one place a row is built.
 
-    From the point's bright and dark stacks (`uwlab.experiments.emva.stream`) come ``frames``, ``mean_dn``,
+    From the point's bright and dark stacks (`uwlab.experiments.frames.stack`) come ``frames``, ``mean_dn``,
     ``temporal_var_dn2``, ``spatial_var_dn2`` (unfiltered), the row/column/pixel parts of the highpassed spatial
     variance corrected for temporal noise (``spatial_var_{row,col,pixel}_dn2``, EMVA 1288 Release 4.0 eq. 44; null
     for a ROI too small for the highpass), ``mean_diff_dn`` (μ[0] − μ[1] of the first frame pair), the ``dark_*``

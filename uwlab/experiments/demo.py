@@ -1,7 +1,7 @@
 """The main job on the simulated rig: the paper's tank campaign, calibration, validation and report.
 
 1. Write the inputs into ``inputs/``: the rig (`configs/rigs/paper-tank.toml`) with the chosen world
-   (`uwlab.drivers.sim.world`: ``ideal``, ``tank``, ``turbid``) and the plan (`configs/plans/tank-exposure-sweep.toml`)
+   (`uwlab.sim.world`: ``ideal``, ``tank``, ``turbid``) and the plan (`configs/plans/tank-exposure-sweep.toml`)
    pointing at it. In the turbid world the rig's water also declares the added scatterers at the world's values,
    as an experimenter who had measured them with a transmissometer would: the paper model then knows the water
    attenuates more, and only the veiling light is missing from it.
@@ -23,10 +23,11 @@ from pathlib import Path
 
 import tomli_w
 
-from uwlab.drivers.sim.world import PRESETS, design_sections, world_settings
+from uwlab.model.config import design_sections
+from uwlab.sim.world import PRESETS, world_settings
 from uwlab.errors import ConfigError
 from uwlab.experiments.acquisition.plan import load_plan, resolved_rig
-from uwlab.experiments.acquisition.rigs import SimRig
+from uwlab.experiments.acquisition.sim_rig import SimRig
 from uwlab.experiments.acquisition.sweep import SweepRunner
 from uwlab.experiments.calibration.fit import default_config_for
 from uwlab.experiments.calibration.forward import MODELS

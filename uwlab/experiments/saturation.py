@@ -18,7 +18,7 @@ than 2^k − 1. The clip level comes from, in this order:
    format, its top code).
 
 A frame's saturated fraction is the fraction of its pixels at or above the clip level; a point's is the fraction
-of ROI pixels that reach it in any of the point's frames (`uwlab.experiments.emva.stream`). A point is saturated
+of ROI pixels that reach it in any of the point's frames (`uwlab.experiments.frames.stack`). A point is saturated
 when that fraction exceeds `POINT_SATURATED_FRACTION` = 0.2 %: Release 4.0 §6.6 sets the saturation exposure
 where "between 0.1 – 0.2 % of the total number of pixels show the maximum value", the most a mean and a variance
 tolerate unbiased (< 0.37 % variance bias for a normal distribution).

@@ -319,5 +319,18 @@ def apply_override(raw: dict, dotted: str, value) -> None:
     body[key] = value
 
 
+SIMULATION_SECTIONS = ("sim", "world")
+
+
+def design_sections(raw: dict) -> dict:
+    """The design part of a rig config: every section but the simulated rig's (``[sim]``, ``[world]``, read by
+    `uwlab.sim`). A real rig's config has none of those; a simulated rig's is its design plus them.
+
+    >>> design_sections({"lens": {"f_number": 2.8}, "sim": {"seed": 1}, "world": {"preset": "tank"}})
+    {'lens': {'f_number': 2.8}}
+    """
+    return {k: v for k, v in raw.items() if k not in SIMULATION_SECTIONS}
+
+
 def load_raw(path: str | Path) -> dict:
     return read_toml(Path(path), "config")

@@ -1,7 +1,7 @@
 """The config-schema layer: what every configuration file and numeric option of uwlab is validated with.
 
 Schemas are pydantic v2 models (`Schema`: unknown keys are refused) that live next to what they configure
-(`uwlab.model.config`, `uwlab.model.sensor`, `uwlab.drivers.sim.scene`, `uwlab.experiments.acquisition.plan`,
+(`uwlab.model.config`, `uwlab.model.sensor`, `uwlab.sim.scene`, `uwlab.experiments.acquisition.plan`,
 `uwlab.experiments.calibration`). This module holds what they share:
 
 - `Limits`: an interval with a unit, checked on numbers (strictly: no strings, no booleans, finite) and, for
@@ -244,6 +244,8 @@ FrameCount = quantity(2, 10000, "frames", hint="", integer=True)
 DurationS = quantity(0.0, 3600.0, "s")
 PositionM = quantity(-100.0, 100.0, "m")
 ScatteringPerM = quantity(0.0, 100.0, "1/m")
+# A random generator's seed (numpy accepts any 32-bit unsigned integer).
+Seed = quantity(0, 2**32 - 1, "", hint="", integer=True)
 
 
 # --- From ValidationError to ConfigError. ---------------------------------------------------------------------

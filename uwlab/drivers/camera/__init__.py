@@ -1,11 +1,15 @@
-"""Cameras: one interface (`Camera`), backends ``sim``, ``harvesters`` (GenTL) and ``aravis``.
+"""Cameras: one interface (`Camera`), backends ``harvesters`` (GenTL), ``aravis`` and the simulated ``sim``.
 
 `open_camera` picks a backend by name; `discover` lists cameras on every backend, reporting
-backends whose libraries are missing instead of failing.
+backends whose libraries are missing instead of failing. Backends are declared as entry points of the group
+``uwlab.camera_backends`` (pyproject.toml): the simulated camera (`uwlab.sim.devices.camera`) is one of them, so
+this package names no simulator module and a real backend never needs one; another package can add a backend the
+same way.
 """
 from __future__ import annotations
 
 import importlib
+from importlib.metadata import entry_points
 from types import ModuleType
 from typing import Any
 
@@ -25,7 +29,7 @@ from uwlab.drivers.camera.interface import (
 from uwlab.errors import ConfigError, DeviceError
 
 BACKENDS = {
-    "sim": "uwlab.drivers.sim.camera",
+    "sim": "uwlab.sim.devices.camera",
     "harvesters": "uwlab.drivers.camera.harvesters_backend",
     "aravis": "uwlab.drivers.camera.aravis_backend",
 }

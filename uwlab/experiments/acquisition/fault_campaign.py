@@ -5,7 +5,7 @@ recorded with what the simulators really did.
 given (`serial_restart`: a serial simulator killed and restarted on its port; `camera_outage`: the in-process
 simulated camera unreachable for a while, coming back power-cycled; a campaign script may add its own, e.g. a GigE
 Vision server killed or frozen). `wrong_points` checks every recorded point against the serial simulators'
-true-state logs (`uwlab.drivers.sim.state_log`), which the sweep never reads: over the point's verified window
+true-state logs (`uwlab.sim.state_log`), which the sweep never reads: over the point's verified window
 (``readback_t_start_ns`` … ``readback_t_end_ns``) the light must have held the recorded output and level without
 interruption, and the spectrometer must have taken the recorded reading with the recorded settings in that light.
 """
@@ -20,8 +20,8 @@ import numpy as np
 import pandas as pd
 
 from uwlab.drivers.camera import Camera
-from uwlab.drivers.sim.serial_sim import SerialRig
-from uwlab.drivers.sim.state_log import reads_during, states_during
+from uwlab.sim.devices.serial_sim import SerialRig
+from uwlab.sim.state_log import reads_during, states_during
 
 LEVEL_TOLERANCE = 1e-9
 Fault = Callable[[np.random.Generator], "dict | None"]

@@ -46,7 +46,7 @@ from uwlab.drivers.camera import BACKENDS, Policy
 from uwlab.drivers.camera.pixels import PIXEL_FORMATS
 from uwlab.drivers.serial import PROTOCOLS
 from uwlab.drivers.serial.base import Averaging, IntegrationMs
-from uwlab.drivers.sim.world import SIMULATION_SECTIONS, design_sections
+from uwlab.model.config import SIMULATION_SECTIONS, design_sections
 from uwlab.errors import ConfigError
 from uwlab.experiments.saturation import POINT_SATURATED_FRACTION
 from uwlab.jsonable import to_jsonable

@@ -7,7 +7,7 @@ standard's 1/(2NM)·Σ(y_A − y_B)² − (μ_A − μ_B)²/2, averaged over pai
 variance over the ROI of the L-frame mean image, *not* corrected for its residual temporal variance σ²/L).
 The same statistics of dark frames (light off) at the point — or once per sweep ("block") — give the dark
 columns and ``signal_dn = mean_dn − dark_mean_dn``. Frames are streamed through
-`uwlab.experiments.emva.stream` (one frame in memory at a time). ``saturated_fraction`` is the fraction of ROI
+`uwlab.experiments.frames.stack` (one frame in memory at a time). ``saturated_fraction`` is the fraction of ROI
 pixels at the camera's clip level in any frame and the point is flagged ``saturated`` (never dropped), both by the
 one rule of `uwlab.experiments.saturation`; the row is built by `uwlab.experiments.dataset.point_row`.
 
@@ -24,7 +24,7 @@ the read-backs it used (``light_on_readback``, ``light_level_readback``, ``expos
 (``readback_t_start_ns``, ``readback_t_end_ns``) and ``attempts``.
 
 Resume (`open_for_resume`): the dataset's lock is taken, it must pass its check
-(`uwlab.experiments.dataset_check`) and come from the same plan; points already in it are skipped. Every point is
+(`uwlab.experiments.acquisition.dataset_check`) and come from the same plan; points already in it are skipped. Every point is
 durable before the next starts, so Ctrl-C or a crash loses at most the point in progress. A device that
 disappears is reconnected by its driver (settings restored and verified) and the point in progress is measured
 again; a failed write raises `DatasetWriteError` with the dataset intact.
@@ -44,14 +44,14 @@ from uwlab.drivers.camera.pixels import pixel_format
 from uwlab.drivers.serial.base import AVERAGING_RANGE, LightReadback, SpectrometerReadback
 from uwlab.errors import ConfigError
 from uwlab.experiments.dataset import Dataset, FrameRecorder, point_row, spectra_frame
-from uwlab.experiments.dataset_check import check
+from uwlab.experiments.acquisition.dataset_check import check
 from uwlab.experiments.acquisition.light_calibration import measure_unsaturated
 from uwlab.experiments.acquisition.plan import Plan, Point, SweepSpec, resolved_rig
 from uwlab.experiments.acquisition.readbacks import verified
 from uwlab.experiments.acquisition.rigs import Rig
 from uwlab.experiments.acquisition.roi import Rect, check_inside
 from uwlab.experiments.acquisition.spectra import irradiance_w_m2
-from uwlab.experiments.emva.stream import StackAccumulator, StackStatistics
+from uwlab.experiments.frames.stack import StackAccumulator, StackStatistics
 from uwlab.experiments.saturation import ClipLevel, clip_level, sensor_clip_dn
 
 DARK_AVERAGING = 16
@@ -353,7 +353,7 @@ class SweepRunner:
 def open_for_resume(root: str | Path, plan: Plan, sim: bool, purpose: str = "resuming a sweep") -> Dataset:
     """The dataset at ``root`` open for writing, to complete with ``plan``: its lock taken (refused while another
     writer holds it), recorded from the same plan on the same kind of rig (`check_resumable`), passing its check
-    (`uwlab.experiments.dataset_check.check`; a damaged one is refused, naming the repair), the leftovers of
+    (`uwlab.experiments.acquisition.dataset_check.check`; a damaged one is refused, naming the repair), the leftovers of
     interrupted writes removed and its finish time cleared."""
     dataset = Dataset.open_for_writing(root, purpose)
     try:

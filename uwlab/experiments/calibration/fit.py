@@ -46,7 +46,7 @@ from uwlab.experiments.calibration.forward import ForwardModel, build_forward_mo
 from uwlab.experiments.calibration.priors import HalfNormal, LogNormal, Normal, Prior, PriorSpec
 from uwlab.model.data import read_toml
 from uwlab.model.sensor import load_sensor_profile
-from uwlab.model.schema import NonEmptyText, Schema, invalid, parse, quantity
+from uwlab.model.schema import NonEmptyText, Schema, Seed, invalid, parse, quantity
 
 MIN_TAU_MULTIPLE = 50
 MAP_EVALUATIONS = 500
@@ -63,7 +63,6 @@ ANCHORS = ("light_efficiency", "reflectance")
 Walkers = quantity(8, 10000, "walkers", hint="", integer=True)
 ChunkSteps = quantity(100, 10_000_000, "steps", hint="", integer=True)
 MaxSteps = quantity(1000, 100_000_000, "steps", hint="", integer=True)
-Seed = quantity(0, 2**32 - 1, "", hint="", integer=True)
 Folds = quantity(2, 100, "folds", hint="", integer=True)
 
 

@@ -31,7 +31,7 @@ import numpy as np
 import pandas as pd
 from scipy.interpolate import CubicSpline
 
-from uwlab.drivers.sim.world import design_sections
+from uwlab.model.config import design_sections
 from uwlab.errors import ConfigError
 from uwlab.model import extended
 from uwlab.model.config import apply_override

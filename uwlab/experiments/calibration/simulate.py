@@ -1,7 +1,7 @@
 """Fast in-process measurement campaigns on the simulated rig, for calibration tests and benchmarks.
 
-The frames come from the simulated camera (`uwlab.drivers.sim.camera.SimSensor`) looking at the rig's scene
-(`uwlab.drivers.sim.scene.RigScene`) — the same physics and noise as the simulated rig behind `uwlab sweep
+The frames come from the simulated camera (`uwlab.sim.devices.camera.SimSensor`) looking at the rig's scene
+(`uwlab.sim.scene.RigScene`) — the same physics and noise as the simulated rig behind `uwlab sweep
 --sim` — but rendered directly in a small axis-centred ROI, without the device and serial layers, so that many
 campaigns (one per seed) run in seconds. Rows follow the dataset contract of `uwlab.experiments.dataset`.
 
@@ -19,11 +19,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from uwlab.drivers.sim.camera import SensorConfig, SimSensor, SimTruth
-from uwlab.drivers.sim.scene import RigScene
-from uwlab.drivers.sim.world import design_sections
+from uwlab.sim.devices.camera import SensorConfig, SimSensor, SimTruth
+from uwlab.sim.scene import RigScene
+from uwlab.model.config import design_sections
 from uwlab.experiments.dataset import point_row
-from uwlab.experiments.emva.stream import stack_statistics
+from uwlab.experiments.frames.stack import stack_statistics
 from uwlab.experiments.saturation import clip_level, sensor_clip_dn
 from uwlab.model.data import config_dir, read_toml
 from uwlab.model.optics import NO_LENS, LensSetting

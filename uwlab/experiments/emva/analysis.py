@@ -1,7 +1,7 @@
 """EMVA 1288 Release 4.0 characterisation of a photon transfer: the linear model (`uwlab.experiments.emva.linear`,
 EMVA 1288 Release 4.0 Linear) or the general model (`uwlab.experiments.emva.general`, Release 4.0 General), plus the
 spectrograms, profiles and histograms of the nonuniformity stacks' images (§8.6–8.8 of both documents,
-`uwlab.experiments.emva.nonuniformity`).
+`uwlab.experiments.frames.nonuniformity`).
 
 The implementation follows the texts of the standard (EMVA Standard 1288 Release 4.0 Linear and General, release
 candidates of March 15, 2021); docs/emva.md lists the method per quantity with the equation numbers. The reference
@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from uwlab.errors import ConfigError
 from uwlab.experiments.emva.general import characterize_general
 from uwlab.experiments.emva.linear import characterize_linear
-from uwlab.experiments.emva.nonuniformity import ImageAnalysis, analyse_images
+from uwlab.experiments.frames.nonuniformity import ImageAnalysis, analyse_images
 from uwlab.experiments.emva.transfer import PhotonTransfer
 
 MODELS = ("linear", "general")

@@ -23,7 +23,7 @@ nor the irradiance at one exposure (methods II/III), two bright blocks with the 
 bright exposure without its dark block, more than one spatial block of a kind, a spatial block without its partner
 at the same exposure; and on reading, an image of the wrong size or type, or with values outside 0 … 2^BITS − 1.
 
-Images are read one at a time (OpenCV, tifffile for TIFFs OpenCV cannot read) into `uwlab.experiments.emva.stream`
+Images are read one at a time (OpenCV, tifffile for TIFFs OpenCV cannot read) into `uwlab.experiments.frames.stack`
 statistics. The clip level (`uwlab.experiments.saturation.clip_level`) is found once, from the first image of the
 brightest bright block (a pile-up at the top code), else it is the ADC maximum 2^BITS − 1.
 """
@@ -39,7 +39,7 @@ import numpy as np
 from uwlab.errors import ConfigError
 from uwlab.experiments.emva.dark import DarkSeries
 from uwlab.experiments.emva.datasheet import SheetInfo
-from uwlab.experiments.emva.stream import stack_statistics
+from uwlab.experiments.frames.stack import stack_statistics
 from uwlab.experiments.emva.transfer import NonuniformityStack, PhotonTransfer, SpatialSplit
 from uwlab.experiments.saturation import ClipLevel, clip_level
 

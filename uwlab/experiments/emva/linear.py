@@ -28,7 +28,7 @@ EMVA Standard 1288, Release 4.0 Linear, March 2021).
 * Dark current (§7.1, eq. 29–30): `uwlab.experiments.emva.dark`, divided by K [e⁻/s] and K² for the variance; at the
   sweep's own temperature, and at every recorded temperature (§7.2).
 * DSNU, PRNU (§8.3, eq. 66–67) of the total, row, column and pixel variances
-  (`uwlab.experiments.emva.nonuniformity`, highpassed), from the nonuniformity stacks or the sweep point nearest 50 %
+  (`uwlab.experiments.frames.nonuniformity`, highpassed), from the nonuniformity stacks or the sweep point nearest 50 %
   (`uwlab.experiments.emva.transfer.spatial_point`); spectrograms, profiles and histograms need the stacks' images.
 
 Uncertainties (``_std``) are one-sigma errors of the regressions, propagated to first order.
@@ -41,7 +41,7 @@ import numpy as np
 
 from uwlab.errors import ConfigError
 from uwlab.experiments.emva.dark import dark_current, dark_current_by_temperature
-from uwlab.experiments.emva.nonuniformity import dsnu_e, prnu_percent
+from uwlab.experiments.frames.nonuniformity import dsnu_e, prnu_percent
 from uwlab.experiments.emva.regression import bspline_regression, fit_line, intervals_for
 from uwlab.experiments.emva.transfer import PhotonTransfer, Saturation, points_between, saturation, spatial_point
 

@@ -7,7 +7,7 @@ irradiance that gives exactly μ_p = rate t_exp / η per pixel on axis. The clip
 and a frame exposed to twice the full well, as a sweep finds it (`uwlab.experiments.saturation.clip_level`: a
 pile-up below the profile's level wins, e.g. for the compressed test non-linearity). It measures points (L bright
 and L dark frames), dark points at any temperature (`SimTruth.at_temperature`) and the nonuniformity stacks, each
-through `uwlab.experiments.emva.stream`. `simulate_photon_transfer` records a sweep (and a dark-current series) into a
+through `uwlab.experiments.frames.stack`. `simulate_photon_transfer` records a sweep (and a dark-current series) into a
 dataset with the ground truth in ``metadata.sim_truth``.
 """
 from __future__ import annotations
@@ -19,10 +19,10 @@ from pathlib import Path
 
 import numpy as np
 
-from uwlab.drivers.sim.camera import RateMap, SensorConfig, SimSensor, SimTruth, flat_rate_map
+from uwlab.sim.devices.camera import RateMap, SensorConfig, SimSensor, SimTruth, flat_rate_map
 from uwlab.experiments.dataset import Dataset, point_row, spectra_frame
 from uwlab.experiments.emva.dark import DarkSeries
-from uwlab.experiments.emva.stream import StackStatistics, stack_statistics
+from uwlab.experiments.frames.stack import StackStatistics, stack_statistics
 from uwlab.experiments.emva.transfer import NonuniformityStack, PhotonTransfer, SpatialSplit
 from uwlab.experiments.saturation import ClipLevel, clip_level, sensor_clip_dn
 from uwlab.model.photometry import photon_flux

@@ -25,7 +25,7 @@ import numpy as np
 
 from uwlab.errors import ConfigError
 from uwlab.experiments.emva.dark import DarkSeries
-from uwlab.experiments.emva.stream import StackStatistics
+from uwlab.experiments.frames.stack import StackStatistics
 from uwlab.experiments.saturation import POINT_SATURATED_FRACTION, point_saturated
 
 

@@ -8,7 +8,7 @@ decentring, tilt); in air the outside medium has index 1. Poses are drawn from a
 centre within the central part of the field, at 0.6–1.6 times the distance at which its width fills the
 field in that medium, tilted up to ±45° about x and y and ±20° about the axis, and kept only if at least 80 % of
 its corners land inside the image. The board's white gets `white_fraction` of the full well; the sensor's noise
-is that of `uwlab.drivers.sim.camera.SimSensor` (shot, dark, quantisation, fixed patterns).
+is that of `uwlab.sim.devices.camera.SimSensor` (shot, dark, quantisation, fixed patterns).
 
 Writes `pose-NNN.png` (8-bit) and `charuco.json`: the board, the camera, the port as rendered, the medium and
 each image's true pose (rvec [rad, Rodrigues], tvec [m]; OpenCV's convention X_cam = R X_board + t).
@@ -23,8 +23,8 @@ import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from uwlab.drivers.sim.camera import SensorConfig, SimSensor, SimTruth
-from uwlab.drivers.sim.target import PlanarTarget, TargetView
+from uwlab.sim.devices.camera import SensorConfig, SimSensor, SimTruth
+from uwlab.sim.target import PlanarTarget, TargetView
 from uwlab.errors import ConfigError, UwlabError
 from uwlab.experiments.port.board import WHITE_REFLECTANCE, CharucoBoard
 from uwlab.jsonable import to_jsonable

@@ -1,7 +1,7 @@
 """The simulated EMVA 1288 bench: what the simulated camera and spectrometer see on a `uwlab.model.bench.Bench` — a
 bare sensor in air under a uniform diffuse disk source, the spectrometer at the sensor plane.
 
-It offers the scene interface the simulated rig uses (`uwlab.drivers.sim.scene.RigScene`): the electron-rate map of
+It offers the scene interface the simulated rig uses (`uwlab.sim.scene.RigScene`): the electron-rate map of
 the full sensor (the on-axis rate times the disk's exact falloff), the spectrum at the ``sensor`` position, the
 light state, the ``[sim]`` settings (``seed``, ``light_gamma``) and the ground truth, including the photon-weighted
 quantum efficiency the characterisation must recover.
@@ -12,8 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from uwlab.drivers.sim.rig_state import RigState
-from uwlab.drivers.sim.serial_instruments import WarmUp
+from uwlab.sim.rig_state import RigState, WarmUp
+from uwlab.sim.settings import SimSettings
 from uwlab.errors import ConfigError
 from uwlab.model.bench import Bench, build_bench
 from uwlab.model.schema import parse
@@ -32,8 +32,6 @@ class BenchScene:
 
     @classmethod
     def from_dict(cls, raw: dict, base_dir: Path | None = None, state: RigState | None = None) -> BenchScene:
-        from uwlab.drivers.sim.scene import SimSettings
-
         return cls(build_bench(raw, base_dir), parse(SimSettings, raw.get("sim", {}), "sim"), state)
 
     @property

@@ -562,10 +562,10 @@ class SimTransport:
 def sensor_from_rig(config: str | None = None, seed: int = 0, shot_noise: str = "gaussian",
                     rig_state: str | None = None) -> SimSensor:
     """The simulated sensor of a rig description (default rig when ``config`` is None): sensor
-    profile, irradiance map and light state all come from `uwlab.drivers.sim.scene`;
+    profile, irradiance map and light state all come from `uwlab.sim.scene`;
     ``rig_state`` is the light-state file shared with the simulated light (`RigState`)."""
-    from uwlab.drivers.sim.rig_state import RigState
-    from uwlab.drivers.sim.scene import RigScene
+    from uwlab.sim.rig_state import RigState
+    from uwlab.sim.scene import RigScene
 
     scene = RigScene.from_toml(config, RigState(rig_state) if rig_state else None)
     truth = SimTruth.from_sensor_profile(scene.sensor, **scene.sensor_realism())

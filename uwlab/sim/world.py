@@ -2,9 +2,9 @@
 
 Presets:
 
-- ``ideal``: the design model itself renders the rig (`uwlab.drivers.sim.scene`): a fit checks the model against
+- ``ideal``: the design model itself renders the rig (`uwlab.sim.scene`): a fit checks the model against
   itself. Every effect below is off.
-- ``tank``: the paper's tank, rendered by `uwlab.drivers.sim.tank.TankWorld` — physics the design model does not
+- ``tank``: the paper's tank, rendered by `uwlab.sim.tank.TankWorld` — physics the design model does not
   share: a 46 cm tank, the camera and the light outside it behind the acrylic wall (exact refraction, air gaps,
   angle-dependent Fresnel losses), the light above the camera, every effect below on, clear fresh water.
 - ``turbid``: the tank with added scatterers (`particle_scattering_per_m` at 550 nm).
@@ -33,7 +33,6 @@ PRESETS = ("ideal", "tank", "turbid")
 EFFECTS = ("beam_profile", "vignetting", "lens_transmission", "backscatter", "stray_light", "warmup_drift",
            "sensor_realism")
 TURBID_PARTICLE_SCATTERING_PER_M = 1.8
-SIMULATION_SECTIONS = ("sim", "world")
 
 # Limits that catch wrong units: tank walls are millimetres to centimetres thick, offsets within a metre.
 OffsetM = quantity(-1.0, 1.0, "m")
@@ -48,11 +47,6 @@ SwitchOns = quantity(0.0, 1e6, "uses", hint="", lo_open=True)
 DarkCurrent = quantity(0.0, 1e6, "e-/s")
 Electrons = quantity(0.0, 100.0, "e-")
 Percent = quantity(0.0, 10.0, "%", hint="a percentage")
-
-
-def design_sections(raw: dict) -> dict:
-    """The design part of a rig config: every section but the simulation's ([sim], [world])."""
-    return {k: v for k, v in raw.items() if k not in SIMULATION_SECTIONS}
 
 
 class WorldSettings(Schema):

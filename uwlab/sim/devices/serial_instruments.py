@@ -1,13 +1,13 @@
 """Simulated ``uwlab-ascii`` instruments: command handlers of the light and the spectrometer.
 
 Each handler maps one command line to its reply lines (docs/serial-protocol.md); the serving loop,
-the pseudo-terminal and fault injection are in `uwlab.drivers.sim.serial_sim`. With a `StateLog`, every
+the pseudo-terminal and fault injection are in `uwlab.sim.devices.serial_sim`. With a `StateLog`, every
 change of state (power-on, command) and every spectrometer reading is logged with the full state, so
 tests can compare recorded data against what the instrument really did.
 
 Light: output on/off and level x ∈ [0, 1]; the emitted fraction of the rated flux follows the
 non-linear curve ``flux_fraction = x ** gamma`` (a gamma-law dimmer; gamma from the rig config key
-``[sim] light_gamma``), times its warm-up factor (`uwlab.drivers.sim.rig_state`; amplitude and time constant
+``[sim] light_gamma``), times its warm-up factor (`uwlab.sim.rig_state`; amplitude and time constant
 from the rig's ``[world]``, none in the ideal world). Every change is written to the shared `RigState`, so the
 simulated camera and spectrometer see it. Power-on / reset state: output off, level 0, cold.
 
@@ -39,8 +39,8 @@ from uwlab.drivers.serial.protocol import (
     ERROR_CODES,
     format_float,
 )
-from uwlab.drivers.sim.rig_state import LightState, RigState
-from uwlab.drivers.sim.state_log import StateLog
+from uwlab.sim.rig_state import LightState, RigState, WarmUp
+from uwlab.sim.state_log import StateLog
 from uwlab.model.design import SPECTROMETER_POSITIONS
 from uwlab.model.grid import DEFAULT_GRID
 
@@ -131,19 +131,6 @@ class SimInstrument:
     def dispatch(self, header: str, argument: str) -> list[str]:
         raise CommandError(ERR_UNKNOWN_COMMAND, f"{ERROR_CODES[ERR_UNKNOWN_COMMAND]} {_quoted(header)}")
 
-
-@dataclass(frozen=True)
-class WarmUp:
-    """The light's warm-up drift (`uwlab.drivers.sim.rig_state`): a cold light emits 1 + ``amplitude`` times its
-    settled output; each time it is switched on its heat h moves towards settled as if it ran for a nominal use,
-    h ← 1 − (1 − h) e^(−1/``switch_ons``), so it settles (1 − 1/e) in ``switch_ons`` uses. Tied to use rather
-    than the wall clock, the drift is the same in every run of a campaign."""
-
-    amplitude: float = 0.0
-    switch_ons: float = 20.0
-
-    def warmer(self, heat: float) -> float:
-        return 1.0 - (1.0 - heat) * math.exp(-1.0 / self.switch_ons)
 
 
 class SimLight(SimInstrument):

@@ -9,11 +9,12 @@ Warm-up drift: an LED's output falls as its junction heats (e.g. Narendran & Gu,
 sources", J. Display Technology 1(1), 167–171, 2005). The light's heat h ∈ [0, 1] (0 cold, 1 settled) is written
 by the light with its state; the emitted flux is flux_fraction · (1 + A (1 − h)): a cold light gives 1 + A times
 its settled output. The heat follows the light's use, not the wall clock, so that equal seeds give equal
-measurements (`uwlab.drivers.sim.serial_instruments.SimLight`).
+measurements (`uwlab.sim.devices.serial_instruments.SimLight`).
 """
 from __future__ import annotations
 
 import json
+import math
 import os
 import tempfile
 from dataclasses import asdict, dataclass
@@ -67,3 +68,16 @@ class RigState:
         with os.fdopen(fd, "w") as fh:
             json.dump(asdict(state), fh)
         os.replace(tmp, self.path)
+
+@dataclass(frozen=True)
+class WarmUp:
+    """The light's warm-up drift (`LightState`): a cold light emits 1 + ``amplitude`` times its
+    settled output; each time it is switched on its heat h moves towards settled as if it ran for a nominal use,
+    h ← 1 − (1 − h) e^(−1/``switch_ons``), so it settles (1 − 1/e) in ``switch_ons`` uses. Tied to use rather
+    than the wall clock, the drift is the same in every run of a campaign."""
+
+    amplitude: float = 0.0
+    switch_ons: float = 20.0
+
+    def warmer(self, heat: float) -> float:
+        return 1.0 - (1.0 - heat) * math.exp(-1.0 / self.switch_ons)

@@ -1,4 +1,4 @@
-"""The tank world: a renderer of the paper's tank that is not the design model (`uwlab.drivers.sim.world`).
+"""The tank world: a renderer of the paper's tank that is not the design model (`uwlab.sim.world`).
 
 Geometry (camera frame: origin at the camera's entrance pupil, x right, y down, z along the optical axis; metres):
 the camera looks through the tank's near wall, a flat acrylic plate (thickness t, index n_p) whose outer face is
@@ -52,7 +52,7 @@ from pathlib import Path
 import numpy as np
 from scipy.interpolate import RectBivariateSpline
 
-from uwlab.drivers.sim.world import WorldSettings
+from uwlab.sim.world import WorldSettings
 from uwlab.errors import ConfigError
 from uwlab.model.data import read_csv_columns, resolve_path
 from uwlab.model.design import Design, spectral_weights

@@ -12,7 +12,7 @@ pixels:
   L frames (divisor L − 1);
 * spatial variance of the mean image ⟨y⟩ (eq. 33–35) without highpass (``spatial_var_dn2``, s²_y.measured over all
   the ROI) and, on the highpassed mean image (§8.1), corrected and split into row, column and pixel parts
-  (eq. 36–44, `uwlab.experiments.emva.nonuniformity.spatial_variances`) with σ²_y (L = 2) or σ²_y.stack (L > 2);
+  (eq. 36–44, `uwlab.experiments.frames.nonuniformity.spatial_variances`) with σ²_y (L = 2) or σ²_y.stack (L > 2);
 * the fraction of pixels at or above the camera's clip level in any frame (`uwlab.experiments.saturation`).
 
 Memory is bounded by a few frames whatever L is: a uint32 sum image (exact for up to 32 768 frames of
@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from uwlab.errors import ConfigError
-from uwlab.experiments.emva.nonuniformity import HIGHPASS_MARGIN, SpatialVariances, highpass, spatial_variances
+from uwlab.experiments.frames.nonuniformity import HIGHPASS_MARGIN, SpatialVariances, highpass, spatial_variances
 
 CHUNK_PIXELS = 1 << 16
 

@@ -29,8 +29,8 @@ import zlib
 from dataclasses import dataclass
 
 from uwlab.drivers.camera.pixels import pack, pixel_format
-from uwlab.drivers.sim.camera import SimNodeMap, SimSensor
-from uwlab.drivers.sim.gige_xml import (
+from uwlab.sim.devices.camera import SimNodeMap, SimSensor
+from uwlab.sim.devices.gige_xml import (
     ENUM_VALUES,
     SCPS_ADDRESS,
     STRING_REGISTERS,

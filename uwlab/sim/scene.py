@@ -1,9 +1,9 @@
 """The simulated rig's scene: what the simulated camera and spectrometer see.
 
 A rig config is a design config (the sections of `uwlab design`, the nominal rig a fit starts from) plus the
-simulation's ground truth: a ``[world]`` section (`uwlab.drivers.sim.world`: the ``ideal`` world renders from the
+simulation's ground truth: a ``[world]`` section (`uwlab.sim.world`: the ``ideal`` world renders from the
 design model's paper chain as described below, whatever the rig's [model]; ``tank`` and ``turbid`` from the tank
-renderer, `uwlab.drivers.sim.tank`) and a `[sim]` section:
+renderer, `uwlab.sim.tank`) and a `[sim]` section:
 ``seed`` (fixed-pattern noise maps), ``light_gamma`` (flux fraction = level^γ), ``board_size_m`` [x, y] (the
 target board on the target plane, centred on the axis), ``surround_reflectance`` (outside the board) and
 ``light_efficiency`` (the true emitted flux as a fraction of the rated `light.luminous_flux_lm`: a ground truth
@@ -16,7 +16,7 @@ irradiance on a board facing the light (normal incidence); at the camera, π L_w
 Lambertian target filling the meter's field; at the sensor, the irradiance on the sensor plane behind the lens
 (on axis). All scale linearly with the light's flux fraction.
 
-`load_scene` reads any rig config: a ``[bench]`` table makes it the EMVA 1288 bench (`uwlab.drivers.sim.bench`).
+`load_scene` reads any rig config: a ``[bench]`` table makes it the EMVA 1288 bench (`uwlab.sim.bench`).
 """
 from __future__ import annotations
 
@@ -26,10 +26,13 @@ from pathlib import Path
 import numpy as np
 from pydantic import Field
 
-from uwlab.drivers.sim.rig_state import RigState
-from uwlab.drivers.sim.serial_instruments import WarmUp
-from uwlab.drivers.sim.tank import TankWorld
-from uwlab.drivers.sim.world import WorldSettings, design_sections, world_settings
+from uwlab.model.bench import is_bench
+from uwlab.sim.bench import BenchScene
+from uwlab.sim.rig_state import RigState, WarmUp
+from uwlab.sim.settings import SimSettings
+from uwlab.sim.tank import TankWorld
+from uwlab.model.config import design_sections
+from uwlab.sim.world import WorldSettings, world_settings
 from uwlab.errors import ConfigError
 from uwlab.model.data import config_dir, read_toml
 from uwlab.model.design import (Design, build_design, effective_focal_length_m, electron_rate_at_radius,
@@ -39,23 +42,6 @@ from uwlab.model.schema import DistanceM, FNumber, FocalLengthMm, Fraction, Sche
 from uwlab.model.sensor import SensorProfile
 
 DEFAULT_RIG = "rigs/sim-tank.toml"
-Seed = quantity(0, 2**32 - 1, "", hint="", integer=True)
-# The light's dimming curve exponent: flux fraction = level^γ; 1 is linear, 2.2 a typical dimmer.
-Gamma = quantity(0.0, 10.0, "", hint="", lo_open=True)
-# True flux over rated flux: a manufacturer's rating is rarely off by more than a factor of a few.
-Efficiency = quantity(0.0, 10.0, "", hint="a factor on the rated flux", lo_open=True)
-
-
-class SimSettings(Schema):
-    """The rig config's [sim] section: what only the simulated rig needs."""
-
-    seed: Seed = Field(1288, description="seed of the fixed-pattern noise maps")
-    light_gamma: Gamma = Field(2.2, description="light output flux fraction = level ** light_gamma")
-    board_size_m: tuple[DistanceM, DistanceM] = Field(
-        (0.15, 0.12), description="the target board's size [x, y] on the target plane, centred on the axis [m]")
-    surround_reflectance: Fraction = Field(0.05, description="reflectance around the board")
-    light_efficiency: Efficiency = Field(
-        1.0, description="true emitted flux / rated luminous flux (the ground truth a fit should recover)")
 
 
 @dataclass(eq=False)
@@ -218,10 +204,7 @@ class RigScene:
 
 def load_scene(path: str | Path | None = None, state: RigState | None = None):
     """The scene of a rig config (None: the default simulated tank): a `RigScene`, or for a config with a
-    ``[bench]`` table the EMVA 1288 bench (`uwlab.drivers.sim.bench.BenchScene`)."""
-    from uwlab.drivers.sim.bench import BenchScene
-    from uwlab.model.bench import is_bench
-
+    ``[bench]`` table the EMVA 1288 bench (`uwlab.sim.bench.BenchScene`)."""
     path = Path(path) if path is not None else config_dir() / DEFAULT_RIG
     raw = read_toml(path, "--config")
     if is_bench(raw):

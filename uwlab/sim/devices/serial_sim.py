@@ -23,7 +23,7 @@ Fault injection, by command (never faulted itself; docs/serial-protocol.md):
 - ``SIM:RESET`` — a spontaneous reset: ``OK``, then the banner, as if the instrument rebooted.
 
 Every received line can be appended to a command log file (tests check what reached the device), and
-every instrument logs its true state (`uwlab.drivers.sim.state_log`) to ``<dir>/<name>.state.jsonl``.
+every instrument logs its true state (`uwlab.sim.state_log`) to ``<dir>/<name>.state.jsonl``.
 `SerialRig.kill` / `SerialRig.restart` cut an instrument's power and bring it back (fault campaigns);
 `SerialRig.revive` restarts any simulator that died.
 """
@@ -52,16 +52,15 @@ from uwlab.drivers.serial.protocol import (
     MAX_LINE_BYTES,
     TERMINATOR,
 )
-from uwlab.drivers.sim.rig_state import LightState, RigState
-from uwlab.drivers.sim.scene import load_scene
-from uwlab.drivers.sim.serial_instruments import (
+from uwlab.sim.rig_state import LightState, RigState, WarmUp
+from uwlab.sim.scene import load_scene
+from uwlab.sim.devices.serial_instruments import (
     SimInstrument,
     SimLight,
     SimSpectrometer,
     SpectrumSource,
-    WarmUp,
 )
-from uwlab.drivers.sim.state_log import StateLog
+from uwlab.sim.state_log import StateLog
 from uwlab.errors import ConfigError, DeviceError, UwlabError
 from uwlab.model.design import SPECTROMETER_POSITIONS
 
@@ -373,7 +372,7 @@ class SerialSimSettings:
 
 
 class SceneSpectrum:
-    """`SpectrumSource` from the rig model (`uwlab.drivers.sim.scene.load_scene`: the tank or the EMVA bench), built
+    """`SpectrumSource` from the rig model (`uwlab.sim.scene.load_scene`: the tank or the EMVA bench), built
     on first use."""
 
     def __init__(self, config_path: Path | None):

@@ -1,0 +1,202 @@
+"""The simulated rig (`SimRig`), for ``uwlab sweep --sim``: the same code paths as the tank
+(`uwlab.experiments.acquisition.rigs.HardwareRig`), with simulated devices, on the simulated tank or, for a rig config with a ``[bench]`` table, the simulated EMVA 1288 bench (`uwlab.sim.bench`: a bare
+sensor under a diffuse disk source, the spectrometer at the sensor plane).
+
+- Light and spectrometer: the serial simulators (`uwlab.sim.devices.serial_sim.SerialRig`) in their own
+  processes behind real pseudo-terminals, driven through the real serial drivers;
+- camera: the in-process simulated camera through the real `Camera` interface, one per sweep, with the
+  sweep's sensor profile and lens (`uwlab.sim.scene.RigScene` renders the electron-rate map);
+- all of them share one `RigState` file, so a light level set through the serial driver dims the images.
+
+Apertures are set directly (`RigScene.set_lens` and a re-render); the spectrometer is moved between the
+target and the camera with the simulator's ``SIM:POS`` command. "No lens" gives a uniform field (a bare
+sensor sees the whole hemisphere; see `uwlab.model.optics`). The simulated board carries no printed
+markers, so an ``aruco`` ROI is the board's footprint from the scene (what the detector would report).
+The spectrometer simulator models the rig file's geometry; per-sweep geometry overrides change the images only.
+
+The rig's temporary folder (``uwlab-simrig-*`` in the system's temporary directory: pseudo-terminal links, the
+rig state) is removed when the rig closes. A process killed outright (SIGKILL) cannot; the next `SimRig` removes
+such stale folders (`remove_stale_rig_folders`): each holds an owner lock (`uwlab.lockfile`) that a dead owner no
+longer holds. Live rigs' folders are never touched.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import tempfile
+import time
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+
+from uwlab.drivers.camera import Camera, open_camera
+from uwlab.drivers.camera.pixels import pixel_format
+from uwlab.drivers.serial import Light, Spectrometer, open_light, open_spectrometer
+from uwlab.experiments.acquisition.plan import SweepSpec
+from uwlab.experiments.acquisition.roi import Rect
+from uwlab.experiments.saturation import sensor_clip_dn
+from uwlab.lockfile import OwnerLock, is_stale, read_holder
+from uwlab.model.design import beam_half_angle_rad
+from uwlab.sim.bench import BenchScene
+from uwlab.sim.devices.camera import SimFaults, SimSensor, SimTruth, flat_rate_map
+from uwlab.sim.devices.serial_sim import SerialRig, SerialSimSettings
+from uwlab.sim.rig_state import RigState
+from uwlab.sim.scene import RigScene, load_scene
+
+RIG_FOLDER_PREFIX = "uwlab-simrig-"
+OWNER_LOCK = "owner.lock"
+UNOWNED_STALE_S = 600.0
+SIM_REOPEN_S = 30.0  # a restarted simulator is a new Python process: slower to come back than a USB adapter
+
+
+class SimRig:
+    """The simulated rig (a context manager: simulators are always stopped, the temporary folder removed).
+
+    ``seed`` seeds all of its noise: the cameras' (the rig's ``[sim] seed`` + ``seed``: fixed patterns and temporal
+    noise) and the spectrometer's (``seed``); the light has none. Equal seeds give equal measurements.
+    """
+
+    sim = True
+
+    def __init__(self, rig_path: Path, faults: SimFaults | None = None, seed: int = 0):
+        self.rig_path = Path(rig_path)
+        self.faults = faults
+        self.seed = seed
+        remove_stale_rig_folders()
+        self._tmp = tempfile.TemporaryDirectory(prefix=RIG_FOLDER_PREFIX)
+        self._owner = OwnerLock(Path(self._tmp.name) / OWNER_LOCK, "simulated rig")
+        self._owner.acquire()
+        self._serial = SerialRig(self._tmp.name, SerialSimSettings.from_config(self.rig_path), seed=seed)
+        self.light: Light | None = None
+        self.spectrometer: Spectrometer | None = None
+        self._scene: RigScene | BenchScene | None = None
+        self._sensor: SimSensor | None = None
+        self._sweep: SweepSpec | None = None
+        self.camera: Camera | None = None
+
+    def __enter__(self) -> SimRig:
+        try:
+            self._serial.start()
+            self.light = open_light(self._serial.ports["light"], reopen_s=SIM_REOPEN_S)
+            self.spectrometer = open_spectrometer(self._serial.ports["spectrometer"], reopen_s=SIM_REOPEN_S)
+        except BaseException:
+            self.close()
+            raise
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
+
+    def close(self) -> None:
+        for device in (self.light, self.spectrometer):
+            if device is not None:
+                device.close()
+        self._serial.stop()
+        self._tmp.cleanup()
+        self._owner.release()
+
+    @property
+    def rig_state_path(self) -> Path:
+        return self._serial.rig_state_path
+
+    @property
+    def serial_rig(self) -> SerialRig:
+        """The serial simulators (fault campaigns kill and restart them and read their true-state logs)."""
+        return self._serial
+
+    def open_camera(self, sweep: SweepSpec) -> Camera:
+        """The sweep's simulated camera: its sensor profile and lens, lit by the shared light state (kept as
+        ``camera`` while the sweep runs, for fault campaigns)."""
+        scene = load_scene(self.rig_path, RigState(self.rig_state_path))
+        scene.use(sweep.design, sweep.lens.bare)
+        truth = SimTruth.from_sensor_profile(scene.sensor, **scene.sensor_realism())
+        self._scene, self._sweep = scene, sweep
+        self._sensor = SimSensor(truth, self._rate_map(), scene.flux_fraction, seed=scene.sim.seed + self.seed)
+        self.camera = open_camera("sim", "sim0", policy=sweep.camera.policy(), sensor=self._sensor, faults=self.faults)
+        return self.camera
+
+    def _rate_map(self):
+        scene = self._scene
+        if self._sweep.lens.bare and not isinstance(scene, BenchScene):
+            return flat_rate_map(scene.on_axis_rate_e_per_s())
+        return lambda shape: scene.electron_rate_map(shape, 1.0)
+
+    def set_aperture(self, sweep: SweepSpec, f_number: float) -> None:
+        """Set the simulated lens's f-number directly and re-render the scene."""
+        self._scene.set_lens(f_number=f_number)
+        self._sensor.set_rate_map(self._rate_map())
+
+    def place_spectrometer(self, position: str) -> None:
+        self.spectrometer.transport.command(f"SIM:POS {position}")
+
+    def board_roi(self, sweep: SweepSpec, camera: Camera, image: np.ndarray) -> Rect:
+        """The board's footprint within the acquired window (the simulated board has no printed markers)."""
+        width, height = self._sensor.truth.resolution_px
+        bx, by, bw, bh = self._scene.board_roi((height, width))
+        s = camera.read_settings()
+        x0, y0 = max(bx - s.offset_x, 0), max(by - s.offset_y, 0)
+        x1, y1 = min(bx + bw - s.offset_x, image.shape[1]), min(by + bh - s.offset_y, image.shape[0])
+        return x0, y0, max(x1 - x0, 0), max(y1 - y0, 0)
+
+    def truth(self, camera: Camera) -> dict:
+        """Ground truth of the sweep's simulated sensor and light, for checking an EMVA characterisation."""
+        truth = self._sensor.truth
+        s = camera.read_settings()
+        fmt_bits = pixel_format(s.pixel_format).bits
+        common = {
+            **{k: (list(v) if isinstance(v, tuple) else v) for k, v in asdict(truth).items()},
+            "output_bit_depth": fmt_bits,
+            "dn_scale": 2.0 ** (fmt_bits - truth.bit_depth),
+            "K_dn_per_e_output": truth.system_gain(s.gain_db or 0.0) * 2.0 ** (fmt_bits - truth.bit_depth),
+            "black_level_dn": s.black_level,
+            "clip_level_dn": sensor_clip_dn(truth.system_gain(s.gain_db or 0.0), truth.saturation_e,
+                                            truth.dark_offset_dn + (s.black_level or 0.0), truth.bit_depth,
+                                            s.pixel_format),
+            "light_gamma": self._scene.sim.light_gamma,
+            "light_curve": "flux_fraction = level ** light_gamma",
+            "window_mean_rate_e_per_s": float(self._window_rate(s).mean()),
+        }
+        if isinstance(self._scene, BenchScene):
+            return {**common, **self._scene.truth()}
+        return {
+            **common,
+            "on_axis_rate_e_per_s": self._scene.on_axis_rate_e_per_s(),
+            "f_number": self._scene.design["lens.f_number"],
+            "light_efficiency": self._scene.sim.light_efficiency,
+            "attenuation_scale": float(self._scene.design["water.attenuation_scale"]),
+            "beam_half_angle_deg": float(np.degrees(beam_half_angle_rad(self._scene.design))),
+            "reflectance": float(self._scene.design["target.reflectance"]),
+            "lens_transmittance": float(self._scene.design["lens.transmittance"]),
+            "world": self._scene.world.summary(),
+        }
+
+    def _window_rate(self, s) -> np.ndarray:
+        rate = self._sensor.rate_e_per_s
+        bh, bv = s.binning
+        return rate[s.offset_y * bv: (s.offset_y + s.height) * bv, s.offset_x * bh: (s.offset_x + s.width) * bh]
+
+
+def remove_stale_rig_folders(directory: str | os.PathLike | None = None) -> list[Path]:
+    """Remove this user's simulated-rig folders in ``directory`` (default: the system's temporary directory) whose
+    owner died without removing them: their owner lock is stale (`uwlab.lockfile.is_stale`), or, when it names no
+    owner (an older uwlab, or a kill between creating the folder and locking it), they are older than
+    `UNOWNED_STALE_S`.
+    Returns the folders removed."""
+    removed = []
+    for folder in sorted(Path(directory or tempfile.gettempdir()).glob(f"{RIG_FOLDER_PREFIX}*")):
+        try:
+            info = folder.lstat()
+        except OSError:
+            continue
+        if not folder.is_dir() or folder.is_symlink() or info.st_uid != os.getuid():
+            continue
+        lock = folder / OWNER_LOCK
+        if read_holder(lock) is not None:
+            stale = is_stale(lock)
+        else:
+            stale = time.time() - info.st_mtime > UNOWNED_STALE_S
+        if stale:
+            shutil.rmtree(folder, ignore_errors=True)
+            removed.append(folder)
+    return removed
