@@ -24,7 +24,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from pydantic import Field
 
 from uwlab.model.bench import is_bench
 from uwlab.sim.bench import BenchScene
@@ -38,7 +37,7 @@ from uwlab.model.data import config_dir, read_toml
 from uwlab.model.design import (Design, build_design, effective_focal_length_m, electron_rate_at_radius,
                                 on_axis_electron_rate, paper, SPECTROMETER_POSITIONS, stage_spectra)
 from uwlab.model.optics import NO_LENS
-from uwlab.model.schema import DistanceM, FNumber, FocalLengthMm, Fraction, Schema, check, parse, quantity
+from uwlab.model.schema import FNumber, FocalLengthMm, check, parse
 from uwlab.model.sensor import SensorProfile
 
 DEFAULT_RIG = "rigs/sim-tank.toml"

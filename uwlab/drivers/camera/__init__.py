@@ -28,11 +28,9 @@ from uwlab.drivers.camera.interface import (
 )
 from uwlab.errors import ConfigError, DeviceError
 
-BACKENDS = {
-    "sim": "uwlab.sim.devices.camera",
-    "harvesters": "uwlab.drivers.camera.harvesters_backend",
-    "aravis": "uwlab.drivers.camera.aravis_backend",
-}
+ENTRY_POINT_GROUP = "uwlab.camera_backends"
+# Backend name -> module, in the order pyproject.toml declares them.
+BACKENDS = {ep.name: ep.value for ep in entry_points(group=ENTRY_POINT_GROUP)}
 
 __all__ = [
     "AcquisitionStats", "BACKENDS", "BackendUnavailable", "Camera", "CameraInfo", "DeviceEntry", "DeviceLost",

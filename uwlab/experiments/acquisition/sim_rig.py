@@ -1,5 +1,6 @@
 """The simulated rig (`SimRig`), for ``uwlab sweep --sim``: the same code paths as the tank
-(`uwlab.experiments.acquisition.rigs.HardwareRig`), with simulated devices, on the simulated tank or, for a rig config with a ``[bench]`` table, the simulated EMVA 1288 bench (`uwlab.sim.bench`: a bare
+(`uwlab.experiments.acquisition.rigs.HardwareRig`), with simulated devices, on the simulated tank or, for a rig
+config with a ``[bench]`` table, the simulated EMVA 1288 bench (`uwlab.sim.bench`: a bare
 sensor under a diffuse disk source, the spectrometer at the sensor plane).
 
 - Light and spectrometer: the serial simulators (`uwlab.sim.devices.serial_sim.SerialRig`) in their own

@@ -24,8 +24,8 @@ the read-backs it used (``light_on_readback``, ``light_level_readback``, ``expos
 (``readback_t_start_ns``, ``readback_t_end_ns``) and ``attempts``.
 
 Resume (`open_for_resume`): the dataset's lock is taken, it must pass its check
-(`uwlab.experiments.acquisition.dataset_check`) and come from the same plan; points already in it are skipped. Every point is
-durable before the next starts, so Ctrl-C or a crash loses at most the point in progress. A device that
+(`uwlab.experiments.acquisition.dataset_check`) and come from the same plan; points already in it are skipped.
+Every point is durable before the next starts, so Ctrl-C or a crash loses at most the point in progress. A device that
 disappears is reconnected by its driver (settings restored and verified) and the point in progress is measured
 again; a failed write raises `DatasetWriteError` with the dataset intact.
 """

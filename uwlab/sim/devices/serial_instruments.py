@@ -21,7 +21,6 @@ reference, which is off by ``dark_error`` (a relative error), and divides by ``k
 """
 from __future__ import annotations
 
-import math
 import re
 import time
 from collections.abc import Callable
