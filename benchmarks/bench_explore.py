@@ -17,7 +17,7 @@ import httpx
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from tests.sim.explorer_process import Explorer  # noqa: E402
+from tests.support.explorer_process import Explorer  # noqa: E402
 
 EXAMPLE = ROOT / "configs" / "design" / "example.toml"
 

@@ -27,9 +27,9 @@ from uwlab.experiments.dataset import Dataset
 from uwlab.experiments.emva.simulate import simulate_photon_transfer
 from uwlab.model.sensor import load_sensor_profile
 
-from tests.sim.cli_process import finish, run, uwlab, wait_until
-from tests.sim.conftest import EXAMPLE, ROOT
-from tests.sim.plans import CAMPAIGN_DEFAULTS, write_campaign
+from tests.support.cli_process import finish, run, uwlab, wait_until
+from tests.support.paths import EXAMPLE, ROOT
+from tests.support.plans import CAMPAIGN_DEFAULTS, write_campaign
 
 SEKONIC = ROOT / "tests" / "sim" / "data" / "sekonic_c7000_synthetic.csv"
 DOME = ROOT / "configs" / "design" / "dome-8mm.toml"

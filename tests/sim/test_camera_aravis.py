@@ -10,8 +10,8 @@ import pytest
 from uwlab.drivers.camera import Policy, open_camera
 from uwlab.sim.devices.camera import SensorConfig, sensor_from_rig
 from uwlab.errors import ConfigError, DeviceError
-from tests.sim.cli_process import run
-from tests.sim.gige_server import Server
+from tests.support.cli_process import run
+from tests.support.gige_server import Server
 
 FAST = Policy(timeout_s=3.0, reconnect_attempts=2, reconnect_delay_s=0.2)
 

@@ -13,7 +13,7 @@ import pytest
 from uwlab.drivers.camera import Policy, open_camera
 from uwlab.sim.devices.camera import SensorConfig, sensor_from_rig
 from uwlab.errors import DeviceError
-from tests.sim.gige_server import Server
+from tests.support.gige_server import Server
 
 OUTAGE_S = 10.0
 POLICY = Policy(timeout_s=2.0, reconnect_delay_s=0.2, reconnect_max_delay_s=2.0, outage_limit_s=30.0)

@@ -5,8 +5,8 @@ import pandas as pd
 import pytest
 
 from uwlab.cli.main import main
-from tests.sim.cli_process import run
-from tests.sim.conftest import EXAMPLE
+from tests.support.cli_process import run
+from tests.support.paths import EXAMPLE
 
 KEYS = {"effective_focal_length_mm", "fov_deg", "fov_m", "max_exposure_s", "exposure_s", "min_framerate_hz", "dof_m",
         "min_f_number_for_dof", "dome_virtual_image_m", "focus_image_m", "focus_setting_m", "close_up_lens_dpt",

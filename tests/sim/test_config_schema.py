@@ -24,7 +24,7 @@ from uwlab.model.schema import (ExposureUs, FocalLengthMm, FrameCount, GainDb, P
                                 limits_of)
 from uwlab.model.sensor import load_sensor_profile
 
-from tests.sim.conftest import EXAMPLE, ROOT
+from tests.support.paths import EXAMPLE, ROOT
 
 CONFIGS = ROOT / "configs"
 RIG = CONFIGS / "rigs" / "sim-tank.toml"

@@ -2,15 +2,15 @@
 from __future__ import annotations
 
 import tomllib
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
 import pytest
 
 from uwlab.model.data import read_csv_columns
+from tests.support.paths import CONFIGS
 
-CONFIGS = Path(__file__).resolve().parents[2] / "configs"
+CONFIGS = CONFIGS
 SENSOR_IDS = ("imx250m", "imx250c", "icx285alm", "imx178m", "imx249m", "imx252m", "imx264c")
 NUMERIC_KEYS = (
     "pixel_size_um", "resolution_px", "bit_depth", "K_dn_per_e", "dark_offset_dn", "dark_noise_e", "saturation_e",

@@ -15,7 +15,7 @@ from uwlab.experiments.dataset import POINT_SCHEMA, Dataset, spectra_frame
 from uwlab.experiments.acquisition.dataset_check import check, repair, summarize
 from uwlab.experiments.dataset_store import PartDamaged
 
-from tests.sim.plans import write_plan
+from tests.support.plans import write_plan
 
 PLAN = {"name": "unit", "sweep": [{"id": "a", "kind": "exposure", "values": {"start": 1, "stop": 14, "num": 14}}]}
 

@@ -18,8 +18,8 @@ from uwlab.experiments.dataset import Dataset, spectra_frame
 from uwlab.experiments.acquisition.dataset_check import check
 from uwlab.lockfile import read_holder
 
-from tests.sim.cli_process import finish, points_recorded, run, uwlab, wait_until
-from tests.sim.plans import camera, write_plan
+from tests.support.cli_process import finish, points_recorded, run, uwlab, wait_until
+from tests.support.plans import camera, write_plan
 
 
 def plan_file(tmp_path: Path, points: int, settle_s: float = 0.0, name: str = "plan", **tables) -> Path:

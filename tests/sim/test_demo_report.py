@@ -5,7 +5,7 @@ import json
 import pytest
 
 from uwlab.cli.main import main
-from tests.sim.conftest import ROOT
+from tests.support.paths import ROOT
 
 
 @pytest.fixture(scope="module")

@@ -16,7 +16,7 @@ from uwlab.experiments.acquisition.sim_rig import SimRig
 from uwlab.experiments.dataset import CLOCK_COLUMNS
 from uwlab.experiments.demo import run_demo
 
-from tests.sim.plans import record, write_campaign
+from tests.support.plans import record, write_campaign
 
 
 @pytest.fixture(scope="module")

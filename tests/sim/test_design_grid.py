@@ -12,8 +12,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from tests.sim.cli_process import run
-from tests.sim.conftest import EXAMPLE, ROOT
+from tests.support.cli_process import run
+from tests.support.paths import EXAMPLE, ROOT
 from uwlab.cli.main import main
 from uwlab.errors import UwlabError
 from uwlab.experiments.design import distributed, grid as grid_module

@@ -11,7 +11,7 @@ from uwlab.model.components import load_lens_profile, load_light_profile, shippe
 from uwlab.model.design import evaluate, load_design
 from uwlab.model.water import WATER_TYPES, water_iop
 
-from tests.sim.conftest import EXAMPLE
+from tests.support.paths import EXAMPLE
 
 
 def test_rounding_and_unnamed_outputs():

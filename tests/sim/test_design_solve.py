@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from tests.sim.conftest import EXAMPLE
+from tests.support.paths import EXAMPLE
 from uwlab.cli.main import main
 from uwlab.errors import ConfigError
 from uwlab.experiments.design.posterior import credible_band, load_posterior

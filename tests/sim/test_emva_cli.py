@@ -15,8 +15,8 @@ from uwlab.experiments.dataset import Dataset
 from uwlab.experiments.emva.simulate import simulate_photon_transfer
 from uwlab.model.sensor import load_sensor_profile
 
-from tests.sim.conftest import EXAMPLE, ROOT
-from tests.sim.plans import write_plan
+from tests.support.paths import EXAMPLE, ROOT
+from tests.support.plans import write_plan
 
 # The result names of the EMVA 1288 reference implementation (github.com/EMVA1288/emva1288,
 # doc/datasets/datasets_results.rst and the emva1288 tags of process/results.py), by section.

@@ -3,7 +3,6 @@ sensitivity threshold as the root of SNR = 1, the linearity error against an ind
 rules (including the reference implementation's past-saturation pick), the dark current, and bad input."""
 import math
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -18,9 +17,10 @@ from uwlab.experiments.emva.linear import linearity_fit
 from uwlab.experiments.emva.regression import fit_line
 from uwlab.experiments.emva.transfer import RULE_CLIP, RULE_VARIANCE, PhotonTransfer, SpatialSplit, photons_per_pixel
 from uwlab.model.photometry import C_M_S, H_J_S, photon_flux, photons_per_joule
+from tests.support.paths import DATA
 
 K, ETA, SIGMA_D, SAT_E, DARK_E_S, OFFSET, DSNU_E, PRNU = 0.5, 0.6, 3.0, 8000.0, 100.0, 40.0, 2.0, 0.01
-DATA = Path(__file__).parent / "data"
+DATA = DATA
 
 
 DARK_EXPOSURES = np.linspace(0.1, 0.6, 6)

@@ -23,7 +23,7 @@ from uwlab.model.data import config_dir
 from uwlab.model.design import load_design, stage_spectra
 from uwlab.model.sensor import load_sensor_profile
 
-from tests.sim.conftest import EXAMPLE
+from tests.support.paths import EXAMPLE
 
 
 @pytest.fixture(scope="module")

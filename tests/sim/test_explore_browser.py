@@ -17,8 +17,8 @@ from selenium.webdriver.support.ui import WebDriverWait
 
 from uwlab.cli.main import main
 
-from tests.sim.conftest import EXAMPLE
-from tests.sim.explorer_process import Explorer
+from tests.support.paths import EXAMPLE
+from tests.support.explorer_process import Explorer
 
 CHROMIUM, CHROMEDRIVER = "/usr/bin/chromium", "/usr/bin/chromedriver"
 WAIT_S = 60

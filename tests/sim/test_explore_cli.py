@@ -8,8 +8,8 @@ import pytest
 
 from uwlab.cli.main import main
 
-from tests.sim.conftest import EXAMPLE
-from tests.sim.explorer_process import Explorer
+from tests.support.paths import EXAMPLE
+from tests.support.explorer_process import Explorer
 
 
 def test_serves_the_page_and_the_api_and_stops_on_ctrl_c():

@@ -3,7 +3,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from tests.sim.conftest import ROOT
+from tests.support.paths import ROOT
 from uwlab.model.design import build_design, evaluate
 from uwlab.model.grid import WavelengthGrid
 from uwlab.model.water import JERLOV_TYPES, pure_water_scattering, water_iop

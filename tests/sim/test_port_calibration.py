@@ -7,7 +7,7 @@ import cv2
 import numpy as np
 import pytest
 
-from tests.sim.conftest import ROOT
+from tests.support.paths import ROOT
 from uwlab.cli.main import main
 from uwlab.experiments.port.board import CharucoBoard, detect
 from uwlab.experiments.port.simulate import camera_of, port_in

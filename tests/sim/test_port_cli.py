@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from tests.sim.conftest import EXAMPLE, ROOT
+from tests.support.paths import EXAMPLE, ROOT
 from uwlab.cli.main import main
 from uwlab.model import port
 

@@ -5,7 +5,6 @@ import json
 import os
 import signal
 import subprocess
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -18,10 +17,11 @@ from uwlab.sim.devices.serial_sim import SerialRig, SerialSimSettings
 from uwlab.experiments.acquisition.light_calibration import load_light_calibration
 from uwlab.experiments.acquisition.spectra import irradiance_w_m2
 
-from tests.sim.cli_process import read_line, uwlab
+from tests.support.cli_process import read_line, uwlab
+from tests.support.paths import DATA
 
 GAMMA = 1.8
-SEKONIC_SAMPLE = Path(__file__).parent / "data" / "sekonic_c7000_synthetic.csv"
+SEKONIC_SAMPLE = DATA / "sekonic_c7000_synthetic.csv"
 SPECTRUM_KEYS = {"wavelength_nm", "irradiance_w_m2_nm", "irradiance_w_m2", "illuminance_lux", "photon_flux_m2_s",
                  "cct_k", "saturated"}
 

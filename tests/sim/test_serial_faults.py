@@ -18,7 +18,7 @@ from uwlab.sim.devices.serial_sim import MAX_FAULT_COUNT, SerialRig, SerialSimSe
 from uwlab.sim.state_log import states_during
 from uwlab.errors import DeviceError
 
-from tests.sim.cli_process import read_line, uwlab
+from tests.support.cli_process import read_line, uwlab
 
 TIMEOUT_S = 0.75
 

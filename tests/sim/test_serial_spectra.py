@@ -1,7 +1,6 @@
 """Derived spectral quantities against closed forms; Sekonic C-7000 import; spectrum CSV export."""
 from __future__ import annotations
 
-from pathlib import Path
 
 import colour
 import numpy as np
@@ -18,11 +17,12 @@ from uwlab.experiments.acquisition.spectra import (
     write_spectrum_csv,
 )
 from uwlab.model.photometry import photon_flux
+from tests.support.paths import DATA
 
 H = 6.62607015e-34
 C = 299792458.0
 C2_M_K = 1.438776877e-2
-SEKONIC_SAMPLE = Path(__file__).parent / "data" / "sekonic_c7000_synthetic.csv"
+SEKONIC_SAMPLE = DATA / "sekonic_c7000_synthetic.csv"
 
 
 def planck(nm: np.ndarray, temperature_k: float) -> np.ndarray:

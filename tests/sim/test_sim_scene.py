@@ -56,7 +56,7 @@ def test_rig_state_is_shared_through_a_file(tmp_path):
 
 
 def test_unknown_sim_key_is_refused(tmp_path):
-    from tests.sim.conftest import ROOT
+    from tests.support.paths import ROOT
 
     text = (ROOT / "configs/rigs/sim-tank.toml").read_text().replace("seed = 1288", "seeed = 1288")
     bad = tmp_path / "rig.toml"

@@ -17,7 +17,7 @@ from uwlab.model.data import read_toml
 from uwlab.model.design import stage_spectra
 from uwlab.model.sensor import load_sensor_profile
 
-from tests.sim.conftest import ROOT
+from tests.support.paths import ROOT
 
 RIG = ROOT / "configs/rigs/paper-tank.toml"
 

@@ -9,9 +9,10 @@ import pytest
 from uwlab.errors import ConfigError
 from uwlab.experiments.acquisition.spectra import read_sekonic_csv
 
-from tests.sim.cli_process import run
+from tests.support.cli_process import run
+from tests.support.paths import DATA
 
-SAMPLE = Path(__file__).parent / "data" / "sekonic_c7000_synthetic.csv"
+SAMPLE = DATA / "sekonic_c7000_synthetic.csv"
 LINES = SAMPLE.read_text().splitlines()
 ONE_NM = {int(line.split()[2].split("[")[0]): number for number, line in enumerate(LINES, start=1)
           if line.startswith("Spectral Data") and number >= 92}

@@ -8,8 +8,8 @@ import pytest
 from uwlab.experiments.dataset import Dataset
 from uwlab.experiments.acquisition.plan import load_plan
 
-from tests.sim.cli_process import finish, points_recorded, run, uwlab, wait_until
-from tests.sim.plans import camera, write_plan
+from tests.support.cli_process import finish, points_recorded, run, uwlab, wait_until
+from tests.support.plans import camera, write_plan
 
 PLAN = {"name": "cli-unit", "camera": camera(32, 32),
         "defaults": {"kind": "exposure", "values": {"start": 50, "stop": 400, "num": 8}, "settle_s": 0.15,

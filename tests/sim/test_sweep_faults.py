@@ -18,9 +18,9 @@ from uwlab.experiments.acquisition.rigs import HardwareRig
 from uwlab.experiments.acquisition.sweep import SweepRunner
 from uwlab.experiments.dataset import Dataset
 from uwlab.experiments.dataset_frames import read_frame
-from tests.sim.conftest import SIM_TANK
-from tests.sim.gige_server import Server
-from tests.sim.plans import camera, record, write_plan
+from tests.support.paths import SIM_TANK
+from tests.support.gige_server import Server
+from tests.support.plans import camera, record, write_plan
 
 DEFAULTS = {"black_level_dn": 32, "frames_per_point": 4}
 

@@ -8,7 +8,7 @@ from uwlab.experiments.acquisition.plan import load_plan
 from uwlab.experiments.acquisition.dataset_check import check
 from uwlab.experiments.dataset_frames import read_frame
 
-from tests.sim.plans import camera, record, write_plan
+from tests.support.plans import camera, record, write_plan
 
 DEFAULTS = {"black_level_dn": 32, "frames_per_point": 4, "dark_frames": 2, "save_frames": True, "roi": [2, 3, 16, 12]}
 SWEEPS = [{"id": "per-point", "kind": "exposure", "values": [100, 300], "dark": "point"},

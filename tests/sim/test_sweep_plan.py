@@ -5,8 +5,8 @@ import pytest
 from uwlab.errors import ConfigError
 from uwlab.experiments.acquisition.plan import expand_values, load_plan, point_counts
 
-from tests.sim.conftest import ROOT
-from tests.sim.plans import camera, write_plan
+from tests.support.paths import ROOT
+from tests.support.plans import camera, write_plan
 
 
 def plan_file(tmp_path, sweeps: list[dict], name: str | None = "unit", **top):

@@ -13,7 +13,7 @@ from uwlab.experiments.acquisition.plan import load_plan
 from uwlab.experiments.acquisition.rigs import HardwareRig
 from uwlab.experiments.acquisition.sweep import SweepRunner, check_resumable, open_for_resume
 
-from tests.sim.plans import camera, record, write_plan
+from tests.support.plans import camera, record, write_plan
 
 EXPOSURE = {"id": "exposure", "kind": "exposure", "values": [50, 100, 200, 300, 400],
             "spectrometer": ["target", "camera"]}

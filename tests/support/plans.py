@@ -10,7 +10,7 @@ from uwlab.experiments.acquisition.plan import Plan
 from uwlab.experiments.acquisition.sweep import SweepRunner
 from uwlab.experiments.dataset import Dataset
 
-from tests.sim.conftest import SIM_TANK
+from tests.support.paths import SIM_TANK
 
 # A small stand-in for the demo's campaign (configs/plans/tank-exposure-sweep.toml): its IMX250 sweeps through the
 # 30 mm F2.0 and the 12 mm F4.0 lens, 8 exposures from 20 µs to 1.5 ms, 32 × 24 px windows, 2 frames a point.
