@@ -1,15 +1,15 @@
-# The two commands of the README: `make demo` and `make test`.
+# The README's two commands are `make demo` and `make test`; the others are for development (CONTRIBUTING.md).
 PYTHON ?= python3.11
 VENV := .venv
 PY := $(VENV)/bin/python
 APT_PACKAGES := gir1.2-aravis-0.8 aravis-tools-cli libgirepository1.0-dev libcairo2-dev pkg-config chromium chromium-driver
 
-.PHONY: demo test venv system-deps
+.PHONY: demo test test-fast lint typecheck check venv system-deps
 
 $(VENV)/.installed: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e ".[test]"
+	$(PY) -m pip install --quiet -e ".[test,dev]"
 	touch $@
 
 venv: $(VENV)/.installed
@@ -27,5 +27,21 @@ $(VENV)/.aravis: $(VENV)/.installed
 demo: venv
 	$(VENV)/bin/uwlab demo
 
+# Everything: unit, integration (devices, ptys, GigE, Aravis, Chromium, Dask) and slow tests, doctests.
 test: $(VENV)/.aravis
-	$(VENV)/bin/python -m pytest
+	$(PY) -m pytest
+
+# The in-process unit tests and the doctests (no devices, no subprocesses).
+test-fast: venv
+	$(PY) -m pytest tests/unit uwlab
+
+# ruff (rules and formatting) and the import-linter layer contracts of pyproject.toml.
+lint: venv
+	$(VENV)/bin/ruff check uwlab tests benchmarks
+	$(VENV)/bin/ruff format --check uwlab tests benchmarks
+	$(VENV)/bin/lint-imports
+
+typecheck: venv
+	$(VENV)/bin/mypy
+
+check: lint typecheck test
