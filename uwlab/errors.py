@@ -10,6 +10,19 @@ class UwlabError(Exception):
     """Bad input or an unrecoverable condition, reported to the user in one line."""
 
 
+MAX_SHOWN_CHARS = 120
+
+
+def shown(value: object) -> str:
+    """A value as an error line quotes it: its repr, cut to `MAX_SHOWN_CHARS` (a 50 MB input is not echoed back).
+
+    >>> shown("x" * 200)[-14:], len(shown("x" * 200))
+    ('x… (202 chars)', 133)
+    """
+    text = repr(value)
+    return text if len(text) <= MAX_SHOWN_CHARS else f"{text[:MAX_SHOWN_CHARS]}… ({len(text)} chars)"
+
+
 class ConfigError(UwlabError, ValueError):
     """A configuration key has a wrong, missing or out-of-range value."""
 
@@ -17,7 +30,7 @@ class ConfigError(UwlabError, ValueError):
         self.key = key
         self.value = value
         self.reason = reason
-        super().__init__(f"{key} = {value!r}: {reason}")
+        super().__init__(f"{key} = {shown(value)}: {reason}")
 
 
 class DeviceError(UwlabError):

@@ -28,7 +28,7 @@ from tests.support.paths import EXAMPLE
 
 @pytest.fixture(scope="module")
 def client():
-    with TestClient(create_app(load_served(EXAMPLE), Catalog())) as c:
+    with TestClient(create_app(load_served(EXAMPLE), Catalog()), base_url="http://127.0.0.1") as c:
         yield c
 
 
@@ -218,7 +218,7 @@ def test_served_relative_files_are_saved_absolute(tmp_path, capsys):
     shutil.copy(config_dir() / "lights" / "test-light_spectrum.csv", folder / "led.csv")
     config = folder / "design.toml"
     config.write_text(EXAMPLE.read_text().replace('spectrum = "generic-led"', 'spectrum = "led.csv"'))
-    with TestClient(create_app(load_served(config))) as c:
+    with TestClient(create_app(load_served(config)), base_url="http://127.0.0.1") as c:
         text = c.post("/api/toml", json={}).text
         expected = c.post("/api/design", json={}).json()
     assert tomllib.loads(text)["light"]["spectrum"] == str(folder / "led.csv")
@@ -306,7 +306,8 @@ def emva_profile(tmp_path_factory):
 
 
 def test_an_emva_profile_can_be_loaded(emva_profile, capsys):
-    with TestClient(create_app(load_served(EXAMPLE), Catalog())) as c:
+    served = load_served(EXAMPLE).with_roots(emva_profile.parent)  # as `uwlab explore --data-dir OUT`
+    with TestClient(create_app(served, Catalog()), base_url="http://127.0.0.1") as c:
         added = c.post("/api/profile", json={"path": str(emva_profile)}).json()
         assert added["section"] == "sensor" and added["text"] == {"sensor.profile": str(emva_profile)}
         assert any(p["user"] and p["text"] == added["text"] for p in added["presets"]["sensor"])

@@ -161,3 +161,26 @@ def test_sweep_panel_draws_the_sweep(browser, explorer):
          "no sweep drawn")
     status = browser.find_element(By.ID, "sweep-status").text
     assert status.split()[0].isdigit() and "points" in status
+
+
+def test_beyond_the_loopback_the_page_needs_the_printed_token(browser, tmp_path):
+    """`--host 0.0.0.0`: a warning, a token in the printed URL; the page works with it and not without it."""
+    server = Explorer(str(EXAMPLE), "--host", "0.0.0.0")
+    try:
+        parts = urlsplit(server.url)
+        token = dict(parse_qsl(parts.query))["token"]
+        assert len(token) >= 24
+        local = f"http://127.0.0.1:{parts.port}/"
+        assert httpx.get(local + "api/config", timeout=30).status_code == 403
+        browser.delete_all_cookies()
+        browser.get(local)
+        assert "token is required" in browser.page_source
+        before = open_page(browser, f"{local}?token={token}")
+        assert "token=" not in browser.current_url  # the token went to a cookie
+        set_field(browser, "lens.f_number", "4")
+        wait(browser, lambda d: readout(d)["snr_db"] != before["snr_db"], "SNR did not change with the token")
+        browser.save_screenshot(str(tmp_path / "explorer-token.png"))
+    finally:
+        code, err = server.stop()
+    assert code == 130
+    assert err.count("warning: listening on 0.0.0.0") == 1

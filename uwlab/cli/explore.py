@@ -7,6 +7,7 @@ import socket
 import sys
 import threading
 import webbrowser
+from pathlib import Path
 
 from uwlab.errors import ConfigError
 from uwlab.model.data import config_dir
@@ -22,7 +23,16 @@ def register(subparsers) -> None:
     p.add_argument("--port", type=int, default=DEFAULT_PORT,
                    help=f"TCP port (default {DEFAULT_PORT}; 0: any free port)")
     p.add_argument("--host", default="127.0.0.1",
-                   help="address to listen on (default 127.0.0.1; the explorer serves anyone who can reach it)")
+                   help="address to listen on (default 127.0.0.1; any other address requires a token, printed in "
+                        "the URL)")
+    p.add_argument("--allow-host", action="append", default=[], metavar="NAME",
+                   help="a host name the browser may use to reach the explorer besides the loopback names and --host "
+                        "(repeatable; other Host headers are refused, against DNS rebinding)")
+    p.add_argument("--token", metavar="TOKEN",
+                   help="require this token (default: none on the loopback, a new random one on any other address)")
+    p.add_argument("--data-dir", action="append", default=[], metavar="DIR",
+                   help="a folder whose files (spectra, transmittances, profiles) designs may name, besides configs/ "
+                        "and the config's folder (repeatable)")
     p.add_argument("--profile", action="append", default=[], metavar="PATH",
                    help="a sensor (e.g. `uwlab emva` output), light or lens profile TOML, or a directory of them, "
                         "offered beside the shipped ones (repeatable)")
@@ -58,17 +68,28 @@ def run(args) -> int:
     from uwlab.explore.app import create_app
     from uwlab.explore.catalog import Catalog
     from uwlab.explore.inputs import load_served
+    from uwlab.explore.security import Access, is_loopback
 
     served = load_served(args.config or config_dir() / "design" / "example.toml")
     catalog = Catalog()
     for path in args.profile:
         catalog.add_profiles(path)
+    for folder in args.data_dir:
+        if not Path(folder).expanduser().is_dir():
+            raise ConfigError("--data-dir", folder, "not a directory")
+    served = served.with_roots(*args.profile, *args.data_dir)
+    if args.token is not None and len(args.token) < 8:
+        raise ConfigError("--token", args.token, "too short (at least 8 characters)")
+    access = Access.for_server(args.host, args.allow_host, args.token)
     sock = _listen(args.host, args.port)
     host, port = sock.getsockname()[:2]
     shown = f"[{host}]" if ":" in host else host
-    url = f"http://{shown}:{port}/"
-    server = uvicorn.Server(uvicorn.Config(create_app(served, catalog), log_level="warning", access_log=False,
-                                           lifespan="off"))
+    url = f"http://{shown}:{port}/" + (f"?token={access.token}" if access.token else "")
+    if not is_loopback(args.host):
+        print(f"uwlab explore: warning: listening on {args.host}, beyond this machine; anyone who can reach it "
+              "and has the token can run designs and read the files of --data-dir", file=sys.stderr)
+    server = uvicorn.Server(uvicorn.Config(create_app(served, catalog, access), log_level="warning",
+                                           access_log=False, lifespan="off"))
 
     async def serve() -> None:
         """Serve, and print the URL once the server accepts connections (and handles Ctrl-C itself)."""

@@ -8,6 +8,7 @@ Requests are parsed like the command line's arguments (`uwlab.explore.inputs`); 
 from __future__ import annotations
 
 import datetime as _dt
+import json
 from pathlib import Path
 
 import plotly
@@ -25,8 +26,9 @@ from uwlab.experiments.design.readout import BUDGET_KEY, budget_rows, design_war
 from uwlab.explore import figures
 from uwlab.explore.catalog import SUGGESTIONS, Catalog
 from uwlab.explore.forms import form_json, gridable_keys
-from uwlab.explore.inputs import (Served, absolute_paths, build, design_raw, field_texts, read_toml_text,
-                                  toml_text)
+from uwlab.explore.inputs import (OUTSIDE_ROOTS, Served, absolute_paths, build, check_files, design_raw,
+                                  field_texts, read_toml_text, toml_text)
+from uwlab.explore.security import Access, Guard
 from uwlab.explore.studies import solve_answer, sweep_answer
 from uwlab.jsonable import dumps, to_jsonable
 from uwlab.model.design import build_design, evaluate
@@ -52,11 +54,32 @@ def error_response(request: Request, exc: UwlabError) -> JSON:
     return JSON(body, status_code=422)
 
 
+MAX_JSON_DEPTH = 32
+
+
 async def _body(request: Request):
+    """The request's JSON (the guard, `uwlab.explore.security`, has limited its size), nested at most
+    `MAX_JSON_DEPTH` deep."""
     try:
-        return await request.json()
+        body = json.loads(await request.body())
+    except RecursionError:
+        raise ConfigError("request", "body", f"nested deeper than {MAX_JSON_DEPTH} levels") from None
     except ValueError:
         raise ConfigError("request", "body", "must be JSON") from None
+    if _depth(body) > MAX_JSON_DEPTH:
+        raise ConfigError("request", "body", f"nested deeper than {MAX_JSON_DEPTH} levels")
+    return body
+
+
+def _depth(value) -> int:
+    """How deep lists and objects nest in a JSON value (iteratively: no recursion limit to hit)."""
+    deepest, stack = 0, [(value, 1)]
+    while stack:
+        item, depth = stack.pop()
+        if isinstance(item, dict | list):
+            deepest = max(deepest, depth)
+            stack.extend((child, depth + 1) for child in (item.values() if isinstance(item, dict) else item))
+    return deepest
 
 
 def design_result(design) -> dict:
@@ -64,8 +87,9 @@ def design_result(design) -> dict:
     return to_jsonable(evaluate(design))
 
 
-def create_app(served: Served, catalog: Catalog | None = None) -> Starlette:
-    """The explorer for the served design, with the user profiles of `catalog`."""
+def create_app(served: Served, catalog: Catalog | None = None, access: Access | None = None) -> Guard:
+    """The explorer for the served design, with the user profiles of `catalog`, behind the guard of `access`
+    (default: loopback names only, no token; `uwlab.explore.security`)."""
     catalog = catalog or Catalog()
     templates = Jinja2Templates(directory=HERE / "templates")
 
@@ -134,6 +158,7 @@ def create_app(served: Served, catalog: Catalog | None = None) -> Starlette:
         if not isinstance(body, dict):
             raise ConfigError("request", body, "must be a JSON object")
         raw = absolute_paths(read_toml_text(body.get("toml"), str(body.get("name", "uploaded file"))), served.base_dir)
+        check_files(raw, served)
         build_design(raw, served.base_dir)
         return {"text": field_texts(raw)}
 
@@ -145,7 +170,10 @@ def create_app(served: Served, catalog: Catalog | None = None) -> Starlette:
         body = await _body(request)
         if not isinstance(body, dict) or not isinstance(body.get("path"), str):
             raise ConfigError("path", body, "give {\"path\": \"/path/to/profile.toml\"}")
-        section, preset = await run_in_threadpool(catalog.add_profile, body["path"])
+        path = served.readable(body["path"])
+        if path is None:
+            raise ConfigError("path", body["path"], OUTSIDE_ROOTS)
+        section, preset = await run_in_threadpool(catalog.add_profile, path)
         return JSON({"section": section, "label": preset.label, "text": field_texts(_nest(preset.values)),
                      "presets": presets()})
 
@@ -163,7 +191,8 @@ def create_app(served: Served, catalog: Catalog | None = None) -> Starlette:
         Route("/api/load", load, methods=["POST"]),
         Route("/api/profile", profile, methods=["POST"]),
     ]
-    return Starlette(routes=routes, exception_handlers={UwlabError: error_response})
+    app = Starlette(routes=routes, exception_handlers={UwlabError: error_response})
+    return Guard(app, access or Access())
 
 
 def _nest(values: dict) -> dict:

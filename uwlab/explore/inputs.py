@@ -13,29 +13,83 @@ The page sends ``{"config": {}, "text": {...every field...}}``: the design is wh
 turns a config into those texts (and a shareable URL's query). Relative file names in a config are relative to
 the served config's folder (an uploaded TOML has no folder of its own); files named relative to the served config
 are made absolute when it is loaded, so a saved design names the same files wherever it is saved.
+
+Files a request may name (`check_files`): only regular files of at most `MAX_FILE_BYTES` inside the explorer's
+roots — ``configs/``, the served config's folder, the ``--data-dir`` folders and the ``--profile`` files. Any
+other path is refused with the same line whether or not it exists, so a request learns nothing of the machine's
+files.
 """
 from __future__ import annotations
 
+import stat
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import tomli_w
 
 from uwlab.errors import ConfigError
 from uwlab.model.config import apply_override, load_raw, parse_value
+from uwlab.model.data import config_dir, resolve_path
 from uwlab.model.design import Design, build_design
+from uwlab.model.spectra import NAMED_SPECTRA
+from uwlab.model.target import NAMED_REFLECTANCE
+from uwlab.model.water import WATER_TYPES
 
 BODY_MEMBERS = ("config", "set", "text")
+MAX_FILE_BYTES = 1_000_000
+# Design keys whose string values name a file unless they are one of these names (`uwlab.model.design`); a sensor
+# profile is a file when it ends in .toml (`uwlab.model.sensor.load_sensor_profile`).
+FILE_KEYS = {"light.spectrum": NAMED_SPECTRA, "water.type": WATER_TYPES, "target.reflectance": NAMED_REFLECTANCE,
+             "lens.transmittance": (), "sensor.profile": None}
+OUTSIDE_ROOTS = "not a file the explorer may read (configs/, the served config's folder, --data-dir, --profile)"
 
 
 @dataclass(frozen=True)
 class Served:
-    """The design `uwlab explore` was started with: its raw config, file and the folder relative names resolve in."""
+    """The design `uwlab explore` was started with: its raw config, file and the folder relative names resolve in;
+    ``roots``: the folders and files requests may name besides ``configs/`` (`check_files`)."""
 
     raw: dict
     base_dir: Path
     path: Path | None = None
+    roots: tuple[Path, ...] = ()
+
+    def with_roots(self, *roots: str | Path) -> Served:
+        """The same design with more folders or files requests may name."""
+        return replace(self, roots=(*self.roots, *(Path(r).expanduser().resolve() for r in roots)))
+
+    def readable(self, value: str, base: Path | None = None) -> Path | None:
+        """The file ``value`` names (relative to ``base``, default the served folder) when requests may name it: a
+        path inside a root (links followed) that is, if it exists, a regular file of at most `MAX_FILE_BYTES`;
+        else None. A missing file inside a root is left to the loader to report, as `uwlab design` does."""
+        try:
+            path = resolve_path(value, base or self.base_dir).resolve()
+        except (OSError, RuntimeError, ValueError):
+            return None
+        roots = (config_dir().resolve(), self.base_dir.resolve(), *self.roots)
+        if not any(path == root or path.is_relative_to(root) for root in roots):
+            return None
+        try:
+            info = path.stat()
+        except FileNotFoundError:
+            return path
+        except OSError:
+            return None
+        return path if stat.S_ISREG(info.st_mode) and info.st_size <= MAX_FILE_BYTES else None
+
+
+def check_files(raw: dict, served: Served) -> None:
+    """Refuse (`ConfigError` naming the key) any file a design names that requests may not read (module
+    docstring)."""
+    for dotted, names in FILE_KEYS.items():
+        section, _, key = dotted.partition(".")
+        body = raw.get(section)
+        value = body.get(key) if isinstance(body, dict) else None
+        if not isinstance(value, str) or (value in names if names is not None else not value.lower().endswith(".toml")):
+            continue
+        if served.readable(value) is None:
+            raise ConfigError(dotted, value, OUTSIDE_ROOTS)
 
 
 def copy_raw(raw: dict) -> dict:
@@ -86,6 +140,7 @@ def design_raw(body, served: Served, extra: tuple[str, ...] = ()) -> dict:
         if not isinstance(text, str):
             raise ConfigError(dotted, text, "text values must be strings (use set for JSON values)")
         _apply(raw, dotted, parse_value(text.strip()) if text.strip() else None)
+    check_files(raw, served)
     return raw
 
 

@@ -15,9 +15,13 @@ let inFlight = false, dirty = false, typingTimer = null;
 const PLOT_CONFIG = { displaylogo: false, responsive: true, modeBarButtonsToRemove: ["lasso2d", "select2d"] };
 
 // ---- talking to the server -----------------------------------------------------------------------------------
+// The XSRF token the server set as a cookie, repeated in a header (uwlab/explore/security.py: double submit).
+const xsrfToken = () => (document.cookie.match(/(?:^|;\s*)_xsrf=([^;]*)/) || [])[1] || "";
+
 async function api(path, body) {
   const response = await fetch(path, body === undefined ? {} : {
-    method: "POST", headers: { "Content-Type": "application/json" }, body: JSON.stringify(body) });
+    method: "POST", headers: { "Content-Type": "application/json", "X-XSRF-Token": xsrfToken() },
+    body: JSON.stringify(body) });
   const type = response.headers.get("Content-Type") || "";
   const data = type.includes("json") ? await response.json() : await response.text();
   if (!response.ok) {
