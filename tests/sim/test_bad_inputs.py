@@ -28,10 +28,10 @@ from uwlab.experiments.emva.simulate import simulate_photon_transfer
 from uwlab.model.sensor import load_sensor_profile
 
 from tests.support.cli_process import finish, run, uwlab, wait_until
-from tests.support.paths import EXAMPLE, ROOT
+from tests.support.paths import DATA, EXAMPLE, ROOT
 from tests.support.plans import CAMPAIGN_DEFAULTS, write_campaign
 
-SEKONIC = ROOT / "tests" / "sim" / "data" / "sekonic_c7000_synthetic.csv"
+SEKONIC = DATA / "sekonic_c7000_synthetic.csv"
 DOME = ROOT / "configs" / "design" / "dome-8mm.toml"
 
 

@@ -21,7 +21,7 @@ REQUIRED_KEYS = ("name", "description", "color", "qe_csv", *NUMERIC_KEYS)
 JERLOV_TYPES = ("I", "II", "III", "1C", "3C", "5C", "7C", "9C")
 JERLOV_NM = (300, 310, 350, 375, 400, 425, 450, 475, 500, 525, 550, 575, 600, 625, 650, 675, 700)
 KNOWN_GAPS = {("3C", 675), ("3C", 700), ("5C", 600), ("5C", 625), ("5C", 650), ("5C", 675), ("5C", 700)}
-# Values of the reference copy tests/sim/data/pure_water_absorption_pope_fry_1997.csv.
+# Values of the reference copy tests/data/pure_water_absorption_pope_fry_1997.csv.
 POPE_FRY = {380.0: 0.01137, 500.0: 0.0204, 700.0: 0.624}
 
 

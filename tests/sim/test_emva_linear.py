@@ -163,7 +163,7 @@ def test_variance_maximum_when_the_clip_level_is_never_reached():
 
 
 def test_saturation_where_the_reference_implementation_picks_a_point_past_it():
-    """A photon transfer simulated by the EMVA 1288 reference implementation (tests/sim/data): it reports the
+    """A photon transfer simulated by the EMVA 1288 reference implementation (tests/data): it reports the
     saturation at index 17, μ_e.sat = 36 624 e-, where the dark-corrected variance is negative; its camera clips at a
     15 000 e- full well. uwlab takes the variance peak (index 6)."""
     table = pd.read_csv(DATA / "emva1288_reference_saturation.csv", comment="#")

@@ -3,13 +3,12 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from tests.support.paths import ROOT
+from tests.support.paths import DATA, ROOT
 from uwlab.model.design import build_design, evaluate
 from uwlab.model.grid import WavelengthGrid
 from uwlab.model.water import JERLOV_TYPES, pure_water_scattering, water_iop
 
 GRID = WavelengthGrid(300.0, 800.0, 1.0)
-DATA = ROOT / "tests" / "sim" / "data"  # reference copies with their provenance (README.md there)
 
 
 @pytest.mark.parametrize("kind", JERLOV_TYPES)

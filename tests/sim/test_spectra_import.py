@@ -1,5 +1,5 @@
 """Sekonic C-7000 CSV import refuses what it cannot trust, naming the line: strays, out-of-range wavelengths and
-values, gaps, repeats, short files. The sample is `tests/sim/data/sekonic_c7000_synthetic.csv` (a 5 nm block on
+values, gaps, repeats, short files. The sample is `tests/data/sekonic_c7000_synthetic.csv` (a 5 nm block on
 lines 10–90, a 1 nm block on lines 92–492, both 380–780 nm)."""
 from pathlib import Path
 

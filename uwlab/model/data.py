@@ -7,7 +7,9 @@ lines (their provenance header); read with the standard library's `csv` (no pand
 from __future__ import annotations
 
 import csv
+import math
 import os
+import stat
 import tomllib
 from pathlib import Path
 
@@ -21,63 +23,105 @@ def config_dir() -> Path:
     return Path(env) if env else Path(__file__).resolve().parents[2] / "configs"
 
 
-def read_toml(path: Path, key: str = "config") -> dict:
+MAX_TOML_BYTES = 10_000_000
+MAX_CSV_BYTES = 100_000_000
+# No physical table of uwlab (wavelengths, spectra, QE, attenuation, counts) comes near this magnitude: a larger
+# value is a wrong unit or a corrupt file, and squaring it would overflow float64 downstream.
+MAX_ABS_VALUE = 1e15
+
+
+def read_text(path: Path, key: str, max_bytes: int, kind: str) -> str:
+    """The UTF-8 text of a regular file of at most ``max_bytes``: a directory, a device (``/dev/zero``), a FIFO
+    (which would block), an oversized or non-UTF-8 file is a `ConfigError` naming ``key`` and the file, before it is
+    read."""
+    path = Path(path)
     try:
-        with open(path, "rb") as fh:
-            return tomllib.load(fh)
+        info = os.stat(path)
     except FileNotFoundError:
         raise ConfigError(key, str(path), "file not found") from None
-    except IsADirectoryError:
-        raise ConfigError(key, str(path), "is a directory, not a TOML file") from None
+    except OSError as exc:
+        raise ConfigError(key, str(path), f"cannot be read ({exc.strerror})") from None
+    if stat.S_ISDIR(info.st_mode):
+        raise ConfigError(key, str(path), f"is a directory, not a {kind} file")
+    if not stat.S_ISREG(info.st_mode):
+        raise ConfigError(key, str(path), f"not a regular file (a device or pipe), not a {kind} file")
+    if info.st_size > max_bytes:
+        raise ConfigError(key, str(path), f"{info.st_size} bytes: larger than any {kind} file uwlab reads "
+                                          f"({max_bytes} bytes)")
+    try:
+        data = path.read_bytes()
     except PermissionError:
         raise ConfigError(key, str(path), "cannot be read (permission denied)") from None
+    except OSError as exc:
+        raise ConfigError(key, str(path), f"cannot be read ({exc.strerror})") from None
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        bom = " (a UTF-16 byte-order mark: save it as UTF-8)" if data[:2] in (b"\xff\xfe", b"\xfe\xff") else ""
+        raise ConfigError(key, str(path), f"not UTF-8 text: byte {exc.start} is {data[exc.start]:#04x}{bom}") from None
+
+
+def read_toml(path: Path, key: str = "config") -> dict:
+    """A TOML file (`read_text`'s checks first); `ConfigError` naming ``key`` and the file when it does not parse."""
+    text = read_text(path, key, MAX_TOML_BYTES, "TOML")
+    try:
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(key, str(path), f"invalid TOML ({exc})") from None
 
 
-def read_csv_table(path: Path, key: str) -> dict[str, list[str]]:
-    """The columns of a CSV file by name, as lists of stripped strings. Text from ``#`` to the end of a line is a
-    comment; blank lines are skipped; the first other line names the columns; every row has one field per column."""
-    try:
-        with open(path, newline="", encoding="utf-8") as fh:
-            lines = [(number, line.split("#", 1)[0]) for number, line in enumerate(fh, 1)]
-    except FileNotFoundError:
-        raise ConfigError(key, str(path), "file not found") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(key, str(path), f"unreadable CSV ({exc})") from None
+def _csv_rows(path: Path, key: str) -> tuple[list[str], list[tuple[int, list[str]]]]:
+    """The header and the (line number, stripped fields) of each row of a CSV (`read_csv_table`'s rules)."""
+    text = read_text(path, key, MAX_CSV_BYTES, "CSV")
+    lines = [(number, line.split("#", 1)[0]) for number, line in enumerate(text.splitlines(), 1)]
     lines = [(number, line) for number, line in lines if line.strip()]
     if not lines:
         raise ConfigError(key, str(path), "unreadable CSV (no header line)")
     rows = csv.reader(line for _, line in lines)
     header = [name.strip() for name in next(rows)]
-    columns: dict[str, list[str]] = {name: [] for name in header}
+    out = []
     for (number, _), row in zip(lines[1:], rows, strict=True):
         if len(row) != len(header):
             raise ConfigError(key, str(path), f"line {number} has {len(row)} fields, the header {len(header)}")
-        for name, cell in zip(header, row, strict=True):
-            columns[name].append(cell.strip())
-    return columns
+        out.append((number, [cell.strip() for cell in row]))
+    return header, out
+
+
+def read_csv_table(path: Path, key: str) -> dict[str, list[str]]:
+    """The columns of a CSV file by name, as lists of stripped strings. Text from ``#`` to the end of a line is a
+    comment; blank lines are skipped; the first other line names the columns; every row has one field per column."""
+    header, rows = _csv_rows(path, key)
+    return {name: [row[i] for _, row in rows] for i, name in enumerate(header)}
 
 
 def read_csv_columns(path: Path, columns: tuple[str, ...], key: str) -> dict[str, np.ndarray]:
     """Read named numeric columns of a CSV, sorted by the first, duplicate first-column values dropped (the first
-    kept)."""
-    table = read_csv_table(path, key)
-    missing = [c for c in columns if c not in table]
+    kept). Every value must be a finite number of magnitude at most `MAX_ABS_VALUE`; a `ConfigError` names the
+    file, the line and the column of the first that is not."""
+    header, rows = _csv_rows(path, key)
+    missing = [c for c in columns if c not in header]
     if missing:
-        raise ConfigError(key, str(path), f"missing column(s) {', '.join(missing)}; has {', '.join(table)}")
-    if any(cell == "" for c in columns for cell in table[c]):
-        raise ConfigError(key, str(path), "empty cells")
-    try:
-        values = {c: np.array([float(cell) for cell in table[c]]) for c in columns}
-    except ValueError as exc:
-        raise ConfigError(key, str(path), f"non-numeric value ({exc})") from None
-    if any(np.isnan(v).any() for v in values.values()):
-        raise ConfigError(key, str(path), "empty cells")
-    order = np.argsort(values[columns[0]], kind="stable")
-    first = values[columns[0]][order]
+        raise ConfigError(key, str(path), f"missing column(s) {', '.join(missing)}; has {', '.join(header)}")
+    index = [header.index(c) for c in columns]
+    values = np.empty((len(rows), len(columns)))
+    for r, (number, row) in enumerate(rows):
+        for j, (i, name) in enumerate(zip(index, columns, strict=True)):
+            cell = row[i]
+            if cell == "":
+                raise ConfigError(key, str(path), f"line {number}: empty cell in column {name}")
+            try:
+                value = float(cell)
+            except ValueError:
+                hint = " (a decimal comma? write 0.5, not 0,5)" if "," in cell else ""
+                raise ConfigError(key, str(path), f"line {number}: {name} = {cell!r} is not a number{hint}") from None
+            if not math.isfinite(value) or abs(value) > MAX_ABS_VALUE:
+                raise ConfigError(key, str(path), f"line {number}: {name} = {cell} is not a finite number of "
+                                                  f"magnitude ≤ {MAX_ABS_VALUE:g} — is the unit right?")
+            values[r, j] = value
+    order = np.argsort(values[:, 0], kind="stable")
+    first = values[order, 0]
     keep = order[np.concatenate([[True], first[1:] != first[:-1]])] if first.size else order
-    return {c: v[keep] for c, v in values.items()}
+    return {c: values[keep, j] for j, c in enumerate(columns)}
 
 
 def resolve_path(value: str, base: Path | None) -> Path:
