@@ -10,7 +10,9 @@ sweep or fit never fails at its end and nothing is left half-written. The rules,
   created and removed there, so read-only file systems, permission bits and anything else the system refuses
   are found now, whoever the user is;
 - an existing file is not overwritten unless the command's replace option says so; an existing directory is
-  written into only where the command says (and must then accept new files).
+  written into only where the command says (and must then accept new files);
+- nothing is written inside a uwlab dataset (a folder holding `METADATA_FILE` and `MANIFEST_FILE`): its files
+  are the dataset's own, checked and repaired as a whole.
 
 >>> output_file("/nonexistent/report.html", "--out")
 Traceback (most recent call last):
@@ -27,6 +29,9 @@ from uwlab.errors import ConfigError
 
 PATH_MAX_BYTES = 4096
 NAME_MAX_BYTES = 255
+# The two files that make a folder a uwlab dataset (`uwlab.experiments.dataset`, `uwlab.experiments.dataset_store`).
+METADATA_FILE = "metadata.json"
+MANIFEST_FILE = "manifest.json"
 
 
 def _name_max(path: Path) -> int:
@@ -59,6 +64,20 @@ def checked_name(path: str | os.PathLike, key: str) -> Path:
     return path
 
 
+def dataset_holding(path: Path) -> Path | None:
+    """The uwlab dataset folder that `path` lies strictly inside, if any (links resolved)."""
+    for folder in path.absolute().resolve().parents:
+        if (folder / METADATA_FILE).is_file() and (folder / MANIFEST_FILE).is_file():
+            return folder
+    return None
+
+
+def _outside_datasets(path: Path, key: str) -> None:
+    dataset = dataset_holding(path)
+    if dataset is not None:
+        raise ConfigError(key, str(path), f"is inside the dataset {dataset}; choose a place outside it")
+
+
 def _accepts_files(directory: Path, key: str, path: Path) -> None:
     """Refuse unless a file can be created in `directory` (probe: an unnamed temporary file, removed at once)."""
     try:
@@ -82,6 +101,7 @@ def output_file(path: str | os.PathLike, key: str, *, replace: bool = False,
     """A file about to be written: checked name, existing writable parent, not a directory, and not an existing
     file unless `replace` (the refusal names `replace_option`, the option that allows it, if there is one)."""
     path = checked_name(path, key)
+    _outside_datasets(path, key)
     if path.exists() and not replace:
         hint = f"; use {replace_option} to replace it" if replace_option else ""
         raise ConfigError(key, str(path), f"exists; refusing to overwrite it{hint}")
@@ -95,6 +115,7 @@ def output_dir(path: str | os.PathLike, key: str, *, empty: bool = False) -> Pat
     """A directory to write into: an existing directory that accepts files (and is empty, with `empty`), or a
     new one whose parent exists and accepts it. Nothing is created here: the writer makes it (``mkdir()``)."""
     path = checked_name(path, key)
+    _outside_datasets(path, key)
     if path.exists():
         if not path.is_dir():
             raise ConfigError(key, str(path), "exists and is not a directory")

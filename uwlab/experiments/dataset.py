@@ -60,8 +60,8 @@ from uwlab.experiments.frames.stack import StackStatistics
 from uwlab.experiments.saturation import POINT_SATURATED_FRACTION, ClipLevel, point_saturated
 from uwlab.jsonable import dumps
 from uwlab.lockfile import LockHeld, OwnerLock
+from uwlab.outputs import METADATA_FILE
 
-METADATA_FILE = "metadata.json"
 LOCK_FILE = "lock"
 QUARANTINE_DIR = "quarantine"
 DATASET_ENTRIES = (METADATA_FILE, MANIFEST_FILE, PARTS_DIR, FRAMES_DIR, QUARANTINE_DIR)

@@ -34,9 +34,9 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from uwlab.errors import UwlabError
+from uwlab.outputs import MANIFEST_FILE
 
 FORMAT = "uwlab-dataset-parts/1"
-MANIFEST_FILE = "manifest.json"
 PARTS_DIR = "parts"
 FANOUT = 16
 MAX_LEVEL = 3
