@@ -54,7 +54,9 @@ from uwlab.experiments.dataset_store import (
     DatasetWriteError,
     ManifestDamaged,
     PartStore,
-    write_atomic,
+    backup_path,
+    read_sealed,
+    write_sealed,
 )
 from uwlab.experiments.frames.stack import StackStatistics
 from uwlab.experiments.saturation import POINT_SATURATED_FRACTION, ClipLevel, point_saturated
@@ -64,7 +66,8 @@ from uwlab.outputs import METADATA_FILE
 
 LOCK_FILE = "lock"
 QUARANTINE_DIR = "quarantine"
-DATASET_ENTRIES = (METADATA_FILE, MANIFEST_FILE, PARTS_DIR, FRAMES_DIR, QUARANTINE_DIR)
+DATASET_ENTRIES = (METADATA_FILE, MANIFEST_FILE, backup_path(Path(METADATA_FILE)).name,
+                   backup_path(Path(MANIFEST_FILE)).name, PARTS_DIR, FRAMES_DIR, QUARANTINE_DIR)
 KINDS = ("exposure", "aperture", "gain", "light-level", "dark")
 SOFTWARE_PACKAGES = ("numpy", "scipy", "pandas", "pyarrow", "colour-science", "opencv-contrib-python-headless",
                      "harvesters", "genicam", "pyserial", "tifffile", "emcee")
@@ -203,9 +206,11 @@ class Dataset:
     a writer that holds the dataset's lock until `close` (or process exit) and appends points, each durable on
     return. A writer is a context manager."""
 
-    def __init__(self, root: Path, metadata: dict, store: PartStore, lock: OwnerLock | None = None):
+    def __init__(self, root: Path, metadata: dict, store: PartStore, lock: OwnerLock | None = None,
+                 metadata_problems: tuple[str, ...] = ()):
         self.root = root
         self.metadata = metadata
+        self.metadata_problems = metadata_problems
         self._store = store
         self._lock = lock
         self._keys: set[tuple[str, int]] | None = None
@@ -251,17 +256,19 @@ class Dataset:
     def open(cls, root: str | os.PathLike) -> Dataset:
         """The dataset at ``root`` for reading (its last committed state)."""
         root = Path(root)
-        return cls(root, _read_metadata(root), _load_store(root))
+        metadata, problems = read_metadata(root)
+        return cls(root, metadata, _load_store(root), metadata_problems=problems)
 
     @classmethod
     def open_for_writing(cls, root: str | os.PathLike, purpose: str = "writing") -> Dataset:
         """The dataset at ``root`` with its lock held: refused (one line naming the holder's host and pid) while
         another writer holds it; a lock left by a dead process on this host is taken over."""
         root = Path(root)
-        _read_metadata(root)  # refuse a folder that is not a dataset before creating a lock file in it
+        read_metadata(root)  # refuse a folder that is not a dataset before creating a lock file in it
         lock = _take_lock(root, purpose)
         try:
-            return cls(root, _read_metadata(root), _load_store(root), lock)
+            metadata, problems = read_metadata(root)
+            return cls(root, metadata, _load_store(root), lock, metadata_problems=problems)
         except BaseException:
             lock.release()
             raise
@@ -351,8 +358,15 @@ class Dataset:
             if key not in recorded:
                 shutil.rmtree(folder, ignore_errors=True)
 
+    def restore_copies(self) -> None:
+        """Rewrite both copies of the metadata and the manifest from what was read (the intact copies)."""
+        self._require_writer()
+        self._save_metadata()
+        self._store.reseal()
+
     def _save_metadata(self) -> None:
-        write_atomic(self.root / METADATA_FILE, (dumps(self.metadata, indent=2) + "\n").encode())
+        write_sealed(self.root / METADATA_FILE, json.loads(dumps(self.metadata)), indent=2)
+        self.metadata_problems = ()
 
     def _require_writer(self) -> None:
         if not self.writable:
@@ -418,20 +432,23 @@ def _load_store(root: Path) -> PartStore:
     try:
         return _store(root).load()
     except ManifestDamaged as exc:
-        raise ConfigError("dataset", str(root), f"{exc}; restore {MANIFEST_FILE} from a backup") from None
+        raise ConfigError("dataset", str(root), f"{exc}; no copy of {MANIFEST_FILE} can be trusted") from None
 
 
-def _read_metadata(root: Path) -> dict:
-    meta_path = root / METADATA_FILE
+def read_metadata(root: Path) -> tuple[dict, tuple[str, ...]]:
+    """A dataset's ``metadata.json`` from its first trustworthy copy (`uwlab.experiments.dataset_store.read_sealed`)
+    and what was wrong with the other copy; `ConfigError` (one line) for a folder that is not a dataset or whose
+    metadata no copy holds."""
+    root = Path(root)
     try:
-        metadata = json.loads(meta_path.read_text())
+        found = read_sealed(root / METADATA_FILE)
     except (FileNotFoundError, NotADirectoryError):
         raise ConfigError("dataset", str(root), f"not a dataset (no {METADATA_FILE})") from None
     except (OSError, ValueError) as exc:
         raise ConfigError("dataset", str(root), f"unreadable {METADATA_FILE} ({exc})") from None
-    if not isinstance(metadata, dict) or "plan_sha256" not in metadata:
+    if "plan_sha256" not in found.document:
         raise ConfigError("dataset", str(root), f"{METADATA_FILE} has no plan_sha256")
-    return metadata
+    return found.document, found.problems
 
 
 def _take_lock(root: Path, purpose: str) -> OwnerLock:

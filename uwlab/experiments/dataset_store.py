@@ -18,6 +18,12 @@ appends); the merged files are removed once the manifest no longer names them.
 
 Reading checks every file against the manifest (SHA-256, row count) and the Parquet page checksums, and conforms
 it to the table's schema (columns a part predates read as null); a file that fails raises `PartDamaged` naming it.
+
+The JSON documents (the manifest here, ``metadata.json`` in `uwlab.experiments.dataset`) are sealed: each carries
+the SHA-256 of its own canonical JSON (key `SEAL_KEY`) and is written twice, the file and its backup copy
+(`backup_path`: ``manifest.backup.json``), each atomically. `read_sealed` takes the first copy whose seal holds, so
+any single damaged byte of either copy is either repaired from the other or (both damaged) refused — never read as
+another value. A dataset written before seals (no backup copies) is read as it is.
 Files are created with the user's umask (lab data is shared). A failed write (disk full, read-only) raises
 `DatasetWriteError`; the previous state stays intact.
 """
@@ -60,6 +66,76 @@ class PartDamaged(UwlabError):
 
 class ManifestDamaged(UwlabError):
     """The manifest is unreadable or not a manifest: the dataset cannot be read."""
+
+
+SEAL_KEY = "_sha256"
+
+
+def backup_path(path: Path) -> Path:
+    """The backup copy of a sealed document: ``manifest.json`` → ``manifest.backup.json``."""
+    return path.with_name(f"{path.stem}.backup{path.suffix}")
+
+
+def _digest(document: dict) -> str:
+    canonical = json.dumps(document, sort_keys=True, separators=(",", ":"), ensure_ascii=False, allow_nan=False)
+    return hashlib.sha256(canonical.encode()).hexdigest()
+
+
+def write_sealed(path: Path, document: dict, indent: int | None = None) -> None:
+    """Write ``document`` (plain JSON values) with its seal to ``path``, then to its backup copy (each with
+    `write_atomic`): a crash between the two leaves two valid copies, the file one state newer."""
+    body = {**document, SEAL_KEY: _digest(document)}
+    text = json.dumps(body, indent=indent, separators=None if indent else (",", ":"), ensure_ascii=False,
+                      allow_nan=False)
+    data = (text + "\n").encode()
+    write_atomic(path, data)
+    write_atomic(backup_path(path), data)
+
+
+def _read_copy(path: Path, sealed: bool) -> dict:
+    """One copy of a sealed document; `ValueError` saying why it cannot be trusted (`FileNotFoundError` if none)."""
+    document = json.loads(path.read_bytes().decode("utf-8"))
+    if not isinstance(document, dict):
+        raise ValueError("not a JSON object")
+    seal = document.pop(SEAL_KEY, None)
+    if seal is None:
+        if sealed:
+            raise ValueError("its checksum is missing")
+        return document
+    if seal != _digest(document):
+        raise ValueError("its content differs from its checksum")
+    return document
+
+
+@dataclass(frozen=True)
+class SealedRead:
+    """A sealed document as read: the ``document``, the copy it came from and what was wrong with the others."""
+
+    document: dict
+    source: Path
+    problems: tuple[str, ...] = ()
+
+
+def read_sealed(path: Path) -> SealedRead:
+    """The document at ``path`` from the first of its copies whose seal holds (`write_sealed`); an unsealed file
+    without a backup copy is a document written before seals and is taken as it is. `FileNotFoundError` when
+    neither copy exists; `ValueError` naming both problems when neither can be trusted."""
+    backup = backup_path(path)
+    sealed = backup.exists()
+    problems = []
+    for copy in (path, backup):
+        try:
+            document = _read_copy(copy, sealed)
+        except FileNotFoundError:
+            if copy == path and not sealed:
+                raise
+            problems.append(f"{copy.name} is missing")
+            continue
+        except (OSError, ValueError) as exc:
+            problems.append(f"{copy.name} is damaged ({exc})")
+            continue
+        return SealedRead(document, copy, tuple(problems))
+    raise ValueError("; ".join(problems))
 
 
 @dataclass(frozen=True)
@@ -158,6 +234,7 @@ class PartStore:
         self.cached = cached
         self.parts: list[Part] = []
         self.next_id = 1
+        self.copy_problems: tuple[str, ...] = ()
         self._cache: dict[tuple[int, str], pa.Table] = {}
 
     @property
@@ -166,14 +243,16 @@ class PartStore:
 
     # -- the manifest ----------------------------------------------------------------------------
     def load(self) -> PartStore:
-        """Read the manifest (none: no parts); `ManifestDamaged` if it cannot be read."""
+        """Read the manifest (none: no parts) from its first trustworthy copy (`read_sealed`; what was wrong with
+        the other is kept in ``copy_problems``); `ManifestDamaged` if no copy can be read."""
         try:
-            document = json.loads(self.manifest_path.read_text())
+            found = read_sealed(self.manifest_path)
         except FileNotFoundError:
-            self.parts, self.next_id = [], 1
+            self.parts, self.next_id, self.copy_problems = [], 1, ()
             return self
         except (OSError, ValueError) as exc:
             raise ManifestDamaged(f"dataset {self.root}: unreadable {MANIFEST_FILE} ({exc})") from None
+        document = found.document
         try:
             if document["format"] != FORMAT:
                 raise ValueError(f"format {document['format']!r}, expected {FORMAT!r}")
@@ -184,9 +263,14 @@ class PartStore:
             next_id = int(document["next_id"])
         except (KeyError, TypeError, ValueError, AttributeError) as exc:
             raise ManifestDamaged(f"dataset {self.root}: {MANIFEST_FILE} is not a parts manifest ({exc})") from None
-        self.parts, self.next_id = parts, next_id
+        self.parts, self.next_id, self.copy_problems = parts, next_id, found.problems
         self._cache = {key: table for key, table in self._cache.items() if key[0] in {p.id for p in parts}}
         return self
+
+    def reseal(self) -> None:
+        """Rewrite both copies of the manifest as read (a damaged copy is replaced by the intact one)."""
+        if self.manifest_path.exists() or backup_path(self.manifest_path).exists():
+            self._commit(self.parts, self.next_id)
 
     def _commit(self, parts: list[Part], next_id: int) -> None:
         """Make ``parts`` the dataset's: their files' names durable (fsync of ``parts/``), then the manifest."""
@@ -196,8 +280,8 @@ class PartStore:
                 fsync_directory(self.root / PARTS_DIR)
             except OSError as exc:
                 raise _write_error(self.root / PARTS_DIR, exc) from exc
-        write_atomic(self.manifest_path, (json.dumps(document, separators=(",", ":")) + "\n").encode())
-        self.parts, self.next_id = parts, next_id
+        write_sealed(self.manifest_path, document)
+        self.parts, self.next_id, self.copy_problems = parts, next_id, ()
 
     # -- reading ----------------------------------------------------------------------------------
     def read(self, part: Part, name: str) -> pa.Table:

@@ -26,8 +26,8 @@ import pandas as pd
 from jinja2 import Environment, PackageLoader, StrictUndefined
 
 from uwlab.errors import UwlabError
-from uwlab.experiments.dataset_store import MANIFEST_FILE
-from uwlab.outputs import output_file
+from uwlab.experiments.dataset import read_metadata
+from uwlab.outputs import MANIFEST_FILE, METADATA_FILE, output_file
 from uwlab.experiments.calibration.forward import PERCENT_PARAMETERS, parameter_label
 from uwlab.experiments.calibration.output import configuration_label
 from uwlab.model.optics import BARE_SENSOR_F_NUMBER
@@ -196,8 +196,8 @@ def _calibration(path: Path) -> dict:
     summary = json.loads((path / "summary.json").read_text())
     points = pd.read_parquet(path / "predictions.parquet")
     metadata = {}
-    if summary.get("dataset") and (Path(summary["dataset"]) / "metadata.json").exists():
-        metadata = json.loads((Path(summary["dataset"]) / "metadata.json").read_text())
+    if summary.get("dataset") and (Path(summary["dataset"]) / METADATA_FILE).exists():
+        metadata = read_metadata(Path(summary["dataset"]))[0]
     rigs = metadata.get("rigs") or {}
     label = lambda sweep_id: _label(sweep_id, rigs[sweep_id]) if sweep_id in rigs else sweep_id  # noqa: E731
     failing = [f"{c['name']}: {c['detail']}" for c in summary.get("checks", []) if not c["passed"]]
@@ -336,12 +336,12 @@ def write_report(root: str | Path, out: str | Path, *, replace: bool = False) ->
     if not root.is_dir():
         raise UwlabError(f"{root}: not a directory")
     out = output_file(out, "--out", replace=replace, replace_option="--force")
-    datasets = _find(root, "metadata.json", MANIFEST_FILE)
+    datasets = _find(root, METADATA_FILE, MANIFEST_FILE)
     calibrations = _find(root, "summary.json", "samples.parquet")
     emva = _find(root, "emva.json")
     if not (datasets or calibrations or emva):
         raise UwlabError(f"{root}: no dataset, calibration or EMVA characterisation found")
-    metadata = [(d, json.loads((d / "metadata.json").read_text())) for d in datasets]
+    metadata = [(d, read_metadata(d)[0]) for d in datasets]
     environment = Environment(loader=PackageLoader("uwlab.experiments", "templates"), autoescape=True,
                               undefined=StrictUndefined, trim_blocks=True, lstrip_blocks=True)
     html = environment.get_template("report.html.j2").render(

@@ -9,7 +9,9 @@
 - a point recorded twice, or one the plan in ``metadata.json`` does not have (unknown sweep, index past its values);
 - spectra of no point of their part, or a reading whose wavelengths are not strictly increasing;
 - a point of a ``save_frames`` sweep without all its frames (``frames`` bright and ``dark_frames`` dark);
-- ``finished_utc`` set while points are missing.
+- ``finished_utc`` set while points are missing;
+- a damaged copy of ``metadata.json`` or ``manifest.json`` (each is sealed with its checksum and kept twice,
+  `uwlab.experiments.dataset_store.write_sealed`; the dataset was read from the intact copy).
 
 What cannot be repaired (no readable ``metadata.json`` or manifest, a plan whose points cannot be counted) is
 raised as `ConfigError` by opening or reported as a problem that `repair` refuses.
@@ -17,7 +19,8 @@ raised as `ConfigError` by opening or reported as a problem that `repair` refuse
 `repair` (under the dataset's lock) never deletes: every damaged or rewritten part file is linked (or copied) into
 ``quarantine/<UTC time>/`` first, rows that break the rules leave the dataset (their parts are rewritten with
 the other rows), frame folders of points no longer recorded move there too, and a wrong ``finished_utc`` is
-cleared. ``uwlab sweep --resume`` then measures exactly the points set aside.
+cleared; a damaged copy of the metadata or the manifest is rewritten from the intact one (the damaged file kept in
+the quarantine folder). ``uwlab sweep --resume`` then measures exactly the points set aside.
 """
 from __future__ import annotations
 
@@ -36,6 +39,7 @@ from uwlab.errors import ConfigError, UwlabError
 from uwlab.experiments.dataset import KEY, POINT_SCHEMA, QUARANTINE_DIR, Dataset, check_point_row
 from uwlab.experiments.dataset_frames import FRAMES_DIR, point_frames, stored_point_folders, sweep_folder
 from uwlab.experiments.dataset_store import PartDamaged
+from uwlab.outputs import MANIFEST_FILE, METADATA_FILE
 from uwlab.jsonable import dumps
 
 @dataclass(frozen=True)
@@ -64,6 +68,7 @@ class CheckReport:
     set_aside: dict[int, set[tuple[str, int]]] = field(default_factory=dict)
     orphan_spectra: set[int] = field(default_factory=set)
     finished_early: bool = False
+    damaged_copies: list[Path] = field(default_factory=list)
     strays: list[Path] = field(default_factory=list)
 
     @property
@@ -85,6 +90,12 @@ def check(dataset: Dataset) -> CheckReport:
     from uwlab.experiments.acquisition.plan import point_counts, sweep_tables
 
     report = CheckReport(dataset.root, strays=dataset.store.stray_files())
+    for name, problems in ((METADATA_FILE, dataset.metadata_problems), (MANIFEST_FILE, dataset.store.copy_problems)):
+        for problem in problems:
+            damaged = problem.split(" ", 1)[0]
+            report.damaged_copies.append(dataset.root / damaged)
+            report.problems.append(Problem(damaged, f"{problem.split(' ', 1)[1]}; the dataset was read from the "
+                                                    f"other copy of {name}: --repair rewrites this one from it"))
     try:
         report.totals = point_counts(dataset.metadata.get("plan", {}))
         save_frames = {sweep_id: body.get("save_frames") is True
@@ -193,6 +204,12 @@ def repair(dataset: Dataset) -> list[str]:
     store = dataset.store
     quarantine = _quarantine_folder(dataset.root)
     done = []
+    if report.damaged_copies:
+        for path in report.damaged_copies:
+            if path.exists():
+                _link_or_copy(path, quarantine / path.name)
+        dataset.restore_copies()
+        done.append(f"rewrote {', '.join(p.name for p in report.damaged_copies)} from the intact copies")
     changes: dict[int, dict[str, pa.Table] | None] = {}
     for part in store.parts:
         files = ", ".join(f.file for f in part.tables.values())
