@@ -371,6 +371,24 @@ class FitResult:
         }
 
 
+class _Interruptible:
+    """A vectorised log-probability that lets Ctrl-C leave emcee cleanly: emcee's wrapper prints a traceback for
+    anything the log-probability raises, KeyboardInterrupt included, before re-raising it. Here the interrupt is
+    noted, the step finishes with every proposal rejected (−∞), and the caller raises it between steps."""
+
+    def __init__(self, log_probability: Callable[[np.ndarray], np.ndarray]):
+        self.log_probability = log_probability
+        self.interrupted = False
+
+    def __call__(self, u: np.ndarray) -> np.ndarray:
+        if not self.interrupted:
+            try:
+                return self.log_probability(u)
+            except KeyboardInterrupt:
+                self.interrupted = True
+        return np.full(len(u), -np.inf)
+
+
 def run_fit(model: ForwardModel, config: FitConfig, progress: Callable[[int, float], None] | None = None) -> FitResult:
     """MAP, then emcee until ≥ 50 τ (or max_steps, then converged = False)."""
     post = Posterior(model, config.priors)
@@ -380,11 +398,15 @@ def run_fit(model: ForwardModel, config: FitConfig, progress: Callable[[int, flo
     u_map = find_map(post.log_u, post.to_u(start))
     p0 = initial_walkers(post.log_u, u_map, config.walkers, rng)
     moves = [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
-    sampler = emcee.EnsembleSampler(config.walkers, len(model.names), post.log_u, vectorize=True, moves=moves)
+    log_u = _Interruptible(post.log_u)
+    sampler = emcee.EnsembleSampler(config.walkers, len(model.names), log_u, vectorize=True, moves=moves)
     sampler.random_state = np.random.RandomState(int(rng.integers(2**31))).get_state()
     state, old_tau, converged = p0, None, False
     while sampler.iteration < config.sampler.max_steps:
-        state = sampler.run_mcmc(state, config.sampler.chunk_steps, progress=False)
+        for step in sampler.sample(state, iterations=config.sampler.chunk_steps):
+            if log_u.interrupted:
+                raise KeyboardInterrupt
+            state = step
         tau = sampler.get_autocorr_time(tol=0)
         steady = old_tau is not None and np.all(np.abs(old_tau - tau) / tau < 0.05)
         if progress:
