@@ -16,7 +16,10 @@ each over 380–780 nm. `read_sekonic_csv` keeps the 1 nm block (the 5 nm one wh
 else: every data row must hold a wavelength in `SEKONIC_RANGE_NM` and a finite value in
 [0, `SEKONIC_MAX_W_M2_NM`]; within a block wavelengths increase by one step (1 or 5 nm) from the first to the last
 of the range, without gaps, repeats or strays; a block of each step at most. A file breaking a rule is refused in
-one line naming the line. `SEKONIC_MAX_W_M2_NM` is an assumed plausibility limit, 50 times the peak spectral
+one line naming the line. A file whose rows are separated by semicolons may use decimal commas (as Sekonic's
+software writes under a European locale) and is read as such; in a comma-separated file a decimal comma splits a
+value in two, and the row is refused as one (never read as the integer part). `SEKONIC_MAX_W_M2_NM` is an assumed
+plausibility limit, 50 times the peak spectral
 irradiance of sunlight at sea level (about 2 W m⁻² nm⁻¹): beyond it a value is a unit error or corruption.
 """
 from __future__ import annotations
@@ -109,11 +112,13 @@ def read_sekonic_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     except OSError as exc:
         raise ConfigError("import", str(path), f"cannot read ({exc.strerror})") from None
     text = raw.decode("utf-8-sig") if _is_utf8(raw) else raw.decode("latin-1")
+    data_lines = [line for line in text.splitlines() if line.lstrip().startswith("Spectral Data")]
+    delimiter = ";" if data_lines and ";" in data_lines[0] else ","
     blocks: list[list[tuple[int, float, float]]] = []
-    for line, row in enumerate(csv.reader(text.splitlines()), start=1):
+    for line, row in enumerate(csv.reader(text.splitlines(), delimiter=delimiter), start=1):
         if not row or not row[0].lstrip().startswith("Spectral Data"):
             continue
-        sample = (line, *_sekonic_row(path, line, row))
+        sample = (line, *_sekonic_row(path, line, row, decimal_comma=delimiter == ";"))
         if blocks and sample[1] > blocks[-1][-1][1]:
             blocks[-1].append(sample)
         elif blocks and not (blocks[-1][-1][1] == SEKONIC_RANGE_NM[1] and sample[1] == SEKONIC_RANGE_NM[0]):
@@ -133,13 +138,19 @@ def read_sekonic_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     return np.array([nm for _, nm, _ in chosen]), np.array([value for _, _, value in chosen])
 
 
-def _sekonic_row(path: Path, line: int, row: list[str]) -> tuple[float, float]:
-    """(λ, value) of one data row, both within their ranges."""
+def _sekonic_row(path: Path, line: int, row: list[str], decimal_comma: bool = False) -> tuple[float, float]:
+    """(λ, value) of one data row, both within their ranges; with ``decimal_comma`` (a semicolon-separated file)
+    a comma in a number is its decimal mark."""
     match = SEKONIC_ROW.fullmatch(row[0])
     if not match or len(row) < 2:
         raise _sekonic_error(path, line, row, "not a 'Spectral Data <λ>[nm],<value>' row")
+    if any(cell.strip() for cell in row[2:]):
+        raise _sekonic_error(path, line, row, f"{len(row)} fields where 2 belong: a decimal comma in a "
+                                              "comma-separated file? Export with decimal points (0.5, not 0,5) or "
+                                              "separated by semicolons")
+    number = (lambda text: float(text.replace(",", "."))) if decimal_comma else float
     try:
-        nm, value = float(match.group(1)), float(row[1])
+        nm, value = number(match.group(1)), number(row[1])
     except ValueError:
         raise _sekonic_error(path, line, row, "wavelength and value must be numbers") from None
     lo, hi = SEKONIC_RANGE_NM
