@@ -30,6 +30,7 @@ from uwlab.experiments.dataset import read_metadata
 from uwlab.outputs import MANIFEST_FILE, METADATA_FILE, output_file
 from uwlab.experiments.calibration.forward import PERCENT_PARAMETERS, parameter_label
 from uwlab.experiments.calibration.output import configuration_label
+from uwlab.model.bench import is_bench
 from uwlab.model.optics import BARE_SENSOR_F_NUMBER
 
 EFFECT_NAMES = {"beam_profile": "the light's smooth beam", "vignetting": "vignetting",
@@ -84,6 +85,8 @@ def _lens(lens: dict) -> str:
 
 
 def _label(sweep_id: str, rig: dict) -> str:
+    if is_bench(rig):
+        return f"{sweep_id} (EMVA 1288 bench)"
     lens = rig.get("lens", {})
     bare = _is_bare(lens)
     return configuration_label(
@@ -128,12 +131,36 @@ def _port(rig: dict) -> str:
     return ", ".join(parts)
 
 
+def _bench_row(sweep_id: str, rig: dict, camera: str) -> dict:
+    """A set-up row of an EMVA 1288 bench sweep: a bare sensor under a disk source, in air."""
+    bench = rig["bench"]
+    source = (f"disk source Ø {bench.get('source_diameter_mm', 0):g} mm at f/{bench.get('f_number', 0):g}, "
+              f"{bench.get('wavelength_nm', 0):g} nm (FWHM {bench.get('fwhm_nm', 0):g} nm)")
+    return {"configuration": _label(sweep_id, rig), "camera": camera, "lens": "none (bare sensor)",
+            "light": source, "light_distance": "—", "camera_distance": "—", "water": "none (air)",
+            "port": "none", "reflectance": "—"}
+
+
+def _has_bench(metadata: dict) -> bool:
+    return any(is_bench(rig) for rig in (metadata.get("rigs") or {}).values())
+
+
+def _bench_hint(dataset: Path) -> str:
+    """What to run for an EMVA 1288 bench dataset that has no characterisation yet."""
+    return (f"{dataset} holds an EMVA 1288 bench measurement: `uwlab emva characterize {dataset} --out DIR` writes "
+            "its datasheet, which this report then includes.")
+
+
 def _setup(metadata: dict) -> list[dict]:
     devices = metadata.get("devices") or {}
     rows = []
     for sweep_id, rig in (metadata.get("rigs") or {}).items():
         camera = devices.get(sweep_id, {}).get("camera", {})
         model = f"{camera.get('vendor', '')} {camera.get('model', '')}".strip()
+        if is_bench(rig):
+            rows.append(_bench_row(sweep_id, rig, f"{rig.get('sensor', {}).get('profile', '').upper()}"
+                                                  + (f" ({model})" if model else "")))
+            continue
         rows.append(
             {
                 "configuration": _label(sweep_id, rig),
@@ -348,6 +375,7 @@ def write_report(root: str | Path, out: str | Path, *, replace: bool = False) ->
         root=str(root.resolve()), written=time.strftime("%Y-%m-%d %H:%M"),
         calibrations=[_calibration(c) for c in calibrations],
         setup=_setup(metadata[0][1]) if metadata else [], world=_world(metadata[0][1]) if metadata else None,
+        bench_hints=[] if emva else [_bench_hint(d) for d, m in metadata if _has_bench(m)],
         emva=[_emva(e) for e in emva], provenance=[_provenance(d, m) for d, m in metadata])
     out.write_text(html)
     return out
