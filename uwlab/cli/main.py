@@ -8,7 +8,9 @@ and ``func``. ``func(args)`` returns the exit code.
 The error contract: `UwlabError` (bad input, a failed device) and `OSError` (a file the system refused) become one
 line on stderr and exit code 2; Ctrl-C becomes one line ``interrupted`` and exit code 130; nothing below the CLI
 prints. Ctrl-C is recognised by the SIGINT itself, not only by the KeyboardInterrupt it raises: a module interrupted
-while it imports may turn the KeyboardInterrupt into another error (numpy raises ImportError).
+while it imports may turn the KeyboardInterrupt into another error (numpy raises ImportError). The command installs
+its own SIGINT handler whatever disposition it inherits (a background job of a non-interactive shell starts with
+SIGINT ignored, which would make Ctrl-C and `kill -INT` do nothing), and restores the inherited one on return.
 """
 from __future__ import annotations
 
@@ -75,9 +77,9 @@ def main(argv: list[str] | None = None) -> int:
         interrupts.append(signum)
         raise KeyboardInterrupt
 
-    # noted only where Python's own handler would raise KeyboardInterrupt (not where SIGINT is ignored)
-    watch = (threading.current_thread() is threading.main_thread()
-             and signal.getsignal(signal.SIGINT) is signal.default_int_handler)
+    # signals reach only the main thread's handlers (an embedding program calling main() elsewhere keeps its own)
+    watch = threading.current_thread() is threading.main_thread()
+    inherited = signal.getsignal(signal.SIGINT) if watch else None
     if watch:
         signal.signal(signal.SIGINT, on_sigint)
     try:
@@ -96,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     finally:
         if watch:
-            signal.signal(signal.SIGINT, signal.default_int_handler)
+            signal.signal(signal.SIGINT, inherited if inherited is not None else signal.default_int_handler)
 
 
 if __name__ == "__main__":
