@@ -20,6 +20,8 @@ A plan sweeping on a bench must be lensless (``lens = "none"``).
 """
 from __future__ import annotations
 
+from typing import Annotated
+
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,14 +34,14 @@ from uwlab.errors import ConfigError
 from uwlab.model.grid import WavelengthGrid
 from uwlab.model.optics import BARE_SENSOR_F_NUMBER, disk_source_irradiance_factor
 from uwlab.model.photometry import photons_per_joule
-from uwlab.model.schema import FNumber, HousingMm, Schema, WavelengthNm, parse, quantity
+from uwlab.model.schema import FNumber, HousingMm, Schema, WavelengthNm, parse, limits
 from uwlab.model.sensor import SensorProfile, load_sensor_profile
 
 ALLOWED_SECTIONS = ("bench", "sensor", "sim", "lens", "operation")
 # A light source's band: the standard asks for less than 50 nm FWHM (§6.2); above 200 nm it is not a band.
-BandwidthNm = quantity(0.0, 200.0, "nm", lo_open=True)
+BandwidthNm = Annotated[float, limits(0.0, 200.0, "nm", lo_open=True)]
 # Radiance of the source: an integrating sphere gives 1e-3–1e3 W m⁻² sr⁻¹; 1e6 is the sun's disk in W/m²/sr order.
-RadianceWM2Sr = quantity(0.0, 1e6, "W/m²/sr", lo_open=True)
+RadianceWM2Sr = Annotated[float, limits(0.0, 1e6, "W/m²/sr", lo_open=True)]
 
 
 class BenchTable(Schema):

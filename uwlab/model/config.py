@@ -31,27 +31,27 @@ from pydantic import BeforeValidator, Field, model_validator
 
 from uwlab.errors import ConfigError
 from uwlab.model.data import read_toml
-from uwlab.model.scattering import PHASE_FUNCTIONS
+from uwlab.model.scattering import PhaseFunction
 from uwlab.model.schema import (BitDepth, BlurPx, CircleOfConfusionMm, DistanceM, ExposureS, FNumber, FocalLengthMm,
                                 Fraction, GainDb, Grid, HalfAngleDeg, HousingMm, IncidenceDeg, LuminousFluxLm,
                                 NonEmptyText, PositionM, RefractiveIndex, ScatteringPerM, Schema, SpectralStepNm,
-                                SpeedMS, Transmittance, WavelengthNm, at_most_one, invalid, number_or, parse, quantity)
+                                SpeedMS, Transmittance, WavelengthNm, at_most_one, invalid, number_or, parse, limits)
 
 # Light count: one to a thousand lights of the same kind.
-LightCount = quantity(1, 1000, "lights", hint="", integer=True)
+LightCount = Annotated[int, limits(1, 1000, "lights", hint="", integer=True)]
 # A factor on the tabulated beam attenuation c(λ): 0 (clear) to 100 times the water type's.
-AttenuationScale = quantity(0.0, 100.0, "", hint="a factor on the water type's attenuation")
+AttenuationScale = Annotated[float, limits(0.0, 100.0, "", hint="a factor on the water type's attenuation")]
 # Image overlap between frames along the motion: a fraction below 1 (1 would need an infinite framerate).
-Overlap = quantity(0.0, 1.0, "", hint="a fraction, not a percentage", hi_open=True)
+Overlap = Annotated[float, limits(0.0, 1.0, "", hint="a fraction, not a percentage", hi_open=True)]
 NAME_OR_FILE = "must be a number or a name or file path"
 # A flat window's thickness: 0 (the thin window of the paraxial rule) to 200 mm.
-WindowMm = quantity(0.0, 200.0, "mm")
+WindowMm = Annotated[float, limits(0.0, 200.0, "mm")]
 # Entrance pupil → inner face of a flat window: 0 to 1000 mm.
-AirGapMm = quantity(0.0, 1000.0, "mm")
+AirGapMm = Annotated[float, limits(0.0, 1000.0, "mm")]
 # Tilt of a flat window's normal from the optical axis: ±45°.
-TiltDeg = quantity(-45.0, 45.0, "deg", hint="")
+TiltDeg = Annotated[float, limits(-45.0, 45.0, "deg", hint="")]
 # The entrance pupil's offset from a dome's centre: ±100 mm per axis (and inside the dome, `Housing`).
-DecenterMm = quantity(-100.0, 100.0, "mm")
+DecenterMm = Annotated[float, limits(-100.0, 100.0, "mm")]
 
 
 def _comma_list(value):
@@ -67,7 +67,7 @@ def _comma_list(value):
 Vector2Deg = Annotated[list[TiltDeg], Field(min_length=2, max_length=2), BeforeValidator(_comma_list)]
 Vector3Mm = Annotated[list[DecenterMm], Field(min_length=3, max_length=3), BeforeValidator(_comma_list)]
 # Spectral exponent of the particles' scattering, b ∝ λ^−γ: 0 (large particles) to 4 (Rayleigh).
-ScatteringExponent = quantity(0.0, 4.0, "", hint="")
+ScatteringExponent = Annotated[float, limits(0.0, 4.0, "", hint="")]
 BeamModel = Literal["cone", "disk", "cos-power"]
 BEAM_MODEL = ("cone: uniform intensity in the beam; disk: flux spread over the beam's footprint; cos-power (extended "
               "model; the paper model takes it as a cone): I ∝ cos^m ψ with half the peak intensity at the half-angle")
@@ -149,7 +149,7 @@ class Water(Schema):
         0.0, description="scattering coefficient b_p(550 nm) of added particles [1/m]: adds to the attenuation; "
                          "extended model: also veiling light")
     particle_scattering_exponent: ScatteringExponent = Field(1.0, description="γ of b_p(λ) = b_p(550) (550/λ)^γ")
-    particle_phase_function: Literal[PHASE_FUNCTIONS] = Field(
+    particle_phase_function: PhaseFunction = Field(
         "fournier-forand", description="particles' phase function (fournier-forand: Petzold's average)")
 
 

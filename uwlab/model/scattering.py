@@ -26,6 +26,8 @@ scattered directions (0 = forward). Water and particles scatter independently an
 """
 from __future__ import annotations
 
+from typing import Literal, get_args
+
 from dataclasses import dataclass
 
 import numpy as np
@@ -36,7 +38,8 @@ PURE_WATER_P0 = 0.06225
 PURE_WATER_ANISOTROPY = 0.835
 PETZOLD_INDEX = 1.10
 PETZOLD_JUNGE_SLOPE = 3.5835
-PHASE_FUNCTIONS = ("fournier-forand", "henyey-greenstein")
+PhaseFunction = Literal["fournier-forand", "henyey-greenstein"]
+PHASE_FUNCTIONS: tuple[str, ...] = get_args(PhaseFunction)
 REFERENCE_NM = 550.0
 
 

@@ -156,23 +156,31 @@ def limits_of(named) -> Limits:
     return found[0]
 
 
-class Grid:
-    """``Grid[Quantity]``: the quantity as a number or, for grid evaluation (`uwlab design --grid`), a numpy
-    array of any shape (an open mesh) checked element-wise in one vectorised pass."""
+Q = TypeVar("Q")
 
-    def __class_getitem__(cls, named):
-        limits = limits_of(named)
-        return Annotated[float | np.ndarray, replace(limits, grid=True)]
+if typing.TYPE_CHECKING:
+    # What the type checker sees: a number or an array.
+    Grid = Union[Q, np.ndarray]  # noqa: UP007 (a generic alias)
+else:
+
+    class Grid:
+        """``Grid[Quantity]``: the quantity as a number or, for grid evaluation (`uwlab design --grid`), a numpy
+        array of any shape (an open mesh) checked element-wise in one vectorised pass."""
+
+        def __class_getitem__(cls, named: Any) -> Any:
+            found = limits_of(named)
+            return Annotated[float | np.ndarray, replace(found, grid=True)]
 
 
-def quantity(lo: float, hi: float, unit: str = "", hint: str = UNIT_HINT, **options):
-    """A named quantity type: ``Annotated[float, Limits(lo, hi, unit, hint, ...)]`` (int when integer=True)."""
-    return Annotated[int if options.get("integer") else float, Limits(lo, hi, unit, hint, **options)]
+def limits(lo: float, hi: float, unit: str = "", hint: str = UNIT_HINT, **options: bool) -> Limits:
+    """The limits of a named quantity type, ``Annotated[float, limits(lo, hi, unit, ...)]`` (``Annotated[int, ...]``
+    with ``integer=True``): its plausible interval, unit and the hint an error gives (by default the unit's)."""
+    return Limits(lo, hi, unit, hint, **options)
 
 
 NonEmptyText = Annotated[str, StringConstraints(strict=True, min_length=1)]
 Text = Annotated[str, StringConstraints(strict=True)]
-# Any finite number (strict: no strings, no booleans); for quantities with limits use `quantity`.
+# Any finite number (strict: no strings, no booleans); for quantities with limits use `limits`.
 Number = Annotated[float, Field(strict=True, allow_inf_nan=False)]
 
 
@@ -219,33 +227,33 @@ def number_or(number, alternative, reason: str):
 
 # --- Named physical quantities (limits and their reasons: the module docstring). ---------------------------------
 
-WavelengthNm = quantity(200.0, 2500.0, "nm")
-SpectralStepNm = quantity(0.01, 100.0, "nm")
-FocalLengthMm = quantity(1.0, 2000.0, "mm")
-FNumber = quantity(0.5, 128.0, "")
-PixelSizeUm = quantity(0.5, 50.0, "µm")
-DistanceM = quantity(0.0, 12000.0, "m", lo_open=True)
-IrradianceWM2 = quantity(0.0, 1e5, "W/m²", lo_open=True)
-LuminousFluxLm = quantity(0.0, 1e7, "lm", lo_open=True)
-ExposureS = quantity(1e-6, 3600.0, "s")
-ExposureUs = quantity(1.0, 3.6e9, "µs")
-GainDb = quantity(-20.0, 80.0, "dB")
-HalfAngleDeg = quantity(0.0, 90.0, "deg", hint="", lo_open=True, hi_open=True)
-IncidenceDeg = quantity(0.0, 90.0, "deg", hint="", hi_open=True)
-RefractiveIndex = quantity(1.0, 4.0, "")
-Fraction = quantity(0.0, 1.0, "", hint="a fraction, not a percentage")
-Transmittance = quantity(0.0, 1.0, "", hint="a fraction, not a percentage", lo_open=True)
-SpeedMS = quantity(0.0, 50.0, "m/s")
-HousingMm = quantity(0.5, 1000.0, "mm")
-CircleOfConfusionMm = quantity(1e-4, 1.0, "mm")
-BlurPx = quantity(0.0, 1000.0, "px", hint="", lo_open=True)
-BitDepth = quantity(1, 32, "bit", hint="", integer=True)
-FrameCount = quantity(2, 10000, "frames", hint="", integer=True)
-DurationS = quantity(0.0, 3600.0, "s")
-PositionM = quantity(-100.0, 100.0, "m")
-ScatteringPerM = quantity(0.0, 100.0, "1/m")
+WavelengthNm = Annotated[float, limits(200.0, 2500.0, "nm")]
+SpectralStepNm = Annotated[float, limits(0.01, 100.0, "nm")]
+FocalLengthMm = Annotated[float, limits(1.0, 2000.0, "mm")]
+FNumber = Annotated[float, limits(0.5, 128.0, "")]
+PixelSizeUm = Annotated[float, limits(0.5, 50.0, "µm")]
+DistanceM = Annotated[float, limits(0.0, 12000.0, "m", lo_open=True)]
+IrradianceWM2 = Annotated[float, limits(0.0, 1e5, "W/m²", lo_open=True)]
+LuminousFluxLm = Annotated[float, limits(0.0, 1e7, "lm", lo_open=True)]
+ExposureS = Annotated[float, limits(1e-6, 3600.0, "s")]
+ExposureUs = Annotated[float, limits(1.0, 3.6e9, "µs")]
+GainDb = Annotated[float, limits(-20.0, 80.0, "dB")]
+HalfAngleDeg = Annotated[float, limits(0.0, 90.0, "deg", hint="", lo_open=True, hi_open=True)]
+IncidenceDeg = Annotated[float, limits(0.0, 90.0, "deg", hint="", hi_open=True)]
+RefractiveIndex = Annotated[float, limits(1.0, 4.0, "")]
+Fraction = Annotated[float, limits(0.0, 1.0, "", hint="a fraction, not a percentage")]
+Transmittance = Annotated[float, limits(0.0, 1.0, "", hint="a fraction, not a percentage", lo_open=True)]
+SpeedMS = Annotated[float, limits(0.0, 50.0, "m/s")]
+HousingMm = Annotated[float, limits(0.5, 1000.0, "mm")]
+CircleOfConfusionMm = Annotated[float, limits(1e-4, 1.0, "mm")]
+BlurPx = Annotated[float, limits(0.0, 1000.0, "px", hint="", lo_open=True)]
+BitDepth = Annotated[int, limits(1, 32, "bit", hint="", integer=True)]
+FrameCount = Annotated[int, limits(2, 10000, "frames", hint="", integer=True)]
+DurationS = Annotated[float, limits(0.0, 3600.0, "s")]
+PositionM = Annotated[float, limits(-100.0, 100.0, "m")]
+ScatteringPerM = Annotated[float, limits(0.0, 100.0, "1/m")]
 # A random generator's seed (numpy accepts any 32-bit unsigned integer).
-Seed = quantity(0, 2**32 - 1, "", hint="", integer=True)
+Seed = Annotated[int, limits(0, 2**32 - 1, "", hint="", integer=True)]
 
 
 # --- From ValidationError to ConfigError. ---------------------------------------------------------------------

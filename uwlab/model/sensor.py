@@ -9,6 +9,8 @@ output bit depth. μ_e is clipped at the saturation capacity and μ_y at the ful
 """
 from __future__ import annotations
 
+from typing import Annotated
+
 from functools import lru_cache
 from pathlib import Path
 
@@ -19,16 +21,16 @@ from uwlab.errors import ConfigError
 from uwlab.model.data import config_dir, read_csv_columns, read_toml
 from uwlab.model.grid import WavelengthGrid
 from uwlab.model.schema import (BitDepth, ExposureUs, GainDb, NonEmptyText, PixelSizeUm, Schema, Text, invalid, parse,
-                                quantity)
+                                limits)
 
 # Limits of the profile's EMVA 1288 quantities, wide enough for any area-scan sensor: outside them a value is in
 # another unit (K in e⁻/DN or at another bit depth by orders of magnitude, σ_d in DN, …) or a typing error.
-SystemGain = quantity(0.0, 100.0, "DN/e-", lo_open=True)
-Electrons = quantity(0.0, 1e8, "e-", hint="")
-ResolutionPx = quantity(1, 100000, "px", hint="", integer=True)
-DarkOffsetDn = quantity(0.0, 2.0**32, "DN", hint="")
-DarkCurrent = quantity(0.0, 1e6, "e-/s", hint="")
-Percent = quantity(0.0, 100.0, "%", hint="a percentage")
+SystemGain = Annotated[float, limits(0.0, 100.0, "DN/e-", lo_open=True)]
+Electrons = Annotated[float, limits(0.0, 1e8, "e-", hint="")]
+ResolutionPx = Annotated[int, limits(1, 100000, "px", hint="", integer=True)]
+DarkOffsetDn = Annotated[float, limits(0.0, 2.0**32, "DN", hint="")]
+DarkCurrent = Annotated[float, limits(0.0, 1e6, "e-/s", hint="")]
+Percent = Annotated[float, limits(0.0, 100.0, "%", hint="a percentage")]
 
 
 class SensorProfile(Schema):

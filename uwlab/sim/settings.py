@@ -1,14 +1,16 @@
 """The rig config's ``[sim]`` section: what only the simulated rig needs (the tank and the EMVA bench alike)."""
 from __future__ import annotations
 
+from typing import Annotated
+
 from pydantic import Field
 
-from uwlab.model.schema import DistanceM, Fraction, Schema, Seed, quantity
+from uwlab.model.schema import DistanceM, Fraction, Schema, Seed, limits
 
 # The light's dimming curve exponent: flux fraction = level^γ; 1 is linear, 2.2 a typical dimmer.
-Gamma = quantity(0.0, 10.0, "", hint="", lo_open=True)
+Gamma = Annotated[float, limits(0.0, 10.0, "", hint="", lo_open=True)]
 # True flux over rated flux: a manufacturer's rating is rarely off by more than a factor of a few.
-Efficiency = quantity(0.0, 10.0, "", hint="a factor on the rated flux", lo_open=True)
+Efficiency = Annotated[float, limits(0.0, 10.0, "", hint="a factor on the rated flux", lo_open=True)]
 
 
 class SimSettings(Schema):

@@ -21,38 +21,39 @@ y down, z along the optical axis (the camera looks through the tank's near wall 
 """
 from __future__ import annotations
 
-from typing import Literal
+from typing import Annotated, Literal, get_args
 
 from pydantic import Field, model_validator
 
 from uwlab.errors import ConfigError
-from uwlab.model.scattering import PHASE_FUNCTIONS
-from uwlab.model.schema import DistanceM, Fraction, RefractiveIndex, Schema, invalid, parse, quantity
+from uwlab.model.scattering import PhaseFunction
+from uwlab.model.schema import DistanceM, Fraction, RefractiveIndex, Schema, invalid, parse, limits
 
-PRESETS = ("ideal", "tank", "turbid")
+Preset = Literal["ideal", "tank", "turbid"]
+PRESETS: tuple[str, ...] = get_args(Preset)
 EFFECTS = ("beam_profile", "vignetting", "lens_transmission", "backscatter", "stray_light", "warmup_drift",
            "sensor_realism")
 TURBID_PARTICLE_SCATTERING_PER_M = 1.8
 
 # Limits that catch wrong units: tank walls are millimetres to centimetres thick, offsets within a metre.
-OffsetM = quantity(-1.0, 1.0, "m")
-GapM = quantity(0.0, 1.0, "m")
-WallM = quantity(0.0, 0.1, "m", lo_open=True)
-TiltDeg = quantity(-45.0, 45.0, "deg", hint="")
-FieldDeg = quantity(0.0, 30.0, "deg", hint="", lo_open=True)
-ScatteringPerM = quantity(0.0, 50.0, "1/m")
-Exponent = quantity(0.0, 4.0, "", hint="")
-SmallFraction = quantity(0.0, 0.5, "", hint="a fraction, not a percentage")
-SwitchOns = quantity(0.0, 1e6, "uses", hint="", lo_open=True)
-DarkCurrent = quantity(0.0, 1e6, "e-/s")
-Electrons = quantity(0.0, 100.0, "e-")
-Percent = quantity(0.0, 10.0, "%", hint="a percentage")
+OffsetM = Annotated[float, limits(-1.0, 1.0, "m")]
+GapM = Annotated[float, limits(0.0, 1.0, "m")]
+WallM = Annotated[float, limits(0.0, 0.1, "m", lo_open=True)]
+TiltDeg = Annotated[float, limits(-45.0, 45.0, "deg", hint="")]
+FieldDeg = Annotated[float, limits(0.0, 30.0, "deg", hint="", lo_open=True)]
+ScatteringPerM = Annotated[float, limits(0.0, 50.0, "1/m")]
+Exponent = Annotated[float, limits(0.0, 4.0, "", hint="")]
+SmallFraction = Annotated[float, limits(0.0, 0.5, "", hint="a fraction, not a percentage")]
+SwitchOns = Annotated[float, limits(0.0, 1e6, "uses", hint="", lo_open=True)]
+DarkCurrent = Annotated[float, limits(0.0, 1e6, "e-/s")]
+Electrons = Annotated[float, limits(0.0, 100.0, "e-")]
+Percent = Annotated[float, limits(0.0, 10.0, "%", hint="a percentage")]
 
 
 class WorldSettings(Schema):
     """The ``[world]`` section (defaults: the paper's tank; see the module docstring)."""
 
-    preset: Literal[PRESETS] = Field("ideal", description="ideal | tank | turbid")
+    preset: Preset = Field("ideal", description="ideal | tank | turbid")
     beam_profile: bool | None = None
     vignetting: bool | None = None
     lens_transmission: bool | None = None
@@ -74,7 +75,7 @@ class WorldSettings(Schema):
 
     particle_scattering_per_m: ScatteringPerM | None = Field(None, description="added scatterers' b_p at 550 nm")
     particle_scattering_exponent: Exponent = 1.0
-    particle_phase_function: Literal[PHASE_FUNCTIONS] = "fournier-forand"
+    particle_phase_function: PhaseFunction = "fournier-forand"
 
     stray_fraction: SmallFraction = 0.005
     warmup_amplitude: SmallFraction = 0.02

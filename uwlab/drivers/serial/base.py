@@ -13,17 +13,19 @@ after a measurement and sees `recoveries` unchanged knows the settings held thro
 """
 from __future__ import annotations
 
+from typing import Annotated
+
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 
 import numpy as np
 
-from uwlab.model.schema import Fraction, check, quantity
+from uwlab.model.schema import Fraction, check, limits
 
 INTEGRATION_MS_RANGE = (1.0, 10000.0)
 AVERAGING_RANGE = (1, 100)
-IntegrationMs = quantity(*INTEGRATION_MS_RANGE, "ms", hint="the spectrometer's range")
-Averaging = quantity(*AVERAGING_RANGE, "spectra", hint="the spectrometer's range", integer=True)
+IntegrationMs = Annotated[float, limits(*INTEGRATION_MS_RANGE, "ms", hint="the spectrometer's range")]
+Averaging = Annotated[int, limits(*AVERAGING_RANGE, "spectra", hint="the spectrometer's range", integer=True)]
 
 
 def check_level(level: float) -> float:

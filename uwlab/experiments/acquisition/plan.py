@@ -57,20 +57,20 @@ from uwlab.model.design import SPECTROMETER_POSITIONS, Design, build_design
 from uwlab.model.optics import NO_LENS, LensSetting
 from uwlab.model.schema import (DurationS, ExposureUs, FNumber, FocalLengthMm, Fraction, FrameCount, GainDb,
                                 NonEmptyText, Number, Schema, Text, check, either, invalid, is_list, is_table,
-                                is_text, limits_of, parse, quantity, within)
+                                is_text, limits_of, parse, limits, within)
 
 KINDS = ("exposure", "aperture", "gain", "light-level", "dark")
 DARK_MODES = ("point", "block", "none")
 MAX_POINTS = 10000
 # Pixel coordinates of a window or ROI: offsets from 0, sizes from 2 (a variance needs two pixels).
-OffsetPx = quantity(0, 100000, "px", hint="", integer=True)
-SizePx = quantity(2, 100000, "px", hint="", integer=True)
-TimeoutS = quantity(0.0, 600.0, "s", lo_open=True)
-OutageS = quantity(0.0, 86400.0, "s", lo_open=True)
-Attempts = quantity(0, 1000, "attempts", hint="", integer=True)
-ReopenS = quantity(0.0, 3600.0, "s")
-DigitalNumber = quantity(0.0, 2.0**32, "DN", hint="")
-PointCount = quantity(1, MAX_POINTS, "points", hint="", integer=True)
+OffsetPx = Annotated[int, limits(0, 100000, "px", hint="", integer=True)]
+SizePx = Annotated[int, limits(2, 100000, "px", hint="", integer=True)]
+TimeoutS = Annotated[float, limits(0.0, 600.0, "s", lo_open=True)]
+OutageS = Annotated[float, limits(0.0, 86400.0, "s", lo_open=True)]
+Attempts = Annotated[int, limits(0, 1000, "attempts", hint="", integer=True)]
+ReopenS = Annotated[float, limits(0.0, 3600.0, "s")]
+DigitalNumber = Annotated[float, limits(0.0, 2.0**32, "DN", hint="")]
+PointCount = Annotated[int, limits(1, MAX_POINTS, "points", hint="", integer=True)]
 
 
 def _four(value):

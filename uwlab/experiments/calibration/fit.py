@@ -30,6 +30,8 @@ lemma for the covariance diag(σ²) + τ² μ μᵀ); given θ, δ_k ~ N(m_k, v_
 """
 from __future__ import annotations
 
+from typing import Annotated
+
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -46,7 +48,7 @@ from uwlab.experiments.calibration.forward import ForwardModel, build_forward_mo
 from uwlab.experiments.calibration.priors import HalfNormal, LogNormal, Normal, Prior, PriorSpec
 from uwlab.model.data import read_toml
 from uwlab.model.sensor import load_sensor_profile
-from uwlab.model.schema import NonEmptyText, Schema, Seed, invalid, parse, quantity
+from uwlab.model.schema import NonEmptyText, Schema, Seed, invalid, parse, limits
 
 MIN_TAU_MULTIPLE = 50
 MAP_EVALUATIONS = 500
@@ -60,10 +62,10 @@ ANCHORS = ("light_efficiency", "reflectance")
 
 # Sampler sizes: emcee needs at least twice as many walkers as parameters; fewer than 100 steps per chunk make
 # the autocorrelation estimate meaningless; the bounds above keep a typo from allocating chains of terabytes.
-Walkers = quantity(8, 10000, "walkers", hint="", integer=True)
-ChunkSteps = quantity(100, 10_000_000, "steps", hint="", integer=True)
-MaxSteps = quantity(1000, 100_000_000, "steps", hint="", integer=True)
-Folds = quantity(2, 100, "folds", hint="", integer=True)
+Walkers = Annotated[int, limits(8, 10000, "walkers", hint="", integer=True)]
+ChunkSteps = Annotated[int, limits(100, 10_000_000, "steps", hint="", integer=True)]
+MaxSteps = Annotated[int, limits(1000, 100_000_000, "steps", hint="", integer=True)]
+Folds = Annotated[int, limits(2, 100, "folds", hint="", integer=True)]
 
 
 class Sampler(Schema):

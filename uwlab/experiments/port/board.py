@@ -8,6 +8,8 @@ origin (the outer corner of its white margin), so pixel centres are at (j + ½, 
 """
 from __future__ import annotations
 
+from typing import Annotated
+
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -18,7 +20,7 @@ from pydantic import Field, model_validator
 
 from uwlab.errors import ConfigError
 from uwlab.model.data import config_dir, read_toml
-from uwlab.model.schema import NonEmptyText, Schema, invalid, parse, quantity
+from uwlab.model.schema import NonEmptyText, Schema, invalid, parse, limits
 from uwlab.outputs import output_file
 
 DEFAULT_BOARD = "boards/charuco-7x5-40mm.toml"
@@ -26,9 +28,9 @@ BLACK_REFLECTANCE = 0.04     # matte black print (assumed)
 WHITE_REFLECTANCE = 0.80     # matte white paper (assumed)
 REFINE_MAX_HALF_WINDOW = 5
 # Squares per side of a printable board; square and marker sides (a size in metres or µm is outside).
-SquareCount = quantity(3, 100, "squares", hint="", integer=True)
-BoardMm = quantity(0.5, 1000.0, "mm")
-MarginMm = quantity(0.0, 1000.0, "mm")
+SquareCount = Annotated[int, limits(3, 100, "squares", hint="", integer=True)]
+BoardMm = Annotated[float, limits(0.5, 1000.0, "mm")]
+MarginMm = Annotated[float, limits(0.0, 1000.0, "mm")]
 
 
 class BoardConfig(Schema):
