@@ -5,7 +5,7 @@ Targets: tank world + extended model: ≥ 90 % of held-out points inside their 9
 simulated truth inside its 95 % interval in ≥ 90 % of cases, adequate in every run; turbid world + paper model:
 inadequate, backscatter named; ideal world + paper model: adequate (today's closed-world results).
 Prints one JSON object. Usage: python benchmarks/demo_targets.py [SEEDS] [WORLD:MODEL ...]
-(default 10 seeds, tank:extended turbid:paper ideal:paper). The slow test tests/sim/test_demo_targets.py checks
+(default 10 seeds, tank:extended turbid:paper ideal:paper). The slow test tests/slow/test_demo_targets.py checks
 the same targets on a reduced, in-process campaign.
 """
 from __future__ import annotations

@@ -22,6 +22,7 @@ from __future__ import annotations
 import fcntl
 import json
 import os
+import typing
 import socket
 from dataclasses import asdict, dataclass
 from datetime import UTC, datetime
@@ -75,7 +76,7 @@ class OwnerLock:
     def __init__(self, path: str | os.PathLike, purpose: str):
         self.path = Path(path)
         self.purpose = purpose
-        self._file = None  # the open lock file; closing it (explicitly or by garbage collection) unlocks
+        self._file: typing.BinaryIO | None = None  # the open lock file; closing it (or its collection) unlocks
 
     @property
     def held(self) -> bool:

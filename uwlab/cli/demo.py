@@ -35,7 +35,7 @@ def run(args) -> int:
     if args.out is None:
         Path("out").mkdir(exist_ok=True)
     out = Path(args.out) if args.out else Path("out") / time.strftime("demo-%Y%m%d-%H%M%S")
-    bars = []
+    bars: list = []
 
     def sweep_progress(event) -> None:  # the bar opens at the first point: nothing is drawn for refused input
         if not bars:

@@ -213,8 +213,8 @@ def _fleet_table(documents: list[dict]) -> str:
     widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(len(header) - 1)]
     lines = []
     for r in [header, *rows]:
-        cells = (str(c).rjust(w) if i else str(c).ljust(w) for i, (c, w) in enumerate(zip(r, widths, strict=False)))
-        lines.append("  ".join(cells) + "  " + str(r[-1]))
+        texts = (str(c).rjust(w) if i else str(c).ljust(w) for i, (c, w) in enumerate(zip(r, widths, strict=False)))
+        lines.append("  ".join(texts) + "  " + str(r[-1]))
     ok = sum(d["error"] is None for d in documents)
     lines.append(f"{ok} of {len(documents)} cameras characterised")
     return "\n".join(lines)

@@ -25,7 +25,7 @@ def register(subparsers) -> None:
 def progress_bar(description: str):
     """A tqdm bar on stderr over chain length in autocorrelation times (the run stops at 50 τ), opened at the
     first report so that nothing is drawn when the run fails before sampling. Returns (close, update)."""
-    bars = []
+    bars: list[tqdm] = []
 
     def update(steps: int, tau_multiple: float) -> None:
         if not bars:

@@ -19,6 +19,7 @@ import importlib
 import signal
 import sys
 import threading
+import typing
 
 from uwlab import __version__
 from uwlab.errors import UwlabError
@@ -44,7 +45,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
 
 
 class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # one line, exit 2, as for any bad input
+    def error(self, message: str) -> typing.NoReturn:  # one line, exit 2, as for any bad input
         self.exit(2, f"{self.prog}: error: {message}\n")
 
 

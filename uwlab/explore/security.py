@@ -140,6 +140,7 @@ class Guard:
             return
         set_xsrf = XSRF_COOKIE not in cookies
         refused = False
+        seen = 0
 
         async def send_guarded(message: Message) -> None:
             if refused:  # the body was cut: whatever the application answers after that is dropped
@@ -162,7 +163,6 @@ class Guard:
                     raise _TooLarge
             return message
 
-        seen = 0
         try:
             await self.app(scope, receive_limited, send_guarded)
         except _TooLarge:

@@ -256,7 +256,7 @@ class DesignConfig(Schema):
     sensor: Sensor = _section(Sensor)
     operation: Operation = _section(Operation)
     model: Model = _section(Model)
-    lights: list[LightPlacement] = Field([], description=LightPlacement.__doc__.splitlines()[0])
+    lights: list[LightPlacement] = Field([], description=(LightPlacement.__doc__ or "").splitlines()[0])
 
 
 def validate(raw: dict) -> dict:

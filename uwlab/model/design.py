@@ -344,7 +344,7 @@ def _image_average_rate(d: Design, weights: SpectralWeights):
     image samples (`image_radii_m`), with the spectral integral from the interpolation table.
 
     Three routes, by the shape of the grid; all agree with the wavelength sum over every sample to 1e-8
-    (tests/sim/test_spectral_table.py).
+    (tests/unit/model/test_spectral_table.py).
     - Many path lengths per lens/port geometry (altitude or attenuation axes): each geometry gets a table of the
       cumulative sums over the samples sorted by field angle (`uwlab.model.spectral_table.image_table`); the
       samples inside a beam are a prefix, and a point costs one lookup.
@@ -384,7 +384,7 @@ sample (`_image_sum`). κ = c̄ D
 (sec α_w − 1) bounds the drop of ln G across the field (c̄ = −d ln G/dD at D = 0, the largest slope of the convex
 ln G). Within these bounds the rules match the sum over the samples to < 5e-9 relative (Jerlov I–9C and pure
 water, f ≥ 1 mm on a 2/3" sensor, paths up to 300 m, flat and dome ports, cone and disk beams; checked in
-tests/sim/test_spectral_table.py)."""
+tests/unit/model/test_spectral_table.py)."""
 IMAGE_PIECE = 1 << 14  # points per pass of `_image_sum` (bounds the (points × nodes) temporaries)
 IMAGE_SAMPLES_MAX = 1 << 22  # the largest (points × samples) array of the direct route
 

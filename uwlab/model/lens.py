@@ -36,7 +36,8 @@ class BrownLens:
         dist = np.zeros(5)
         coeffs = np.asarray(dist_coeffs, float).ravel()[:5]
         dist[: coeffs.size] = coeffs
-        return cls(k[0, 0], k[1, 1], k[0, 2], k[1, 2], tuple(dist))
+        d0, d1, d2, d3, d4 = (float(c) for c in dist)
+        return cls(k[0, 0], k[1, 1], k[0, 2], k[1, 2], (d0, d1, d2, d3, d4))
 
     @property
     def camera_matrix(self) -> np.ndarray:

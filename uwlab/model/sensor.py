@@ -107,7 +107,8 @@ class SensorProfile(Schema):
     @property
     def size_m(self) -> tuple[float, float]:
         """Active area (x, y) [m]."""
-        return tuple(n * self.pixel_size_um * 1e-6 for n in self.resolution_px)
+        width, height = self.resolution_px
+        return width * self.pixel_size_um * 1e-6, height * self.pixel_size_um * 1e-6
 
     @property
     def diagonal_m(self) -> float:

@@ -64,6 +64,7 @@ class RigState:
             self._write(state)
 
     def _write(self, state: LightState) -> None:
+        assert self.path is not None  # only a file-backed state is written
         fd, tmp = tempfile.mkstemp(dir=self.path.parent, prefix=".rig-state-")
         with os.fdopen(fd, "w") as fh:
             json.dump(asdict(state), fh)
