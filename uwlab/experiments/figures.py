@@ -1,17 +1,16 @@
-"""Saving matplotlib figures (Agg backend, no screen needed)."""
+"""Saving matplotlib figures. Figures are made with matplotlib's object API (`matplotlib.figure.Figure`), never
+through pyplot's global state, so importing uwlab leaves a notebook's backend alone and needs no screen."""
 from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+from matplotlib.figure import Figure
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
+__all__ = ["Figure", "save_figure"]
 
 
-def save_figure(fig, path: Path, dpi: int = 110) -> Path:
-    """Lay out, write as PNG and close `fig`; returns `path`."""
+def save_figure(fig: Figure, path: Path, dpi: int = 110) -> Path:
+    """Lay out and write `fig` as PNG; returns `path`."""
     fig.tight_layout()
     fig.savefig(path, dpi=dpi)
-    plt.close(fig)
     return path

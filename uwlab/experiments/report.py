@@ -17,10 +17,7 @@ import json
 import time
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
+from matplotlib.figure import Figure
 import numpy as np
 import pandas as pd
 from jinja2 import Environment, PackageLoader, StrictUndefined
@@ -58,7 +55,6 @@ def _img(path: Path) -> str:
 def _fig(fig) -> str:
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=90, bbox_inches="tight")
-    plt.close(fig)
     return _data_uri(buffer.getvalue())
 
 
@@ -301,7 +297,8 @@ def _calibration(path: Path) -> dict:
 def _spectra_figure(path: Path, label) -> str:
     frame = pd.read_parquet(path)
     sweeps = list(dict.fromkeys(frame["sweep_id"]))[:6]
-    fig, axes = plt.subplots(2, len(sweeps), figsize=(3.4 * len(sweeps), 6), squeeze=False, sharex=True)
+    fig = Figure(figsize=(3.4 * len(sweeps), 6))
+    axes = fig.subplots(2, len(sweeps), squeeze=False, sharex=True)
     for j, sweep_id in enumerate(sweeps):
         for i, position in enumerate(("target", "camera")):
             sel = frame[(frame["sweep_id"] == sweep_id) & (frame["position"] == position)]

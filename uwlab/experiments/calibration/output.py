@@ -11,11 +11,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
 import corner
-import matplotlib.pyplot as plt
+from matplotlib.figure import Figure
 import numpy as np
 import pandas as pd
 from matplotlib.ticker import FuncFormatter, NullFormatter
@@ -41,16 +38,19 @@ def check_output_dir(out: Path) -> None:
 
 def corner_plot(result: FitResult, path: Path, truth: dict | None = None) -> Path:
     truths = [truth.get(n) for n in result.names] if truth else None
-    fig = corner.corner(result.samples, labels=list(result.names), truths=truths, quantiles=[0.16, 0.5, 0.84],
+    k = len(result.names)  # corner's own figure size for k parameters (its defaults), on a Figure of ours
+    size = 1.0 + 2.0 * k + 2.0 * (k - 1) * 0.05 + 0.4
+    fig = corner.corner(result.samples, fig=Figure(figsize=(size, size)), labels=list(result.names), truths=truths,
+                        quantiles=[0.16, 0.5, 0.84],
                         show_titles=True, title_fmt=".3g", title_kwargs={"fontsize": 8}, label_kwargs={"fontsize": 8})
     fig.savefig(path, dpi=80)
-    plt.close(fig)
     return path
 
 
 def trace_plot(result: FitResult, path: Path) -> Path:
     n = len(result.names)
-    fig, axes = plt.subplots(n, 1, figsize=(8, 1.6 * n), sharex=True)
+    fig = Figure(figsize=(8, 1.6 * n))
+    axes = fig.subplots(n, 1, sharex=True)
     axes = np.atleast_1d(axes)
     for i, ax in enumerate(axes):
         ax.plot(result.chain[:, :, i], color="k", alpha=0.15, linewidth=0.5)
@@ -59,7 +59,6 @@ def trace_plot(result: FitResult, path: Path) -> Path:
     fig.suptitle(f"walker traces (τ max {np.max(result.tau):.0f} steps, {result.steps} steps)")
     fig.tight_layout()
     fig.savefig(path, dpi=80)
-    plt.close(fig)
     return path
 
 
@@ -92,7 +91,7 @@ def response_plot(
     labels = configuration_labels(predictions)
     columns = min(3, len(sweeps))
     rows = -(-len(sweeps) // columns)
-    fig = plt.figure(figsize=(4.6 * columns, 5.4 * rows))
+    fig = Figure(figsize=(4.6 * columns, 5.4 * rows))
     outer = fig.add_gridspec(rows, columns, hspace=0.32, wspace=0.3, top=1 - 0.8 / (5.4 * rows))
     for j, sweep_id in enumerate(sweeps):
         cell = outer[divmod(j, columns)].subgridspec(2, 1, height_ratios=[2.0, 1.7], hspace=0.06)
@@ -122,7 +121,6 @@ def response_plot(
             fig.legend(handles, names, loc="upper center", ncol=5, fontsize=11, frameon=False,
                        bbox_to_anchor=(0.5, 1.0))
     fig.savefig(path, dpi=90, bbox_inches="tight")
-    plt.close(fig)
     return path
 
 

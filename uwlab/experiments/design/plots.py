@@ -4,10 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
+from matplotlib.figure import Figure
 import numpy as np
 from matplotlib.ticker import ScalarFormatter
 
@@ -21,7 +18,8 @@ from uwlab.outputs import output_dir
 
 def plot_dof(design: Design, path: Path) -> Path:
     curves = dof_curves(design)
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fig = Figure(figsize=(7, 4.5))
+    ax = fig.subplots()
     for s, near, far in zip(curves["focus_m"], curves["near_m"], curves["far_m"], strict=True):
         line, = ax.plot(curves["f_number"], np.where(np.isfinite(far), far, np.nan), label=f"focus {s:.2f} m")
         ax.plot(curves["f_number"], near, color=line.get_color(), linestyle="--")
@@ -34,7 +32,8 @@ def plot_dof(design: Design, path: Path) -> Path:
 def plot_stages(design: Design, path: Path) -> Path:
     spectra = stage_spectra(design)
     nm = spectra["wavelength_nm"]
-    fig, axes = plt.subplots(5, 1, figsize=(7, 10), sharex=True)
+    fig = Figure(figsize=(7, 10))
+    axes = fig.subplots(5, 1, sharex=True)
     panels = [("source_w_nm", "source Φe [W/nm]"), ("target_irradiance_w_m2_nm", "at target E_t [W/m²/nm]"),
               ("return_radiance_w_m2_sr_nm", "after return path L_w [W/m²/sr/nm]"),
               ("sensor_irradiance_w_m2_nm", "after lens E_s [W/m²/nm]"),
@@ -49,7 +48,8 @@ def plot_stages(design: Design, path: Path) -> Path:
 
 def plot_operation(design: Design, path: Path) -> Path:
     curves = operation_curves(design)
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4))
+    fig = Figure(figsize=(10, 4))
+    (a1, a2) = fig.subplots(1, 2)
     for h, framerate, exposure in zip(curves["altitude_m"], curves["min_framerate_hz"], curves["max_exposure_s"],
                                       strict=True):
         a1.plot(curves["speed_m_s"], framerate, label=f"altitude {h:.2f} m")
@@ -61,7 +61,8 @@ def plot_operation(design: Design, path: Path) -> Path:
 
 
 def plot_water(design: Design, path: Path) -> Path:
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fig = Figure(figsize=(7, 4.5))
+    ax = fig.subplots()
     for name, c in water_attenuation(design.grid).items():
         ax.plot(design.grid.nm, c, label=name)
     ax.set(yscale="log", xlabel="wavelength [nm]", ylabel="beam attenuation c = a + b [1/m]",
@@ -71,7 +72,8 @@ def plot_water(design: Design, path: Path) -> Path:
 
 
 def plot_qe(design: Design, path: Path) -> Path:
-    fig, ax = plt.subplots(figsize=(7, 4.5))
+    fig = Figure(figsize=(7, 4.5))
+    ax = fig.subplots()
     for name, (nm, qe) in quantum_efficiency((design.sensor,)).items():
         ax.plot(nm, qe, label=name, linewidth=2.5 if name == design.sensor.name else 1)
     ax.set(xlabel="wavelength [nm]", ylabel="quantum efficiency η", title="Sensor quantum efficiency (mono / combined)")
@@ -114,7 +116,8 @@ def _axis_label(key: str) -> str:
 def plot_front(front, x_key: str, y_key: str, senses: tuple[str, str], requirements: list[str], path: Path,
                log_x: bool, log_y: bool) -> Path:
     """The Pareto front of two objectives, points coloured by the requirements that bind there."""
-    fig, ax = plt.subplots(figsize=(7.5, 5))
+    fig = Figure(figsize=(7.5, 5))
+    ax = fig.subplots()
     x, y = front[x_key].to_numpy(), front[y_key].to_numpy()
     ax.plot(x, y, color="0.4", linewidth=1, zorder=1)
     for label, rows in front.groupby(front["active"].where(front["active"] != "", "none"), sort=False):

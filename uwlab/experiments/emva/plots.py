@@ -15,7 +15,7 @@ import numpy as np
 
 from uwlab.experiments.emva.analysis import EmvaResult
 from uwlab.experiments.emva.linear import total_snr_model
-from uwlab.experiments.figures import plt, save_figure
+from uwlab.experiments.figures import Figure, save_figure
 from uwlab.model.sensor import snr
 
 FIGSIZE = (6.4, 4.2)
@@ -29,7 +29,8 @@ def _fmt(value, spec: str = ".4g", unit: str = "") -> str:
 def plot_photon_transfer(result: EmvaResult, path: Path) -> Path:
     """Fig. 7: σ²_y − σ²_y.dark against μ_y − μ_y.dark, the 0–70 % fit points and the regression line."""
     c, v = result.curves, result.values
-    fig, ax = plt.subplots(figsize=FIGSIZE)
+    fig = Figure(figsize=FIGSIZE)
+    ax = fig.subplots()
     sat = c["sat"]
     ax.plot(c["signal_dn"], c["signal_var_dn2"], "o", ms=3, color="0.6", label="measured")
     idx = c["fit_idx"]
@@ -49,7 +50,8 @@ def plot_photon_transfer(result: EmvaResult, path: Path) -> Path:
 def plot_characteristic(result: EmvaResult, path: Path) -> Path:
     """General Fig. 5: μ_y − μ_y.dark against μ_p with the B-spline regression up to saturation."""
     c, v = result.curves, result.values
-    fig, ax = plt.subplots(figsize=FIGSIZE)
+    fig = Figure(figsize=FIGSIZE)
+    ax = fig.subplots()
     ax.plot(c["photons"], c["signal_dn"], "o", ms=3, color="0.6", label="measured")
     upto = c["photons"] <= v["saturation_photons"]
     ax.plot(c["photons"][upto], c["characteristic_fit_dn"][upto], "-", color="tab:blue",
@@ -67,7 +69,8 @@ def plot_snr(result: EmvaResult, path: Path) -> Path:
     c, v = result.curves, result.values
     ok = (c["photons"] > 0) & (np.arange(len(c["photons"])) <= c["sat"])
     p = c["photons"][ok]
-    fig, ax = plt.subplots(figsize=FIGSIZE)
+    fig = Figure(figsize=FIGSIZE)
+    ax = fig.subplots()
     threshold = v["sensitivity_threshold_photons"]
     grid = np.geomspace(max((threshold or p.min()) / 3, 1e-2), v["saturation_photons"], 200)
     if v["model"] == "linear":
@@ -97,7 +100,8 @@ def plot_snr(result: EmvaResult, path: Path) -> Path:
 def plot_linearity(result: EmvaResult, path: Path) -> Path:
     """Fig. 9: the characteristic curve with the linearity regression, and the relative deviation δ over 5–95 %."""
     c, v = result.curves, result.values
-    fig, (ax, bx) = plt.subplots(2, 1, figsize=(6.4, 5.6), sharex=True)
+    fig = Figure(figsize=(6.4, 5.6))
+    (ax, bx) = fig.subplots(2, 1, sharex=True)
     ax.plot(c["photons"], c["signal_dn"], "o", ms=3, color="0.6", label="measured")
     idx = c["lin_idx"]
     ax.plot(c["photons"][idx], c["signal_dn"][idx], "o", ms=3.5, color="tab:green", label="fit range (5-95 %)")
@@ -113,7 +117,8 @@ def plot_linearity(result: EmvaResult, path: Path) -> Path:
 def plot_stability(result: EmvaResult, path: Path) -> Path:
     """Fig. 6: σ_y and μ[0] − μ[1] against μ_y − μ_y.dark."""
     c = result.curves
-    fig, ax = plt.subplots(figsize=FIGSIZE)
+    fig = Figure(figsize=FIGSIZE)
+    ax = fig.subplots()
     ax.plot(c["signal_dn"], c["temporal_std_dn"], "o-", ms=3, label="temporal std σ_y")
     if np.isfinite(c["mean_diff_dn"]).any():
         ax.plot(c["signal_dn"], c["mean_diff_dn"], "s-", ms=3, label="difference μ[0] − μ[1]")
@@ -130,7 +135,8 @@ def plot_dark_current(result: EmvaResult, path: Path) -> Path:
     unit = "e-/s" if v["model"] == "linear" else "p/s"
     key = "dark_current_e_per_s" if v["model"] == "linear" else "dark_current_p_per_s"
     var_key = key.replace("current_", "current_var_")
-    fig, (ax, bx) = plt.subplots(2, 1, figsize=(6.4, 6.0))
+    fig = Figure(figsize=(6.4, 6.0))
+    (ax, bx) = fig.subplots(2, 1)
     ax.plot(dark.exposure_s, dark.mean_dn, "o", ms=3, label="measured")
     bx.plot(dark.exposure_s, dark.var_dn2, "o", ms=3, label="measured")
     if fit is not None:
@@ -155,7 +161,8 @@ def plot_dark_temperature(result: EmvaResult, path: Path) -> Path:
     t = np.array([r["temperature_c"] for r in rows])
     mean = np.array([r[f"dark_current_{unit}_per_s"] for r in rows])
     std = np.array([r[f"dark_current_{unit}_per_s_std"] for r in rows])
-    fig, ax = plt.subplots(figsize=FIGSIZE)
+    fig = Figure(figsize=FIGSIZE)
+    ax = fig.subplots()
     ax.errorbar(t, mean, yerr=std, fmt="o-", ms=4, capsize=3, label="from mean")
     var = np.array([r[f"dark_current_var_{unit}_per_s"] for r in rows])
     ax.plot(t, var, "s--", ms=3, label="from variance")
@@ -170,7 +177,8 @@ def plot_spatial_variances(result: EmvaResult, path: Path) -> Path:
     """§4.3 at every illumination step: the row, column and pixel parts of the highpassed spatial variance (bright
     and dark) as standard deviations against μ_y − μ_y.dark (log scale; negative estimates left out)."""
     c = result.curves
-    fig, ax = plt.subplots(figsize=FIGSIZE)
+    fig = Figure(figsize=FIGSIZE)
+    ax = fig.subplots()
     x = c["signal_dn"]
     with np.errstate(invalid="ignore"):
         for name, color in (("pixel", "tab:blue"), ("row", "tab:orange"), ("col", "tab:green")):
@@ -184,7 +192,8 @@ def plot_spatial_variances(result: EmvaResult, path: Path) -> Path:
 
 
 def _spectrogram(spectrograms: dict, level_lines: list[tuple[float, str]], unit: str, title: str, path: Path) -> Path:
-    fig, axes = plt.subplots(2, 1, figsize=(6.4, 6.0))
+    fig = Figure(figsize=(6.4, 6.0))
+    axes = fig.subplots(2, 1)
     for ax, name in zip(axes, ("horizontal", "vertical"), strict=True):
         freq, amp = spectrograms[name]
         ax.plot(freq[1:], amp[1:], "-", lw=0.9, label="√P")
@@ -222,7 +231,8 @@ def plot_prnu_spectrogram(result: EmvaResult, path: Path) -> Path:
 
 
 def _profiles(profiles: dict, title: str, lower_upper, path: Path) -> Path:
-    fig, axes = plt.subplots(2, 1, figsize=(6.4, 6.0))
+    fig = Figure(figsize=(6.4, 6.0))
+    axes = fig.subplots(2, 1)
     for ax, name, axis in zip(axes, ("horizontal", "vertical"), ("column index n", "row index m"), strict=True):
         prof = profiles[name]
         for key, color in (("max", "tab:red"), ("mean", "tab:blue"), ("middle", "0.3"), ("min", "tab:green")):
@@ -247,7 +257,8 @@ def plot_prnu_profiles(result: EmvaResult, path: Path) -> Path:
 
 
 def _histograms(histograms: dict, title: str, spread: str, path: Path) -> Path:
-    fig, (ax, bx) = plt.subplots(2, 1, figsize=(6.4, 6.0))
+    fig = Figure(figsize=(6.4, 6.0))
+    (ax, bx) = fig.subplots(2, 1)
     log = histograms["log"]
     ax.semilogy(log.centres_dn, np.maximum(log.counts, 1e-1), "-", drawstyle="steps-mid", label="data")
     ax.semilogy(log.centres_dn, log.model, "--", color="tab:red", label=f"normal, {spread}")

@@ -159,7 +159,7 @@ def refine_corners(image: np.ndarray, pixels: np.ndarray) -> np.ndarray:
 
 def write_printable(board: CharucoBoard, path: str | Path, dpi: int) -> Path:
     """Write the board as a PNG whose recorded resolution prints it at its true size; refuses to overwrite."""
-    import matplotlib.pyplot as plt
+    from matplotlib.image import imsave
 
     if not 50 <= dpi <= 2400:
         raise ConfigError("--dpi", dpi, "must be in [50, 2400]")
@@ -168,7 +168,7 @@ def write_printable(board: CharucoBoard, path: str | Path, dpi: int) -> Path:
     out = output_file(path, "--out")
     per_square = max(int(round(board.square_m * dpi / 0.0254)), 20)
     try:
-        plt.imsave(out, board.binary_image(per_square), cmap="gray", vmin=0, vmax=255,
+        imsave(out, board.binary_image(per_square), cmap="gray", vmin=0, vmax=255,
                    dpi=per_square / board.square_m * 0.0254)
     except OSError as exc:
         raise ConfigError("--out", str(out), f"cannot write ({exc.strerror})") from None

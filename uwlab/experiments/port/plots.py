@@ -4,10 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
+from matplotlib.figure import Figure
 import numpy as np
 
 from uwlab.experiments.figures import save_figure
@@ -30,7 +27,8 @@ def _port_label(design) -> str:
 def plot_distortion(design, trace: dict, path: Path) -> Path:
     """Distortion the port adds [%] and the paraxial rule's image error [px] against the field angle in air."""
     profile = trace["profile"]
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.5))
+    fig = Figure(figsize=(11, 4.5))
+    (a1, a2) = fig.subplots(1, 2)
     for name, (colour, label) in _STYLE.items():
         angle = profile["field_deg_air"][name]
         a1.plot(angle, profile["distortion_percent"][name], color=colour, label=label)
@@ -54,7 +52,8 @@ def plot_focus(design, trace: dict, path: Path) -> Path:
     """Axial distance of the virtual image of the target plane against the field angle (tangential and sagittal),
     with the lens's focus setting, its depth of field in image space and its closest focus."""
     profile, aid = trace["profile"], trace["focus"]
-    fig, ax = plt.subplots(figsize=(8, 5))
+    fig = Figure(figsize=(8, 5))
+    ax = fig.subplots()
     for name in ("x", "diagonal"):
         colour, label = _STYLE[name]
         angle = profile["field_deg_air"][name]
