@@ -21,7 +21,8 @@ import numpy as np
 
 from uwlab.experiments.design.grid import DesignGrid
 from uwlab.model.config import load_raw
-from uwlab.model.design import evaluate, load_design
+from uwlab.model.build import load_design
+from uwlab.model.evaluation import evaluate
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "configs" / "design" / "example.toml"
 

@@ -19,7 +19,7 @@ from uwlab.experiments.saturation import POINT_SATURATED_FRACTION
 from uwlab.model.bench import is_bench
 from uwlab.model.components import load_lens_profile
 from uwlab.model.config import apply_override, validate
-from uwlab.model.design import build_design
+from uwlab.model.build import build_design
 from uwlab.model.schema import (ExposureUs, FocalLengthMm, FrameCount, GainDb, PixelSizeUm, WavelengthNm, check,
                                 limits_of)
 from uwlab.model.sensor import load_sensor_profile

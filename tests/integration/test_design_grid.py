@@ -18,7 +18,8 @@ from uwlab.cli.main import main
 from uwlab.errors import UwlabError
 from uwlab.experiments.design import distributed, grid as grid_module
 from uwlab.experiments.design.grid import DesignGrid, evaluate_grid, flatten_outputs, write_grid, write_part
-from uwlab.model.design import build_design, evaluate
+from uwlab.model.build import build_design
+from uwlab.model.evaluation import evaluate
 
 AXES = {"operation.altitude_m": [0.5, 1.0, 2.0, 4.0, 7.0], "water.type": ["jerlov-I", "jerlov-5C"],
         "lens.f_number": [2.0, 2.8, 4.0, 5.6], "light.beam_half_angle_deg": [10.0, 25.0, 40.0]}

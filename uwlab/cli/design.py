@@ -156,7 +156,8 @@ def run(args) -> int:
     for option in ("columns", "dask"):
         if getattr(args, option):
             raise ConfigError(f"--{option}", getattr(args, option), "only applies to a grid (--grid)")
-    from uwlab.model.design import build_design, evaluate
+    from uwlab.model.build import build_design
+    from uwlab.model.evaluation import evaluate
 
     design = build_design(raw, base)
     if args.out:

@@ -90,7 +90,7 @@ def _trace_table(result: dict) -> str:
 
 
 def run_trace(args) -> int:
-    from uwlab.model.design import load_design
+    from uwlab.model.build import load_design
     from uwlab.model.port_field import trace_design
     from uwlab.outputs import output_dir
 
@@ -140,7 +140,7 @@ def _calibration_table(result: dict) -> str:
 def run_calibrate(args) -> int:
     from uwlab.experiments.port.board import CharucoBoard
     from uwlab.experiments.port.calibrate import DEFAULT_MAX_DISTORTION_PX, calibrate_port
-    from uwlab.model.design import load_design
+    from uwlab.model.build import load_design
     from uwlab.model.port_field import port_of
 
     design = load_design(args.config, {"housing.port": args.port, **overrides(args.set)})

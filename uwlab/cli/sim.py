@@ -10,7 +10,7 @@ import time
 
 from uwlab.cli.sim_camera import add_sim_camera_parser
 from uwlab.cli.sim_charuco import add_sim_charuco_parser
-from uwlab.model.design import SPECTROMETER_POSITIONS
+from uwlab.model.evaluation import SPECTROMETER_POSITIONS
 from uwlab.sim.devices.serial_sim import SerialRig, SerialSimSettings
 from uwlab.errors import DeviceError
 

@@ -30,7 +30,7 @@ def run_sim_charuco(args) -> int:
     from uwlab.cli.port import overrides
     from uwlab.experiments.port.board import CharucoBoard
     from uwlab.experiments.port.simulate import SIDECAR, simulate_charuco
-    from uwlab.model.design import load_design
+    from uwlab.model.build import load_design
 
     design = load_design(args.config, overrides(args.set))
     board = CharucoBoard.from_toml(args.board)

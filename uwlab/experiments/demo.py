@@ -37,7 +37,7 @@ from uwlab.experiments.calibration.validation import default_folds
 from uwlab.experiments.dataset import Dataset
 from uwlab.experiments.report import write_report
 from uwlab.model.data import config_dir, read_toml, resolve_path
-from uwlab.model.design import build_design
+from uwlab.model.build import build_design
 from uwlab.model.sensor import load_sensor_profile
 from uwlab.outputs import output_dir
 

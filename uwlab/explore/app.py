@@ -2,7 +2,7 @@
 package, and the JSON API under ``/api/`` (docs/explorer.md).
 
 Requests are parsed like the command line's arguments (`uwlab.explore.inputs`); the numbers come from
-`uwlab.model.design` and `uwlab.experiments.design` only. Any `UwlabError` (bad input) answers 422 with
+`uwlab.model` and `uwlab.experiments.design` only. Any `UwlabError` (bad input) answers 422 with
 ``{"error": "<the line uwlab design prints after 'uwlab design: error: '>", "key": "<the key>"}``.
 """
 from __future__ import annotations
@@ -31,7 +31,8 @@ from uwlab.explore.inputs import (OUTSIDE_ROOTS, Served, absolute_paths, build, 
 from uwlab.explore.security import Access, Guard
 from uwlab.explore.studies import solve_answer, sweep_answer
 from uwlab.jsonable import dumps, to_jsonable
-from uwlab.model.design import build_design, evaluate
+from uwlab.model.build import build_design
+from uwlab.model.evaluation import evaluate
 from uwlab.model.sensor import available_profiles
 
 HERE = Path(__file__).resolve().parent

@@ -1,5 +1,5 @@
 """The paper's design figures as interactive Plotly figures, drawn from the same data as the PNG figures of
-`uwlab design --plot` (`uwlab.experiments.design.curves`, `uwlab.model.design.stage_spectra`), with the current
+`uwlab design --plot` (`uwlab.experiments.design.curves`, `uwlab.model.evaluation.stage_spectra`), with the current
 design marked; and the sweep panel's figure.
 
 Figures are Plotly figure specifications (``{"data": [traces], "layout": {...}}``, the JSON Plotly.js renders; the
@@ -15,7 +15,8 @@ from functools import cache
 import numpy as np
 
 from uwlab.experiments.design.curves import dof_curves, operation_curves, quantum_efficiency, water_attenuation
-from uwlab.model.design import Design, stage_spectra
+from uwlab.model.design import Design
+from uwlab.model.evaluation import stage_spectra
 from uwlab.model.sensor import SensorProfile
 from uwlab.model.water import water_iop
 

@@ -31,14 +31,15 @@ import tomli_w
 from uwlab.errors import ConfigError
 from uwlab.model.config import apply_override, load_raw, parse_value
 from uwlab.model.data import config_dir, resolve_path
-from uwlab.model.design import Design, build_design
+from uwlab.model.build import build_design
+from uwlab.model.design import Design
 from uwlab.model.spectra import NAMED_SPECTRA
 from uwlab.model.target import NAMED_REFLECTANCE
 from uwlab.model.water import WATER_TYPES
 
 BODY_MEMBERS = ("config", "set", "text")
 MAX_FILE_BYTES = 1_000_000
-# Design keys whose string values name a file unless they are one of these names (`uwlab.model.design`); a sensor
+# Design keys whose string values name a file unless they are one of these names (`uwlab.model.build`); a sensor
 # profile is a file when it ends in .toml (`uwlab.model.sensor.load_sensor_profile`).
 FILE_KEYS = {"light.spectrum": NAMED_SPECTRA, "water.type": WATER_TYPES, "target.reflectance": NAMED_REFLECTANCE,
              "lens.transmittance": (), "sensor.profile": None}

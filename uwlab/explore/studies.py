@@ -22,7 +22,8 @@ from uwlab.experiments.design.solve import Objective, Problem, parse_free, parse
 from uwlab.explore import figures
 from uwlab.explore.inputs import Served, design_raw
 from uwlab.jsonable import to_jsonable
-from uwlab.model.design import build_design, evaluate
+from uwlab.model.build import build_design
+from uwlab.model.evaluation import evaluate
 
 SWEEP_POINTS = 250_000  # a sweep the page draws; larger grids belong in `uwlab design --grid --out`
 

@@ -1,5 +1,5 @@
 """The extended image-formation chain ([model] kind = "extended"): placed lights, beam profiles, the target pixel by
-pixel, veiling light and vignetting. With [model] kind = "paper" none of this runs and `uwlab.model.design` is the
+pixel, veiling light and vignetting. With [model] kind = "paper" none of this runs and `uwlab.model.chain` is the
 paper's chain unchanged.
 
 Conventions: the camera frame has its origin where the optical axis leaves the port into the water (where the
@@ -195,7 +195,7 @@ class ChainWeights:
 
 
 def chain_weights(d, weights) -> ChainWeights:
-    """`ChainWeights` of a design from its `uwlab.model.design.SpectralWeights`."""
+    """`ChainWeights` of a design from its `uwlab.model.weights.SpectralWeights`."""
     grid = d.grid
     to_sensor = weights.s_per_lm * grid.w_nm * weights.lens_transmittance
     electrons = to_sensor * weights.qe * photons_per_joule(grid.nm)

@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from uwlab.model import focus, optics
-from uwlab.model.design import circle_of_confusion_m, effective_focal_length_m, port_geometry
+from uwlab.model.chain import circle_of_confusion_m, effective_focal_length_m, port_geometry
 from uwlab.model.raytrace import FlatPort, Port, normalize, port_from_housing
 
 PUPIL_OFFSET_M = 1e-4

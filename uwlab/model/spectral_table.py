@@ -2,7 +2,7 @@
 
 Every spectral integral of the chain has the form F(D) = Σ_j w_j e^(−γ_j D) with w_j ≥ 0: on the optical axis
 G(D) = Σ_λ W(λ) e^(−c(λ) D) (trapezoidal weights W, attenuating path D = scale · distance; see
-`uwlab.model.design`), and over the image a sum of such terms with rates c(λ)/cos α_w. Such a function is a
+`uwlab.model.weights`), and over the image a sum of such terms with rates c(λ)/cos α_w. Such a function is a
 Laplace transform of a positive measure, so ln F is smooth and convex, and its n-th derivative is the n-th
 cumulant of the rates under the measure tilted by e^(−γD) (bounded by the spread of the rates).
 
@@ -221,7 +221,7 @@ def exponential_sum_log(weights: np.ndarray, rates: np.ndarray):
 
 
 class SpectralTable:
-    """The path integrals G_k(D) = Σ_λ W_k(λ) e^(−c(λ) D) of `uwlab.model.design.SpectralWeights` (columns:
+    """The path integrals G_k(D) = Σ_λ W_k(λ) e^(−c(λ) D) of `uwlab.model.weights.SpectralWeights` (columns:
     target irradiance, sensor irradiance, electron rate, each per unit luminous flux), for any D ≥ 0.
 
     Exact (to `TOLERANCE` relative) without a sum over wavelength per point. Zero columns stay zero.

@@ -10,7 +10,7 @@ target board on the target plane, centred on the axis), ``surround_reflectance``
 that a model fit starting from the rated lumens should recover).
 
 Images: the per-pixel electron rate is the model's on-axis rate (configured distances and incidence) times the
-relative profile of `uwlab.model.design.electron_rate_at_radius` (cos⁴ falloff, oblique paths, beam cut-off),
+relative profile of `uwlab.model.chain.electron_rate_at_radius` (cos⁴ falloff, oblique paths, beam cut-off),
 with the board's reflectance inside its footprint and the surround's outside. Spectra: at the target, the
 irradiance on a board facing the light (normal incidence); at the camera, π L_w, the irradiance from a
 Lambertian target filling the meter's field; at the sensor, the irradiance on the sensor plane behind the lens
@@ -34,8 +34,10 @@ from uwlab.model.config import design_sections
 from uwlab.sim.world import WorldSettings, world_settings
 from uwlab.errors import ConfigError
 from uwlab.model.data import config_dir, read_toml
-from uwlab.model.design import (Design, build_design, effective_focal_length_m, electron_rate_at_radius,
-                                on_axis_electron_rate, paper, SPECTROMETER_POSITIONS, stage_spectra)
+from uwlab.model.build import build_design
+from uwlab.model.chain import effective_focal_length_m, electron_rate_at_radius, on_axis_electron_rate, paper
+from uwlab.model.design import Design
+from uwlab.model.evaluation import SPECTROMETER_POSITIONS, stage_spectra
 from uwlab.model.optics import NO_LENS
 from uwlab.model.schema import FNumber, FocalLengthMm, check, parse
 from uwlab.model.sensor import SensorProfile

@@ -55,7 +55,8 @@ from scipy.interpolate import RectBivariateSpline
 from uwlab.sim.world import WorldSettings
 from uwlab.errors import ConfigError
 from uwlab.model.data import read_csv_columns, resolve_path
-from uwlab.model.design import Design, spectral_weights
+from uwlab.model.design import Design
+from uwlab.model.weights import spectral_weights
 from uwlab.model.photometry import photons_per_joule
 from uwlab.model.scattering import ParticleScattering, pure_water_phase
 from uwlab.model.water import scattering_parts, water_iop

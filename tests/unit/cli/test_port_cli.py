@@ -124,7 +124,7 @@ def test_bad_input_is_one_line_naming_the_key(capsys, args, key):
 
 def test_trace_refuses_a_grid_value():
     from uwlab.errors import ConfigError
-    from uwlab.model.design import load_design
+    from uwlab.model.build import load_design
     from uwlab.model.port_field import trace_design
 
     design = load_design(EXAMPLE, {"housing.water_index": np.array([1.33, 1.34])})

@@ -8,7 +8,8 @@ from uwlab.experiments.design.curves import dof_curves, operation_curves, water_
 from uwlab.experiments.design.readout import format_value, output_leaves, rows, table_text
 from uwlab.jsonable import to_jsonable
 from uwlab.model.components import load_lens_profile, load_light_profile, shipped
-from uwlab.model.design import evaluate, load_design
+from uwlab.model.build import load_design
+from uwlab.model.evaluation import evaluate
 from uwlab.model.water import WATER_TYPES, water_iop
 
 from tests.support.paths import EXAMPLE

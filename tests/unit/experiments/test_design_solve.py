@@ -13,7 +13,8 @@ from uwlab.errors import ConfigError
 from uwlab.experiments.design.posterior import credible_band, load_posterior
 from uwlab.experiments.design.solve import (FreeKey, Objective, Problem, output_value, parse_free, parse_requirement,
                                             solve)
-from uwlab.model.design import build_design, evaluate
+from uwlab.model.build import build_design
+from uwlab.model.evaluation import evaluate
 
 AUV = {"operation.altitude_m": 2.0, "water.type": "jerlov-I", "lens.focal_length_mm": 12.0,
        "operation.exposure_s": "max-blur"}

@@ -12,7 +12,8 @@ from uwlab.experiments.calibration.priors import HalfNormal, Normal, Uniform
 from uwlab.experiments.calibration.simulate import simulate_campaign
 from uwlab.experiments.calibration.validation import point_predictions
 from uwlab.model.optics import NO_LENS, LensSetting
-from uwlab.model.design import build_design, on_axis_electron_rate
+from uwlab.model.build import build_design
+from uwlab.model.chain import on_axis_electron_rate
 
 TRUTH = {"light_efficiency": 0.8, "attenuation_scale": 1.2, "K_dn_per_e:imx250m": 0.36, "K_dn_per_e:icx285alm": 1.05}
 ONE_LENS = (LensSetting(30.0, 2.0), NO_LENS)

@@ -11,7 +11,7 @@ from tests.support.paths import ROOT
 from uwlab.cli.main import main
 from uwlab.experiments.port.board import CharucoBoard, detect
 from uwlab.experiments.port.simulate import camera_of, port_in
-from uwlab.model.design import load_design
+from uwlab.model.build import load_design
 from uwlab.model.port_field import focal_ratio, port_of
 
 DOME = ROOT / "configs" / "design" / "dome-8mm.toml"

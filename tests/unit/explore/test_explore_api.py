@@ -20,7 +20,8 @@ from uwlab.explore.forms import form
 from uwlab.explore.inputs import field_texts, load_served, value_text
 from uwlab.model.config import DesignConfig, parse_value
 from uwlab.model.data import config_dir
-from uwlab.model.design import load_design, stage_spectra
+from uwlab.model.build import load_design
+from uwlab.model.evaluation import stage_spectra
 from uwlab.model.sensor import load_sensor_profile
 
 from tests.support.paths import EXAMPLE

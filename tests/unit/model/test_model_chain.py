@@ -3,7 +3,9 @@ import numpy as np
 import pytest
 
 from uwlab.experiments.design.grid import evaluate_grid
-from uwlab.model.design import build_design, evaluate, on_axis_electron_rate, stage_spectra
+from uwlab.model.build import build_design
+from uwlab.model.chain import on_axis_electron_rate
+from uwlab.model.evaluation import evaluate, stage_spectra
 from uwlab.model.grid import WavelengthGrid
 from uwlab.model.photometry import photon_flux, radiant_per_lumen
 from uwlab.model.port import port_transmittance

@@ -6,7 +6,10 @@ import pytest
 
 from uwlab.errors import ConfigError
 from uwlab.model import extended
-from uwlab.model.design import build_design, evaluate, on_axis_electron_rate, paper, spectral_weights
+from uwlab.model.build import build_design
+from uwlab.model.chain import on_axis_electron_rate, paper
+from uwlab.model.evaluation import evaluate
+from uwlab.model.weights import spectral_weights
 from uwlab.model.optics import lens_irradiance_factor
 from uwlab.model.photometry import photons_per_joule
 from uwlab.model.port import port_transmittance

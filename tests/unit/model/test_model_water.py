@@ -4,7 +4,8 @@ import pandas as pd
 import pytest
 
 from tests.support.paths import DATA, ROOT
-from uwlab.model.design import build_design, evaluate
+from uwlab.model.build import build_design
+from uwlab.model.evaluation import evaluate
 from uwlab.model.grid import WavelengthGrid
 from uwlab.model.water import JERLOV_TYPES, pure_water_scattering, water_iop
 

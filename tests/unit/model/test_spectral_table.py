@@ -3,9 +3,12 @@ point's value from the grid it is evaluated in."""
 import numpy as np
 import pytest
 
-from uwlab.model import design as design_module
-from uwlab.model.design import (IMAGE_DIRECT_PATHS, build_design, electron_rate_at_radius, evaluate, image_radii_m,
-                                path_integrals, spectral_weights)
+
+from uwlab.model.build import build_design
+from uwlab.model.chain import electron_rate_at_radius
+from uwlab.model.evaluation import evaluate
+from uwlab.model.image_average import image_average_rate, image_radii_m
+from uwlab.model.weights import IMAGE_DIRECT_PATHS, path_integrals, spectral_weights
 from uwlab.model.spectral_table import SpectralTable
 from uwlab.model.water import WATER_TYPES
 
@@ -76,12 +79,12 @@ def test_image_average_through_the_cumulative_table_matches_the_wavelength_sum(e
     betas = np.array([0.5, 3.0, 10.0, 25.0, 40.0, 89.0])
     grid = base.with_values(**{"operation.altitude_m": altitudes[:, None], "light.beam_half_angle_deg": betas[None, :]})
     weights = spectral_weights(grid)
-    table = design_module._image_average_rate(grid, weights)
+    table = image_average_rate(grid, weights)
     reference = _image_reference(grid)
     assert np.all(table[:, 0] == 0) and np.all(reference[:, 0] == 0)
     assert table[:, 1:] == pytest.approx(reference[:, 1:], rel=ACCURACY)
     few_paths = grid.with_values(**{"operation.altitude_m": altitudes[:50, None]})
-    direct = design_module._image_average_rate(few_paths, weights)
+    direct = image_average_rate(few_paths, weights)
     assert direct == pytest.approx(table[:50], rel=ACCURACY)
 
 
@@ -91,7 +94,7 @@ def test_image_average_over_many_lens_geometries_matches_the_wavelength_sum(exam
     grid = base.with_values(**{"lens.focal_length_mm": np.array([4.0, 8.0, 16.0, 50.0])[:, None, None],
                                "housing.water_index": np.array([1.33, 1.34])[None, :, None],
                                "operation.altitude_m": np.linspace(0.5, 12.0, 9)[None, None, :]})
-    out = design_module._image_average_rate(grid, spectral_weights(grid))
+    out = image_average_rate(grid, spectral_weights(grid))
     assert out == pytest.approx(_image_reference(grid), rel=ACCURACY)
 
 
@@ -102,7 +105,7 @@ def test_image_average_over_many_beams_per_lens_geometry_matches_the_wavelength_
     grid = base.with_values(**{"lens.focal_length_mm": np.array([3.0, 8.0, 30.0])[:, None, None],
                                "operation.altitude_m": np.array([0.4, 3.0, 20.0])[None, :, None],
                                "light.beam_half_angle_deg": np.linspace(2.0, 88.0, 96)[None, None, :]})
-    out = design_module._image_average_rate(grid, spectral_weights(grid))
+    out = image_average_rate(grid, spectral_weights(grid))
     assert out == pytest.approx(_image_reference(grid), rel=ACCURACY)
 
 
@@ -130,7 +133,7 @@ def test_image_average_with_a_lens_geometry_per_point_matches_the_wavelength_sum
               "operation.altitude_m": np.exp(rng.uniform(np.log(0.1), np.log(150.0), n)),
               "light.beam_half_angle_deg": rng.uniform(1.0, 89.0, n)}
     grid = build_design(example_raw).with_values(**values)
-    out = design_module._image_average_rate(grid, spectral_weights(grid))
+    out = image_average_rate(grid, spectral_weights(grid))
     reference = _reference_in_pieces(grid, list(values))
     lit = reference > 1e-250  # the rest underflows in both (e^(−cD) past float64 at long paths in turbid water)
     assert lit.sum() > n // 2 and np.all(out[~lit] < 1e-250)

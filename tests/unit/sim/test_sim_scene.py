@@ -5,7 +5,7 @@ import pytest
 from uwlab.sim.rig_state import LightState, RigState
 from uwlab.sim.scene import RigScene
 from uwlab.errors import ConfigError
-from uwlab.model.design import evaluate
+from uwlab.model.evaluation import evaluate
 
 
 @pytest.fixture(scope="module")

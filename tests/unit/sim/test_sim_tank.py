@@ -14,7 +14,7 @@ from uwlab.sim.world import EFFECTS, world_settings
 from uwlab.errors import ConfigError
 from uwlab.experiments.calibration.forward import _configuration_design, extended_roi_rates
 from uwlab.model.data import read_toml
-from uwlab.model.design import stage_spectra
+from uwlab.model.evaluation import stage_spectra
 from uwlab.model.sensor import load_sensor_profile
 
 from tests.support.paths import ROOT

@@ -53,7 +53,9 @@ from uwlab.jsonable import to_jsonable
 from uwlab.model.config import apply_override
 from uwlab.model.data import read_toml, resolve_path
 from uwlab.model.bench import Bench, build_bench, is_bench
-from uwlab.model.design import SPECTROMETER_POSITIONS, Design, build_design
+from uwlab.model.build import build_design
+from uwlab.model.design import Design
+from uwlab.model.evaluation import SPECTROMETER_POSITIONS
 from uwlab.model.optics import NO_LENS, LensSetting
 from uwlab.model.schema import (DurationS, ExposureUs, FNumber, FocalLengthMm, Fraction, FrameCount, GainDb,
                                 NonEmptyText, Number, Schema, Text, check, either, invalid, is_list, is_table,

@@ -38,7 +38,7 @@ from uwlab.experiments.acquisition.plan import SweepSpec
 from uwlab.experiments.acquisition.roi import Rect
 from uwlab.experiments.saturation import sensor_clip_dn
 from uwlab.lockfile import OwnerLock, is_stale, read_holder
-from uwlab.model.design import beam_half_angle_rad
+from uwlab.model.chain import beam_half_angle_rad
 from uwlab.sim.bench import BenchScene
 from uwlab.sim.devices.camera import SimFaults, SimSensor, SimTruth, flat_rate_map
 from uwlab.sim.devices.serial_sim import SerialRig, SerialSimSettings

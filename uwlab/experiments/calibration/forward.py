@@ -11,7 +11,7 @@ with ε the light efficiency (true/rated flux), β the beam half-angle (Ω = 2π
 π tan²β for the disk), M the target reflectance, T the lens transmittance (absent without a lens), s the
 attenuation scale and K the camera's system gain. G_k(s) is the configuration's rate as a function of s alone:
 
-- ``paper`` chain (`uwlab.model.design`): G_k(s) = ∫ W_k(λ) e^(−s c(λ) D_k) dλ over the light → target → camera
+- ``paper`` chain (`uwlab.model.chain`): G_k(s) = ∫ W_k(λ) e^(−s c(λ) D_k) dλ over the light → target → camera
   path D_k, times the mean vignetting over the ROI; every factor is exact for that chain;
 - ``extended`` chain (`uwlab.model.extended`): the ROI's mean rate of target and veiling light (the veil grows
   with s too); β and M are not free there (the lights' geometry and the veil do not scale with them).
@@ -35,9 +35,10 @@ from uwlab.model.config import design_sections
 from uwlab.errors import ConfigError
 from uwlab.model import extended
 from uwlab.model.config import apply_override
-from uwlab.model.design import (Design, beam_half_angle_rad, broadband_factor, build_design, housing_transmittance,
-                                electron_rate_at_radius, light_distance_m, on_axis_electron_rate, paper_beam_model,
-                                spectral_weights)
+from uwlab.model.build import build_design
+from uwlab.model.chain import beam_half_angle_rad, housing_transmittance, electron_rate_at_radius, light_distance_m, on_axis_electron_rate, paper_beam_model
+from uwlab.model.design import Design
+from uwlab.model.weights import broadband_factor, spectral_weights
 from uwlab.model.optics import NO_LENS, LensSetting
 
 SHARED = ("light_efficiency", "beam_half_angle_deg", "attenuation_scale", "reflectance", "lens_transmittance",

@@ -27,7 +27,7 @@ import pandas as pd
 
 from uwlab.experiments.calibration.fit import FitConfig, FitResult, config_offsets, fit_points
 from uwlab.experiments.calibration.forward import ForwardModel, build_forward_model
-from uwlab.model.design import stage_spectra
+from uwlab.model.evaluation import stage_spectra
 
 BANDS = (2.5, 16, 50, 84, 97.5)
 BAND_NAMES = ("p2_5", "p16", "median", "p84", "p97_5")

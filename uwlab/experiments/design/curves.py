@@ -8,13 +8,14 @@ figure's axes (one vectorised call) and returns plain arrays. `plots.py` draws t
   vehicle speed, for the design's altitude and multiples of it.
 - `water_attenuation`: beam attenuation c(λ) of every named water type.
 - `quantum_efficiency`: the QE curves of the shipped sensor profiles.
-- The spectra along the chain are `uwlab.model.design.stage_spectra`.
+- The spectra along the chain are `uwlab.model.evaluation.stage_spectra`.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from uwlab.model.design import Design, evaluate
+from uwlab.model.design import Design
+from uwlab.model.evaluation import evaluate
 from uwlab.model.grid import WavelengthGrid
 from uwlab.model.sensor import SensorProfile, available_profiles, load_sensor_profile
 from uwlab.model.water import WATER_TYPES, water_iop

@@ -3,7 +3,7 @@
 A grid is a base design (a raw config dict) and ordered axes {"section.key": [values]}. Numeric axes form an open
 mesh (one numpy axis per key) evaluated by broadcasting; categorical axes (names, files, words) are looped over.
 Rows come in C order: categorical combinations outermost, then the numeric axes in the order given. Columns: the
-axes (numeric as float64, categorical as strings), then the flattened outputs of `uwlab.model.design.evaluate`
+axes (numeric as float64, categorical as strings), then the flattened outputs of `uwlab.model.evaluation.evaluate`
 (``fov_deg_x``, ``dof_m_near``, ...; an output a design does not have, such as the dome's virtual image behind a
 flat port, is NaN).
 
@@ -32,7 +32,8 @@ import pyarrow.parquet as pq
 
 from uwlab.errors import ConfigError, UwlabError
 from uwlab.model.config import apply_override
-from uwlab.model.design import build_design, evaluate
+from uwlab.model.build import build_design
+from uwlab.model.evaluation import evaluate
 from uwlab.outputs import output_file
 
 CHUNK_POINTS = 1 << 17

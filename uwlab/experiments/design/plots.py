@@ -12,7 +12,8 @@ from uwlab.errors import ConfigError
 from uwlab.experiments.figures import save_figure
 from uwlab.experiments.design.curves import (dof_curves, operation_curves, quantum_efficiency,
                                              water_attenuation)
-from uwlab.model.design import Design, stage_spectra
+from uwlab.model.design import Design
+from uwlab.model.evaluation import stage_spectra
 from uwlab.outputs import output_dir
 
 

@@ -26,7 +26,8 @@ import numpy as np
 import pandas as pd
 
 from uwlab.errors import ConfigError
-from uwlab.model.design import Design, evaluate
+from uwlab.model.design import Design
+from uwlab.model.evaluation import evaluate
 
 MAX_SAMPLES = 1000
 PERCENTILES = {"p2_5": 2.5, "p16": 16.0, "median": 50.0, "p84": 84.0, "p97_5": 97.5}

@@ -1,6 +1,6 @@
 """The readout of one design: its outputs as people read them (names, units, rounding) and the warnings on them.
 
-`OUTPUTS` names every output of `uwlab.model.design.evaluate` once; `uwlab design` prints the rows as its text
+`OUTPUTS` names every output of `uwlab.model.evaluation.evaluate` once; `uwlab design` prints the rows as its text
 table and `uwlab explore` shows the same rows on its page, so the two read alike (``SNR  36.5 dB``). An output the
 table does not name yet (a new key of `evaluate`) is shown under its key with four significant digits. The light
 budget (``light_budget_stops``, "what limits me") follows as stops lost per stage, the largest loss marked.
@@ -77,7 +77,7 @@ OUTPUTS = (
 )
 OUTPUT_BY_KEY = {o.key: o for o in OUTPUTS}
 UNNAMED_FORMAT = "{:.4g}"
-# The "what limits me" readout: `light_budget_stops`, stages in chain order (`uwlab.model.design.light_budget`).
+# The "what limits me" readout: `light_budget_stops`, stages in chain order (`uwlab.model.budget.light_budget`).
 BUDGET_KEY = "light_budget_stops"
 BUDGET_STAGES = {
     "beam_to_view": "beam → field of view", "water_to_target": "water, light → target",

@@ -2,7 +2,7 @@
 two of them.
 
 Problem: free keys x_k ∈ [LO_k, HI_k]; requirements "OUTPUT >= VALUE" or "OUTPUT <= VALUE" on the outputs of
-`uwlab.model.design.evaluate` (nested keys with a dot: ``dof_m.near``); objectives: one or two free keys to
+`uwlab.model.evaluation.evaluate` (nested keys with a dot: ``dof_m.near``); objectives: one or two free keys to
 minimise or maximise. The other free keys are nuisance: any value in their range may be chosen. With a posterior
 (`uwlab.experiments.design.posterior`), the requirements must all hold together with probability ≥ the
 confidence, estimated over the posterior samples.
@@ -37,7 +37,9 @@ from uwlab.errors import ConfigError
 from uwlab.experiments.design.posterior import DesignPosterior
 from uwlab.jsonable import to_jsonable
 from uwlab.model.config import apply_override
-from uwlab.model.design import Design, build_design, evaluate
+from uwlab.model.build import build_design
+from uwlab.model.design import Design
+from uwlab.model.evaluation import evaluate
 
 OPERATORS = (">=", "<=")
 FRONT_POINTS = 33

@@ -40,7 +40,7 @@ from uwlab.drivers.serial.protocol import (
 )
 from uwlab.sim.rig_state import LightState, RigState, WarmUp
 from uwlab.sim.state_log import StateLog
-from uwlab.model.design import SPECTROMETER_POSITIONS
+from uwlab.model.evaluation import SPECTROMETER_POSITIONS
 from uwlab.model.grid import DEFAULT_GRID
 
 SpectrumSource = Callable[[str, float], tuple[np.ndarray, np.ndarray]]

@@ -62,7 +62,7 @@ from uwlab.sim.devices.serial_instruments import (
 )
 from uwlab.sim.state_log import StateLog
 from uwlab.errors import ConfigError, DeviceError, UwlabError
-from uwlab.model.design import SPECTROMETER_POSITIONS
+from uwlab.model.evaluation import SPECTROMETER_POSITIONS
 
 FAULTS = ("noreply", "garbage", "partial", "err", "busy", "reset", "vanish")
 MAX_FAULT_COUNT = 10_000
