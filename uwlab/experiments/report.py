@@ -11,7 +11,6 @@ configuration and the spectra; the EMVA summary; the provenance of every dataset
 """
 from __future__ import annotations
 
-import base64
 import io
 import json
 import time
@@ -24,6 +23,7 @@ from jinja2 import Environment, PackageLoader, StrictUndefined
 
 from uwlab.errors import UwlabError
 from uwlab.experiments.dataset import read_metadata
+from uwlab.experiments.figures import number_text, png_data_uri
 from uwlab.outputs import MANIFEST_FILE, METADATA_FILE, output_file
 from uwlab.experiments.calibration.forward import PERCENT_PARAMETERS, parameter_label
 from uwlab.experiments.calibration.output import configuration_label
@@ -44,24 +44,18 @@ def _find(root: Path, marker: str, also: str | None = None) -> list[Path]:
     return [p for p in dict.fromkeys(found) if also is None or (p / also).exists()]
 
 
-def _data_uri(png: bytes) -> str:
-    return "data:image/png;base64," + base64.b64encode(png).decode()
-
-
 def _img(path: Path) -> str:
-    return _data_uri(path.read_bytes())
+    return png_data_uri(path.read_bytes())
 
 
 def _fig(fig) -> str:
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=90, bbox_inches="tight")
-    return _data_uri(buffer.getvalue())
+    return png_data_uri(buffer.getvalue())
 
 
 def _number(value, digits: int = 4) -> str:
-    if value is None or (isinstance(value, float) and not np.isfinite(value)):
-        return "—"
-    return f"{value:.{digits}g}"
+    return number_text(value, f".{digits}g")
 
 
 def _percent(value, digits: int = 1) -> str:

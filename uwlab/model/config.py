@@ -92,7 +92,7 @@ class Spectral(Schema):
         return self
 
 
-class Light(Schema):
+class LightSection(Schema):
     """The artificial light(s): spectrum, flux, beam and placement."""
 
     spectrum: NonEmptyText = Field("generic-led", description="relative spectrum: a named spectrum or a CSV file")
@@ -248,7 +248,7 @@ class DesignConfig(Schema):
     """A design config: one table per section, and the extended model's [[lights]]."""
 
     spectral: Spectral = _section(Spectral)
-    light: Light = _section(Light)
+    light: LightSection = _section(LightSection)
     water: Water = _section(Water)
     target: Target = _section(Target)
     housing: Housing = _section(Housing)

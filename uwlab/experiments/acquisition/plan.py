@@ -111,7 +111,7 @@ class CameraSpec(Schema):
                       outage_limit_s=self.outage_limit_s)
 
 
-class Instruments(Schema):
+class InstrumentsSection(Schema):
     """[instruments]: the serial instruments of the real rig (``--sim`` replaces them)."""
 
     light_port: NonEmptyText | None = Field(None, description="serial port of the light controller")
@@ -226,7 +226,7 @@ class PlanFile(Schema):
     rig: NonEmptyText = Field(description="the rig's design config, relative to the plan (e.g. ../rigs/sim-tank.toml)")
     geometry: DesignSections = Field({}, description="design sections overriding the rig for every sweep")
     camera: CameraSpec = Field(CameraSpec(), description=CameraSpec.__doc__)
-    instruments: Instruments = Field(Instruments(), description=Instruments.__doc__)
+    instruments: InstrumentsSection = Field(InstrumentsSection(), description=InstrumentsSection.__doc__)
     defaults: dict[str, Any] = Field({}, description="sweep keys applied to every sweep that does not set them")
     sweep: list[dict[str, Any]] = Field(min_length=1, description="the [[sweep]] tables")
 
@@ -304,7 +304,7 @@ class Plan:
     name: str
     rig_path: Path
     sweeps: tuple[SweepSpec, ...]
-    instruments: Instruments
+    instruments: InstrumentsSection
 
     def total_points(self) -> int:
         return sum(len(s.values) for s in self.sweeps)

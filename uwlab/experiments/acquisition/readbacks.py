@@ -33,7 +33,7 @@ LEVEL_TOLERANCE = 1e-9
 T = TypeVar("T")
 
 
-class Instruments(Protocol):
+class RigInstruments(Protocol):
     light: Light | None
     spectrometer: Spectrometer | None
 
@@ -48,7 +48,7 @@ class Window:
     light: LightReadback | None
 
 
-def _marks(rig: Instruments, camera: Camera | None) -> dict[str, int]:
+def _marks(rig: RigInstruments, camera: Camera | None) -> dict[str, int]:
     marks = {} if camera is None else {"camera reconnects": camera.stats.reconnects}
     for name, device in (("light", rig.light), ("spectrometer", rig.spectrometer)):
         if device is not None:
@@ -56,7 +56,7 @@ def _marks(rig: Instruments, camera: Camera | None) -> dict[str, int]:
     return marks
 
 
-def _readbacks(rig: Instruments, camera: Camera | None,
+def _readbacks(rig: RigInstruments, camera: Camera | None,
                light: LightReadback | None) -> tuple[LightReadback | None, list[str]]:
     """The light's read-back and whether it disagrees with ``light``; the camera's settings verified (if it takes
     part)."""
@@ -69,7 +69,7 @@ def _readbacks(rig: Instruments, camera: Camera | None,
     return got, problems
 
 
-def verified(what: str, rig: Instruments, camera: Camera | None, light: LightReadback | None,
+def verified(what: str, rig: RigInstruments, camera: Camera | None, light: LightReadback | None,
              prepare: Callable[[], None], measure: Callable[[], T]) -> tuple[T, Window]:
     """``measure()``'s result and its `Window`, from the first attempt whose read-backs held (module docstring);
     ``camera`` is the camera the measurement uses (None: a spectrometer-only measurement, which a camera outage

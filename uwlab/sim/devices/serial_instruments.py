@@ -60,7 +60,7 @@ def _quoted(text: str) -> str:
     return repr(text[:ECHO_CHARS]) + ("..." if len(text) > ECHO_CHARS else "")
 
 
-def _number(argument: str, low: float, high: float) -> float:
+def _argument_in_range(argument: str, low: float, high: float) -> float:
     try:
         value = float(argument)
     except ValueError:
@@ -73,7 +73,7 @@ def _number(argument: str, low: float, high: float) -> float:
 def _integer(argument: str, low: int, high: int) -> int:
     if not re.fullmatch(r"[+-]?[0-9]{1,12}", argument):
         raise CommandError(ERR_BAD_ARGUMENT, f"not an integer: {_quoted(argument)}")
-    return int(_number(argument, low, high))
+    return int(_argument_in_range(argument, low, high))
 
 
 class SimInstrument:
@@ -161,7 +161,7 @@ class SimLight(SimInstrument):
         elif header == "OUTP?":
             return ["1" if self.on else "0"]
         elif header == "LEV":
-            self.level = _number(argument, 0.0, 1.0)
+            self.level = _argument_in_range(argument, 0.0, 1.0)
         elif header == "LEV?":
             return [format_float(self.level)]
         else:
@@ -250,7 +250,7 @@ class SimSpectrometer(SimInstrument):
 
     def dispatch(self, header: str, argument: str) -> list[str]:
         if header == "SPEC:INT":
-            self.integration_ms = _number(argument, *INTEGRATION_MS_RANGE)
+            self.integration_ms = _argument_in_range(argument, *INTEGRATION_MS_RANGE)
         elif header == "SPEC:INT?":
             return [format_float(self.integration_ms)]
         elif header == "SPEC:AVG":
