@@ -4,6 +4,7 @@ then design requests from 20 concurrent clients. Prints one JSON object.
 Targets (issue 25): 0 hostile requests succeed (a success is any 2xx answer, or an answer quoting a secret file);
 ≥ 300 design requests/s with 20 clients, p99 ≤ 100 ms, the server's memory flat (RSS after ≈ before).
 """
+
 from __future__ import annotations
 
 import json
@@ -33,31 +34,58 @@ def hostile(base: str, secret: Path) -> list[tuple[str, str, dict]]:
     """(name, method + path, httpx request options) of every hostile request."""
     origin = {"Origin": "http://evil.example"}
     plain = {"Content-Type": "text/plain"}
-    requests = [(f"foreign Host {h}", "GET /api/config", {"headers": {"Host": h}})
-                for h in ("evil.example", "evil.example:8050", "127.0.0.1.evil.example", "localhost.attacker", "")]
-    requests += [(f"foreign Host {h} POST", "POST /api/design", {"headers": {"Host": h}, "json": {}})
-                 for h in ("evil.example", "rebind.example:80")]
+    requests = [
+        (f"foreign Host {h}", "GET /api/config", {"headers": {"Host": h}})
+        for h in ("evil.example", "evil.example:8050", "127.0.0.1.evil.example", "localhost.attacker", "")
+    ]
+    requests += [
+        (f"foreign Host {h} POST", "POST /api/design", {"headers": {"Host": h}, "json": {}})
+        for h in ("evil.example", "rebind.example:80")
+    ]
     for path in ("/api/design", "/api/profile", "/api/load", "/api/view", "/api/toml"):
         requests += [
             (f"cross-origin text/plain {path}", f"POST {path}", {"headers": {**origin, **plain}, "content": "{}"}),
-            (f"cross-origin form {path}", f"POST {path}", {"headers": {**origin, "Content-Type":
-                                                           "application/x-www-form-urlencoded"}, "content": "a=1"}),
+            (
+                f"cross-origin form {path}",
+                f"POST {path}",
+                {"headers": {**origin, "Content-Type": "application/x-www-form-urlencoded"}, "content": "a=1"},
+            ),
             (f"cross-origin JSON {path}", f"POST {path}", {"headers": origin, "json": {}}),
-            (f"same-origin JSON without XSRF {path}", f"POST {path}", {"headers": {"Origin": base.rstrip("/")},
-                                                                         "json": {}}),
+            (
+                f"same-origin JSON without XSRF {path}",
+                f"POST {path}",
+                {"headers": {"Origin": base.rstrip("/")}, "json": {}},
+            ),
         ]
-    requests += [(f"multipart {p}", f"POST {p}", {"headers": {"Content-Type": "multipart/form-data; boundary=b"},
-                                                  "content": "--b--\r\n"}) for p in ("/api/profile", "/api/design")]
+    requests += [
+        (
+            f"multipart {p}",
+            f"POST {p}",
+            {"headers": {"Content-Type": "multipart/form-data; boundary=b"}, "content": "--b--\r\n"},
+        )
+        for p in ("/api/profile", "/api/design")
+    ]
     for key in ("light.spectrum", "lens.transmittance", "target.reflectance", "water.type"):
         for value in (str(secret), "/etc/passwd", "/no/such/file.csv", "../../../../etc/hostname", "/dev/zero"):
             requests.append((f"path probe {key}={value}", "POST /api/design", {"json": {"set": {key: value}}}))
-    requests += [(f"profile probe {p}", "POST /api/profile", {"json": {"path": p}})
-                 for p in (str(secret), "/etc/passwd", "/nonexistent.toml")]
     requests += [
-        ("oversized body 50 MB", "POST /api/design", {"headers": {"Content-Type": "application/json"},
-                                                      "content": b'{"set": {"x": "' + b"A" * 50_000_000 + b'"}}'}),
-        ("JSON nested 100000 deep", "POST /api/design", {"headers": {"Content-Type": "application/json"},
-                                                         "content": "[" * 100_000 + "]" * 100_000}),
+        (f"profile probe {p}", "POST /api/profile", {"json": {"path": p}})
+        for p in (str(secret), "/etc/passwd", "/nonexistent.toml")
+    ]
+    requests += [
+        (
+            "oversized body 50 MB",
+            "POST /api/design",
+            {
+                "headers": {"Content-Type": "application/json"},
+                "content": b'{"set": {"x": "' + b"A" * 50_000_000 + b'"}}',
+            },
+        ),
+        (
+            "JSON nested 100000 deep",
+            "POST /api/design",
+            {"headers": {"Content-Type": "application/json"}, "content": "[" * 100_000 + "]" * 100_000},
+        ),
     ]
     return requests
 
@@ -94,8 +122,19 @@ def main() -> None:
             load = load_test(base, token, explorer.process.pid)
         finally:
             explorer.stop()
-    print(json.dumps({"benchmark": "explore_security", "hostile_requests": 2 * len(campaign),
-                      "succeeded": len(succeeded), "successes": succeeded, "statuses": statuses, **load}, indent=1))
+    print(
+        json.dumps(
+            {
+                "benchmark": "explore_security",
+                "hostile_requests": 2 * len(campaign),
+                "succeeded": len(succeeded),
+                "successes": succeeded,
+                "statuses": statuses,
+                **load,
+            },
+            indent=1,
+        )
+    )
 
 
 def load_test(base: str, token: str, pid: int) -> dict:
@@ -129,10 +168,16 @@ def load_test(base: str, token: str, pid: int) -> dict:
         t.join()
     elapsed = time.perf_counter() - started
     ordered = sorted(latencies)
-    return {"load_clients": CLIENTS, "load_requests": len(latencies), "load_errors": errors[0],
-            "requests_per_s": len(latencies) / elapsed, "median_ms": statistics.median(ordered) * 1e3,
-            "p99_ms": ordered[int(0.99 * (len(ordered) - 1))] * 1e3, "server_rss_before_mb": before,
-            "server_rss_after_mb": rss_mb(pid)}
+    return {
+        "load_clients": CLIENTS,
+        "load_requests": len(latencies),
+        "load_errors": errors[0],
+        "requests_per_s": len(latencies) / elapsed,
+        "median_ms": statistics.median(ordered) * 1e3,
+        "p99_ms": ordered[int(0.99 * (len(ordered) - 1))] * 1e3,
+        "server_rss_before_mb": before,
+        "server_rss_after_mb": rss_mb(pid),
+    }
 
 
 if __name__ == "__main__":

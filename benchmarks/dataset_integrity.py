@@ -5,6 +5,7 @@ Prints one JSON object (tests/support/bitflips.py says what each outcome means).
 Target (issue 25): 0 silent changes over ≥ 300 flips; every intact point still readable after --repair.
 Usage: ``.venv/bin/python benchmarks/dataset_integrity.py [FLIPS] [SEED]``.
 """
+
 from __future__ import annotations
 
 import json
@@ -30,16 +31,35 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         pristine = Path(tmp) / "pristine"
         truth = SimTruth.from_sensor_profile(load_sensor_profile("imx250m"), resolution_px=(32, 32))
-        simulate_photon_transfer(pristine, truth, rate_e_per_s=1.07e5, quantum_efficiency=0.6,
-                                 exposures_us=np.linspace(3e3, 120e3, 24), frames=2, seed=5)
+        simulate_photon_transfer(
+            pristine,
+            truth,
+            rate_e_per_s=1.07e5,
+            quantum_efficiency=0.6,
+            exposures_us=np.linspace(3e3, 120e3, 24),
+            frames=2,
+            seed=5,
+        )
         started = time.perf_counter()
         outcomes = flip_campaign(pristine, Path(tmp), flips, np.random.default_rng(seed))
         elapsed = time.perf_counter() - started
-    print(json.dumps({"benchmark": "dataset_integrity", "flips": flips, "seed": seed,
-                      "outcomes": dict(outcomes.counts), "flips_by_file": dict(outcomes.by_file),
-                      "silent_changes": len(outcomes.silent), "silent": outcomes.silent,
-                      "intact_points_lost_by_repair": len(outcomes.lost_intact),
-                      "not_repaired": outcomes.unrepaired, "seconds": round(elapsed, 1)}, indent=1))
+    print(
+        json.dumps(
+            {
+                "benchmark": "dataset_integrity",
+                "flips": flips,
+                "seed": seed,
+                "outcomes": dict(outcomes.counts),
+                "flips_by_file": dict(outcomes.by_file),
+                "silent_changes": len(outcomes.silent),
+                "silent": outcomes.silent,
+                "intact_points_lost_by_repair": len(outcomes.lost_intact),
+                "not_repaired": outcomes.unrepaired,
+                "seconds": round(elapsed, 1),
+            },
+            indent=1,
+        )
+    )
 
 
 if __name__ == "__main__":

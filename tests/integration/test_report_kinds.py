@@ -1,4 +1,5 @@
 """`uwlab report DIR` on what the other commands write: the matching report, or one line saying what DIR holds."""
+
 from __future__ import annotations
 
 import pytest

@@ -1,5 +1,6 @@
 """Ctrl-C works whatever SIGINT disposition `uwlab` inherits: started with SIGINT ignored (as a background job of a
 non-interactive shell is), a SIGINT still ends it with the one line `interrupted` and exit code 130."""
+
 from __future__ import annotations
 
 import signal
@@ -11,9 +12,13 @@ from tests.support.paths import EXAMPLE
 
 def test_sigint_interrupts_even_when_the_parent_ignored_it():
     ignore = lambda: signal.signal(signal.SIGINT, signal.SIG_IGN)  # noqa: E731 (the child's disposition at exec)
-    process = subprocess.Popen([sys.executable, "-m", "uwlab.cli.main", "explore", str(EXAMPLE), "--no-browser",
-                                "--json", "--port", "0"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                               preexec_fn=ignore)
+    process = subprocess.Popen(
+        [sys.executable, "-m", "uwlab.cli.main", "explore", str(EXAMPLE), "--no-browser", "--json", "--port", "0"],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        preexec_fn=ignore,
+    )
     try:
         assert process.stdout.readline().startswith('{"url"')  # serving: well past start-up
         process.send_signal(signal.SIGINT)
@@ -24,4 +29,3 @@ def test_sigint_interrupts_even_when_the_parent_ignored_it():
             process.wait()
     err = process.stderr.read()
     assert code == 130 and err.strip().splitlines()[-1] == "uwlab explore: interrupted"
-

@@ -12,6 +12,7 @@ Whatever happened, ``uwlab dataset check --repair`` then runs (in process) and t
 of every part the flip did not strike must still be there, unchanged (``lost_intact`` counts those that are not),
 and a second check must pass.
 """
+
 from __future__ import annotations
 
 import shutil
@@ -59,8 +60,15 @@ def flip_campaign(pristine: Path, work: Path, trials: int, rng: np.random.Genera
     reference_rows = _rows(reference[0])
     part_of = {}
     for part in Dataset.open(pristine).store.parts:
-        keys = set(zip(*[Dataset.open(pristine).store.read(part, "points").column(k).to_pylist()
-                         for k in ("sweep_id", "point_index")], strict=True))
+        keys = set(
+            zip(
+                *[
+                    Dataset.open(pristine).store.read(part, "points").column(k).to_pylist()
+                    for k in ("sweep_id", "point_index")
+                ],
+                strict=True,
+            )
+        )
         for table in part.tables.values():
             part_of[table.file] = keys
     outcomes = Outcomes()

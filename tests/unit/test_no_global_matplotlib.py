@@ -1,5 +1,6 @@
 """No uwlab module touches matplotlib's global state at import: `matplotlib.use` is never called and the backend a
 notebook chose stays chosen (figures are made with the object API, `matplotlib.figure.Figure`)."""
+
 from __future__ import annotations
 
 import subprocess

@@ -1,4 +1,5 @@
 """Outputs never go inside a uwlab dataset (a folder holding metadata.json and manifest.json)."""
+
 from __future__ import annotations
 
 import pytest

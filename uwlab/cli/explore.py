@@ -1,4 +1,5 @@
 """`uwlab explore`: the design explorer, a local web page over a design (docs/explorer.md)."""
+
 from __future__ import annotations
 
 import asyncio
@@ -16,26 +17,48 @@ DEFAULT_PORT = 8050
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("explore",
-                              description="Serve the design explorer for a design TOML on a local address and open "
-                                          "it in the browser.")
+    p = subparsers.add_parser(
+        "explore",
+        description="Serve the design explorer for a design TOML on a local address and open it in the browser.",
+    )
     p.add_argument("config", nargs="?", help="design TOML (default: configs/design/example.toml)")
-    p.add_argument("--port", type=int, default=DEFAULT_PORT,
-                   help=f"TCP port (default {DEFAULT_PORT}; 0: any free port)")
-    p.add_argument("--host", default="127.0.0.1",
-                   help="address to listen on (default 127.0.0.1; any other address requires a token, printed in "
-                        "the URL)")
-    p.add_argument("--allow-host", action="append", default=[], metavar="NAME",
-                   help="a host name the browser may use to reach the explorer besides the loopback names and --host "
-                        "(repeatable; other Host headers are refused, against DNS rebinding)")
-    p.add_argument("--token", metavar="TOKEN",
-                   help="require this token (default: none on the loopback, a new random one on any other address)")
-    p.add_argument("--data-dir", action="append", default=[], metavar="DIR",
-                   help="a folder whose files (spectra, transmittances, profiles) designs may name, besides configs/ "
-                        "and the config's folder (repeatable)")
-    p.add_argument("--profile", action="append", default=[], metavar="PATH",
-                   help="a sensor (e.g. `uwlab emva` output), light or lens profile TOML, or a directory of them, "
-                        "offered beside the shipped ones (repeatable)")
+    p.add_argument(
+        "--port", type=int, default=DEFAULT_PORT, help=f"TCP port (default {DEFAULT_PORT}; 0: any free port)"
+    )
+    p.add_argument(
+        "--host",
+        default="127.0.0.1",
+        help="address to listen on (default 127.0.0.1; any other address requires a token, printed in the URL)",
+    )
+    p.add_argument(
+        "--allow-host",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="a host name the browser may use to reach the explorer besides the loopback names and --host "
+        "(repeatable; other Host headers are refused, against DNS rebinding)",
+    )
+    p.add_argument(
+        "--token",
+        metavar="TOKEN",
+        help="require this token (default: none on the loopback, a new random one on any other address)",
+    )
+    p.add_argument(
+        "--data-dir",
+        action="append",
+        default=[],
+        metavar="DIR",
+        help="a folder whose files (spectra, transmittances, profiles) designs may name, besides configs/ "
+        "and the config's folder (repeatable)",
+    )
+    p.add_argument(
+        "--profile",
+        action="append",
+        default=[],
+        metavar="PATH",
+        help="a sensor (e.g. `uwlab emva` output), light or lens profile TOML, or a directory of them, "
+        "offered beside the shipped ones (repeatable)",
+    )
     p.add_argument("--no-browser", action="store_true", help="do not open a browser")
     p.add_argument("--json", action="store_true", help='print {"url": ...} as one JSON line')
     p.set_defaults(func=run)
@@ -86,10 +109,14 @@ def run(args) -> int:
     shown = f"[{host}]" if ":" in host else host
     url = f"http://{shown}:{port}/" + (f"?token={access.token}" if access.token else "")
     if not is_loopback(args.host):
-        print(f"uwlab explore: warning: listening on {args.host}, beyond this machine; anyone who can reach it "
-              "and has the token can run designs and read the files of --data-dir", file=sys.stderr)
-    server = uvicorn.Server(uvicorn.Config(create_app(served, catalog, access), log_level="warning",
-                                           access_log=False, lifespan="off"))
+        print(
+            f"uwlab explore: warning: listening on {args.host}, beyond this machine; anyone who can reach it "
+            "and has the token can run designs and read the files of --data-dir",
+            file=sys.stderr,
+        )
+    server = uvicorn.Server(
+        uvicorn.Config(create_app(served, catalog, access), log_level="warning", access_log=False, lifespan="off")
+    )
 
     async def serve() -> None:
         """Serve, and print the URL once the server accepts connections (and handles Ctrl-C itself)."""

@@ -12,6 +12,7 @@ while it imports may turn the KeyboardInterrupt into another error (numpy raises
 its own SIGINT handler whatever disposition it inherits (a background job of a non-interactive shell starts with
 SIGINT ignored, which would make Ctrl-C and `kill -INT` do nothing), and restores the inherited one on return.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -25,10 +26,14 @@ from uwlab import __version__
 from uwlab.errors import UwlabError
 
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
-    "design": ("uwlab.cli.design", "predict FOV, exposure, framerate, DoF, response and SNR of a design; grids; "
-                                   "inverse design"),
-    "explore": ("uwlab.cli.explore", "the design explorer: edit a design in a local web page, see its numbers and "
-                                     "figures live, sweep, solve, save"),
+    "design": (
+        "uwlab.cli.design",
+        "predict FOV, exposure, framerate, DoF, response and SNR of a design; grids; inverse design",
+    ),
+    "explore": (
+        "uwlab.cli.explore",
+        "the design explorer: edit a design in a local web page, see its numbers and figures live, sweep, solve, save",
+    ),
     "devices": ("uwlab.cli.devices", "list cameras on every backend"),
     "grab": ("uwlab.cli.grab", "acquire frames from a camera and report statistics"),
     "light": ("uwlab.cli.light", "switch and dim the light, or calibrate it"),

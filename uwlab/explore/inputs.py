@@ -19,6 +19,7 @@ roots — ``configs/``, the served config's folder, the ``--data-dir`` folders a
 other path is refused with the same line whether or not it exists, so a request learns nothing of the machine's
 files.
 """
+
 from __future__ import annotations
 
 import stat
@@ -41,8 +42,13 @@ BODY_MEMBERS = ("config", "set", "text")
 MAX_FILE_BYTES = 1_000_000
 # Design keys whose string values name a file unless they are one of these names (`uwlab.model.build`); a sensor
 # profile is a file when it ends in .toml (`uwlab.model.sensor.load_sensor_profile`).
-FILE_KEYS = {"light.spectrum": NAMED_SPECTRA, "water.type": WATER_TYPES, "target.reflectance": NAMED_REFLECTANCE,
-             "lens.transmittance": (), "sensor.profile": None}
+FILE_KEYS = {
+    "light.spectrum": NAMED_SPECTRA,
+    "water.type": WATER_TYPES,
+    "target.reflectance": NAMED_REFLECTANCE,
+    "lens.transmittance": (),
+    "sensor.profile": None,
+}
 OUTSIDE_ROOTS = "not a file the explorer may read (configs/, the served config's folder, --data-dir, --profile)"
 
 
@@ -168,7 +174,7 @@ def value_text(value) -> str:
         return repr(value)
     if isinstance(value, str):
         bare = value and value == value.strip() and parse_value(value) == value
-        return value if bare else tomli_w.dumps({"v": value})[len("v = "):].strip()
+        return value if bare else tomli_w.dumps({"v": value})[len("v = ") :].strip()
     if isinstance(value, (list, tuple)):
         return "[" + ", ".join(value_text(v) for v in value) + "]"
     raise ConfigError("config", value, "cannot be shown as a value (a table where a value belongs?)")
@@ -176,8 +182,12 @@ def value_text(value) -> str:
 
 def field_texts(raw: dict) -> dict[str, str]:
     """{"section.key": text} of every key of a raw config (`value_text`)."""
-    return {f"{section}.{key}": value_text(value)
-            for section, body in raw.items() if isinstance(body, dict) for key, value in body.items()}
+    return {
+        f"{section}.{key}": value_text(value)
+        for section, body in raw.items()
+        if isinstance(body, dict)
+        for key, value in body.items()
+    }
 
 
 def read_toml_text(text: str, name: str = "uploaded file") -> dict:

@@ -4,6 +4,7 @@ The configuration directory is `$UWLAB_CONFIG_DIR` if set, else the `configs/` f
 Relative paths in a config file are resolved against that file's folder. CSV files may start with `#` comment
 lines (their provenance header); read with the standard library's `csv` (no pandas: the design path stays light).
 """
+
 from __future__ import annotations
 
 import csv
@@ -46,8 +47,9 @@ def read_text(path: Path, key: str, max_bytes: int, kind: str) -> str:
     if not stat.S_ISREG(info.st_mode):
         raise ConfigError(key, str(path), f"not a regular file (a device or pipe), not a {kind} file")
     if info.st_size > max_bytes:
-        raise ConfigError(key, str(path), f"{info.st_size} bytes: larger than any {kind} file uwlab reads "
-                                          f"({max_bytes} bytes)")
+        raise ConfigError(
+            key, str(path), f"{info.st_size} bytes: larger than any {kind} file uwlab reads ({max_bytes} bytes)"
+        )
     try:
         data = path.read_bytes()
     except PermissionError:
@@ -115,8 +117,12 @@ def read_csv_columns(path: Path, columns: tuple[str, ...], key: str) -> dict[str
                 hint = " (a decimal comma? write 0.5, not 0,5)" if "," in cell else ""
                 raise ConfigError(key, str(path), f"line {number}: {name} = {cell!r} is not a number{hint}") from None
             if not math.isfinite(value) or abs(value) > MAX_ABS_VALUE:
-                raise ConfigError(key, str(path), f"line {number}: {name} = {cell} is not a finite number of "
-                                                  f"magnitude ≤ {MAX_ABS_VALUE:g} — is the unit right?")
+                raise ConfigError(
+                    key,
+                    str(path),
+                    f"line {number}: {name} = {cell} is not a finite number of "
+                    f"magnitude ≤ {MAX_ABS_VALUE:g} — is the unit right?",
+                )
             values[r, j] = value
     order = np.argsort(values[:, 0], kind="stable")
     first = values[order, 0]

@@ -1,5 +1,6 @@
 """Every byte of a dataset is checked: a flipped bit anywhere (parts, manifest, metadata, their copies) is repaired
 or refused with one line, never read as another value, and --repair never sets aside an intact part."""
+
 from __future__ import annotations
 
 import json
@@ -24,8 +25,15 @@ def pristine(tmp_path_factory):
     """A small recorded dataset (a simulated photon transfer: 24 points with spectra in 9 parts)."""
     root = tmp_path_factory.mktemp("integrity") / "ds"
     truth = SimTruth.from_sensor_profile(load_sensor_profile("imx250m"), resolution_px=(32, 32))
-    simulate_photon_transfer(root, truth, rate_e_per_s=1.07e5, quantum_efficiency=0.6,
-                             exposures_us=np.linspace(3e3, 120e3, 24), frames=2, seed=5)
+    simulate_photon_transfer(
+        root,
+        truth,
+        rate_e_per_s=1.07e5,
+        quantum_efficiency=0.6,
+        exposures_us=np.linspace(3e3, 120e3, 24),
+        frames=2,
+        seed=5,
+    )
     return root
 
 

@@ -1,5 +1,6 @@
 """Ctrl-C while emcee samples leaves the fit as one KeyboardInterrupt: emcee prints nothing (its wrapper prints a
 traceback for anything a log-probability raises), so `uwlab fit` can say its one line `interrupted`."""
+
 from __future__ import annotations
 
 import pytest

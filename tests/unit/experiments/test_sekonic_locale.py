@@ -1,6 +1,7 @@
 """A Sekonic C-7000 export written under a decimal-comma locale: read exactly when its separator makes the numbers
 unambiguous (semicolons), refused in one line otherwise — never imported as the integer parts (an all-zero
 spectrum, as before)."""
+
 from __future__ import annotations
 
 import numpy as np

@@ -4,6 +4,7 @@ Each request is one a web page the user visits, a DNS-rebinding attacker or a cu
 assertions check that it is refused, that the refusal says nothing about the machine's files and repeats nothing of
 the request, and that the user's own page still works.
 """
+
 from __future__ import annotations
 
 import json
@@ -42,6 +43,7 @@ def secret_file(tmp_path):
 
 # ---- the user's own requests still work ---------------------------------------------------------------------
 
+
 def test_the_page_and_its_api_work_from_the_page():
     with client() as c:
         page = c.get("/")
@@ -72,8 +74,12 @@ def test_a_token_by_header_serves_a_script():
 
 def test_every_answer_carries_the_security_headers_and_no_cors():
     with client() as c:
-        for answer in (c.get("/"), c.get("/api/config"), c.post("/api/design", json={"set": {"x.y": 1}}),
-                       c.get("/", headers={"Host": "evil.example"})):
+        for answer in (
+            c.get("/"),
+            c.get("/api/config"),
+            c.post("/api/design", json={"set": {"x.y": 1}}),
+            c.get("/", headers={"Host": "evil.example"}),
+        ):
             assert answer.headers["x-content-type-options"] == "nosniff"
             assert "script-src 'self'" in answer.headers["content-security-policy"]
             assert "frame-ancestors 'none'" in answer.headers["content-security-policy"]
@@ -82,8 +88,11 @@ def test_every_answer_carries_the_security_headers_and_no_cors():
 
 # ---- foreign hosts (DNS rebinding) ---------------------------------------------------------------------------
 
-@pytest.mark.parametrize("host", ["evil.example", "evil.example:8050", "127.0.0.1.evil.example", "localhost.evil",
-                                  "", "[::2]:8050", "0.0.0.0"])
+
+@pytest.mark.parametrize(
+    "host",
+    ["evil.example", "evil.example:8050", "127.0.0.1.evil.example", "localhost.evil", "", "[::2]:8050", "0.0.0.0"],
+)
 @pytest.mark.parametrize("method, path", [("GET", "/"), ("GET", "/api/config"), ("POST", "/api/design")])
 def test_a_foreign_host_is_refused(host, method, path):
     with client() as c:
@@ -107,12 +116,18 @@ def test_a_server_beyond_the_loopback_always_has_a_token():
 
 # ---- cross-origin and forged state-changing requests ---------------------------------------------------------
 
-@pytest.mark.parametrize("content_type, data", [
-    ("text/plain", json.dumps({"path": "/tmp/x.toml"})),
-    ("application/x-www-form-urlencoded", "path=%2Ftmp%2Fx.toml"),
-    ("multipart/form-data; boundary=b",
-     '--b\r\nContent-Disposition: form-data; name="path"\r\n\r\n/tmp/x\r\n--b--\r\n'),
-])
+
+@pytest.mark.parametrize(
+    "content_type, data",
+    [
+        ("text/plain", json.dumps({"path": "/tmp/x.toml"})),
+        ("application/x-www-form-urlencoded", "path=%2Ftmp%2Fx.toml"),
+        (
+            "multipart/form-data; boundary=b",
+            '--b\r\nContent-Disposition: form-data; name="path"\r\n\r\n/tmp/x\r\n--b--\r\n',
+        ),
+    ],
+)
 @pytest.mark.parametrize("origin", ["http://evil.example", None])
 def test_simple_requests_never_act(content_type, data, origin):
     headers = {"Content-Type": content_type, **({"Origin": origin} if origin else {})}
@@ -126,8 +141,11 @@ def test_simple_requests_never_act(content_type, data, origin):
 def test_a_json_post_from_another_origin_is_refused(origin):
     with client() as c:
         c.get("/")
-        answer = c.post("/api/profile", json={"path": str(EXAMPLE)},
-                        headers={"Origin": origin, "X-XSRF-Token": c.cookies.get("_xsrf", "")})
+        answer = c.post(
+            "/api/profile",
+            json={"path": str(EXAMPLE)},
+            headers={"Origin": origin, "X-XSRF-Token": c.cookies.get("_xsrf", "")},
+        )
         assert answer.status_code == 403 and "cross-origin" in answer.json()["error"]
 
 
@@ -142,15 +160,22 @@ def test_a_browser_post_without_the_xsrf_token_is_refused(xsrf):
 
 def test_a_preflight_gets_no_cors_permission():
     with client() as c:
-        answer = c.options("/api/design", headers={"Origin": "http://evil.example",
-                                                   "Access-Control-Request-Method": "POST"})
+        answer = c.options(
+            "/api/design", headers={"Origin": "http://evil.example", "Access-Control-Request-Method": "POST"}
+        )
         assert answer.status_code >= 400 and "access-control-allow-origin" not in answer.headers
 
 
-@pytest.mark.parametrize("credentials", [{}, {"params": {"token": "wrong-token"}},
-                                         {"headers": {"Authorization": "token wrong-token"}},
-                                         {"cookies": {"uwlab_token": "wrong-token"}},
-                                         {"headers": {"Authorization": f"Bearer {TOKEN}"}}])
+@pytest.mark.parametrize(
+    "credentials",
+    [
+        {},
+        {"params": {"token": "wrong-token"}},
+        {"headers": {"Authorization": "token wrong-token"}},
+        {"cookies": {"uwlab_token": "wrong-token"}},
+        {"headers": {"Authorization": f"Bearer {TOKEN}"}},
+    ],
+)
 def test_a_missing_or_forged_token_is_refused(credentials):
     cookies = credentials.pop("cookies", None)
     with client(Access(token=TOKEN)) as c:
@@ -163,6 +188,7 @@ def test_a_missing_or_forged_token_is_refused(credentials):
 
 # ---- files: only the explorer's roots, the same refusal whether a path exists or not -------------------------
 
+
 @pytest.mark.parametrize("key", ["light.spectrum", "lens.transmittance", "target.reflectance", "water.type"])
 def test_a_file_outside_the_roots_is_refused_without_its_content(key, secret_file):
     with client() as c:
@@ -173,13 +199,16 @@ def test_a_file_outside_the_roots_is_refused_without_its_content(key, secret_fil
 
 def test_existing_and_missing_paths_get_the_same_refusal(secret_file):
     with client() as c:
-        errors = [c.post("/api/design", json={"set": {"light.spectrum": str(p)}}).json()["error"]
-                  for p in (secret_file, secret_file.with_name("missing.csv"), "/etc/passwd", "/no/such/dir/x.csv")]
+        errors = [
+            c.post("/api/design", json={"set": {"light.spectrum": str(p)}}).json()["error"]
+            for p in (secret_file, secret_file.with_name("missing.csv"), "/etc/passwd", "/no/such/dir/x.csv")
+        ]
     assert {e.split(": ", 1)[1] for e in errors} == {OUTSIDE_ROOTS}
 
 
-@pytest.mark.parametrize("value", ["../../../../../../etc/hostname", "~/.ssh/id_rsa.csv", "/dev/zero",
-                                   "/proc/self/environ"])
+@pytest.mark.parametrize(
+    "value", ["../../../../../../etc/hostname", "~/.ssh/id_rsa.csv", "/dev/zero", "/proc/self/environ"]
+)
 def test_path_tricks_are_refused(value):
     with client() as c:
         answer = c.post("/api/design", json={"set": {"light.spectrum": value}})
@@ -211,6 +240,7 @@ def test_profiles_and_uploads_may_not_name_outside_files(secret_file, tmp_path):
 
 
 # ---- sizes and nesting ---------------------------------------------------------------------------------------
+
 
 def test_an_oversized_body_is_refused_and_not_echoed():
     body = json.dumps({"set": {"light.spectrum": "A" * 2_000_000}})

@@ -1,6 +1,7 @@
 """Config and table files are read only when they are what they claim: regular, bounded, UTF-8, finite numbers.
 Each bad file is one line naming the key and the file (the line too, for a value), exit code 2, no traceback,
 no hang."""
+
 from __future__ import annotations
 
 import os
@@ -52,9 +53,17 @@ def test_a_utf8_bom_is_accepted(tmp_path):
     assert read_toml(path) == read_toml(EXAMPLE)
 
 
-@pytest.mark.parametrize("cell, words", [("1e308", "not a finite number"), ("inf", "not a finite number"),
-                                         ("nan", "not a finite number"), ("-1e20", "not a finite number"),
-                                         ('"0,5"', "decimal comma"), ("abc", "is not a number")])
+@pytest.mark.parametrize(
+    "cell, words",
+    [
+        ("1e308", "not a finite number"),
+        ("inf", "not a finite number"),
+        ("nan", "not a finite number"),
+        ("-1e20", "not a finite number"),
+        ('"0,5"', "decimal comma"),
+        ("abc", "is not a number"),
+    ],
+)
 def test_a_bad_number_names_the_file_line_and_column(tmp_path, cell, words):
     path = tmp_path / "spectrum.csv"
     path.write_text(f"# a spectrum\nwavelength_nm,relative\n400,0.1\n500,{cell}\n600,0.3\n")
