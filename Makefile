@@ -27,13 +27,14 @@ $(VENV)/.aravis: $(VENV)/.installed
 demo: venv
 	$(VENV)/bin/uwlab demo
 
-# Everything: unit, integration (devices, ptys, GigE, Aravis, Chromium, Dask) and slow tests, doctests.
+# Everything: unit, integration (devices, ptys, GigE, Aravis, Chromium, Dask) and slow tests, doctests; on two
+# workers, the integration tests one after another on one of them (tests/conftest.py).
 test: $(VENV)/.aravis
-	$(PY) -m pytest
+	$(PY) -m pytest -n 2 --dist loadgroup
 
-# The in-process unit tests and the doctests (no devices, no subprocesses).
+# The in-process unit tests and the doctests (no devices, no subprocesses), on two workers.
 test-fast: venv
-	$(PY) -m pytest tests/unit uwlab
+	$(PY) -m pytest -n 2 tests/unit uwlab
 
 # ruff (rules and formatting) and the import-linter layer contracts of pyproject.toml.
 lint: venv
