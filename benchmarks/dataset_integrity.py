@@ -19,10 +19,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from tests.support.bitflips import flip_campaign  # noqa: E402
-from uwlab.experiments.emva.simulate import simulate_photon_transfer  # noqa: E402
-from uwlab.model.sensor import load_sensor_profile  # noqa: E402
-from uwlab.sim.devices.camera import SimTruth  # noqa: E402
+from tests.support.bitflips import flip_campaign, small_dataset  # noqa: E402
 
 
 def main() -> None:
@@ -30,16 +27,7 @@ def main() -> None:
     seed = int(sys.argv[2]) if len(sys.argv) > 2 else 0
     with tempfile.TemporaryDirectory() as tmp:
         pristine = Path(tmp) / "pristine"
-        truth = SimTruth.from_sensor_profile(load_sensor_profile("imx250m"), resolution_px=(32, 32))
-        simulate_photon_transfer(
-            pristine,
-            truth,
-            rate_e_per_s=1.07e5,
-            quantum_efficiency=0.6,
-            exposures_us=np.linspace(3e3, 120e3, 24),
-            frames=2,
-            seed=5,
-        )
+        small_dataset(pristine)
         started = time.perf_counter()
         outcomes = flip_campaign(pristine, Path(tmp), flips, np.random.default_rng(seed))
         elapsed = time.perf_counter() - started

@@ -9,32 +9,18 @@ import shutil
 import numpy as np
 import pytest
 
-from tests.support.bitflips import flip_campaign
+from tests.support.bitflips import flip_campaign, small_dataset
 from uwlab.errors import UwlabError
 from uwlab.experiments.acquisition.dataset_check import check, repair
 from uwlab.experiments.dataset import Dataset
 from uwlab.experiments.dataset_store import SEAL_KEY, backup_path
-from uwlab.experiments.emva.simulate import simulate_photon_transfer
-from uwlab.model.sensor import load_sensor_profile
 from uwlab.outputs import MANIFEST_FILE, METADATA_FILE
-from uwlab.sim.devices.camera import SimTruth
 
 
 @pytest.fixture(scope="module")
 def pristine(tmp_path_factory):
     """A small recorded dataset (a simulated photon transfer: 24 points with spectra in 9 parts)."""
-    root = tmp_path_factory.mktemp("integrity") / "ds"
-    truth = SimTruth.from_sensor_profile(load_sensor_profile("imx250m"), resolution_px=(32, 32))
-    simulate_photon_transfer(
-        root,
-        truth,
-        rate_e_per_s=1.07e5,
-        quantum_efficiency=0.6,
-        exposures_us=np.linspace(3e3, 120e3, 24),
-        frames=2,
-        seed=5,
-    )
-    return root
+    return small_dataset(tmp_path_factory.mktemp("integrity") / "ds")
 
 
 def test_metadata_and_manifest_are_sealed_and_kept_twice(pristine):

@@ -26,6 +26,25 @@ import pandas as pd
 from uwlab.errors import UwlabError
 from uwlab.experiments.acquisition.dataset_check import check, repair
 from uwlab.experiments.dataset import Dataset
+from uwlab.experiments.emva.simulate import simulate_photon_transfer
+from uwlab.model.sensor import load_sensor_profile
+from uwlab.sim.devices.camera import SimTruth
+
+
+def small_dataset(root: Path) -> Path:
+    """A small recorded dataset at ``root``: a simulated photon transfer of a 32 × 32 IMX250, 24 points with their
+    spectra in 9 parts (metadata, manifest, their copies and 18 part files)."""
+    truth = SimTruth.from_sensor_profile(load_sensor_profile("imx250m"), resolution_px=(32, 32))
+    simulate_photon_transfer(
+        root,
+        truth,
+        rate_e_per_s=1.07e5,
+        quantum_efficiency=0.6,
+        exposures_us=np.linspace(3e3, 120e3, 24),
+        frames=2,
+        seed=5,
+    )
+    return root
 
 
 @dataclass
