@@ -7,8 +7,8 @@ from pathlib import Path
 
 from uwlab.drivers.camera import BACKENDS, Camera, Frame, Policy, open_camera
 from uwlab.errors import ConfigError
-from uwlab.experiments.saturation import clip_level, sensor_clip_dn
-from uwlab.model.sensor import SensorProfile, load_sensor_profile
+from uwlab.experiments.frames.single import frame_statistics
+from uwlab.model.sensor import load_sensor_profile
 from uwlab.outputs import output_dir
 
 
@@ -49,37 +49,6 @@ def parse_roi(text: str) -> tuple[int, int, int, int]:
     if min(x, y) < 0 or min(w, h) < 1:
         raise ConfigError("roi", text, "offsets must be >= 0 and sizes >= 1")
     return x, y, w, h
-
-
-def frame_stats(frame: Frame, sensor: SensorProfile | None) -> dict:
-    """Statistics of one frame; saturated pixels by the one rule (`uwlab.experiments.saturation`)."""
-    img = frame.image
-    s = frame.settings
-    profile_dn = None
-    if sensor is not None:
-        offset = sensor.dark_offset_dn + (s.black_level or 0.0)
-        profile_dn = sensor_clip_dn(
-            sensor.gain_k(s.gain_db or 0.0), sensor.saturation_e, offset, sensor.bit_depth, frame.pixel_format
-        )
-    clip = clip_level(
-        frame.pixel_format, native_bits=sensor.bit_depth if sensor else None, profile_dn=profile_dn, image=img
-    )
-    return {
-        "frame_id": frame.frame_id,
-        "timestamp_ns": frame.timestamp_ns,
-        "width": int(img.shape[1]),
-        "height": int(img.shape[0]),
-        "pixel_format": frame.pixel_format,
-        "exposure_us": s.exposure_us,
-        "gain_db": s.gain_db,
-        "mean": float(img.mean()),
-        "std": float(img.std()),
-        "min": int(img.min()),
-        "max": int(img.max()),
-        "saturated_fraction": clip.fraction(img),
-        "clip_level_dn": clip.dn,
-        "clip_source": clip.source,
-    }
 
 
 def apply_settings(cam: Camera, args) -> None:
@@ -146,7 +115,7 @@ def run(args) -> int:
             save_dir.mkdir(exist_ok=True)
         rows = []
         for frame in cam.stream(args.frames):
-            rows.append(frame_stats(frame, sensor))
+            rows.append(frame_statistics(frame, sensor))
             if save_dir is not None:
                 save_tiff(save_dir, frame, device)
         device["discarded_frames"] = cam.stats.discarded

@@ -31,7 +31,7 @@ import socket
 from datetime import datetime, UTC
 from importlib import metadata as importlib_metadata
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, get_args
 
 import pandas as pd
 import pyarrow as pa
@@ -76,7 +76,9 @@ DATASET_ENTRIES = (
     FRAMES_DIR,
     QUARANTINE_DIR,
 )
-KINDS = ("exposure", "aperture", "gain", "light-level", "dark")
+# What a sweep steps, the kind of each point row.
+SweepKind = Literal["exposure", "aperture", "gain", "light-level", "dark"]
+KINDS: tuple[str, ...] = get_args(SweepKind)
 SOFTWARE_PACKAGES = (
     "numpy",
     "scipy",

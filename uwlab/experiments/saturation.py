@@ -27,10 +27,15 @@ tolerate unbiased (< 0.37 % variance bias for a normal distribution).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from uwlab.drivers.camera.pixels import pixel_format
+
+if TYPE_CHECKING:
+    from uwlab.drivers.camera import Frame
+    from uwlab.model.sensor import SensorProfile
 
 POINT_SATURATED_FRACTION = 0.002
 PILEUP_MIN_FRACTION = 1e-4
@@ -114,3 +119,21 @@ def clip_level(
 def point_saturated(saturated_fraction: float, threshold: float = POINT_SATURATED_FRACTION) -> bool:
     """A point is saturated when more than ``threshold`` of its ROI pixels reach the clip level."""
     return bool(saturated_fraction > threshold)
+
+
+def frame_clip_level(frame: Frame, sensor: SensorProfile | None, image: np.ndarray | None = None) -> ClipLevel:
+    """The camera's clip level in a frame's format (`clip_level`): from the sensor profile at the settings the frame
+    was taken with (gain, black level), when the profile is known, and from the frame's data (``image``: the frame's
+    own by default)."""
+    settings = frame.settings
+    profile_dn = None
+    if sensor is not None:
+        offset = sensor.dark_offset_dn + (settings.black_level or 0.0)
+        gain = sensor.gain_k(settings.gain_db or 0.0)
+        profile_dn = sensor_clip_dn(gain, sensor.saturation_e, offset, sensor.bit_depth, frame.pixel_format)
+    return clip_level(
+        frame.pixel_format,
+        native_bits=sensor.bit_depth if sensor is not None else None,
+        profile_dn=profile_dn,
+        image=frame.image if image is None else image,
+    )

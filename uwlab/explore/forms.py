@@ -14,18 +14,7 @@ from dataclasses import asdict, dataclass, field
 from functools import cache
 
 from uwlab.model.config import DesignConfig
-from uwlab.model.schema import Schema
-
-
-@dataclass(frozen=True)
-class Limits:
-    """A numeric field's range: [lo, hi], ends excluded when open; integer values only when `integer`."""
-
-    lo: float
-    hi: float
-    lo_open: bool = False
-    hi_open: bool = False
-    integer: bool = False
+from uwlab.model.schema import Limits, Schema
 
 
 @dataclass(frozen=True)
@@ -67,7 +56,15 @@ def _limits(schema: dict) -> Limits | None:
     hi = schema.get("maximum", schema.get("exclusiveMaximum"))
     if lo is None or hi is None:
         return None
-    return Limits(lo, hi, "exclusiveMinimum" in schema, "exclusiveMaximum" in schema, schema["type"] == "integer")
+    return Limits(
+        lo,
+        hi,
+        "",
+        "",
+        lo_open="exclusiveMinimum" in schema,
+        hi_open="exclusiveMaximum" in schema,
+        integer=schema["type"] == "integer",
+    )
 
 
 def _field(section: str, name: str, schema: dict, required: bool) -> FormField:

@@ -392,5 +392,19 @@ def design_sections(raw: dict) -> dict:
     return {k: v for k, v in raw.items() if k not in SIMULATION_SECTIONS}
 
 
+def rate_design_sections(raw: dict) -> dict:
+    """The design sections of a rig config as the design of its rates: without ``operation.exposure_s``. A rig's
+    design gives electron rates [e⁻/s]; the exposure is each measured point's own setting (in µs, parsed and checked
+    against the sensor once, where the sweep plan is read), which the camera applies and the forward model
+    multiplies by. The design's own exposure then keeps its default (the blur limit), which no check can refuse.
+
+    >>> rate_design_sections({"operation": {"altitude_m": 1, "exposure_s": 2e-4}, "world": {}})
+    {'operation': {'altitude_m': 1}}
+    """
+    sections = design_sections(raw)
+    operation = {k: v for k, v in sections.get("operation", {}).items() if k != "exposure_s"}
+    return {**sections, **({"operation": operation} if "operation" in sections else {})}
+
+
 def load_raw(path: str | Path) -> dict:
     return read_toml(Path(path), "config")

@@ -47,8 +47,9 @@ from uwlab.drivers.camera import BACKENDS, Policy
 from uwlab.drivers.camera.pixels import PIXEL_FORMATS
 from uwlab.drivers.serial import PROTOCOLS
 from uwlab.drivers.serial.base import Averaging, IntegrationMs
-from uwlab.model.config import SIMULATION_SECTIONS, design_sections
+from uwlab.model.config import SIMULATION_SECTIONS, rate_design_sections
 from uwlab.errors import ConfigError
+from uwlab.experiments.dataset import SweepKind
 from uwlab.experiments.saturation import POINT_SATURATED_FRACTION
 from uwlab.jsonable import to_jsonable
 from uwlab.model.config import apply_override
@@ -82,7 +83,6 @@ from uwlab.model.schema import (
     within,
 )
 
-KINDS = ("exposure", "aperture", "gain", "light-level", "dark")
 DARK_MODES = ("point", "block", "none")
 MAX_POINTS = 10000
 # Pixel coordinates of a window or ROI: offsets from 0, sizes from 2 (a variance needs two pixels).
@@ -201,7 +201,7 @@ class SweepTable(Schema):
     """A ``[[sweep]]`` table (with the plan's [defaults] filled in), as written."""
 
     id: NonEmptyText = Field(description="unique name of the sweep")
-    kind: Literal[KINDS] = Field(description="what the sweep steps")
+    kind: SweepKind = Field(description="what the sweep steps")
     values: SweepValues = Field(description="exposure_us, f-number, gain_db or light level of each point")
     frames_per_point: FrameCount = Field(2, description="frames averaged per point")
     settle_s: DurationS = Field(0.0, description="wait after changing the light [s]")
@@ -420,7 +420,7 @@ def _sweep(body: dict, number: int, rig_raw: dict, rig_dir: Path, geometry: dict
     lens = _lens(f"{prefix}.lens", table.lens, rig)
     _apply_sweep(rig, table, lens)
     try:
-        design = build_bench(rig, rig_dir) if is_bench(rig) else build_design(design_sections(rig), rig_dir)
+        design = build_bench(rig, rig_dir) if is_bench(rig) else build_design(rate_design_sections(rig), rig_dir)
     except ConfigError as exc:
         raise ConfigError(f"{prefix}.rig.{exc.key}", exc.value, exc.reason) from None
     sensor = design.sensor
@@ -477,13 +477,11 @@ def _merged(rig_raw: dict, geometry: dict, sweep_geometry: dict) -> dict:
 
 
 def _apply_sweep(rig: dict, table: SweepTable, lens: LensSetting) -> None:
-    """The sweep's sensor, lens and fixed exposure, written into its rig config."""
+    """The sweep's sensor and lens, written into its rig config (its exposure is the points' own setting)."""
     if table.sensor is not None:
         rig.setdefault("sensor", {})["profile"] = table.sensor
     for key, value in lens.overrides().items():
         apply_override(rig, key, value)
-    if table.exposure_us is not None:
-        rig.setdefault("operation", {})["exposure_s"] = table.exposure_us * 1e-6
 
 
 def _lens(key: str, spec: LensTable | str | None, rig: dict) -> LensSetting:

@@ -53,7 +53,7 @@ from uwlab.experiments.acquisition.rigs import Rig
 from uwlab.experiments.acquisition.roi import Rect, check_inside
 from uwlab.experiments.acquisition.spectra import irradiance_w_m2
 from uwlab.experiments.frames.stack import StackAccumulator, StackStatistics
-from uwlab.experiments.saturation import ClipLevel, clip_level, sensor_clip_dn
+from uwlab.experiments.saturation import ClipLevel, frame_clip_level
 
 DARK_AVERAGING = 16
 
@@ -261,24 +261,13 @@ class SweepRunner:
         for frame in camera.frames(count):
             image = _crop(frame.image, roi)
             if accumulator is None:
-                clip = self._clip_level(sweep, frame, image)
+                clip = frame_clip_level(frame, sweep.design.sensor, image)
                 accumulator = StackAccumulator(clip.dn)
             accumulator.add(image)
             if keep is not None:
                 keep(frame)
             kept.append(replace(frame, image=None))
         return accumulator.result(), clip, kept
-
-    @staticmethod
-    def _clip_level(sweep: SweepSpec, frame: Frame, image: np.ndarray) -> ClipLevel:
-        """The camera's clip level in this frame's format, from the sweep's sensor profile at the settings in
-        force (gain, black level) and the frame's data."""
-        sensor, settings = sweep.design.sensor, frame.settings
-        offset = sensor.dark_offset_dn + (settings.black_level or 0.0)
-        profile_dn = sensor_clip_dn(
-            sensor.gain_k(settings.gain_db or 0.0), sensor.saturation_e, offset, sensor.bit_depth, frame.pixel_format
-        )
-        return clip_level(frame.pixel_format, native_bits=sensor.bit_depth, profile_dn=profile_dn, image=image)
 
     def _apply(self, sweep: SweepSpec, camera: Camera, point: Point) -> None:
         """Every setting the point depends on: camera exposure and gain, aperture, light output and level."""

@@ -50,10 +50,6 @@ class Check:
     detail: str
 
 
-def _median(result: FitResult, name: str) -> float | None:
-    return float(np.median(result.samples[:, result.names.index(name)])) if name in result.names else None
-
-
 def checks(result: FitResult, ppc: pd.DataFrame, cross: CrossValidation) -> list[Check]:
     """The named checks of the module docstring."""
     out = []
@@ -106,7 +102,7 @@ def checks(result: FitResult, ppc: pd.DataFrame, cross: CrossValidation) -> list
                 + ", ".join(f"{r.sweep_id} (p = {r.ppc_p:.2g})" for r in off.itertuples()),
             )
         )
-    tau = _median(result, "config_discrepancy")
+    tau = result.median("config_discrepancy")
     if tau is not None:
         out.append(
             Check(
@@ -115,7 +111,7 @@ def checks(result: FitResult, ppc: pd.DataFrame, cross: CrossValidation) -> list
                 f"configurations differ from the model by {100 * tau:.1f} % (typical, median of τ)",
             )
         )
-    delta = _median(result, "discrepancy")
+    delta = result.median("discrepancy")
     if delta is not None:
         out.append(
             Check(
@@ -132,7 +128,7 @@ def neglected_effects(result: FitResult) -> pd.DataFrame:
     extended chain's target signal to the paper chain's, both at the posterior median attenuation scale. Empty
     when the rigs cannot be evaluated by the extended chain (lights not placed: the paper's light at the camera)."""
     model = result.model
-    scale = _median(result, "attenuation_scale") or model.nominal["attenuation_scale"]
+    scale = result.median("attenuation_scale") or model.nominal["attenuation_scale"]
     rows = []
     for k, design in enumerate(model.designs):
         sel = model.config == k

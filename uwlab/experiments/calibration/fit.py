@@ -337,6 +337,10 @@ class FitResult:
     priors: dict = field(repr=False, default_factory=dict)
     saturated: pd.DataFrame | None = field(repr=False, default=None)  # points left out of the fit (saturated)
 
+    def median(self, name: str) -> float | None:
+        """The posterior median of a parameter (None when the fit has no such parameter)."""
+        return float(np.median(self.samples[:, self.names.index(name)])) if name in self.names else None
+
     def correlations(self) -> np.ndarray:
         return np.corrcoef(self.samples.T) if len(self.names) > 1 else np.ones((1, 1))
 

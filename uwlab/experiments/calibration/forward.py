@@ -32,7 +32,7 @@ import numpy as np
 import pandas as pd
 from scipy.interpolate import CubicSpline
 
-from uwlab.model.config import design_sections
+from uwlab.model.config import rate_design_sections
 from uwlab.errors import ConfigError
 from uwlab.model import extended
 from uwlab.model.config import apply_override
@@ -246,7 +246,7 @@ def _extended_rates(design: Design, lens: bool, roi_w: float, roi_h: float) -> t
 def _configuration_design(
     rig: dict, base_dir: Path | None, sensor: str, focal_length_mm, f_number, kind: str | None
 ) -> tuple[Design, bool]:
-    raw = {s: (list(v) if isinstance(v, list) else dict(v)) for s, v in design_sections(rig).items()}
+    raw = {s: (list(v) if isinstance(v, list) else dict(v)) for s, v in rate_design_sections(rig).items()}
     raw.setdefault("sensor", {})["profile"] = sensor
     has_lens = f_number is not None and np.isfinite(f_number)
     lens = LensSetting(float(focal_length_mm), float(f_number)) if has_lens else NO_LENS
@@ -254,7 +254,6 @@ def _configuration_design(
         apply_override(raw, key, value)
     if kind is not None:
         apply_override(raw, "model.kind", kind)
-    raw.setdefault("operation", {}).pop("exposure_s", None)
     return build_design(raw, base_dir), has_lens
 
 

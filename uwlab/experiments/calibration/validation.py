@@ -241,15 +241,11 @@ def cross_validation(
                 "held_out": list(fold),
                 "trained_on": sorted(set(train["sweep_id"])),
                 "converged": result.converged,
-                "config_discrepancy_median": _median(result, "config_discrepancy"),
+                "config_discrepancy_median": result.median("config_discrepancy"),
             }
         )
     table = pd.concat(tables, ignore_index=True) if tables else pd.DataFrame()
     return CrossValidation(table, pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(), folds)
-
-
-def _median(result: FitResult, name: str) -> float | None:
-    return float(np.median(result.samples[:, result.names.index(name)])) if name in result.names else None
 
 
 def _held_out_table(model: ForwardModel, draws: Draws, frame: pd.DataFrame, fold: int) -> pd.DataFrame:
