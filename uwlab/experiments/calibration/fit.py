@@ -324,7 +324,7 @@ def split_rhat(chain: np.ndarray) -> np.ndarray:
 @dataclass
 class FitResult:
     names: tuple[str, ...]
-    samples: np.ndarray  # (n_samples, n_params), burn-in discarded and thinned
+    samples: np.ndarray  # (n_samples, n_params), burn-in discarded and thinned (emcee's slicing), step-major
     chain: np.ndarray  # (steps, walkers, params), full
     log_prob: np.ndarray  # (n_samples,)
     theta_map: np.ndarray
@@ -335,11 +335,35 @@ class FitResult:
     steps: int
     model: ForwardModel = field(repr=False)
     priors: dict = field(repr=False, default_factory=dict)
+    burn: int = 0  # steps discarded at the start of every walker's chain
+    thin: int = 1  # every thin-th step kept after them
     saturated: pd.DataFrame | None = field(repr=False, default=None)  # points left out of the fit (saturated)
 
     def median(self, name: str) -> float | None:
         """The posterior median of a parameter (None when the fit has no such parameter)."""
         return float(np.median(self.samples[:, self.names.index(name)])) if name in self.names else None
+
+    def inference_data(self):
+        """The posterior as an `arviz.InferenceData`: ``posterior`` with one variable per parameter over (chain =
+        emcee walker, draw = kept step), the very samples of `samples`; ``sample_stats.lp``, the log posterior
+        density of each; attributes: the convergence figures. arviz is imported here (it loads xarray)."""
+        import arviz
+
+        # (draws, walkers, params): `samples` unflattened, as emcee's get_chain(discard=burn, thin=thin) slices
+        kept = self.chain[self.burn + self.thin - 1 :: self.thin]
+        draws, walkers = kept.shape[:2]
+        lp = np.asarray(self.log_prob).reshape(draws, walkers).T
+        posterior = {name: kept[:, :, i].T for i, name in enumerate(self.names)}
+        attrs = {
+            "inference_library": "emcee",
+            "converged": int(self.converged),
+            "steps": self.steps,
+            "burn": self.burn,
+            "thin": self.thin,
+            "acceptance": self.acceptance,
+            "max_autocorrelation_steps": float(np.max(self.tau)),
+        }
+        return arviz.from_dict(posterior=posterior, sample_stats={"lp": lp}, attrs=attrs)
 
     def correlations(self) -> np.ndarray:
         return np.corrcoef(self.samples.T) if len(self.names) > 1 else np.ones((1, 1))
@@ -461,6 +485,8 @@ def run_fit(model: ForwardModel, config: FitConfig, progress: Callable[[int, flo
         steps=sampler.iteration,
         model=model,
         priors=config.priors,
+        burn=burn,
+        thin=thin,
     )
 
 

@@ -1,6 +1,8 @@
 """Writing a calibration to disk: posterior samples, summary, predictions and figures.
 
 Files in the output directory: ``samples.parquet`` (posterior samples, one column per parameter),
+``posterior.nc`` (the same samples per walker as an ArviZ ``InferenceData`` in NetCDF: ``arviz.from_netcdf``,
+``arviz.summary`` and ``arviz.plot_trace`` work on it),
 ``summary.json`` (per parameter median, 2.5/16/84/97.5th percentiles, τ, R-hat; acceptance, converged flag,
 parameters that cannot be separated), ``predictions.parquet`` (measured vs predicted with bands at every point),
 ``dense.parquet`` (bands along dense sweeps), ``heldout.parquet`` (predictions of each configuration from a fit
@@ -26,6 +28,7 @@ from uwlab.outputs import output_dir
 
 OUTPUT_FILES = (
     "samples.parquet",
+    "posterior.nc",
     "summary.json",
     "predictions.parquet",
     "dense.parquet",
@@ -204,6 +207,7 @@ def write_fit(
             entry["truth"] = truth.get(name)
     summary.update(extra or {})
     pd.DataFrame(result.samples, columns=list(result.names)).to_parquet(out / "samples.parquet", index=False)
+    result.inference_data().to_netcdf(str(out / "posterior.nc"))
     predictions = point_predictions(result)
     dense = dense_sweeps(result)
     predictions.to_parquet(out / "predictions.parquet", index=False)
