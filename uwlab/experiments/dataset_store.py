@@ -346,7 +346,8 @@ class PartStore:
     def replace(self, changes: dict[int, dict[str, pa.Table] | None]) -> list[Path]:
         """Replace parts by id with new contents (None: drop the part), keeping their places and levels; returns
         the files no longer named (the caller moves them aside)."""
-        parts, next_id, dropped = [], self.next_id, []
+        parts: list[Part] = []
+        next_id, dropped = self.next_id, []
         for part in self.parts:
             if part.id not in changes:
                 parts.append(part)

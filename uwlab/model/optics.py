@@ -70,6 +70,7 @@ class LensSetting:
         lens's focal length and f-number (its transmittance stays the design's)."""
         if self.bare:
             return {"lens.f_number": BARE_SENSOR_F_NUMBER, "lens.transmittance": BARE_SENSOR_TRANSMITTANCE}
+        assert self.focal_length_mm is not None and self.f_number is not None  # a lens has both
         return {"lens.focal_length_mm": float(self.focal_length_mm), "lens.f_number": float(self.f_number)}
 
 

@@ -173,7 +173,7 @@ def trace_design(d, samples: int = 41) -> dict:
         "y": np.c_[0 * u, u * half_y],
         "diagonal": np.c_[u * half_x, u * half_y],
     }
-    profile = {
+    profile: dict = {
         "field_deg_air": {},
         "image_radius_px": {},
         "distortion_percent": {},

@@ -56,7 +56,7 @@ import types
 import typing
 from dataclasses import dataclass, replace
 from functools import cache
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Annotated, Any, Literal, TypeVar, Union
 
 import numpy as np
@@ -390,7 +390,7 @@ def _plain(value):
     return value
 
 
-def _reason(err: dict, model, parts: list[str], data) -> str:
+def _reason(err: Mapping[str, Any], model, parts: list[str], data) -> str:
     kind, ctx = err["type"], err.get("ctx") or {}
     if kind in _NUMBER_ERRORS and isinstance(err["input"], np.ndarray):
         return "cannot be varied in a grid"
@@ -471,7 +471,8 @@ def _key_parts(model, data, loc: tuple, kind: str) -> list[str]:
     """The config key of an error location: field and table names kept; the index of a table in an array of tables
     kept as ``name[i]`` (``lights[1].beam_half_angle_deg``); other list indices (the key names the list, the value
     is the element) and union members' tags dropped."""
-    parts, annotation, node = [], model, data
+    parts: list[str] = []
+    annotation, node = model, data
     for i, part in enumerate(loc):
         if isinstance(part, int):
             if parts and isinstance(node, list) and part < len(node) and isinstance(node[part], dict):

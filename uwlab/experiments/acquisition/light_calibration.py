@@ -54,7 +54,7 @@ def calibrate_light(
 ) -> LightCalibration:
     """Measure one spectrum per level; ``progress(done, total)`` is called after each."""
     initial_output, initial_level = light.output(), light.level()
-    spectra = []
+    spectra: list = []
     try:
         light.set_output(True)
         for index, level in enumerate(levels):

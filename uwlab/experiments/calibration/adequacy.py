@@ -151,7 +151,7 @@ def neglected_effects(result: FitResult) -> pd.DataFrame:
 
 def likely_causes(neglected: pd.DataFrame) -> list[str]:
     """Plain-language causes from `neglected_effects` (module docstring), the largest first."""
-    causes = []
+    causes: list[tuple[float, str]] = []
     if len(neglected) == 0:
         return causes
     worst = neglected.loc[neglected["veil_percent"].idxmax()]

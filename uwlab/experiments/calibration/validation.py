@@ -316,7 +316,7 @@ def predicted_spectra(result: FitResult) -> pd.DataFrame:
 
 def compare_spectra(predicted: pd.DataFrame, measured: pd.DataFrame) -> pd.DataFrame:
     """Per sweep and position: the mean measured spectrum against the prediction (integrated ratio, shape error)."""
-    rows = []
+    rows: list[dict] = []
     if measured.empty:
         return pd.DataFrame(rows)
     mean = measured.groupby(["sweep_id", "position", "wavelength_nm"], as_index=False)["irradiance_w_m2_nm"].mean()

@@ -88,8 +88,8 @@ def write_grid_dask(grid: DesignGrid, out: str | Path, address: str, progress=No
             if progress:
                 progress(written)
             future.release()
-            index = next(indices, None)
-            if index is not None:
-                pending.add(client.submit(write_part, remote, index, str(stage), pure=False))
+            following = next(indices, None)
+            if following is not None:
+                pending.add(client.submit(write_part, remote, following, str(stage), pure=False))
         workers = len(client.nthreads())
     return {"points": rows, "out": str(out), "chunks": grid.chunks, "columns": schema.names, "workers": workers}

@@ -368,7 +368,9 @@ def results_xml(result: EmvaResult) -> str:
     """The XML document (UTF-8 text, indented)."""
     tree = ET.ElementTree(results_element(result))
     ET.indent(tree)
-    return ET.tostring(tree.getroot(), encoding="unicode", xml_declaration=True) + "\n"
+    root = tree.getroot()
+    assert root is not None  # the tree was built from its root
+    return ET.tostring(root, encoding="unicode", xml_declaration=True) + "\n"
 
 
 def write_results_xml(result: EmvaResult, path: Path) -> Path:

@@ -107,7 +107,8 @@ class CharucoBoard:
     @property
     def printed_size_m(self) -> tuple[float, float]:
         """Size (x, y) [m] of the printed board with its margin."""
-        return tuple(s + 2 * self.margin_m for s in self.size_m)
+        width, height = self.size_m
+        return width + 2 * self.margin_m, height + 2 * self.margin_m
 
     def binary_image(self, texels_per_square: int) -> np.ndarray:
         """The board with its white margin as a black-and-white 8-bit image, `texels_per_square` per square."""
