@@ -6,7 +6,6 @@ import pandas as pd
 import pytest
 
 from uwlab.cli.main import main
-from tests.support.cli_process import run
 from tests.support.paths import EXAMPLE
 
 KEYS = {
@@ -120,11 +119,3 @@ def test_missing_config_file_and_bad_grid(capsys, tmp_path):
     assert code == 2 and "nope.toml" in err and "not found" in err
     code, _, err = run_cli(capsys, "--grid", "lens.f_number=4:2:1")
     assert code == 2 and "lens.f_number" in err
-
-
-def test_console_script_exit_code_without_traceback(tmp_path):
-    bad = tmp_path / "bad.toml"
-    bad.write_text(EXAMPLE.read_text().replace("f_number = 2.0", "f_number = -1"))
-    code, _, err = run("design", bad)
-    assert code == 2
-    assert err.strip().splitlines() == [err.strip()] and "lens.f_number" in err

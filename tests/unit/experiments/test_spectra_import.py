@@ -7,10 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from uwlab.cli.main import main
 from uwlab.errors import ConfigError
 from uwlab.experiments.acquisition.spectra import read_sekonic_csv
 
-from tests.support.cli_process import run
 from tests.support.paths import DATA
 
 SAMPLE = DATA / "sekonic_c7000_synthetic.csv"
@@ -78,9 +78,10 @@ def test_a_lone_5_nm_block_is_used(tmp_path):
 
 
 @pytest.mark.parametrize("name", ["stray row at 99999 nm", "three rows"])
-def test_the_cli_refuses_in_one_line_with_exit_2(tmp_path, name):
+def test_the_cli_refuses_in_one_line_with_exit_2(tmp_path, capsys, name):
     lines, line, _ = CASES[name]
     path = edited(tmp_path, lines)
-    code, out, err = run("spectrum", "--import", path, "--json", timeout_s=120)
+    code = main(["spectrum", "--import", str(path), "--json"])
+    out, err = capsys.readouterr()
     assert code == 2 and out == ""
     assert len(err.strip().splitlines()) == 1 and f"line {line}" in err
