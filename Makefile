@@ -27,10 +27,11 @@ $(VENV)/.aravis: $(VENV)/.installed
 demo: venv
 	$(VENV)/bin/uwlab demo
 
-# Everything: unit, integration (devices, ptys, GigE, Aravis, Chromium, Dask) and slow tests, doctests; on two
-# workers, the integration tests one after another on one of them (tests/conftest.py).
+# Everything: the in-process unit and slow tests and the doctests on two workers, then the integration tests
+# (processes, devices, ptys, GigE, Aravis, Chromium, Dask) one after another, as their timings assume.
 test: $(VENV)/.aravis
-	$(PY) -m pytest -n 2 --dist loadgroup
+	$(PY) -m pytest -n 2 tests/unit tests/slow uwlab
+	$(PY) -m pytest tests/integration
 
 # The in-process unit tests and the doctests (no devices, no subprocesses), on two workers.
 test-fast: venv

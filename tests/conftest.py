@@ -1,11 +1,7 @@
-"""Fixtures shared by the tests, and how `make test` spreads them over two workers (pytest-xdist,
-``--dist loadgroup``): the integration tests (processes, devices, pseudo-terminals, GigE, the browser) run one
-after another on one worker, as they always have, while the other worker runs the in-process unit and slow tests
-and the doctests."""
+"""Fixtures shared by the tests."""
 
 import copy
 import tomllib
-from pathlib import Path
 
 import pytest
 
@@ -25,12 +21,3 @@ def sim_rig():
     """The simulated tank rig (`SIM_TANK`), started once per test module: its serial simulators are processes."""
     with SimRig(SIM_TANK) as rig:
         yield rig
-
-
-INTEGRATION = Path(__file__).resolve().parent / "integration"
-
-
-def pytest_collection_modifyitems(items):
-    for item in items:
-        if Path(str(item.path)).is_relative_to(INTEGRATION):
-            item.add_marker(pytest.mark.xdist_group("integration"))
