@@ -347,7 +347,7 @@ class PartStore:
         """Replace parts by id with new contents (None: drop the part), keeping their places and levels; returns
         the files no longer named (the caller moves them aside)."""
         parts: list[Part] = []
-        next_id, dropped = self.next_id, []
+        next_id, dropped = self.next_id, list[Path]()
         for part in self.parts:
             if part.id not in changes:
                 parts.append(part)

@@ -43,8 +43,9 @@ def _axes(grid) -> dict[str, list]:
 
 def _column(name: str) -> str:
     """The grid column of an output name (``dof_m.near`` → its flattened column)."""
-    nested: object = 0.0
-    for part in reversed(name.split(".")):
+    parts = name.split(".")
+    nested: dict = {parts[-1]: 0.0}
+    for part in reversed(parts[:-1]):
         nested = {part: nested}
     return next(iter(flatten_outputs(nested)))
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 from uwlab.model.grid import WavelengthGrid
 from uwlab.model.sensor import SensorProfile
@@ -26,7 +27,7 @@ class Design:
 
     def with_values(self, **dotted) -> Design:
         """A copy with some numeric values replaced, e.g. ``with_values(**{"lens.f_number": 4.0})``."""
-        values = {s: list(v) if isinstance(v, list) else dict(v) for s, v in self.values.items()}
+        values: dict[str, Any] = {s: list(v) if isinstance(v, list) else dict(v) for s, v in self.values.items()}
         for name, value in dotted.items():
             section, key = name.split(".")
             values[section][key] = value

@@ -54,7 +54,7 @@ def evaluate(d: Design) -> dict[str, np.ndarray]:
     min_n = None
     if op["min_dof_m"] is not None:
         min_n = optics.min_f_number(d_c, f_m, coc_m, op["min_dof_m"], port, n_w, dome, flat=flat)
-    virtual = port_model.dome_virtual_distance(d_c, *dome[:2], n_w, dome[2]) if dome else None
+    virtual = port_model.dome_virtual_distance(d_c, dome[0], dome[1], n_w, dome[2]) if dome else None
     focus_image = focus.target_image_distance_m(d_c, port, n_w, flat, dome, decenter_z)
     min_focus = d["lens.min_focus_distance_m"]
     close_up = focus.close_up_lens_dpt(focus_image, min_focus) if min_focus is not None else None

@@ -121,7 +121,7 @@ class Port:
 
     def in_medium(self, index: float) -> Port:
         """The same port with another outside medium (index 1 for the housing in air)."""
-        return replace(self, water_index=float(index))
+        return replace(self, water_index=float(index))  # type: ignore[type-var]  # every Port is a dataclass
 
     def trace(self, directions, origins=(0.0, 0.0, 0.0)) -> Rays:
         """Trace rays leaving the camera (points `origins`, default the pupil, unit `directions`) into the water."""

@@ -239,7 +239,7 @@ class SpectralTable:
         self.rate_min = float(np.min(c[used])) if used.any() else 0.0
         self.rate_max = float(np.max(c[used])) if used.any() else 0.0
         spread = self.rate_max - self.rate_min
-        self.nonzero = positive.any(axis=0)
+        self.nonzero: np.ndarray = np.asarray(positive.any(axis=0))
         self.table = LogHermiteTable(exponential_sum_log(W, c), W.shape[1], _first_block(spread), tolerance)
 
     def __call__(self, path_m, column: int) -> np.ndarray:

@@ -99,7 +99,7 @@ def _jerlov_table(root: Path) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndar
     for water_type in dict.fromkeys(table["water_type"]):
         rows = np.flatnonzero(types == water_type)
         rows = rows[np.argsort(columns[0][rows], kind="stable")]
-        out[water_type] = tuple(c[rows] for c in columns)
+        out[water_type] = (columns[0][rows], columns[1][rows], columns[2][rows])
     return out
 
 

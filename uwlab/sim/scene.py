@@ -142,8 +142,9 @@ class RigScene:
 
     def electron_rate_map(self, shape_yx: tuple[int, int], flux_fraction: float = 1.0) -> np.ndarray:
         """Per-pixel electron rate [e⁻/s] (float32) for an image of `shape_yx` covering the full sensor."""
-        if self._profile is None or self._profile[0] != tuple(shape_yx):
-            self._profile = (tuple(shape_yx), self._render(tuple(shape_yx)))
+        shape = (int(shape_yx[0]), int(shape_yx[1]))
+        if self._profile is None or self._profile[0] != shape:
+            self._profile = (shape, self._render(shape))
         return self._profile[1] * np.float32(flux_fraction)
 
     def _render(self, shape_yx: tuple[int, int]) -> np.ndarray:

@@ -153,7 +153,7 @@ def likely_causes(neglected: pd.DataFrame) -> list[str]:
     """Plain-language causes from `neglected_effects` (module docstring), the largest first."""
     causes: list[tuple[float, str]] = []
     if len(neglected) == 0:
-        return causes
+        return []
     worst = neglected.loc[neglected["veil_percent"].idxmax()]
     if worst["veil_percent"] >= 100 * BACKSCATTER_NAMED:
         causes.append(
