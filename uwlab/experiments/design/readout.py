@@ -24,6 +24,8 @@ Values are read from the JSON form of the result (`uwlab.jsonable.to_jsonable`: 
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import math
 from dataclasses import dataclass
 
@@ -48,7 +50,7 @@ class Output:
         if not self.parts or not isinstance(value, dict):
             return self.label
         names = dict(self.parts)
-        return f"{self.label} ({', '.join(names.get(k, k) for k in value)})"
+        return f"{self.label} ({', '.join(names.get(k) or k for k in value)})"
 
 
 OUTPUTS = (
@@ -232,7 +234,7 @@ def design_warnings(design: Design, result: dict) -> list[DesignWarning]:
     return found
 
 
-def table_text(result: dict, warnings: list[DesignWarning] = ()) -> str:
+def table_text(result: dict, warnings: Sequence[DesignWarning] = ()) -> str:
     """The text table of `uwlab design`: one row per output, warnings beside the row they concern, then the
     light lost per stage with the largest loss marked."""
     notes: dict[str, list[str]] = {}

@@ -323,7 +323,7 @@ def load_dataset_input(
         wavelength_nm=wavelength_nm,
         source=f"dataset {root}",
     )
-    camera = points["camera_model"].dropna() if "camera_model" in points else []
+    camera = points["camera_model"].dropna() if "camera_model" in points else pd.Series(dtype=object)
     name = str(camera.iloc[0]) if len(camera) else "camera"
     device = (dataset.metadata.get("devices") or {}).get(pt.sweep_id, {}).get("camera") or {}
     info = SheetInfo(

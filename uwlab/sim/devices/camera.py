@@ -436,8 +436,9 @@ class SimNodeMap:
     def run_auto_modes(self) -> None:
         """While ``ExposureAuto`` is Continuous the exposure keeps changing (+5 % a frame,
         wrapping in range), as an auto loop would: measurements need it Off."""
-        if self.value("ExposureAuto") == "Continuous":
-            lo, hi = self.bounds("ExposureTime")
+        bounds = self.bounds("ExposureTime")
+        if self.value("ExposureAuto") == "Continuous" and bounds is not None:
+            lo, hi = bounds
             nxt = self.value("ExposureTime") * 1.05
             self.nodes["ExposureTime"].value = nxt if nxt <= hi else lo
 
