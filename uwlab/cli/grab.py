@@ -17,6 +17,8 @@ def register(subparsers) -> None:
     p.add_argument("--backend", choices=tuple(BACKENDS), default="sim")
     p.add_argument("--device", metavar="ID", help="device id (aravis: id or IP address); default: first found")
     p.add_argument("--cti", action="append", default=[], metavar="PATH", help="GenTL producer (harvesters)")
+    p.add_argument("--fake", action="store_true", help="the backend's test camera: Aravis's Fake_1 (the default "
+                   "device for aravis), the genicam package's GenTL test producer (harvesters, besides --cti)")
     p.add_argument("--config", metavar="RIG.toml", help="rig of the simulated camera")
     p.add_argument("--sensor", metavar="PROFILE", help="sensor profile (name or TOML) giving the clip level of "
                    "saturated pixels (default for --backend sim: the rig's; else detected from the frames)")
@@ -115,7 +117,7 @@ def run(args) -> int:
     if args.gain_db is not None:
         check(GainDb, args.gain_db, "--gain-db")
     save_dir = output_dir(args.save, "--save") if args.save else None
-    options = {"cti": args.cti} if args.backend == "harvesters" else {}
+    options = {"cti": args.cti, "fake": args.fake} if args.backend == "harvesters" else {"fake": args.fake}
     sensor = load_sensor_profile(args.sensor) if args.sensor else None
     if args.backend == "sim":
         options["config"] = args.config

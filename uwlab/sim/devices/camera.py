@@ -45,7 +45,7 @@ from typing import Any
 import numpy as np
 
 from uwlab.drivers.camera.interface import DeviceEntry, DeviceLost, FrameTimeout, RawFrame, unknown_device
-from uwlab.drivers.camera.pixels import PIXEL_FORMATS, pack, pixel_format
+from uwlab.drivers.camera.pixels import MONO_FORMATS, pack, pixel_format
 from uwlab.errors import ConfigError, DeviceError
 
 NOISE_BANK_MARGIN = 1 << 20
@@ -310,7 +310,7 @@ class SimNodeMap:
     def __init__(self, truth: SimTruth, serial: str = "SIM0001"):
         self.truth = truth
         width, height = truth.resolution_px
-        fmts = tuple(PIXEL_FORMATS)
+        fmts = MONO_FORMATS
         self.nodes: dict[str, _Node] = {
             "DeviceVendorName": _Node("str", "uwlab", writable=False),
             "DeviceModelName": _Node("str", f"SimCam-{truth.name}", writable=False),
