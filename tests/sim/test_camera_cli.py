@@ -37,7 +37,7 @@ def test_grab_json_keys_roi_and_settings(capsys):
                             "--gain-db", "3", "--pixel-format", "Mono12p", "--json"])
     assert doc["device"]["backend"] == "sim" and doc["device"]["model"].startswith("SimCam-")
     keys = {"frame_id", "timestamp_ns", "width", "height", "pixel_format", "exposure_us", "gain_db", "mean", "std",
-            "min", "max", "saturated_fraction", "clip_level_dn", "clip_source"}
+            "min", "max", "saturated_fraction", "clip_level_dn", "clip_source", "bayer", "channels"}
     assert len(doc["frames"]) == 3 and all(set(f) == keys for f in doc["frames"])
     f = doc["frames"][0]
     assert (f["width"], f["height"], f["pixel_format"], f["exposure_us"], f["gain_db"]) == (

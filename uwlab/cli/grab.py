@@ -5,15 +5,17 @@ import json
 from pathlib import Path
 
 from uwlab.drivers.camera import BACKENDS, Camera, Frame, Policy, open_camera
+from uwlab.drivers.camera.pixels import BAYER_LAYOUTS, MONO_FORMATS
 from uwlab.errors import ConfigError
-from uwlab.experiments.saturation import clip_level, sensor_clip_dn
-from uwlab.model.sensor import SensorProfile, load_sensor_profile
+from uwlab.experiments.frames.frame import frame_statistics
+from uwlab.model.sensor import load_sensor_profile
 from uwlab.outputs import output_dir
 
 
 def register(subparsers) -> None:
     p = subparsers.add_parser("grab", description="Acquire N frames; report mean, std, min, max and saturated "
-                                                  "fraction per frame.")
+                                                  "fraction per frame (and per colour channel R, G, B of a raw "
+                                                  "Bayer frame).")
     p.add_argument("--backend", choices=tuple(BACKENDS), default="sim")
     p.add_argument("--device", metavar="ID", help="device id (aravis: id or IP address); default: first found")
     p.add_argument("--cti", action="append", default=[], metavar="PATH", help="GenTL producer (harvesters)")
@@ -24,7 +26,10 @@ def register(subparsers) -> None:
                    "saturated pixels (default for --backend sim: the rig's; else detected from the frames)")
     p.add_argument("--exposure-us", type=float)
     p.add_argument("--gain-db", type=float)
-    p.add_argument("--pixel-format", metavar="F", help="Mono8, Mono10, Mono10p, Mono12, Mono12p, Mono12Packed, Mono16")
+    p.add_argument("--pixel-format", metavar="F", help=f"PFNC name: {', '.join(MONO_FORMATS)}, "
+                   "Bayer{RG,GR,GB,BG}{8,10,12,16,10p,12p,10Packed,12Packed}")
+    p.add_argument("--bayer", choices=BAYER_LAYOUTS, help="the colour filter layout the camera must deliver "
+                   "(refused when its PixelFormat is another layout or monochrome)")
     p.add_argument("--frames", type=int, default=1)
     p.add_argument("--roi", metavar="x,y,w,h", help="device region of interest in pixels")
     p.add_argument("--timeout-s", type=float, default=5.0, help="per-frame acquisition timeout")
@@ -44,35 +49,6 @@ def parse_roi(text: str) -> tuple[int, int, int, int]:
     return x, y, w, h
 
 
-def frame_stats(frame: Frame, sensor: SensorProfile | None) -> dict:
-    """Statistics of one frame; saturated pixels by the one rule (`uwlab.experiments.saturation`)."""
-    img = frame.image
-    s = frame.settings
-    profile_dn = None
-    if sensor is not None:
-        offset = sensor.dark_offset_dn + (s.black_level or 0.0)
-        profile_dn = sensor_clip_dn(sensor.gain_k(s.gain_db or 0.0), sensor.saturation_e, offset, sensor.bit_depth,
-                                    frame.pixel_format)
-    clip = clip_level(frame.pixel_format, native_bits=sensor.bit_depth if sensor else None, profile_dn=profile_dn,
-                      image=img)
-    return {
-        "frame_id": frame.frame_id,
-        "timestamp_ns": frame.timestamp_ns,
-        "width": int(img.shape[1]),
-        "height": int(img.shape[0]),
-        "pixel_format": frame.pixel_format,
-        "exposure_us": s.exposure_us,
-        "gain_db": s.gain_db,
-        "mean": float(img.mean()),
-        "std": float(img.std()),
-        "min": int(img.min()),
-        "max": int(img.max()),
-        "saturated_fraction": clip.fraction(img),
-        "clip_level_dn": clip.dn,
-        "clip_source": clip.source,
-    }
-
-
 def apply_settings(cam: Camera, args) -> None:
     if args.pixel_format:
         cam.pixel_format = args.pixel_format
@@ -82,6 +58,8 @@ def apply_settings(cam: Camera, args) -> None:
         cam.exposure_us = args.exposure_us
     if args.gain_db is not None:
         cam.gain_db = args.gain_db
+    if args.bayer is not None:
+        cam.check_bayer(args.bayer)
 
 
 def unique_path(directory: Path, stem: str) -> Path:
@@ -132,7 +110,7 @@ def run(args) -> int:
             save_dir.mkdir(exist_ok=True)
         rows = []
         for frame in cam.stream(args.frames):
-            rows.append(frame_stats(frame, sensor))
+            rows.append(frame_statistics(frame, sensor))
             if save_dir is not None:
                 save_tiff(save_dir, frame, device)
         device["discarded_frames"] = cam.stats.discarded
@@ -144,4 +122,6 @@ def run(args) -> int:
         print(f"frame {r['frame_id']}: {r['width']}x{r['height']} {r['pixel_format']} exposure {r['exposure_us']} us "
               f"gain {r['gain_db']} dB  mean {r['mean']:.2f} std {r['std']:.2f} min {r['min']} max {r['max']} "
               f"saturated {100 * r['saturated_fraction']:.3f} % (clip {r['clip_level_dn']:g} DN, {r['clip_source']})")
+        for colour, c in (r["channels"] or {}).items():
+            print(f"  {colour}: mean {c['mean']:.2f} saturated {100 * c['saturated_fraction']:.3f} %")
     return 0

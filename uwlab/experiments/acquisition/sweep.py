@@ -51,8 +51,9 @@ from uwlab.experiments.acquisition.readbacks import verified
 from uwlab.experiments.acquisition.rigs import Rig
 from uwlab.experiments.acquisition.roi import Rect, check_inside
 from uwlab.experiments.acquisition.spectra import irradiance_w_m2
+from uwlab.experiments.frames.frame import frame_clip_level
 from uwlab.experiments.frames.stack import StackAccumulator, StackStatistics
-from uwlab.experiments.saturation import ClipLevel, clip_level, sensor_clip_dn
+from uwlab.experiments.saturation import ClipLevel
 
 DARK_AVERAGING = 16
 
@@ -229,12 +230,8 @@ class SweepRunner:
     @staticmethod
     def _clip_level(sweep: SweepSpec, frame: Frame, image: np.ndarray) -> ClipLevel:
         """The camera's clip level in this frame's format, from the sweep's sensor profile at the settings in
-        force (gain, black level) and the frame's data."""
-        sensor, settings = sweep.design.sensor, frame.settings
-        offset = sensor.dark_offset_dn + (settings.black_level or 0.0)
-        profile_dn = sensor_clip_dn(sensor.gain_k(settings.gain_db or 0.0), sensor.saturation_e, offset,
-                                    sensor.bit_depth, frame.pixel_format)
-        return clip_level(frame.pixel_format, native_bits=sensor.bit_depth, profile_dn=profile_dn, image=image)
+        force (gain, black level) and the ROI's data (`uwlab.experiments.frames.frame.frame_clip_level`)."""
+        return frame_clip_level(frame, sweep.design.sensor, image)
 
     def _apply(self, sweep: SweepSpec, camera: Camera, point: Point) -> None:
         """Every setting the point depends on: camera exposure and gain, aperture, light output and level."""
