@@ -7,6 +7,7 @@ BayerRG8). Reported: frames per second and the mean of the last frame (a check t
 
 Usage: python benchmarks/bench_fake_camera.py [--frames N]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -33,9 +34,17 @@ def bench(backend: str, device: str | None, pixel_format: str, n_frames: int) ->
         elapsed = time.perf_counter() - t0
         cam.stop()
         discarded = cam.stats.discarded
-    return {"camera": f"{backend}:{cam.info.device_id}", "model": cam.info.model, "width": width, "height": height,
-            "pixel_format": pixel_format, "frames": n_frames, "fps": round(n_frames / elapsed, 1),
-            "discarded": discarded, "last_frame_mean_dn": round(float(last.image.mean()), 2)}
+    return {
+        "camera": f"{backend}:{cam.info.device_id}",
+        "model": cam.info.model,
+        "width": width,
+        "height": height,
+        "pixel_format": pixel_format,
+        "frames": n_frames,
+        "fps": round(n_frames / elapsed, 1),
+        "discarded": discarded,
+        "last_frame_mean_dn": round(float(last.image.mean()), 2),
+    }
 
 
 def main() -> None:

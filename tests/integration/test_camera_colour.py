@@ -6,6 +6,7 @@ pixel (x, y) of frame f shows colour ``jet[(x + y + f) mod 255]`` at 10 ms, gain
 Aravis; it also shows the fake's quirk recorded in its profile, red at (0, 0) of its BayerBG8 and at (1, 1) of its
 BayerRG8. Truth for the simulated camera: the design model's per-channel electron rate at the image centre.
 """
+
 from __future__ import annotations
 
 import json
@@ -50,8 +51,19 @@ def grab(capsys, *argv) -> dict:
 
 @pytest.mark.parametrize("fmt", sorted(FAKE_CELLS))
 def test_fake_1_channels_match_aravis_rgb(capsys, jet, fmt):
-    doc = grab(capsys, "--backend", "aravis", "--device", "Fake_1", "--pixel-format", fmt, "--frames", "2",
-               "--roi", f"0,0,{WIDTH},{HEIGHT}")
+    doc = grab(
+        capsys,
+        "--backend",
+        "aravis",
+        "--device",
+        "Fake_1",
+        "--pixel-format",
+        fmt,
+        "--frames",
+        "2",
+        "--roi",
+        f"0,0,{WIDTH},{HEIGHT}",
+    )
     for frame in doc["frames"]:
         y, x = np.mgrid[0:HEIGHT, 0:WIDTH]
         k = (x + y + frame["frame_id"]) % 255
@@ -66,8 +78,9 @@ def test_fake_1_channels_match_aravis_rgb(capsys, jet, fmt):
 
 
 def test_bayer_layout_not_delivered_is_refused_in_one_line(capsys):
-    assert main(["grab", "--backend", "aravis", "--device", "Fake_1", "--pixel-format", "BayerGB8", "--bayer",
-                 "RG"]) == 2
+    assert (
+        main(["grab", "--backend", "aravis", "--device", "Fake_1", "--pixel-format", "BayerGB8", "--bayer", "RG"]) == 2
+    )
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and "bayer = 'RG'" in err and "BayerGB8 is Bayer GB" in err
     assert main(["grab", "--pixel-format", "Mono12", "--bayer", "GR"]) == 2
@@ -92,8 +105,21 @@ def test_sim_colour_camera_channels_follow_the_model(capsys):
     exposure_us = 400.0
     width, height = 64, 48
     x0, y0 = (sensor.resolution_px[0] - width) // 2, (sensor.resolution_px[1] - height) // 2
-    doc = grab(capsys, "--config", str(rig), "--pixel-format", "BayerRG12", "--exposure-us", str(exposure_us),
-               "--roi", f"{x0},{y0},{width},{height}", "--frames", "4", "--bayer", "RG")
+    doc = grab(
+        capsys,
+        "--config",
+        str(rig),
+        "--pixel-format",
+        "BayerRG12",
+        "--exposure-us",
+        str(exposure_us),
+        "--roi",
+        f"{x0},{y0},{width},{height}",
+        "--frames",
+        "4",
+        "--bayer",
+        "RG",
+    )
     for colour, rate in rates.items():
         measured = np.mean([f["channels"][colour]["mean"] for f in doc["frames"]]) - sensor.dark_offset_dn
         predicted = sensor.K_dn_per_e * (rate * exposure_us * 1e-6 + sensor.dark_current_e_per_s * exposure_us * 1e-6)
@@ -110,12 +136,25 @@ def test_bayer_buffers_through_harvesters(monkeypatch, capsys):
 
     monkeypatch.delenv("GENICAM_GENTL64_PATH", raising=False)
     monkeypatch.setattr(Component2DImage, "data_format", property(lambda self: "BayerGR8"))
-    doc = grab(capsys, "--backend", "harvesters", "--fake", "--device", "VikyTL_DEV_green", "--pixel-format", "Mono8",
-               "--roi", "0,0,160,120", "--frames", "2")
+    doc = grab(
+        capsys,
+        "--backend",
+        "harvesters",
+        "--fake",
+        "--device",
+        "VikyTL_DEV_green",
+        "--pixel-format",
+        "Mono8",
+        "--roi",
+        "0,0,160,120",
+        "--frames",
+        "2",
+    )
     for frame in doc["frames"]:
         assert frame["pixel_format"] == "BayerGR8" and frame["bayer"] == "GR" and frame["clip_level_dn"] == 255
         channels = frame["channels"]
         assert sum(c["mean"] * n for c, n in zip(channels.values(), (1, 2, 1), strict=True)) / 4 == pytest.approx(
-            frame["mean"])
+            frame["mean"]
+        )
         for stats in channels.values():
             assert stats["mean"] == pytest.approx(255 * stats["saturated_fraction"])

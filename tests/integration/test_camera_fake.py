@@ -6,6 +6,7 @@ Truth for ``Fake_1`` is Aravis's image generator (``arv_fake_camera_diagonal_ram
 ``(x + y + f) mod 255`` (Mono8; ``256 (x + y + f) mod 65535`` in Mono16) times ``1 + GainRaw + log10(t_exp / 10 ms)``,
 truncated to the format's range.
 """
+
 from __future__ import annotations
 
 import json
@@ -65,8 +66,9 @@ def test_first_camera_is_never_the_fake_one_unless_asked():
         open_camera("aravis", None, policy=FAST)
 
 
-@pytest.mark.parametrize("exposure_us,gain_db,gain_raw", [(10000.0, 0.0, 0), (10000.0, 6.0, 1), (100000.0, 0.0, 0),
-                                                          (3000.0, 9.6, 2)])
+@pytest.mark.parametrize(
+    "exposure_us,gain_db,gain_raw", [(10000.0, 0.0, 0), (10000.0, 6.0, 1), (100000.0, 0.0, 0), (3000.0, 9.6, 2)]
+)
 def test_fake_frames_are_arvis_diagonal_ramp(exposure_us, gain_db, gain_raw):
     with open_camera("aravis", "Fake_1", policy=FAST) as cam:
         assert cam.profile.name == "aravis-fake" and cam.info.vendor == "Aravis" and cam.info.serial == "1"
@@ -95,8 +97,10 @@ def test_fake_mono16_and_gain_limits():
 
 
 def test_grab_fake_1_by_id(capsys):
-    doc = run_json(capsys, ["grab", "--backend", "aravis", "--device", "Fake_1", "--frames", "2", "--pixel-format",
-                            "Mono8", "--json"])
+    doc = run_json(
+        capsys,
+        ["grab", "--backend", "aravis", "--device", "Fake_1", "--frames", "2", "--pixel-format", "Mono8", "--json"],
+    )
     assert doc["device"]["profile"] == "aravis-fake" and doc["device"]["sensor_width"] == 2048
     for row in doc["frames"]:
         truth = fake_ramp(row["frame_id"], row["width"], row["height"], 10000.0, 0)
@@ -106,19 +110,46 @@ def test_grab_fake_1_by_id(capsys):
 
 def test_grab_harvesters_test_producer_without_a_path(capsys, monkeypatch):
     monkeypatch.delenv("GENICAM_GENTL64_PATH", raising=False)
-    doc = run_json(capsys, ["grab", "--backend", "harvesters", "--fake", "--device", "VikyTL_DEV_green",
-                            "--pixel-format", "Mono8", "--json"])
+    doc = run_json(
+        capsys,
+        [
+            "grab",
+            "--backend",
+            "harvesters",
+            "--fake",
+            "--device",
+            "VikyTL_DEV_green",
+            "--pixel-format",
+            "Mono8",
+            "--json",
+        ],
+    )
     assert doc["device"]["model"] == "Viky" and doc["frames"][0]["max"] == 255
 
 
 def test_sweep_on_fake_1_through_the_hardware_rig(tmp_path, capsys):
     exposures = [2000.0, 10000.0, 20000.0]
-    plan = load_plan(write_plan(tmp_path / "fake.toml", "fake", [{
-        "id": "fake", "kind": "exposure", "values": exposures, "frames_per_point": 2, "dark": "none",
-        "sensor": "imx250m"}], camera={"backend": "aravis", "id": "Fake_1", "pixel_format": "Mono8",
-                                        "window": [0, 0, 64, 32]}))
-    with Dataset.create(tmp_path / "ds", plan.raw, plan_sha256=plan.sha256, sim=False) as data, \
-            HardwareRig(plan, None) as rig:
+    plan = load_plan(
+        write_plan(
+            tmp_path / "fake.toml",
+            "fake",
+            [
+                {
+                    "id": "fake",
+                    "kind": "exposure",
+                    "values": exposures,
+                    "frames_per_point": 2,
+                    "dark": "none",
+                    "sensor": "imx250m",
+                }
+            ],
+            camera={"backend": "aravis", "id": "Fake_1", "pixel_format": "Mono8", "window": [0, 0, 64, 32]},
+        )
+    )
+    with (
+        Dataset.create(tmp_path / "ds", plan.raw, plan_sha256=plan.sha256, sim=False) as data,
+        HardwareRig(plan, None) as rig,
+    ):
         SweepRunner(plan, data, rig).run()
     rows = Dataset.open(tmp_path / "ds").points().sort_values("point_index")
     assert rows["camera_model"].tolist() == ["Fake"] * 3 and rows["exposure_us_readback"].tolist() == exposures

@@ -1,4 +1,5 @@
 """Bayer pixel formats: PFNC codes against Aravis's own table, packing shared with Mono, colour sites per layout."""
+
 from __future__ import annotations
 
 import re
@@ -7,8 +8,15 @@ import gi
 import numpy as np
 import pytest
 
-from uwlab.drivers.camera.pixels import (BAYER_LAYOUTS, PIXEL_FORMATS, bayer_formats, bayer_sites, pack, pixel_format,
-                                        unpack)
+from uwlab.drivers.camera.pixels import (
+    BAYER_LAYOUTS,
+    PIXEL_FORMATS,
+    bayer_formats,
+    bayer_sites,
+    pack,
+    pixel_format,
+    unpack,
+)
 
 gi.require_version("Aravis", "0.8")
 from gi.repository import Aravis  # noqa: E402
@@ -36,7 +44,15 @@ def test_codes_match_aravis(name):
 def test_every_layout_has_the_pfnc_depths_and_packings():
     for layout in BAYER_LAYOUTS:
         assert {n.removeprefix(f"Bayer{layout}") for n in bayer_formats(layout)} == {
-            "8", "10", "12", "16", "10p", "12p", "10Packed", "12Packed"}
+            "8",
+            "10",
+            "12",
+            "16",
+            "10p",
+            "12p",
+            "10Packed",
+            "12Packed",
+        }
 
 
 @pytest.mark.parametrize("depth", ["10", "12", "10p", "12p", "10Packed", "12Packed", "16"])

@@ -18,6 +18,7 @@ ramp scaled by its exposure and gain, ``src/arvfakecamera.c``) lives behind the 
 leaves disabled by default: it is enabled to open ``Fake_1`` by id and for discovery with ``fake=True``
 (``uwlab devices --fake``), and disabled otherwise, so that "the first camera found" is never the fake one.
 """
+
 from __future__ import annotations
 
 import threading
@@ -41,8 +42,15 @@ FAKE_DEVICE_IDS = ("Fake_1",)  # arvfakeinterface.c: ARV_FAKE_DEVICE_ID
 N_BUFFERS = 8
 GVCP_CCP_REGISTER = 0x0A00  # GigE Vision 2.0 bootstrap: control channel privilege (bits 0-1: exclusive, control)
 SLOW_ANSWER_S = 0.5
-LOST_CODES = frozenset({Aravis.DeviceError.NOT_CONNECTED, Aravis.DeviceError.TIMEOUT, Aravis.DeviceError.NOT_FOUND,
-                        Aravis.DeviceError.NOT_CONTROLLER, Aravis.DeviceError.PROTOCOL_ERROR_ACCESS_DENIED})
+LOST_CODES = frozenset(
+    {
+        Aravis.DeviceError.NOT_CONNECTED,
+        Aravis.DeviceError.TIMEOUT,
+        Aravis.DeviceError.NOT_FOUND,
+        Aravis.DeviceError.NOT_CONTROLLER,
+        Aravis.DeviceError.PROTOCOL_ERROR_ACCESS_DENIED,
+    }
+)
 REJECTED_CODES = frozenset({Aravis.DeviceError.INVALID_PARAMETER, Aravis.DeviceError.PROTOCOL_ERROR_INVALID_PARAMETER})
 
 
@@ -59,9 +67,16 @@ def discover(fake: bool = False, **_: Any) -> list[DeviceEntry]:
     """Cameras on every Aravis interface; Aravis's fake camera too with ``fake``."""
     _fake_interface(fake)
     Aravis.update_device_list()
-    return [DeviceEntry("aravis", Aravis.get_device_id(i), Aravis.get_device_vendor(i) or "",
-                        Aravis.get_device_model(i) or "", Aravis.get_device_serial_nbr(i) or "")
-            for i in range(Aravis.get_n_devices())]
+    return [
+        DeviceEntry(
+            "aravis",
+            Aravis.get_device_id(i),
+            Aravis.get_device_vendor(i) or "",
+            Aravis.get_device_model(i) or "",
+            Aravis.get_device_serial_nbr(i) or "",
+        )
+        for i in range(Aravis.get_n_devices())
+    ]
 
 
 def open_transport(device_id: str | None = None, fake: bool = False, **_: Any) -> AravisTransport:
@@ -221,8 +236,14 @@ class AravisTransport:
         if not complete:
             return RawFrame(int(buf.get_frame_id()), int(buf.get_timestamp()), 0, 0, "Mono8", b"", complete=False)
         fmt = pixel_format(int(buf.get_image_pixel_format()))
-        return RawFrame(int(buf.get_frame_id()), int(buf.get_timestamp()), int(buf.get_image_width()),
-                        int(buf.get_image_height()), fmt.name, buf.get_data())
+        return RawFrame(
+            int(buf.get_frame_id()),
+            int(buf.get_timestamp()),
+            int(buf.get_image_width()),
+            int(buf.get_image_height()),
+            fmt.name,
+            buf.get_data(),
+        )
 
     def _check_alive(self) -> None:
         """After a frame timeout: `DeviceLost` if the device does not answer a register read at once (it was
@@ -240,8 +261,7 @@ class AravisTransport:
         if answered_s > SLOW_ANSWER_S:
             raise DeviceLost(f"aravis: {self.device_id}: device answered after {answered_s:.1f} s (unreachable)")
         if isinstance(self._device, Aravis.GvDevice) and not (privilege & 0x3 and self._device.is_controller()):
-            raise DeviceLost(f"aravis: {self.device_id}: control of the device lost (it restarted or was "
-                             f"taken over)")
+            raise DeviceLost(f"aravis: {self.device_id}: control of the device lost (it restarted or was taken over)")
 
     def reconnect(self) -> None:
         """Open the device again. The old connection is released in a background thread (`_release`), as it

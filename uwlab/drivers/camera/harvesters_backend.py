@@ -17,6 +17,7 @@ counts and discards. Every buffer we receive is queued back (``with buffer``). h
 blocking ``fetch`` is not used: it silently re-queues incomplete buffers and restarts its timeout,
 so a link delivering only incomplete frames would block it forever.
 """
+
 from __future__ import annotations
 
 import os
@@ -37,8 +38,13 @@ except ImportError as exc:  # the caller reports the backend as unavailable
 
 ENV_VAR = "GENICAM_GENTL64_PATH"
 POLL_S = 0.05
-LOST_ERRORS = (gentl.IoException, gentl.InvalidHandleException, gentl.NotInitializedException, gentl.ClosedException,
-               genapi.TimeoutException)
+LOST_ERRORS = (
+    gentl.IoException,
+    gentl.InvalidHandleException,
+    gentl.NotInitializedException,
+    gentl.ClosedException,
+    genapi.TimeoutException,
+)
 
 
 def bundled_producers() -> list[Path]:
@@ -63,8 +69,10 @@ def cti_files(cti: list[str] | tuple[str, ...] | None = None, fake: bool = False
     if fake:
         files.extend(path for path in bundled_producers() if path.resolve() not in {f.resolve() for f in files})
     if not files:
-        raise BackendUnavailable(f"harvesters: no GenTL producer (*.cti) found; pass --cti or set {ENV_VAR} "
-                                 f"(or --fake for the genicam package's test producer)")
+        raise BackendUnavailable(
+            f"harvesters: no GenTL producer (*.cti) found; pass --cti or set {ENV_VAR} "
+            f"(or --fake for the genicam package's test producer)"
+        )
     return files
 
 
@@ -86,14 +94,23 @@ def _info_str(info: Any, attr: str) -> str:
 def discover(cti: list[str] | None = None, fake: bool = False, **_: Any) -> list[DeviceEntry]:
     h = _harvester(cti, fake)
     try:
-        return [DeviceEntry("harvesters", _info_str(d, "id_"), _info_str(d, "vendor"), _info_str(d, "model"),
-                            _info_str(d, "serial_number")) for d in h.device_info_list]
+        return [
+            DeviceEntry(
+                "harvesters",
+                _info_str(d, "id_"),
+                _info_str(d, "vendor"),
+                _info_str(d, "model"),
+                _info_str(d, "serial_number"),
+            )
+            for d in h.device_info_list
+        ]
     finally:
         h.reset()
 
 
-def open_transport(device_id: str | None = None, cti: list[str] | None = None, fake: bool = False,
-                   **_: Any) -> HarvestersTransport:
+def open_transport(
+    device_id: str | None = None, cti: list[str] | None = None, fake: bool = False, **_: Any
+) -> HarvestersTransport:
     h = _harvester(cti, fake)
     ids = [_info_str(d, "id_") for d in h.device_info_list]
     if not ids or (device_id is not None and device_id not in ids):
@@ -217,8 +234,15 @@ class HarvestersTransport:
             ts = int(module.timestamp_ns)
         except gentl.GenericException:
             ts = time.time_ns()
-        return RawFrame(int(module.frame_id), ts, width, height, str(component.data_format), data,
-                        complete=bool(module.is_complete()))
+        return RawFrame(
+            int(module.frame_id),
+            ts,
+            width,
+            height,
+            str(component.data_format),
+            data,
+            complete=bool(module.is_complete()),
+        )
 
     def reconnect(self) -> None:
         self.close()

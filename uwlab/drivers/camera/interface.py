@@ -19,6 +19,7 @@ happened during a measurement.
 Units: exposure in µs, gain in dB, frame rate in Hz, temperature in °C, black level in device
 units (DN on most cameras), timestamps in ns of the device clock.
 """
+
 from __future__ import annotations
 
 import functools
@@ -344,9 +345,11 @@ class Camera:
         self._refresh()
 
     def _auto_modes_left_on(self) -> list[str]:
-        return [f"{name}: {self.transport.get(name)!r} (want {value!r})" for name, value in self.profile.auto_off
-                if self.transport.has(name) and value in self._allowed(name, value)
-                and self.transport.get(name) != value]
+        return [
+            f"{name}: {self.transport.get(name)!r} (want {value!r})"
+            for name, value in self.profile.auto_off
+            if self.transport.has(name) and value in self._allowed(name, value) and self.transport.get(name) != value
+        ]
 
     @property
     @_survives_outages
@@ -411,8 +414,9 @@ class Camera:
     def pixel_format(self, name: str) -> None:
         pixel_format(name)
         if name not in self.pixel_formats:
-            raise ConfigError("pixel_format", name,
-                              f"not offered by the device; offered: {', '.join(self.pixel_formats)}")
+            raise ConfigError(
+                "pixel_format", name, f"not offered by the device; offered: {', '.join(self.pixel_formats)}"
+            )
         self.transport.set("PixelFormat", name)
         self._refresh()
 
@@ -426,9 +430,13 @@ class Camera:
         the caller expects (e.g. a colour sensor profile's or the operator's)."""
         if layout != self.bayer_layout:
             pf = self.pixel_format
-            raise ConfigError("bayer", layout, f"the device's PixelFormat {pf} is "
-                                               f"{f'Bayer {self.bayer_layout}' if self.bayer_layout else 'monochrome'}"
-                                               f" on {self.info.vendor} {self.info.model}".rstrip())
+            raise ConfigError(
+                "bayer",
+                layout,
+                f"the device's PixelFormat {pf} is "
+                f"{f'Bayer {self.bayer_layout}' if self.bayer_layout else 'monochrome'}"
+                f" on {self.info.vendor} {self.info.model}".rstrip(),
+            )
 
     @_survives_outages
     def set_roi(self, x: int, y: int, width: int, height: int) -> None:
@@ -590,8 +598,9 @@ class Camera:
     def _decode(self, raw: RawFrame) -> Frame:
         fmt = pixel_format(raw.pixel_format)
         image = unpack(raw.data, fmt, raw.width, raw.height)
-        return Frame(raw.frame_id, raw.timestamp_ns, image, fmt.name, self._state.in_force,
-                     self.profile.bayer_layout(fmt.name))
+        return Frame(
+            raw.frame_id, raw.timestamp_ns, image, fmt.name, self._state.in_force, self.profile.bayer_layout(fmt.name)
+        )
 
     # -- outages ------------------------------------------------------------------------------
     def _reconnect(self, lost: DeviceLost, outage: _Outage) -> None:
@@ -627,8 +636,11 @@ class Camera:
         if self.transport.has("BinningHorizontal"):
             self.set_binning(*wanted.binning)
         self.set_roi(wanted.offset_x, wanted.offset_y, wanted.width, wanted.height)
-        for key, value in (("exposure_us", wanted.exposure_us), ("gain_db", wanted.gain_db),
-                           ("black_level", wanted.black_level)):
+        for key, value in (
+            ("exposure_us", wanted.exposure_us),
+            ("gain_db", wanted.gain_db),
+            ("black_level", wanted.black_level),
+        ):
             if value is not None:
                 setattr(self, key, value)
         if self._state.frame_rate_set and wanted.frame_rate_hz is not None:

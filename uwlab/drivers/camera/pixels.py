@@ -19,6 +19,7 @@ Vision legacy 10Packed and 12Packed; `bayer_sites` gives each colour's positions
 Every decoded image is a C-contiguous ``uint8`` (8-bit formats) or ``uint16`` array of shape (height, width):
 a Bayer image stays the raw mosaic (no demosaicing: each pixel is its own filter's measurement).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -71,15 +72,41 @@ PIXEL_FORMATS: dict[str, PixelFormat] = {
         PixelFormat("Mono14", 0x01100025, 14, 16),
         PixelFormat("Mono16", 0x01100007, 16, 16),
         # PFNC 2.x Bayer codes, per layout: (8, 10, 12, 16, 10p, 12p, 10Packed, 12Packed)
-        *(PixelFormat(f"Bayer{layout}{suffix}", code, bits, wire, layout)
-          for layout, codes in (
-              ("GR", (0x01080008, 0x0110000C, 0x01100010, 0x0110002E, 0x010A0056, 0x010C0057, 0x010C0026, 0x010C002A)),
-              ("RG", (0x01080009, 0x0110000D, 0x01100011, 0x0110002F, 0x010A0058, 0x010C0059, 0x010C0027, 0x010C002B)),
-              ("GB", (0x0108000A, 0x0110000E, 0x01100012, 0x01100030, 0x010A0054, 0x010C0055, 0x010C0028, 0x010C002C)),
-              ("BG", (0x0108000B, 0x0110000F, 0x01100013, 0x01100031, 0x010A0052, 0x010C0053, 0x010C0029, 0x010C002D)))
-          for (suffix, bits, wire), code in zip(
-              (("8", 8, 8), ("10", 10, 16), ("12", 12, 16), ("16", 16, 16), ("10p", 10, 10), ("12p", 12, 12),
-               ("10Packed", 10, 12), ("12Packed", 12, 12)), codes, strict=True)),
+        *(
+            PixelFormat(f"Bayer{layout}{suffix}", code, bits, wire, layout)
+            for layout, codes in (
+                (
+                    "GR",
+                    (0x01080008, 0x0110000C, 0x01100010, 0x0110002E, 0x010A0056, 0x010C0057, 0x010C0026, 0x010C002A),
+                ),
+                (
+                    "RG",
+                    (0x01080009, 0x0110000D, 0x01100011, 0x0110002F, 0x010A0058, 0x010C0059, 0x010C0027, 0x010C002B),
+                ),
+                (
+                    "GB",
+                    (0x0108000A, 0x0110000E, 0x01100012, 0x01100030, 0x010A0054, 0x010C0055, 0x010C0028, 0x010C002C),
+                ),
+                (
+                    "BG",
+                    (0x0108000B, 0x0110000F, 0x01100013, 0x01100031, 0x010A0052, 0x010C0053, 0x010C0029, 0x010C002D),
+                ),
+            )
+            for (suffix, bits, wire), code in zip(
+                (
+                    ("8", 8, 8),
+                    ("10", 10, 16),
+                    ("12", 12, 16),
+                    ("16", 16, 16),
+                    ("10p", 10, 10),
+                    ("12p", 12, 12),
+                    ("10Packed", 10, 12),
+                    ("12Packed", 12, 12),
+                ),
+                codes,
+                strict=True,
+            )
+        ),
     )
 }
 MONO_FORMATS = tuple(name for name, pf in PIXEL_FORMATS.items() if pf.bayer is None)

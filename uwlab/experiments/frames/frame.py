@@ -6,6 +6,7 @@ camera is treated as its own sensor). ``G`` pools both green sites of the 2 × 2
 one rule of `uwlab.experiments.saturation`: one clip level per frame (the camera clips every channel at the same
 code), a channel's saturated fraction is the fraction of its sites at or above it.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -26,8 +27,10 @@ def channel_pixels(image: np.ndarray, layout: str, x0: int = 0, y0: int = 0) -> 
     >>> {c: v.tolist() for c, v in channel_pixels(mosaic, "RG").items()}
     {'R': [1], 'G': [2, 3], 'B': [4]}
     """
-    return {colour: np.concatenate([image[row::2, col::2].ravel() for row, col in cells])
-            for colour, cells in bayer_sites(layout, x0, y0).items()}
+    return {
+        colour: np.concatenate([image[row::2, col::2].ravel() for row, col in cells])
+        for colour, cells in bayer_sites(layout, x0, y0).items()
+    }
 
 
 def frame_clip_level(frame: Frame, sensor: SensorProfile | None, image: np.ndarray | None = None) -> ClipLevel:
@@ -37,10 +40,15 @@ def frame_clip_level(frame: Frame, sensor: SensorProfile | None, image: np.ndarr
     settings, profile_dn = frame.settings, None
     if sensor is not None:
         offset = sensor.dark_offset_dn + (settings.black_level or 0.0)
-        profile_dn = sensor_clip_dn(sensor.gain_k(settings.gain_db or 0.0), sensor.saturation_e, offset,
-                                    sensor.bit_depth, frame.pixel_format)
-    return clip_level(frame.pixel_format, native_bits=sensor.bit_depth if sensor else None, profile_dn=profile_dn,
-                      image=frame.image if image is None else image)
+        profile_dn = sensor_clip_dn(
+            sensor.gain_k(settings.gain_db or 0.0), sensor.saturation_e, offset, sensor.bit_depth, frame.pixel_format
+        )
+    return clip_level(
+        frame.pixel_format,
+        native_bits=sensor.bit_depth if sensor else None,
+        profile_dn=profile_dn,
+        image=frame.image if image is None else image,
+    )
 
 
 def frame_statistics(frame: Frame, sensor: SensorProfile | None = None) -> dict:
@@ -51,8 +59,10 @@ def frame_statistics(frame: Frame, sensor: SensorProfile | None = None) -> dict:
     clip = frame_clip_level(frame, sensor)
     channels = None
     if frame.bayer is not None:
-        channels = {colour: {"mean": float(values.mean()), "saturated_fraction": clip.fraction(values)}
-                    for colour, values in channel_pixels(img, frame.bayer).items()}
+        channels = {
+            colour: {"mean": float(values.mean()), "saturated_fraction": clip.fraction(values)}
+            for colour, values in channel_pixels(img, frame.bayer).items()
+        }
     return {
         "frame_id": frame.frame_id,
         "timestamp_ns": frame.timestamp_ns,
