@@ -3,15 +3,14 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
-import genicam
 import pytest
 import tifffile
 
 from uwlab.cli.main import main
+from uwlab.drivers.camera.harvesters_backend import bundled_producers
 
-VIKY = str(Path(genicam.__file__).parent / "viky.cti")
+VIKY = str(bundled_producers()[0])  # the genicam wheel's viky.cti, found by the backend
 
 
 def run_json(capsys, argv):
@@ -68,6 +67,8 @@ def test_grab_json_keys_roi_and_settings(capsys):
         "saturated_fraction",
         "clip_level_dn",
         "clip_source",
+        "bayer",
+        "channels",
     }
     assert len(doc["frames"]) == 3 and all(set(f) == keys for f in doc["frames"])
     f = doc["frames"][0]

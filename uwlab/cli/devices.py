@@ -19,13 +19,19 @@ def register(subparsers) -> None:
         metavar="PATH",
         help="GenTL producer for harvesters (repeatable; default: GENICAM_GENTL64_PATH)",
     )
+    p.add_argument(
+        "--fake",
+        action="store_true",
+        help="also list the test cameras shipped with the backends: "
+        "Aravis's fake camera (Fake_1) and the genicam package's GenTL test producer (harvesters)",
+    )
     p.add_argument("--config", metavar="RIG.toml", help="rig of the simulated camera (default rig if omitted)")
     p.add_argument("--json", action="store_true", help="print one JSON list of {backend, id, vendor, model, serial}")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    found, unavailable = discover(cti=args.cti, config=args.config)
+    found, unavailable = discover(cti=args.cti, config=args.config, fake=args.fake)
     for backend, reason in unavailable.items():
         print(f"uwlab devices: {backend} backend unavailable: {reason}", file=sys.stderr)
     if args.json:

@@ -6,19 +6,29 @@ import json
 from pathlib import Path
 
 from uwlab.drivers.camera import BACKENDS, Camera, Frame, Policy, open_camera
+from uwlab.drivers.camera.pixels import BAYER_LAYOUTS, MONO_FORMATS
 from uwlab.errors import ConfigError
-from uwlab.experiments.frames.single import frame_statistics
+from uwlab.experiments.frames.frame import frame_statistics
 from uwlab.model.sensor import load_sensor_profile
 from uwlab.outputs import output_dir
 
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
-        "grab", description="Acquire N frames; report mean, std, min, max and saturated fraction per frame."
+        "grab",
+        description="Acquire N frames; report mean, std, min, max and saturated "
+        "fraction per frame (and per colour channel R, G, B of a raw "
+        "Bayer frame).",
     )
     p.add_argument("--backend", choices=tuple(BACKENDS), default="sim")
     p.add_argument("--device", metavar="ID", help="device id (aravis: id or IP address); default: first found")
     p.add_argument("--cti", action="append", default=[], metavar="PATH", help="GenTL producer (harvesters)")
+    p.add_argument(
+        "--fake",
+        action="store_true",
+        help="the backend's test camera: Aravis's Fake_1 (the default "
+        "device for aravis), the genicam package's GenTL test producer (harvesters, besides --cti)",
+    )
     p.add_argument("--config", metavar="RIG.toml", help="rig of the simulated camera")
     p.add_argument(
         "--sensor",
@@ -28,7 +38,17 @@ def register(subparsers) -> None:
     )
     p.add_argument("--exposure-us", type=float)
     p.add_argument("--gain-db", type=float)
-    p.add_argument("--pixel-format", metavar="F", help="Mono8, Mono10, Mono10p, Mono12, Mono12p, Mono12Packed, Mono16")
+    p.add_argument(
+        "--pixel-format",
+        metavar="F",
+        help=f"PFNC name: {', '.join(MONO_FORMATS)}, Bayer{{RG,GR,GB,BG}}{{8,10,12,16,10p,12p,10Packed,12Packed}}",
+    )
+    p.add_argument(
+        "--bayer",
+        choices=BAYER_LAYOUTS,
+        help="the colour filter layout the camera must deliver "
+        "(refused when its PixelFormat is another layout or monochrome)",
+    )
     p.add_argument("--frames", type=int, default=1)
     p.add_argument("--roi", metavar="x,y,w,h", help="device region of interest in pixels")
     p.add_argument("--timeout-s", type=float, default=5.0, help="per-frame acquisition timeout")
@@ -60,6 +80,8 @@ def apply_settings(cam: Camera, args) -> None:
         cam.exposure_us = args.exposure_us
     if args.gain_db is not None:
         cam.gain_db = args.gain_db
+    if args.bayer is not None:
+        cam.check_bayer(args.bayer)
 
 
 def unique_path(directory: Path, stem: str) -> Path:
@@ -100,7 +122,7 @@ def run(args) -> int:
     if args.gain_db is not None:
         check(GainDb, args.gain_db, "--gain-db")
     save_dir = output_dir(args.save, "--save") if args.save else None
-    options = {"cti": args.cti} if args.backend == "harvesters" else {}
+    options = {"cti": args.cti, "fake": args.fake} if args.backend == "harvesters" else {"fake": args.fake}
     sensor = load_sensor_profile(args.sensor) if args.sensor else None
     if args.backend == "sim":
         options["config"] = args.config
@@ -129,4 +151,6 @@ def run(args) -> int:
             f"gain {r['gain_db']} dB  mean {r['mean']:.2f} std {r['std']:.2f} min {r['min']} max {r['max']} "
             f"saturated {100 * r['saturated_fraction']:.3f} % (clip {r['clip_level_dn']:g} DN, {r['clip_source']})"
         )
+        for colour, c in (r["channels"] or {}).items():
+            print(f"  {colour}: mean {c['mean']:.2f} saturated {100 * c['saturated_fraction']:.3f} %")
     return 0

@@ -10,9 +10,8 @@ output bit depth. μ_e is clipped at the saturation capacity and μ_y at the ful
 
 from __future__ import annotations
 
-from typing import Annotated
-
 from functools import lru_cache
+from typing import Annotated, Literal
 from pathlib import Path
 
 import numpy as np
@@ -52,6 +51,11 @@ class SensorProfile(Schema):
     name: NonEmptyText = Field(description="sensor name")
     description: Text = Field("", description="what the sensor is, cameras using it")
     color: StrictBool = Field(False, description="colour (Bayer) sensor: the QE CSV has red, green, blue, combined")
+    bayer: Literal["RG", "GR", "GB", "BG"] = Field(
+        "RG",
+        description="colour filter layout of a colour sensor: the "
+        "filters of the first row's first two pixels (PFNC; RG = RGGB)",
+    )
     pixel_size_um: PixelSizeUm = Field(description="pixel pitch [µm]")
     resolution_px: tuple[ResolutionPx, ResolutionPx] = Field(description="active pixels [x, y]")
     bit_depth: BitDepth = Field(description="ADC bit depth the values refer to [bit]")

@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from uwlab.drivers.camera.pixels import bayer_sites
 from uwlab.model.bench import is_bench
 from uwlab.sim.bench import BenchScene
 from uwlab.sim.rig_state import RigState, WarmUp
@@ -148,6 +149,8 @@ class RigScene:
         return self._profile[1] * np.float32(flux_fraction)
 
     def _render(self, shape_yx: tuple[int, int]) -> np.ndarray:
+        if self.sensor.color and self.design["sensor.channel"] == "combined":
+            return self._mosaic(shape_yx)
         if self.tank is not None:
             return self.tank.rate_map(self.design, self.no_lens, shape_yx)
         if self.no_lens:
@@ -170,6 +173,21 @@ class RigScene:
         surround = self.sim.surround_reflectance / board_reflectance if board_reflectance > 0 else 0.0
         contrast = np.where(board, 1.0, surround)
         return (self.on_axis_rate_e_per_s() * relative * contrast).astype(np.float32)
+
+    def _mosaic(self, shape_yx: tuple[int, int]) -> np.ndarray:
+        """A colour sensor's raw image: each pixel's rate through its own filter (the sensor's ``red``, ``green``
+        or ``blue`` QE) on the sensor's Bayer layout (`SensorProfile.bayer`), as a raw Bayer camera delivers it."""
+        design = self.design
+        out = np.empty(shape_yx, np.float32)
+        try:
+            for colour, channel in (("R", "red"), ("G", "green"), ("B", "blue")):
+                self.design = design.with_values(**{"sensor.channel": channel})
+                full = self._render(shape_yx)
+                for row, col in bayer_sites(self.sensor.bayer)[colour]:
+                    out[row::2, col::2] = full[row::2, col::2]
+        finally:
+            self.design = design
+        return out
 
     def board_roi(self, shape_yx: tuple[int, int]) -> tuple[int, int, int, int]:
         """The board's footprint in an image of `shape_yx` as (x, y, width, height) pixels."""

@@ -12,6 +12,11 @@ feature access or acquisition start — a device that stopped answering, or one 
 no longer recognises us as its controller (GigE Vision control channel privilege). When no
 buffer arrives in time, one register read and the controller status tell a silent or restarted
 device from a plain timeout. The register cache is disabled, so every read is a device read-back.
+
+Aravis's fake camera (``Fake_1``, ``src/arvfakeinterface.c``; a GenICam device in process whose image is a diagonal
+ramp scaled by its exposure and gain, ``src/arvfakecamera.c``) lives behind the ``Fake`` interface, which Aravis
+leaves disabled by default: it is enabled to open ``Fake_1`` by id and for discovery with ``fake=True``
+(``uwlab devices --fake``), and disabled otherwise, so that "the first camera found" is never the fake one.
 """
 
 from __future__ import annotations
@@ -32,6 +37,8 @@ try:
 except (ImportError, ValueError) as exc:  # the caller reports the backend as unavailable
     raise ImportError(f"Aravis 0.8 GObject bindings not importable: {exc}") from exc
 
+FAKE_INTERFACE = "Fake"
+FAKE_DEVICE_IDS = ("Fake_1",)  # arvfakeinterface.c: ARV_FAKE_DEVICE_ID
 N_BUFFERS = 8
 GVCP_CCP_REGISTER = 0x0A00  # GigE Vision 2.0 bootstrap: control channel privilege (bits 0-1: exclusive, control)
 SLOW_ANSWER_S = 0.5
@@ -51,7 +58,14 @@ def _is_device_error(exc: GLib.Error, codes: frozenset) -> bool:
     return exc.domain == GLib.quark_to_string(Aravis.device_error_quark()) and exc.code in {int(c) for c in codes}
 
 
-def discover(**_: Any) -> list[DeviceEntry]:
+def _fake_interface(enabled: bool) -> None:
+    """Enable or disable Aravis's ``Fake`` interface (process-wide; Aravis's default: disabled)."""
+    (Aravis.enable_interface if enabled else Aravis.disable_interface)(FAKE_INTERFACE)
+
+
+def discover(fake: bool = False, **_: Any) -> list[DeviceEntry]:
+    """Cameras on every Aravis interface; Aravis's fake camera too with ``fake``."""
+    _fake_interface(fake)
     Aravis.update_device_list()
     return [
         DeviceEntry(
@@ -65,12 +79,15 @@ def discover(**_: Any) -> list[DeviceEntry]:
     ]
 
 
-def open_transport(device_id: str | None = None, **_: Any) -> AravisTransport:
-    return AravisTransport(device_id)
+def open_transport(device_id: str | None = None, fake: bool = False, **_: Any) -> AravisTransport:
+    """Open ``device_id`` (the first camera found when None; Aravis's fake camera when None and ``fake``)."""
+    return AravisTransport(device_id or (FAKE_DEVICE_IDS[0] if fake else None))
 
 
 def _connect(device_id: str | None) -> Any:
-    """An `Aravis.Camera` whose feature reads always go to the device (no register cache)."""
+    """An `Aravis.Camera` whose feature reads always go to the device (no register cache); the fake camera's
+    interface is enabled only to open it by id."""
+    _fake_interface(device_id in FAKE_DEVICE_IDS)
     camera = Aravis.Camera.new(device_id)
     camera.get_device().set_register_cache_policy(Aravis.RegisterCachePolicy.DISABLE)
     return camera
@@ -80,7 +97,7 @@ def _open_camera(device_id: str | None) -> Any:
     try:
         return _connect(device_id)
     except GLib.Error as exc:
-        found = [d.id for d in discover()]
+        found = [d.id for d in discover(fake=True)]
         if device_id is None:
             raise DeviceError(f"aravis: no camera found ({exc.message})") from exc
         raise unknown_device("aravis", device_id, found) from exc

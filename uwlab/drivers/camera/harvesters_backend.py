@@ -2,9 +2,12 @@
 
 Producers come from the ``cti`` option (paths to ``.cti`` files or folders) or from the
 ``GENICAM_GENTL64_PATH`` environment variable (folders separated by ``os.pathsep``), as the
-GenTL standard (GenTL 1.5, section "Discovery") specifies. Device information the remote node
-map lacks (e.g. the Viky test producer has no ``DeviceVendorName``) comes from the GenTL device
-info. When a producer does not time-stamp buffers, host time is used (``CLOCK_REALTIME``).
+GenTL standard (GenTL 1.5, section "Discovery") specifies. With ``fake=True`` the GenTL test
+producers shipped in the installed ``genicam`` wheel are added (`bundled_producers`: ``viky.cti`` in
+today's wheels, ``TLSimu.cti`` in older ones, where harvesters' own test suite looks for its
+target), so ``uwlab devices --fake`` needs no path. Device information the remote node map lacks
+(e.g. the Viky test producer has no ``DeviceVendorName``) comes from the GenTL device info. When
+a producer does not time-stamp buffers, host time is used (``CLOCK_REALTIME``).
 
 Buffers follow harvesters' non-blocking contract (``ImageAcquirer.try_fetch``): every call waits
 at most the time left before our own deadline and returns a complete buffer or None. harvesters
@@ -26,6 +29,7 @@ from uwlab.drivers.camera.interface import DeviceEntry, DeviceLost, FrameTimeout
 from uwlab.errors import ConfigError, DeviceError
 
 try:
+    import genicam
     from genicam import gentl
     from genicam import genapi
     from harvesters.core import Callback, Harvester, ImageAcquirer
@@ -43,8 +47,14 @@ LOST_ERRORS = (
 )
 
 
-def cti_files(cti: list[str] | tuple[str, ...] | None = None) -> list[Path]:
-    """Producer files from explicit paths, else from ``GENICAM_GENTL64_PATH``."""
+def bundled_producers() -> list[Path]:
+    """The GenTL test producers (``*.cti``) shipped inside the installed ``genicam`` package."""
+    return sorted(Path(genicam.__file__).parent.glob("*.cti"))
+
+
+def cti_files(cti: list[str] | tuple[str, ...] | None = None, fake: bool = False) -> list[Path]:
+    """Producer files from explicit paths, else from ``GENICAM_GENTL64_PATH``; with ``fake``, the test producers
+    (`bundled_producers`) too."""
     from uwlab.drivers.camera import BackendUnavailable
 
     roots = [Path(p) for p in cti] if cti else [Path(p) for p in os.environ.get(ENV_VAR, "").split(os.pathsep) if p]
@@ -56,14 +66,19 @@ def cti_files(cti: list[str] | tuple[str, ...] | None = None) -> list[Path]:
             files.append(root)
         elif cti:
             raise ConfigError("cti", str(root), "no such GenTL producer file or folder")
+    if fake:
+        files.extend(path for path in bundled_producers() if path.resolve() not in {f.resolve() for f in files})
     if not files:
-        raise BackendUnavailable(f"harvesters: no GenTL producer (*.cti) found; pass --cti or set {ENV_VAR}")
+        raise BackendUnavailable(
+            f"harvesters: no GenTL producer (*.cti) found; pass --cti or set {ENV_VAR} "
+            f"(or --fake for the genicam package's test producer)"
+        )
     return files
 
 
-def _harvester(cti: list[str] | None) -> Harvester:
+def _harvester(cti: list[str] | None, fake: bool = False) -> Harvester:
     h = Harvester()
-    for path in cti_files(cti):
+    for path in cti_files(cti, fake):
         h.add_file(str(path))
     h.update()
     return h
@@ -76,8 +91,8 @@ def _info_str(info: Any, attr: str) -> str:
         return ""
 
 
-def discover(cti: list[str] | None = None, **_: Any) -> list[DeviceEntry]:
-    h = _harvester(cti)
+def discover(cti: list[str] | None = None, fake: bool = False, **_: Any) -> list[DeviceEntry]:
+    h = _harvester(cti, fake)
     try:
         return [
             DeviceEntry(
@@ -93,13 +108,15 @@ def discover(cti: list[str] | None = None, **_: Any) -> list[DeviceEntry]:
         h.reset()
 
 
-def open_transport(device_id: str | None = None, cti: list[str] | None = None, **_: Any) -> HarvestersTransport:
-    h = _harvester(cti)
+def open_transport(
+    device_id: str | None = None, cti: list[str] | None = None, fake: bool = False, **_: Any
+) -> HarvestersTransport:
+    h = _harvester(cti, fake)
     ids = [_info_str(d, "id_") for d in h.device_info_list]
     if not ids or (device_id is not None and device_id not in ids):
         h.reset()
         raise unknown_device("harvesters", device_id or "<first>", ids)
-    return HarvestersTransport(h, device_id or ids[0], cti)
+    return HarvestersTransport(h, device_id or ids[0], cti, fake)
 
 
 class IncompleteBuffers(Callback):
@@ -117,9 +134,10 @@ class HarvestersTransport:
 
     backend = "harvesters"
 
-    def __init__(self, harvester: Harvester, device_id: str, cti: list[str] | None):
+    def __init__(self, harvester: Harvester, device_id: str, cti: list[str] | None, fake: bool = False):
         self.device_id = device_id
         self._cti = cti
+        self._fake = fake
         self._h = harvester
         self._open()
 
@@ -228,7 +246,7 @@ class HarvestersTransport:
 
     def reconnect(self) -> None:
         self.close()
-        self._h = _harvester(self._cti)
+        self._h = _harvester(self._cti, self._fake)
         self._open()
 
     def close(self) -> None:

@@ -146,11 +146,16 @@ class Settings:
 
 @dataclass(frozen=True)
 class Frame:
+    """A decoded frame. ``bayer``: the colour filter layout of a raw colour image (``"RG"``, ``"GR"``, ``"GB"``,
+    ``"BG"``: the filters of the first row's first two pixels, `uwlab.drivers.camera.pixels.bayer_sites`) as this
+    camera delivers it (its profile may correct the format's name); None for a monochrome image."""
+
     frame_id: int
     timestamp_ns: int
     image: np.ndarray
     pixel_format: str
     settings: Settings
+    bayer: str | None = None
 
 
 @dataclass
@@ -415,6 +420,24 @@ class Camera:
         self.transport.set("PixelFormat", name)
         self._refresh()
 
+    @property
+    def bayer_layout(self) -> str | None:
+        """The colour filter layout of the current pixel format on this camera (None: monochrome)."""
+        return self.profile.bayer_layout(self.pixel_format)
+
+    def check_bayer(self, layout: str) -> None:
+        """Refuse (`ConfigError`) when the device's pixel format does not deliver the colour filter ``layout``
+        the caller expects (e.g. a colour sensor profile's or the operator's)."""
+        if layout != self.bayer_layout:
+            pf = self.pixel_format
+            raise ConfigError(
+                "bayer",
+                layout,
+                f"the device's PixelFormat {pf} is "
+                f"{f'Bayer {self.bayer_layout}' if self.bayer_layout else 'monochrome'}"
+                f" on {self.info.vendor} {self.info.model}".rstrip(),
+            )
+
     @_survives_outages
     def set_roi(self, x: int, y: int, width: int, height: int) -> None:
         """Region of interest in (binned) pixels; offsets are zeroed first so that every
@@ -575,7 +598,9 @@ class Camera:
     def _decode(self, raw: RawFrame) -> Frame:
         fmt = pixel_format(raw.pixel_format)
         image = unpack(raw.data, fmt, raw.width, raw.height)
-        return Frame(raw.frame_id, raw.timestamp_ns, image, fmt.name, self._state.in_force)
+        return Frame(
+            raw.frame_id, raw.timestamp_ns, image, fmt.name, self._state.in_force, self.profile.bayer_layout(fmt.name)
+        )
 
     # -- outages ------------------------------------------------------------------------------
     def _reconnect(self, lost: DeviceLost, outage: _Outage) -> None:

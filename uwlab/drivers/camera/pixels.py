@@ -1,6 +1,6 @@
-"""Monochrome pixel formats: PFNC codes, bit depths, packing and vectorised unpacking.
+"""Monochrome and Bayer (raw colour) pixel formats: PFNC codes, bit depths, packing and vectorised unpacking.
 
-Layouts follow the GenICam Pixel Format Naming Convention (PFNC 2.x) and, for the two legacy
+Layouts follow the GenICam Pixel Format Naming Convention (PFNC 2.x) and, for the legacy
 GigE Vision ``*Packed`` formats, the GigE Vision 1.2 specification (section "Pixel formats"):
 
 * ``Mono8``: one byte per pixel.
@@ -10,7 +10,14 @@ GigE Vision ``*Packed`` formats, the GigE Vision 1.2 specification (section "Pix
 * ``Mono10Packed``, ``Mono12Packed`` (GigE Vision legacy): 2 pixels in 3 bytes; bytes 0 and 2
   hold the 8 MSBs of pixel 0 and 1, byte 1 holds their LSBs (pixel 0 in bits 0-3, pixel 1 in 4-7).
 
-Every decoded image is a C-contiguous ``uint8`` (Mono8) or ``uint16`` array of shape (height, width).
+A Bayer format ``Bayer<XY><n>[p|Packed]`` is packed exactly as ``Mono<n>[p|Packed]`` (PFNC: the packing is
+independent of the colour filter); ``XY`` names the filters of the first two pixels of the first row, the second
+row holding the other two (PFNC "Bayer" components: ``RG`` is R G / G B, ``GR`` is G R / B G, ``GB`` is
+G B / R G, ``BG`` is B G / G R). PFNC defines Bayer 8, 10, 12 and 16 bits unpacked, 10p and 12p, and the GigE
+Vision legacy 10Packed and 12Packed; `bayer_sites` gives each colour's positions in the 2 × 2 cell.
+
+Every decoded image is a C-contiguous ``uint8`` (8-bit formats) or ``uint16`` array of shape (height, width):
+a Bayer image stays the raw mosaic (no demosaicing: each pixel is its own filter's measurement).
 """
 
 from __future__ import annotations
@@ -31,6 +38,13 @@ class PixelFormat:
     code: int
     bits: int
     bits_per_pixel: int
+    bayer: str | None = None
+
+    @property
+    def packing(self) -> str:
+        """``""`` (one byte or one little-endian word per pixel), ``"p"`` (PFNC LSB-first bit stream) or
+        ``"Packed"`` (GigE Vision legacy)."""
+        return "Packed" if self.name.endswith("Packed") else "p" if self.name.endswith("p") else ""
 
     @property
     def dtype(self) -> np.dtype:
@@ -57,8 +71,46 @@ PIXEL_FORMATS: dict[str, PixelFormat] = {
         PixelFormat("Mono12Packed", 0x010C0006, 12, 12),
         PixelFormat("Mono14", 0x01100025, 14, 16),
         PixelFormat("Mono16", 0x01100007, 16, 16),
+        # PFNC 2.x Bayer codes, per layout: (8, 10, 12, 16, 10p, 12p, 10Packed, 12Packed)
+        *(
+            PixelFormat(f"Bayer{layout}{suffix}", code, bits, wire, layout)
+            for layout, codes in (
+                (
+                    "GR",
+                    (0x01080008, 0x0110000C, 0x01100010, 0x0110002E, 0x010A0056, 0x010C0057, 0x010C0026, 0x010C002A),
+                ),
+                (
+                    "RG",
+                    (0x01080009, 0x0110000D, 0x01100011, 0x0110002F, 0x010A0058, 0x010C0059, 0x010C0027, 0x010C002B),
+                ),
+                (
+                    "GB",
+                    (0x0108000A, 0x0110000E, 0x01100012, 0x01100030, 0x010A0054, 0x010C0055, 0x010C0028, 0x010C002C),
+                ),
+                (
+                    "BG",
+                    (0x0108000B, 0x0110000F, 0x01100013, 0x01100031, 0x010A0052, 0x010C0053, 0x010C0029, 0x010C002D),
+                ),
+            )
+            for (suffix, bits, wire), code in zip(
+                (
+                    ("8", 8, 8),
+                    ("10", 10, 16),
+                    ("12", 12, 16),
+                    ("16", 16, 16),
+                    ("10p", 10, 10),
+                    ("12p", 12, 12),
+                    ("10Packed", 10, 12),
+                    ("12Packed", 12, 12),
+                ),
+                codes,
+                strict=True,
+            )
+        ),
     )
 }
+MONO_FORMATS = tuple(name for name, pf in PIXEL_FORMATS.items() if pf.bayer is None)
+BAYER_LAYOUTS = ("RG", "GR", "GB", "BG")
 _BY_CODE = {pf.code: pf for pf in PIXEL_FORMATS.values()}
 
 
@@ -69,6 +121,30 @@ def pixel_format(name_or_code: str | int) -> PixelFormat:
         shown = f"0x{name_or_code:08X}" if isinstance(name_or_code, int) else name_or_code
         raise ConfigError("pixel_format", shown, f"unsupported; supported: {', '.join(PIXEL_FORMATS)}")
     return found
+
+
+def bayer_formats(layout: str) -> tuple[str, ...]:
+    """Every Bayer format of one colour filter ``layout`` (``"RG"``, ``"GR"``, ``"GB"``, ``"BG"``)."""
+    return tuple(name for name, pf in PIXEL_FORMATS.items() if pf.bayer == layout)
+
+
+def bayer_sites(layout: str, x0: int = 0, y0: int = 0) -> dict[str, tuple[tuple[int, int], ...]]:
+    """The (row, column) offsets in the repeating 2 × 2 cell of each colour, ``{"R": ..., "G": (two), "B": ...}``,
+    for a mosaic of ``layout`` seen from pixel (x0, y0) on (a crop starting there: odd offsets shift the phase).
+
+    >>> bayer_sites("RG")
+    {'R': ((0, 0),), 'G': ((0, 1), (1, 0)), 'B': ((1, 1),)}
+    >>> bayer_sites("RG", x0=1)
+    {'R': ((0, 1),), 'G': ((0, 0), (1, 1)), 'B': ((1, 0),)}
+    """
+    if layout not in BAYER_LAYOUTS:
+        raise ConfigError("bayer", layout, f"expected one of {', '.join(BAYER_LAYOUTS)}")
+    first, second = layout, {"R": "B", "B": "R", "G": "G"}[layout[1]] + {"R": "B", "B": "R", "G": "G"}[layout[0]]
+    colours = {(0, 0): first[0], (0, 1): first[1], (1, 0): second[0], (1, 1): second[1]}
+    sites: dict[str, list[tuple[int, int]]] = {"R": [], "G": [], "B": []}
+    for (row, col), colour in colours.items():
+        sites[colour].append(((row - y0) % 2, (col - x0) % 2))
+    return {colour: tuple(sorted(cells)) for colour, cells in sites.items()}
 
 
 def _groups(raw: np.ndarray, group_bytes: int, n_pixels: int, pixels_per_group: int) -> np.ndarray:
@@ -117,7 +193,7 @@ def _pack_10p(img: np.ndarray) -> np.ndarray:
     out[:, 2] = (p[:, 1] >> 6) | ((p[:, 2] & 0x0F) << 4)
     out[:, 3] = (p[:, 2] >> 4) | ((p[:, 3] & 0x03) << 6)
     out[:, 4] = p[:, 3] >> 2
-    return out.reshape(-1)[: PIXEL_FORMATS["Mono10p"].payload_bytes(img.size, 1)]
+    return out.reshape(-1)[: -(-img.size * 10 // 8)]
 
 
 def _pack_12p(img: np.ndarray) -> np.ndarray:
@@ -126,7 +202,7 @@ def _pack_12p(img: np.ndarray) -> np.ndarray:
     out[:, 0] = p[:, 0] & 0xFF
     out[:, 1] = (p[:, 0] >> 8) | ((p[:, 1] & 0x0F) << 4)
     out[:, 2] = p[:, 1] >> 4
-    return out.reshape(-1)[: PIXEL_FORMATS["Mono12p"].payload_bytes(img.size, 1)]
+    return out.reshape(-1)[: -(-img.size * 12 // 8)]
 
 
 def _pack_legacy(img: np.ndarray, lsb_bits: int) -> np.ndarray:
@@ -145,24 +221,25 @@ def _padded(img: np.ndarray, group: int) -> np.ndarray:
     return np.concatenate([flat, np.zeros(extra, np.uint16)]) if extra else flat
 
 
+# (bits, packing) -> codec; Mono and Bayer formats share them
 _UNPACK = {
-    "Mono10p": _unpack_10p,
-    "Mono12p": _unpack_12p,
-    "Mono10Packed": lambda raw, n: _unpack_legacy(raw, n, 2),
-    "Mono12Packed": lambda raw, n: _unpack_legacy(raw, n, 4),
+    (10, "p"): _unpack_10p,
+    (12, "p"): _unpack_12p,
+    (10, "Packed"): lambda raw, n: _unpack_legacy(raw, n, 2),
+    (12, "Packed"): lambda raw, n: _unpack_legacy(raw, n, 4),
 }
 _PACK = {
-    "Mono10p": _pack_10p,
-    "Mono12p": _pack_12p,
-    "Mono10Packed": lambda img: _pack_legacy(img, 2),
-    "Mono12Packed": lambda img: _pack_legacy(img, 4),
+    (10, "p"): _pack_10p,
+    (12, "p"): _pack_12p,
+    (10, "Packed"): lambda img: _pack_legacy(img, 2),
+    (12, "Packed"): lambda img: _pack_legacy(img, 4),
 }
 
 
 def pack(image: np.ndarray, fmt: PixelFormat) -> np.ndarray:
     """Encode a decoded image into the wire bytes of ``fmt`` (1-D ``uint8``)."""
-    if fmt.name in _PACK:
-        return _PACK[fmt.name](image)
+    if fmt.packing:
+        return _PACK[fmt.bits, fmt.packing](image)
     return np.ascontiguousarray(image, dtype=fmt.dtype).reshape(-1).view(np.uint8)
 
 
@@ -177,8 +254,8 @@ def unpack(raw: np.ndarray | bytes | memoryview, fmt: PixelFormat, width: int, h
         return raw
     data = np.frombuffer(raw, np.uint8) if not isinstance(raw, np.ndarray) else raw.reshape(-1).view(np.uint8)
     n = width * height
-    if fmt.name in _UNPACK:
-        return _UNPACK[fmt.name](data, n).reshape(height, width)
+    if fmt.packing:
+        return _UNPACK[fmt.bits, fmt.packing](data, n).reshape(height, width)
     need = n * fmt.dtype.itemsize
     if data.size < need:
         raise ConfigError("payload", data.size, f"too short for {width}x{height} {fmt.name} ({need} bytes)")

@@ -2,7 +2,8 @@
 
 A profile is data, never code: for every interface quantity it lists the candidate device
 features in order of preference (the first one the device exposes is used) with a linear
-conversion ``interface_value = device_value * scale + offset``. Feature names follow the GenICam
+conversion ``interface_value = device_value * scale + offset`` or, for a device gain given as an amplitude
+factor, its decibels ``interface_value = 20 log10(device_value * scale + offset)``. Feature names follow the GenICam
 Standard Features Naming Convention (SFNC 2.x) unless a vendor's documented legacy names differ:
 
 * FLIR Blackfly S (Spinnaker SFNC): ``ExposureTime`` [µs], ``Gain`` [dB], ``BlackLevel``,
@@ -10,8 +11,12 @@ Standard Features Naming Convention (SFNC 2.x) unless a vendor's documented lega
 * Allied Vision GT / Prosilica (GigE legacy "Abs"/"Raw" names, AVT GigE features reference):
   ``ExposureTimeAbs`` [µs], ``Gain`` [dB] or ``GainRaw`` [dB on GT/GC models], ``BlackLevel``,
   ``AcquisitionFrameRateAbs`` [Hz], ``DeviceTemperature`` [°C], ``GevSCPSPacketSize``.
-* Aravis fake camera (``src/arv-fake-camera.xml``): ``ExposureTimeAbs`` [µs], ``GainRaw``
-  (unitless 0-10, taken as dB), ``AcquisitionFrameRate``; no black level or temperature.
+* Aravis fake camera (``src/arv-fake-camera.xml``, image from ``arv_fake_camera_diagonal_ramp`` in
+  ``src/arvfakecamera.c``, Aravis 0.8): ``ExposureTimeAbs`` [µs], ``GainRaw`` (integer 0-10): the fake multiplies
+  its ramp by ``1 + GainRaw + log10(t_exp / 10 ms)``, so at its default 10 ms exposure ``GainRaw`` = g is an
+  amplitude gain of 1 + g, i.e. 20 log10(1 + g) dB (g = 1: 6.02 dB, g = 10: 20.8 dB);
+  ``AcquisitionFrameRate`` [Hz]; no black level or temperature. Its ``BayerRG8`` and ``BayerBG8`` mosaics are
+  each other's (red at (0, 0) in BayerBG8), a quirk its profile records in ``bayer_layouts``.
 * Viky (the GenTL test producer in the ``genicam`` wheel): geometry, ``PixelFormat`` and
   ``AcquisitionFrameRate`` only.
 
@@ -21,8 +26,11 @@ fallback when no vendor/model pattern matches.
 
 from __future__ import annotations
 
+import math
 import re
 from dataclasses import dataclass
+
+from uwlab.drivers.camera.pixels import pixel_format
 
 
 @dataclass(frozen=True)
@@ -32,12 +40,17 @@ class Feature:
     name: str
     scale: float = 1.0
     offset: float = 0.0
+    decibel: bool = False
 
     def to_interface(self, device_value: float) -> float:
-        return float(device_value) * self.scale + self.offset
+        linear = float(device_value) * self.scale + self.offset
+        if not self.decibel:
+            return linear
+        return 20.0 * math.log10(linear) if linear > 0 else -math.inf
 
     def to_device(self, interface_value: float) -> float:
-        return (float(interface_value) - self.offset) / self.scale
+        linear = 10.0 ** (float(interface_value) / 20.0) if self.decibel else float(interface_value)
+        return (linear - self.offset) / self.scale
 
 
 SFNC_EXPOSURE = (Feature("ExposureTime"), Feature("ExposureTimeAbs"))
@@ -67,6 +80,13 @@ class VendorProfile:
     packet_size: str | None = "GevSCPSPacketSize"
     firmware: tuple[str, ...] = ("DeviceFirmwareVersion", "DeviceVersion")
     serial: tuple[str, ...] = ("DeviceSerialNumber", "DeviceID")
+    bayer_layouts: tuple[tuple[str, str], ...] = ()
+
+    def bayer_layout(self, format_name: str) -> str | None:
+        """The colour filter layout of ``format_name`` on this camera (``"RG"``: red at (0, 0), green at (0, 1)
+        and (1, 0), blue at (1, 1), ...): the PFNC layout of the format unless the profile records that the
+        device's mosaic differs; None for a monochrome format."""
+        return dict(self.bayer_layouts).get(format_name, pixel_format(format_name).bayer)
 
     def matches(self, vendor: str, model: str) -> bool:
         return bool(re.search(self.vendor, vendor or "", re.I) and re.search(self.model, model or "", re.I))
@@ -99,13 +119,14 @@ PROFILES: tuple[VendorProfile, ...] = (
         vendor=r"^Aravis$",
         model=r"Fake",
         exposure_us=(Feature("ExposureTimeAbs"),),
-        gain_db=(Feature("GainRaw"),),
+        gain_db=(Feature("GainRaw", offset=1.0, decibel=True),),
         black_level=(),
         frame_rate_hz=(Feature("AcquisitionFrameRate"),),
         temperature_c=(),
         frame_rate_enable=(),
         auto_off=(("GainAuto", "Off"),),
         trigger_selector=(("TriggerSelector", "FrameStart"),),
+        bayer_layouts=(("BayerRG8", "BG"), ("BayerBG8", "RG")),
     ),
     VendorProfile(
         "viky",

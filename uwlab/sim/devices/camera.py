@@ -46,7 +46,7 @@ from typing import Any
 import numpy as np
 
 from uwlab.drivers.camera.interface import DeviceEntry, DeviceLost, FrameTimeout, RawFrame, unknown_device
-from uwlab.drivers.camera.pixels import PIXEL_FORMATS, pack, pixel_format
+from uwlab.drivers.camera.pixels import MONO_FORMATS, bayer_formats, pack, pixel_format
 from uwlab.errors import ConfigError, DeviceError
 
 NOISE_BANK_MARGIN = 1 << 20
@@ -77,11 +77,13 @@ class SimTruth:
     dark_current_doubling_c: float | None = None
     hot_pixel_fraction: float = 0.0
     hot_pixel_dark_current_e_per_s: float = 0.0
+    bayer: str | None = None
 
     @classmethod
     def from_sensor_profile(cls, profile: Any, **overrides: Any) -> SimTruth:
         names = {f.name for f in fields(cls)}
         values = {n: getattr(profile, n) for n in names if hasattr(profile, n)}
+        values["bayer"] = getattr(profile, "bayer", None) if getattr(profile, "color", False) else None
         values["resolution_px"] = tuple(int(v) for v in values["resolution_px"])
         return cls(**{**values, **overrides})
 
@@ -316,7 +318,8 @@ class SimNodeMap:
     def __init__(self, truth: SimTruth, serial: str = "SIM0001"):
         self.truth = truth
         width, height = truth.resolution_px
-        fmts = tuple(PIXEL_FORMATS)
+        fmts = bayer_formats(truth.bayer) if truth.bayer else MONO_FORMATS
+        kind = f"Bayer{truth.bayer}" if truth.bayer else "Mono"
         self.nodes: dict[str, _Node] = {
             "DeviceVendorName": _Node("str", "uwlab", writable=False),
             "DeviceModelName": _Node("str", f"SimCam-{truth.name}", writable=False),
@@ -332,7 +335,7 @@ class SimNodeMap:
             ),
             "OffsetX": _Node("int", 0, lambda: (0, width // self.value("BinningHorizontal") - self.value("Width"))),
             "OffsetY": _Node("int", 0, lambda: (0, height // self.value("BinningVertical") - self.value("Height"))),
-            "PixelFormat": _Node("enum", "Mono8" if truth.bit_depth <= 8 else "Mono16", entries=fmts),
+            "PixelFormat": _Node("enum", f"{kind}8" if truth.bit_depth <= 8 else f"{kind}16", entries=fmts),
             "PayloadSize": _Node("int", 0, writable=False),
             "ExposureTime": _Node(
                 "float",

@@ -1,7 +1,7 @@
 """GigE Vision server for the simulated camera: a minimal GVCP/GVSP device on a loopback address.
 
 Why our own responder rather than Aravis's `ArvGvFakeCamera`: the fake camera's register map
-and XML are fixed (``ExposureTimeAbs``, ``GainRaw``, Mono8/Mono16 only), its fill callback cannot
+and XML are fixed (``ExposureTimeAbs``, ``GainRaw``, Mono8/Mono16, 8-bit Bayer), its fill callback cannot
 be set from Python safely, and its received size follows its own default pattern. Here every
 register is backed by `SimNodeMap`, so exposure, gain, black level, ROI/binning and all Mono
 pixel formats (packed ones included) reach the EMVA 1288 renderer (`SimSensor`), and faults can

@@ -97,7 +97,11 @@ def _feature_xml(name: str, nodes: object, addr: dict[tuple[str, str], int]) -> 
     node = nodes.nodes[name]
     access = "RW" if node.writable else "RO"
     if name in ENUM_VALUES:
-        entries = "".join(f'<EnumEntry Name="{e}"><Value>{v}</Value></EnumEntry>' for e, v in ENUM_VALUES[name].items())
+        entries = "".join(
+            f'<EnumEntry Name="{e}"><Value>{v}</Value></EnumEntry>'
+            for e, v in ENUM_VALUES[name].items()
+            if e in node.entries
+        )
         return [
             f'<Enumeration Name="{name}" NameSpace="Standard">{entries}<pValue>{name}Reg</pValue></Enumeration>',
             _int_reg(name, addr[(name, "value")], "RW"),
