@@ -10,7 +10,9 @@ The simulated detector: each optical pixel collects ``signal_counts_per_s`` (lig
 (thermal) for the integration time — linear counts x — and reads ``electric_dark_counts + x / (1 + a·x)`` (a
 sublinear response, exactly undone by seabreeze's correction ``x' = x / p(x)`` with the stored coefficients
 ``[1, −a]``), clipped at ``max_intensity``; the masked pixels ``dark_pixel_indices`` read the electric-dark level
-only.
+only. A device without masked pixels is nonlinear in its whole raw reading ``r ↦ r / (1 + a·r)``, since seabreeze
+evaluates the polynomial on raw counts when there is no electric-dark level to subtract: either way the stored
+coefficients are exact under seabreeze's correction, which is what they are for.
 
 The lamp: a blackbody at `LAMP_TEMPERATURE_K` (Planck's law, CODATA 2018 constants) scaled to
 `LAMP_W_M2_NM_AT_560` at 560 nm — a quartz-tungsten-halogen calibration lamp's shape; the calibration file
@@ -85,10 +87,13 @@ class SimulatedDevice:
         t_s = self.integration_us * 1e-6
         signal = np.zeros_like(self.wavelength_nm) if self.signal_counts_per_s is None else self.signal_counts_per_s
         x = (signal * self.light_on + self.dark_counts_per_s) * t_s
-        if self.nonlinearity_a is not None:
+        offset = self.electric_dark_counts
+        if self.nonlinearity_a is not None and self.dark_pixel_indices:
             x = x / (1.0 + self.nonlinearity_a * x)
-        raw = self.electric_dark_counts + x
-        raw[self.dark_pixel_indices] = self.electric_dark_counts
+        raw = offset + x
+        if self.nonlinearity_a is not None and not self.dark_pixel_indices:
+            raw = raw / (1.0 + self.nonlinearity_a * raw)
+        raw[self.dark_pixel_indices] = offset
         return np.minimum(raw, self.max_intensity)
 
 
@@ -250,3 +255,29 @@ def api_mismatches() -> list[str]:
             + _mismatches(_NonlinearityFeature, SeaBreezeNonlinearityCoefficientsFeature, "f.nonlinearity_coefficients")
             + [f"f.{name}: not a seabreeze feature" for name in vars(_Features(SimulatedDevice()))
                if name not in accessor])
+
+
+def neighbour_spread_nm(wavelength_nm: np.ndarray) -> np.ndarray:
+    """The pixel's wavelength spread, written out: mean distance to the two neighbours, one neighbour at the ends."""
+    n = len(wavelength_nm)
+    spread = np.empty(n)
+    for i in range(n):
+        left = wavelength_nm[i] - wavelength_nm[i - 1] if i > 0 else None
+        right = wavelength_nm[i + 1] - wavelength_nm[i] if i < n - 1 else None
+        sides = [d for d in (left, right) if d is not None]
+        spread[i] = sum(sides) / len(sides)
+    return spread
+
+
+def lamp_counts_per_s(device: SimulatedDevice, area_cm2: float = CC3_AREA_CM2) -> np.ndarray:
+    """Counts per second the lamp gives each pixel: the inverse relation S/T = E[µW/cm²/nm] · A · dλ / C."""
+    wavelength_nm = device.wavelength_nm
+    e_uw_cm2_nm = lamp_w_m2_nm(wavelength_nm) * 1e6 / 1e4  # W/m² → µW/cm²
+    return e_uw_cm2_nm * area_cm2 * neighbour_spread_nm(wavelength_nm) / calibration_uj_per_count(wavelength_nm)
+
+
+def optical(device: SimulatedDevice) -> np.ndarray:
+    """The pixels that see light (not the masked electric-dark ones)."""
+    mask = np.ones(device.wavelength_nm.size, dtype=bool)
+    mask[device.dark_pixel_indices] = False
+    return mask
