@@ -10,13 +10,12 @@ from __future__ import annotations
 import json
 import sys
 
-from uwlab.drivers.ocean_insight import load_definition, open_ocean_insight, read_calibration, read_dark, write_dark
-from uwlab.drivers.ocean_insight.definition import BACKENDS, CollectionAreaCm2
+from uwlab.drivers.ocean_insight import open_instrument, read_dark, write_dark
+from uwlab.drivers.ocean_insight.definition import BACKENDS
 from uwlab.drivers.serial import PROTOCOLS, open_spectrometer
 from uwlab.drivers.serial.base import check_averaging, check_integration_ms
 from uwlab.errors import ConfigError
 from uwlab.experiments.acquisition.spectra import read_sekonic_csv, spectrum_summary, write_spectrum_csv
-from uwlab.model.schema import check
 from uwlab.outputs import output_file
 
 OCEAN_ONLY = ("resource", "calibration", "area_cm2", "dark", "dark_now", "save_dark", "auto_integration", "backend")
@@ -108,16 +107,12 @@ def _confirm(message: str) -> None:
 def _measure_ocean(args) -> tuple[tuple, bool, dict, object]:
     """((wavelength_nm, irradiance_w_m2_nm), saturated, what the reading used, the dark measured now or None)
     from a seabreeze spectrometer; every file and value is checked before the device is opened."""
-    definition = load_definition(args.instrument)
     if args.calibration is None:
         raise ConfigError("calibration", None, "--instrument needs --calibration FILE.csv (wavelength_nm, "
                                                "uJ_per_count)")
     if args.save_dark is not None and not args.dark_now:
         raise ConfigError("save-dark", args.save_dark, "needs --dark-now")
-    calibration = read_calibration(args.calibration)
-    area_cm2 = (definition.collection_area_cm2 if args.area_cm2 is None
-                else check(CollectionAreaCm2, args.area_cm2, "area_cm2"))
-    integration_ms = definition.default_integration_ms if args.integration_ms is None else \
+    if args.integration_ms is not None:
         check_integration_ms(args.integration_ms)
     averaging = None if args.average is None else check_averaging(args.average)
     dark_file = None if args.dark is None else read_dark(args.dark)
@@ -125,9 +120,8 @@ def _measure_ocean(args) -> tuple[tuple, bool, dict, object]:
         raise ConfigError("dark", args.dark, "a dark file fixes the integration time; use --dark-now with "
                                              "--auto-integration")
     dark_mode = "electric" if dark_file is None and not args.dark_now else "measured"
-    with open_ocean_insight(args.resource, calibration, area_cm2, backend=args.backend or definition.backend,
-                            dark_mode=dark_mode, nonlinearity=definition.nonlinearity_correction,
-                            integration_ms=integration_ms, calibration_source=args.calibration) as spectrometer:
+    with open_instrument(args.instrument, args.resource, args.calibration, args.area_cm2, backend=args.backend,
+                         integration_ms=args.integration_ms, dark_mode=dark_mode) as spectrometer:
         if averaging is not None:
             spectrometer.set_averaging(averaging)
         if args.auto_integration:
@@ -143,7 +137,7 @@ def _measure_ocean(args) -> tuple[tuple, bool, dict, object]:
         spectrum = spectrometer.read_spectrum()
         details = {"integration_ms": spectrometer.integration_ms(), "averaging": spectrometer.averaging(),
                    "serial": spectrometer.serial, "model": spectrometer.model, "dark": spectrometer.dark_mode,
-                   "nonlinearity_corrected": spectrometer.nonlinearity_corrected, "area_cm2": area_cm2,
+                   "nonlinearity_corrected": spectrometer.nonlinearity_corrected, "area_cm2": spectrometer.area_cm2,
                    "calibration": args.calibration}
         return spectrum, spectrometer.last_saturated, details, dark
 

@@ -7,6 +7,7 @@ from uwlab.drivers.ocean_insight.definition import OceanInsightDefinition, load_
 from uwlab.drivers.ocean_insight.device import (
     DarkSpectrum,
     OceanInsightSpectrometer,
+    open_instrument,
     open_ocean_insight,
     read_dark,
     write_dark,
@@ -14,4 +15,4 @@ from uwlab.drivers.ocean_insight.device import (
 from uwlab.drivers.ocean_insight.radiometry import read_calibration
 
 __all__ = ["DarkSpectrum", "OceanInsightDefinition", "OceanInsightSpectrometer", "load_definition",
-           "open_ocean_insight", "read_calibration", "read_dark", "write_dark"]
+           "open_instrument", "open_ocean_insight", "read_calibration", "read_dark", "write_dark"]

@@ -18,7 +18,8 @@ dark-subtracted value sits ~2 % below full scale on a typical 16-bit device.
 Dark D of the irradiance relation (`dark_mode`): "electric" (the device's electric-dark pixels, where it has
 them), "measured" (a `DarkSpectrum` at the same integration time with the light blocked: `measure_dark`,
 `use_dark`, `read_dark` / `write_dark`; a dark at another integration time is refused) or "none" (a rig whose
-sweep subtracts its own light-off reading). seabreeze cannot read the integration time back: the read-back is
+sweep subtracts its own light-off reading); "auto" is "electric" where the device has the pixels, else "none" (what
+a rig opens with). seabreeze cannot read the integration time back: the read-back is
 the value the device accepted last (set on opening to the definition's ``default_integration_ms``). Averaging is
 done here (``averaging`` acquisitions, each corrected, averaged); a reading is saturated if any acquisition was.
 """
@@ -40,11 +41,14 @@ from uwlab.drivers.ocean_insight.radiometry import (
     next_integration_us,
     saturated,
 )
-from uwlab.drivers.serial.base import Spectrometer, check_averaging
+from uwlab.drivers.ocean_insight.definition import CollectionAreaCm2, load_definition
+from uwlab.drivers.ocean_insight.radiometry import read_calibration
+from uwlab.drivers.serial.base import Spectrometer, check_averaging, check_integration_ms
 from uwlab.errors import ConfigError, DeviceError
 from uwlab.model.data import read_csv_columns
+from uwlab.model.schema import check
 
-DarkMode = Literal["electric", "measured", "none"]
+DarkMode = Literal["electric", "measured", "none", "auto"]
 AUTO_STEPS = 12
 DARK_COLUMNS = ("wavelength_nm", "dark_counts", "integration_ms")
 WAVELENGTH_MATCH_NM = 1e-6
@@ -154,7 +158,9 @@ class OceanInsightSpectrometer(Spectrometer):
         self._integration_us = 0
         try:
             self.uj_per_count = calibration_on(*calibration, self.wavelength_nm, calibration_source)
-            if dark_mode == "electric" and not self._dark_indices:
+            if dark_mode == "auto":
+                self.dark_mode = "electric" if self._dark_indices else "none"
+            elif dark_mode == "electric" and not self._dark_indices:
                 raise ConfigError("dark", "electric", f"{self.model} {self.serial} has no electric-dark pixels; "
                                                       "measure a dark spectrum (--dark FILE or --dark-now)")
             self.set_integration_ms(integration_ms)
@@ -322,3 +328,19 @@ def open_ocean_insight(resource: str | None, calibration: tuple[np.ndarray, np.n
         raise DeviceError(f"{found}: not found through seabreeze's {resolve_backend(backend)} backend ({exc})") \
             from None
     return OceanInsightSpectrometer(device, calibration, area_cm2, **options)
+
+
+def open_instrument(name: str, resource: str | None, calibration: str | Path, area_cm2: float | None = None, *,
+                    backend: str | None = None, integration_ms: float | None = None,
+                    dark_mode: DarkMode = "electric") -> OceanInsightSpectrometer:
+    """Open the spectrometer of instrument definition ``name`` (``configs/instruments/<name>.toml``) with the
+    calibration file ``calibration``; ``area_cm2``, ``backend`` and ``integration_ms`` default to the definition's.
+    The definition, the calibration file and the values are checked before the device is opened."""
+    definition = load_definition(name)
+    uj_per_count = read_calibration(calibration)
+    area_cm2 = definition.collection_area_cm2 if area_cm2 is None else check(CollectionAreaCm2, area_cm2, "area_cm2")
+    integration_ms = definition.default_integration_ms if integration_ms is None else \
+        check_integration_ms(integration_ms)
+    return open_ocean_insight(resource, uj_per_count, area_cm2, backend=backend or definition.backend,
+                              dark_mode=dark_mode, nonlinearity=definition.nonlinearity_correction,
+                              integration_ms=integration_ms, calibration_source=str(calibration))
