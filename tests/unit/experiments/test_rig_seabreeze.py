@@ -53,3 +53,10 @@ def test_rig_without_electric_dark_leaves_the_dark_to_the_sweep(tmp_path, lamp):
 def test_one_spectrometer_per_rig(tmp_path):
     with pytest.raises(ConfigError, match="give at most one of spectrometer_port and seabreeze_spectrometer"):
         plan_with(tmp_path, spectrometer_port="/dev/ttyUSB1", seabreeze_spectrometer={"calibration": "lamp-cal.csv"})
+
+
+def test_identity_records_what_the_readings_use(tmp_path, lamp):
+    plan = plan_with(tmp_path, seabreeze_spectrometer={"calibration": "lamp-cal.csv"})
+    with HardwareRig(plan) as rig:
+        assert rig.spectrometer.identity() == ("Ocean Insight FLAMES FLMS01234 (dark electric, nonlinearity "
+                                               "corrected, A 0.1195 cm²)")

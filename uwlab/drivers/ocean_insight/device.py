@@ -179,7 +179,9 @@ class OceanInsightSpectrometer(Spectrometer):
         return 0
 
     def identity(self) -> str:
-        return f"Ocean Insight {self.model} {self.serial}"
+        """Model and serial number with what its readings use (recorded with a sweep's devices)."""
+        return (f"Ocean Insight {self.model} {self.serial} (dark {self.dark_mode}, nonlinearity "
+                f"{'corrected' if self.nonlinearity_corrected else 'not corrected'}, A {self.area_cm2:g} cm²)")
 
     def integration_ms_limits(self) -> tuple[float, float]:
         """The device's integration range [ms] (seabreeze's ``integration_time_micros_limits``)."""
