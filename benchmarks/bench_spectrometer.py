@@ -10,6 +10,7 @@ included) and through the conversion alone.
 
 Usage: python benchmarks/bench_spectrometer.py [--spectra N]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -57,8 +58,9 @@ def main() -> None:
     device.signal_counts_per_s = lamp_counts_per_s(device)
     mask = optical(device)
     calibration = read_calibration(DATA / "ocean_insight_calibration_3100k.csv")
-    with OceanInsightSpectrometer(fake_seabreeze(device).from_serial_number(None), calibration, CC3_AREA_CM2,
-                                  integration_ms=INTEGRATION_MS) as spectrometer:
+    with OceanInsightSpectrometer(
+        fake_seabreeze(device).from_serial_number(None), calibration, CC3_AREA_CM2, integration_ms=INTEGRATION_MS
+    ) as spectrometer:
         wavelength_nm, irradiance = spectrometer.read_spectrum()
         raw = device.raw()
         independent = independent_w_m2_nm(device, raw, INTEGRATION_MS / 1000)
@@ -69,20 +71,26 @@ def main() -> None:
         counts, _ = spectrometer.read_counts()
         t0 = time.perf_counter()
         for _ in range(args.spectra):
-            irradiance_w_m2_nm(counts, 0.0, spectrometer.uj_per_count, INTEGRATION_MS / 1000, CC3_AREA_CM2,
-                               wavelength_nm)
+            irradiance_w_m2_nm(
+                counts, 0.0, spectrometer.uj_per_count, INTEGRATION_MS / 1000, CC3_AREA_CM2, wavelength_nm
+            )
         conversion_s = (time.perf_counter() - t0) / args.spectra
     truth = lamp_w_m2_nm(wavelength_nm)
-    print(json.dumps({
-        "pixels": int(wavelength_nm.size),
-        "integration_ms": INTEGRATION_MS,
-        "max_rel_error_vs_lamp": float(np.max(np.abs(irradiance[mask] / truth[mask] - 1))),
-        "max_rel_error_vs_independent": float(np.max(np.abs(irradiance[mask] / independent[mask] - 1))),
-        "target_rel_error": 1e-3,
-        "read_spectrum_ms": per_spectrum_s * 1e3,
-        "conversion_ms": conversion_s * 1e3,
-        "spectra": args.spectra,
-    }, indent=2))
+    print(
+        json.dumps(
+            {
+                "pixels": int(wavelength_nm.size),
+                "integration_ms": INTEGRATION_MS,
+                "max_rel_error_vs_lamp": float(np.max(np.abs(irradiance[mask] / truth[mask] - 1))),
+                "max_rel_error_vs_independent": float(np.max(np.abs(irradiance[mask] / independent[mask] - 1))),
+                "target_rel_error": 1e-3,
+                "read_spectrum_ms": per_spectrum_s * 1e3,
+                "conversion_ms": conversion_s * 1e3,
+                "spectra": args.spectra,
+            },
+            indent=2,
+        )
+    )
 
 
 if __name__ == "__main__":

@@ -7,6 +7,7 @@ the process imported (``-X importtime`` lines) for the median-free count.
 Targets (issue 10): ``uwlab --help`` ≤ 0.3 s; ``uwlab design CONFIG --json`` for one design ≤ 1.0 s.
 Usage: ``python benchmarks/bench_startup.py [RUNS]`` (default 7).
 """
+
 from __future__ import annotations
 
 import json
@@ -30,14 +31,25 @@ TARGETS_S = {"help": 0.3, "version": 0.3, "design_json": 1.0}
 
 def run(argv: list[str], env: dict) -> float:
     start = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "uwlab.cli.main", *argv], env=env, check=True,
-                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    subprocess.run(
+        [sys.executable, "-m", "uwlab.cli.main", *argv],
+        env=env,
+        check=True,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     return time.perf_counter() - start
 
 
 def modules_imported(argv: list[str], env: dict) -> int:
-    out = subprocess.run([sys.executable, "-X", "importtime", "-m", "uwlab.cli.main", *argv], env=env, check=True,
-                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    out = subprocess.run(
+        [sys.executable, "-X", "importtime", "-m", "uwlab.cli.main", *argv],
+        env=env,
+        check=True,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     return sum(line.startswith("import time:") for line in out.stderr.splitlines()) - 1  # minus the header
 
 
@@ -48,8 +60,11 @@ def main() -> None:
     for name, argv in COMMANDS.items():
         run(argv, env)  # warm the file cache and byte-code
         times = [run(argv, env) for _ in range(runs)]
-        entry = {"median_s": round(statistics.median(times), 3), "min_s": round(min(times), 3),
-                 "modules": modules_imported(argv, env)}
+        entry = {
+            "median_s": round(statistics.median(times), 3),
+            "min_s": round(min(times), 3),
+            "modules": modules_imported(argv, env),
+        }
         if name in TARGETS_S:
             entry["target_s"] = TARGETS_S[name]
             entry["meets_target"] = entry["median_s"] <= TARGETS_S[name]

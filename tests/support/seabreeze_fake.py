@@ -19,6 +19,7 @@ The lamp: a blackbody at `LAMP_TEMPERATURE_K` (Planck's law, CODATA 2018 constan
 ``tests/data/ocean_insight_calibration_3100k.csv`` tabulates `calibration_uj_per_count` (a smooth instrument
 response, the energy per count) on 335–1065 nm in 1 nm steps.
 """
+
 from __future__ import annotations
 
 import inspect
@@ -34,31 +35,34 @@ C_M_S = 299792458.0
 K_B_J_K = 1.380649e-23
 LAMP_TEMPERATURE_K = 3100.0
 LAMP_W_M2_NM_AT_560 = 0.1
-CC3_AREA_CM2 = np.pi * 0.195 ** 2  # CC-3: 3.9 mm diameter diffuser
+CC3_AREA_CM2 = np.pi * 0.195**2  # CC-3: 3.9 mm diameter diffuser
 
 
 def planck_w_m2_sr_nm(wavelength_nm, temperature_k: float) -> np.ndarray:
     """Blackbody spectral radiance [W/(m² sr nm)]: 2hc²/λ⁵ / (exp(hc/λkT) − 1)."""
     lam = np.asarray(wavelength_nm, dtype=float) * 1e-9
-    return 2 * H_J_S * C_M_S ** 2 / lam ** 5 / np.expm1(H_J_S * C_M_S / (lam * K_B_J_K * temperature_k)) * 1e-9
+    return 2 * H_J_S * C_M_S**2 / lam**5 / np.expm1(H_J_S * C_M_S / (lam * K_B_J_K * temperature_k)) * 1e-9
 
 
 def lamp_w_m2_nm(wavelength_nm) -> np.ndarray:
     """The calibration lamp's spectral irradiance at the cosine corrector [W/m²/nm]."""
-    return LAMP_W_M2_NM_AT_560 * planck_w_m2_sr_nm(wavelength_nm, LAMP_TEMPERATURE_K) / \
-        planck_w_m2_sr_nm(560.0, LAMP_TEMPERATURE_K)
+    return (
+        LAMP_W_M2_NM_AT_560
+        * planck_w_m2_sr_nm(wavelength_nm, LAMP_TEMPERATURE_K)
+        / planck_w_m2_sr_nm(560.0, LAMP_TEMPERATURE_K)
+    )
 
 
 def calibration_uj_per_count(wavelength_nm) -> np.ndarray:
     """The simulated instrument's energy per count [µJ/count]: least (most sensitive) near 550 nm."""
     lam = np.asarray(wavelength_nm, dtype=float)
-    return 2e-7 / (0.2 + np.exp(-((lam - 550.0) / 250.0) ** 2))
+    return 2e-7 / (0.2 + np.exp(-(((lam - 550.0) / 250.0) ** 2)))
 
 
 def flame_wavelengths_nm(pixels: int = 2048) -> np.ndarray:
     """A Flame-like wavelength calibration: a quadratic in the pixel index, 340–1057 nm."""
     i = np.arange(pixels, dtype=float)
-    return 340.0 + 0.33 * i + 1e-5 * i ** 2
+    return 340.0 + 0.33 * i + 1e-5 * i**2
 
 
 @dataclass
@@ -220,8 +224,9 @@ def fake_seabreeze(*devices: SimulatedDevice) -> type[FakeSpectrometer]:
 
 
 def _public(cls) -> dict[str, object]:
-    return {name: inspect.getattr_static(cls, name) for name in dir(cls)
-            if not name.startswith("_") and name != "attached"}
+    return {
+        name: inspect.getattr_static(cls, name) for name in dir(cls) if not name.startswith("_") and name != "attached"
+    }
 
 
 def _signature(member) -> list[tuple]:
@@ -236,25 +241,29 @@ def _mismatches(fake, real, label: str) -> list[str]:
             problems.append(f"{label}.{name}: not in seabreeze")
             continue
         original = inspect.getattr_static(real, name)
-        if isinstance(member, property) != isinstance(original, property) or \
-                isinstance(member, classmethod) != isinstance(original, classmethod):
+        if isinstance(member, property) != isinstance(original, property) or isinstance(
+            member, classmethod
+        ) != isinstance(original, classmethod):
             problems.append(f"{label}.{name}: {type(member).__name__} here, {type(original).__name__} in seabreeze")
         elif callable(member) or isinstance(member, classmethod):
             if _signature(member) != _signature(original):
-                problems.append(f"{label}.{name}{inspect.signature(member)}: seabreeze has "
-                                f"{inspect.signature(original)}")
+                problems.append(
+                    f"{label}.{name}{inspect.signature(member)}: seabreeze has {inspect.signature(original)}"
+                )
     return problems
 
 
 def api_mismatches() -> list[str]:
     """Where the fake's public API differs from seabreeze's (empty: it matches)."""
     from seabreeze.types import SeaBreezeFeatureAccessor
+
     accessor = SeaBreezeFeatureAccessor.__annotations__
-    return (_mismatches(FakeSpectrometer, SeabreezeSpectrometer, "Spectrometer")
-            + _mismatches(_SpectrometerFeature, SeaBreezeSpectrometerFeature, "f.spectrometer")
-            + _mismatches(_NonlinearityFeature, SeaBreezeNonlinearityCoefficientsFeature, "f.nonlinearity_coefficients")
-            + [f"f.{name}: not a seabreeze feature" for name in vars(_Features(SimulatedDevice()))
-               if name not in accessor])
+    return (
+        _mismatches(FakeSpectrometer, SeabreezeSpectrometer, "Spectrometer")
+        + _mismatches(_SpectrometerFeature, SeaBreezeSpectrometerFeature, "f.spectrometer")
+        + _mismatches(_NonlinearityFeature, SeaBreezeNonlinearityCoefficientsFeature, "f.nonlinearity_coefficients")
+        + [f"f.{name}: not a seabreeze feature" for name in vars(_Features(SimulatedDevice())) if name not in accessor]
+    )
 
 
 def neighbour_spread_nm(wavelength_nm: np.ndarray) -> np.ndarray:

@@ -5,6 +5,7 @@ of ``configs/instruments/``: Ocean Insight through python-seabreeze, raw counts 
 calibration file, collection area and dark; docs/spectrometers.md) or ``--import`` (a Sekonic C-7000 CSV).
 Every input is checked before a device is opened, and nothing is written unless the reading succeeded.
 """
+
 from __future__ import annotations
 
 import json
@@ -22,33 +23,51 @@ OCEAN_ONLY = ("resource", "calibration", "area_cm2", "dark", "dark_now", "save_d
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("spectrum",
-                              description="Spectral irradiance from the spectrometer or a Sekonic C-7000 CSV export.")
+    p = subparsers.add_parser(
+        "spectrum", description="Spectral irradiance from the spectrometer or a Sekonic C-7000 CSV export."
+    )
     source = p.add_mutually_exclusive_group(required=True)
     source.add_argument("--port", help="serial port of the spectrometer")
     source.add_argument("--import", dest="import_path", metavar="FILE.csv", help="Sekonic C-7000 CSV export")
-    source.add_argument("--instrument", metavar="NAME", help="instrument definition in configs/instruments/ "
-                        "(ocean-insight: an Ocean Insight spectrometer through python-seabreeze)")
+    source.add_argument(
+        "--instrument",
+        metavar="NAME",
+        help="instrument definition in configs/instruments/ "
+        "(ocean-insight: an Ocean Insight spectrometer through python-seabreeze)",
+    )
     p.add_argument("--protocol", choices=PROTOCOLS, default=PROTOCOLS[0], help="instrument protocol (--port)")
     ocean = p.add_argument_group("--instrument (seabreeze) options")
     ocean.add_argument("--resource", metavar="SERIAL", help="the spectrometer's serial number (default: the first)")
     ocean.add_argument("--backend", choices=BACKENDS, help="python-seabreeze backend (default: the definition's)")
-    ocean.add_argument("--calibration", metavar="FILE.csv",
-                       help="absolute irradiance calibration: columns wavelength_nm, uJ_per_count (OceanView)")
-    ocean.add_argument("--area-cm2", type=float, help="collection area of the cosine corrector or fibre [cm²] "
-                       "(default: the definition's)")
+    ocean.add_argument(
+        "--calibration",
+        metavar="FILE.csv",
+        help="absolute irradiance calibration: columns wavelength_nm, uJ_per_count (OceanView)",
+    )
+    ocean.add_argument(
+        "--area-cm2",
+        type=float,
+        help="collection area of the cosine corrector or fibre [cm²] (default: the definition's)",
+    )
     dark = ocean.add_mutually_exclusive_group()
-    dark.add_argument("--dark", metavar="FILE.csv", help="dark spectrum at the same integration time "
-                      "(default: the device's electric-dark pixels)")
+    dark.add_argument(
+        "--dark",
+        metavar="FILE.csv",
+        help="dark spectrum at the same integration time (default: the device's electric-dark pixels)",
+    )
     dark.add_argument("--dark-now", action="store_true", help="measure the dark first (asks you to block the light)")
     ocean.add_argument("--save-dark", metavar="FILE.csv", help="with --dark-now: keep the dark for --dark")
-    ocean.add_argument("--auto-integration", action="store_true",
-                       help="choose the longest integration under 80 %% of full scale")
+    ocean.add_argument(
+        "--auto-integration", action="store_true", help="choose the longest integration under 80 %% of full scale"
+    )
     p.add_argument("--integration-ms", type=float, help="integration time [ms]")
     p.add_argument("--average", type=int, help="number of spectra averaged")
     p.add_argument("--out", metavar="FILE.csv", help="write wavelength_nm,irradiance_w_m2_nm (never overwritten)")
-    p.add_argument("--json", action="store_true", help="print one JSON object (with \"saturated\": whether the "
-                   "spectrometer saturated; null for an import)")
+    p.add_argument(
+        "--json",
+        action="store_true",
+        help='print one JSON object (with "saturated": whether the spectrometer saturated; null for an import)',
+    )
     p.set_defaults(func=run)
 
 
@@ -108,8 +127,9 @@ def _measure_ocean(args) -> tuple[tuple, bool, dict, object]:
     """((wavelength_nm, irradiance_w_m2_nm), saturated, what the reading used, the dark measured now or None)
     from a seabreeze spectrometer; every file and value is checked before the device is opened."""
     if args.calibration is None:
-        raise ConfigError("calibration", None, "--instrument needs --calibration FILE.csv (wavelength_nm, "
-                                               "uJ_per_count)")
+        raise ConfigError(
+            "calibration", None, "--instrument needs --calibration FILE.csv (wavelength_nm, uJ_per_count)"
+        )
     if args.save_dark is not None and not args.dark_now:
         raise ConfigError("save-dark", args.save_dark, "needs --dark-now")
     if args.integration_ms is not None:
@@ -117,11 +137,19 @@ def _measure_ocean(args) -> tuple[tuple, bool, dict, object]:
     averaging = None if args.average is None else check_averaging(args.average)
     dark_file = None if args.dark is None else read_dark(args.dark)
     if dark_file is not None and args.auto_integration:
-        raise ConfigError("dark", args.dark, "a dark file fixes the integration time; use --dark-now with "
-                                             "--auto-integration")
+        raise ConfigError(
+            "dark", args.dark, "a dark file fixes the integration time; use --dark-now with --auto-integration"
+        )
     dark_mode = "electric" if dark_file is None and not args.dark_now else "measured"
-    with open_instrument(args.instrument, args.resource, args.calibration, args.area_cm2, backend=args.backend,
-                         integration_ms=args.integration_ms, dark_mode=dark_mode) as spectrometer:
+    with open_instrument(
+        args.instrument,
+        args.resource,
+        args.calibration,
+        args.area_cm2,
+        backend=args.backend,
+        integration_ms=args.integration_ms,
+        dark_mode=dark_mode,
+    ) as spectrometer:
         if averaging is not None:
             spectrometer.set_averaging(averaging)
         if args.auto_integration:
@@ -135,10 +163,16 @@ def _measure_ocean(args) -> tuple[tuple, bool, dict, object]:
             spectrometer.use_dark(dark, "--dark-now")
             _confirm("unblock the light")
         spectrum = spectrometer.read_spectrum()
-        details = {"integration_ms": spectrometer.integration_ms(), "averaging": spectrometer.averaging(),
-                   "serial": spectrometer.serial, "model": spectrometer.model, "dark": spectrometer.dark_mode,
-                   "nonlinearity_corrected": spectrometer.nonlinearity_corrected, "area_cm2": spectrometer.area_cm2,
-                   "calibration": args.calibration}
+        details = {
+            "integration_ms": spectrometer.integration_ms(),
+            "averaging": spectrometer.averaging(),
+            "serial": spectrometer.serial,
+            "model": spectrometer.model,
+            "dark": spectrometer.dark_mode,
+            "nonlinearity_corrected": spectrometer.nonlinearity_corrected,
+            "area_cm2": spectrometer.area_cm2,
+            "calibration": args.calibration,
+        }
         return spectrum, spectrometer.last_saturated, details, dark
 
 
@@ -153,7 +187,9 @@ def _print_summary(summary: dict) -> None:
     if summary["saturated"]:
         print("saturated       yes: the readings are clipped; reduce --integration-ms (or --auto-integration)")
     if "serial" in summary:
-        print(f"spectrometer    {summary['model']} {summary['serial']}, {summary['integration_ms']:g} ms x "
-              f"{summary['averaging']}, dark {summary['dark']}, nonlinearity "
-              f"{'corrected' if summary['nonlinearity_corrected'] else 'not corrected'}, "
-              f"A = {summary['area_cm2']:g} cm²")
+        print(
+            f"spectrometer    {summary['model']} {summary['serial']}, {summary['integration_ms']:g} ms x "
+            f"{summary['averaging']}, dark {summary['dark']}, nonlinearity "
+            f"{'corrected' if summary['nonlinearity_corrected'] else 'not corrected'}, "
+            f"A = {summary['area_cm2']:g} cm²"
+        )

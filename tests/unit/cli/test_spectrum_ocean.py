@@ -1,4 +1,5 @@
 """`uwlab spectrum --instrument ocean-insight` in-process, on the simulated Flame behind seabreeze's API."""
+
 from __future__ import annotations
 
 import json
@@ -76,6 +77,7 @@ def test_dark_now_saved_and_reused(lamp, capsys, monkeypatch, tmp_path):
     def operator(message: str) -> None:
         prompts.append(message)
         lamp.light_on = "unblock" in message
+
     monkeypatch.setattr(spectrum_cli, "_confirm", operator)
     dark_file = tmp_path / "dark.csv"
     first = run_json(capsys, "--integration-ms", "10", "--dark-now", "--save-dark", str(dark_file))
@@ -84,8 +86,9 @@ def test_dark_now_saved_and_reused(lamp, capsys, monkeypatch, tmp_path):
     for reading in (first, second):
         irradiance = np.array(reading["irradiance_w_m2_nm"])
         assert np.max(np.abs(irradiance / lamp_w_m2_nm(np.array(reading["wavelength_nm"])) - 1)) < 1e-3
-    err = one_line_error(capsys, [*BASE, "--integration-ms", "20", "--dark", str(dark_file), "--out",
-                                  str(tmp_path / "spectrum.csv")])
+    err = one_line_error(
+        capsys, [*BASE, "--integration-ms", "20", "--dark", str(dark_file), "--out", str(tmp_path / "spectrum.csv")]
+    )
     assert "dark" in err and "taken at 10 ms integration, the reading at 20 ms" in err
     assert not (tmp_path / "spectrum.csv").exists() and not lamp.is_open
 
@@ -95,11 +98,14 @@ def test_device_without_electric_dark_needs_a_dark(lamp, capsys):
     assert "no electric-dark pixels" in one_line_error(capsys, BASE)
 
 
-@pytest.mark.parametrize("rows, expected", [
-    ("400,1e-7\n900,1e-7\n", "covers 400–900 nm, the device 340–1057.41 nm"),
-    ("300,1e-7\n700,-2e-7\n1100,1e-7\n", "at 700 nm it is -2e-07"),
-    ("300,1e-7\n700,nan\n1100,1e-7\n", "empty cells"),
-])
+@pytest.mark.parametrize(
+    "rows, expected",
+    [
+        ("400,1e-7\n900,1e-7\n", "covers 400–900 nm, the device 340–1057.41 nm"),
+        ("300,1e-7\n700,-2e-7\n1100,1e-7\n", "at 700 nm it is -2e-07"),
+        ("300,1e-7\n700,nan\n1100,1e-7\n", "empty cells"),
+    ],
+)
 def test_bad_calibration_is_one_line_and_nothing_written(lamp, capsys, tmp_path, rows, expected):
     path = tmp_path / "calibration.csv"
     path.write_text("wavelength_nm,uJ_per_count\n" + rows)
@@ -114,12 +120,15 @@ def test_no_device_found(monkeypatch, capsys):
     assert "the first spectrometer: not found" in one_line_error(capsys, BASE)
 
 
-@pytest.mark.parametrize("extra, key", [
-    (["--area-cm2", "11.9"], "area_cm2 = 11.9"),  # mm² given as cm²
-    (["--integration-ms", "0.1"], "integration_ms = 0.1"),
-    (["--save-dark", "new.csv"], "save-dark = 'new.csv': needs --dark-now"),
-    (["--dark", "d.csv", "--auto-integration"], "dark"),
-])
+@pytest.mark.parametrize(
+    "extra, key",
+    [
+        (["--area-cm2", "11.9"], "area_cm2 = 11.9"),  # mm² given as cm²
+        (["--integration-ms", "0.1"], "integration_ms = 0.1"),
+        (["--save-dark", "new.csv"], "save-dark = 'new.csv': needs --dark-now"),
+        (["--dark", "d.csv", "--auto-integration"], "dark"),
+    ],
+)
 def test_bad_options_are_refused_before_the_device_is_opened(lamp, capsys, tmp_path, monkeypatch, extra, key):
     monkeypatch.chdir(tmp_path)
     (tmp_path / "d.csv").write_text("wavelength_nm,dark_counts,integration_ms\n340,1500,10\n")

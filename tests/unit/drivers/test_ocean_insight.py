@@ -5,6 +5,7 @@ tests/support/seabreeze_fake.py, with the counts it gives through the inverse of
 (`lamp_counts_per_s`), computed independently of the driver's helpers (explicit neighbour distances, explicit unit
 factors).
 """
+
 from __future__ import annotations
 
 import math
@@ -44,9 +45,12 @@ def lamp_device() -> SimulatedDevice:
 def open_fake(device: SimulatedDevice, monkeypatch=None, **options):
     if monkeypatch is not None:
         monkeypatch.setattr(ocean_device, "seabreeze_spectrometer_class", lambda backend: fake_seabreeze(device))
-    return ocean_device.OceanInsightSpectrometer(fake_seabreeze(device).from_serial_number(device.serial),
-                                                 read_calibration(CALIBRATION), options.pop("area_cm2", CC3_AREA_CM2),
-                                                 **options)
+    return ocean_device.OceanInsightSpectrometer(
+        fake_seabreeze(device).from_serial_number(device.serial),
+        read_calibration(CALIBRATION),
+        options.pop("area_cm2", CC3_AREA_CM2),
+        **options,
+    )
 
 
 def test_the_fake_has_seabreezes_api():
@@ -60,6 +64,7 @@ def test_the_api_check_catches_a_changed_signature():
         def wavelength(self): ...
 
     from seabreeze.spectrometers import Spectrometer
+
     problems = _mismatches(Renamed, Spectrometer, "Spectrometer")
     assert any("intensities" in p for p in problems) and any("wavelength:" in p for p in problems)
 
@@ -72,7 +77,7 @@ def test_calibration_file_is_its_documented_formula():
 
 def test_wavelength_spread_closed_form():
     i = np.arange(1.0, 9.0)
-    spread = wavelength_spread_nm(i ** 2)  # λ = i²: interior (λ[i+1] − λ[i−1]) / 2 = 2i; ends one-sided
+    spread = wavelength_spread_nm(i**2)  # λ = i²: interior (λ[i+1] − λ[i−1]) / 2 = 2i; ends one-sided
     assert spread[0] == 4 - 1 and spread[-1] == 64 - 49
     np.testing.assert_array_equal(spread[1:-1], 2 * i[1:-1])
 
@@ -161,6 +166,7 @@ def test_auto_integration_is_the_longest_under_80_percent(lamp_device):
     def raw_peak(integration_ms: float) -> float:
         lamp_device.integration_us = int(round(integration_ms * 1000))
         return float(lamp_device.raw().max())
+
     assert raw_peak(chosen_ms) < 0.8 * full <= raw_peak(chosen_ms * 1.02)
 
 
@@ -181,8 +187,9 @@ def test_calibration_must_cover_the_device(lamp_device, tmp_path):
     path = tmp_path / "short.csv"
     path.write_text("wavelength_nm,uJ_per_count\n400,1e-7\n900,1e-7\n")
     with pytest.raises(ConfigError, match="covers 400–900 nm, the device 340–1057.41 nm"):
-        ocean_device.OceanInsightSpectrometer(fake_seabreeze(lamp_device).from_serial_number(None),
-                                              read_calibration(path), CC3_AREA_CM2)
+        ocean_device.OceanInsightSpectrometer(
+            fake_seabreeze(lamp_device).from_serial_number(None), read_calibration(path), CC3_AREA_CM2
+        )
     assert not lamp_device.is_open
 
 

@@ -1,4 +1,5 @@
 """The tank rig with a USB spectrometer through python-seabreeze ([instruments.seabreeze_spectrometer])."""
+
 from __future__ import annotations
 
 import shutil
@@ -18,8 +19,9 @@ from uwlab.experiments.acquisition.rigs import HardwareRig
 
 def plan_with(tmp_path, **instruments):
     shutil.copy(DATA / "ocean_insight_calibration_3100k.csv", tmp_path / "lamp-cal.csv")
-    path = write_plan(tmp_path / "plan.toml", "usb", CAMPAIGN_SWEEPS[:1], defaults=CAMPAIGN_DEFAULTS,
-                      instruments=instruments)
+    path = write_plan(
+        tmp_path / "plan.toml", "usb", CAMPAIGN_SWEEPS[:1], defaults=CAMPAIGN_DEFAULTS, instruments=instruments
+    )
     return load_plan(path)
 
 
@@ -58,5 +60,6 @@ def test_one_spectrometer_per_rig(tmp_path):
 def test_identity_records_what_the_readings_use(tmp_path, lamp):
     plan = plan_with(tmp_path, seabreeze_spectrometer={"calibration": "lamp-cal.csv"})
     with HardwareRig(plan) as rig:
-        assert rig.spectrometer.identity() == ("Ocean Insight FLAMES FLMS01234 (dark electric, nonlinearity "
-                                               "corrected, A 0.1195 cm²)")
+        assert rig.spectrometer.identity() == (
+            "Ocean Insight FLAMES FLMS01234 (dark electric, nonlinearity corrected, A 0.1195 cm²)"
+        )

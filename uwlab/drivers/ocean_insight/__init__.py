@@ -1,6 +1,7 @@
 """Ocean Insight (Ocean Optics) spectrometers through python-seabreeze, with OceanView's absolute-irradiance
 calibration (`radiometry`), instrument definitions (`definition`) and the driver (`device`); docs/spectrometers.md.
 """
+
 from __future__ import annotations
 
 from uwlab.drivers.ocean_insight.definition import OceanInsightDefinition, load_definition
@@ -14,5 +15,14 @@ from uwlab.drivers.ocean_insight.device import (
 )
 from uwlab.drivers.ocean_insight.radiometry import read_calibration
 
-__all__ = ["DarkSpectrum", "OceanInsightDefinition", "OceanInsightSpectrometer", "load_definition",
-           "open_instrument", "open_ocean_insight", "read_calibration", "read_dark", "write_dark"]
+__all__ = [
+    "DarkSpectrum",
+    "OceanInsightDefinition",
+    "OceanInsightSpectrometer",
+    "load_definition",
+    "open_instrument",
+    "open_ocean_insight",
+    "read_calibration",
+    "read_dark",
+    "write_dark",
+]

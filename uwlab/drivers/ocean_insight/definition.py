@@ -10,6 +10,7 @@ starts from a known one), ``nonlinearity_correction`` (apply the device's stored
 with each reading) and a ``[provenance]`` table (where each value comes from; ``collection_area_cm2`` must be
 there).
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -23,8 +24,9 @@ from uwlab.model.data import config_dir, read_toml
 from uwlab.model.schema import NonEmptyText, Schema, parse, quantity
 
 BACKENDS = ("auto", "pyseabreeze", "cseabreeze")
-CollectionAreaCm2 = quantity(1e-5, 10.0, "cm²", lo_open=True,
-                             hint="cm², not mm² (a CC-3 cosine corrector is 0.119 cm²)")
+CollectionAreaCm2 = quantity(
+    1e-5, 10.0, "cm²", lo_open=True, hint="cm², not mm² (a CC-3 cosine corrector is 0.119 cm²)"
+)
 
 
 class OceanInsightDefinition(Schema):

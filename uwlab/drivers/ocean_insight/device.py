@@ -23,6 +23,7 @@ a rig opens with). seabreeze cannot read the integration time back: the read-bac
 the value the device accepted last (set on opening to the definition's ``default_integration_ms``). Averaging is
 done here (``averaging`` acquisitions, each corrected, averaged); a reading is saturated if any acquisition was.
 """
+
 from __future__ import annotations
 
 import csv
@@ -80,8 +81,10 @@ def write_dark(path: str | Path, dark: DarkSpectrum) -> Path:
         with open(path, "x", newline="") as fh:
             writer = csv.writer(fh)
             writer.writerow(DARK_COLUMNS)
-            writer.writerows((repr(float(w)), repr(float(c)), repr(dark.integration_ms))
-                             for w, c in zip(dark.wavelength_nm, dark.counts, strict=True))
+            writer.writerows(
+                (repr(float(w)), repr(float(c)), repr(dark.integration_ms))
+                for w, c in zip(dark.wavelength_nm, dark.counts, strict=True)
+            )
     except FileExistsError:
         raise ConfigError("save-dark", str(path), "file exists; refusing to overwrite it") from None
     except OSError as exc:
@@ -90,7 +93,7 @@ def write_dark(path: str | Path, dark: DarkSpectrum) -> Path:
 
 
 def resolve_backend(backend: str) -> str:
-    """"auto" → ``cseabreeze`` where its compiled wrapper is installed, else ``pyseabreeze``."""
+    """ "auto" → ``cseabreeze`` where its compiled wrapper is installed, else ``pyseabreeze``."""
     if backend == "auto":
         return "cseabreeze" if importlib.util.find_spec("seabreeze.cseabreeze._wrapper") else "pyseabreeze"
     return backend
@@ -103,6 +106,7 @@ def seabreeze_spectrometer_class(backend: str) -> type:
     name = resolve_backend(backend)
     try:
         import seabreeze
+
         if _backend_in_use is None:
             seabreeze.use(name)
             _backend_in_use = name
@@ -116,6 +120,7 @@ def seabreeze_spectrometer_class(backend: str) -> type:
 
 def _seabreeze_errors() -> tuple[type[BaseException], ...]:
     from seabreeze.spectrometers import SeaBreezeError  # both backends' errors derive from it
+
     return SeaBreezeError, OSError
 
 
@@ -128,9 +133,17 @@ class OceanInsightSpectrometer(Spectrometer):
     nonlinearity polynomial where it has one (`nonlinearity_corrected` says whether it does).
     """
 
-    def __init__(self, device: Any, calibration: tuple[np.ndarray, np.ndarray], area_cm2: float, *,
-                 dark_mode: DarkMode = "electric", nonlinearity: bool = True, integration_ms: float = 10.0,
-                 calibration_source: str = "calibration"):
+    def __init__(
+        self,
+        device: Any,
+        calibration: tuple[np.ndarray, np.ndarray],
+        area_cm2: float,
+        *,
+        dark_mode: DarkMode = "electric",
+        nonlinearity: bool = True,
+        integration_ms: float = 10.0,
+        calibration_source: str = "calibration",
+    ):
         self._device = device
         self._closed = False
         self._errors = _seabreeze_errors()
@@ -143,8 +156,11 @@ class OceanInsightSpectrometer(Spectrometer):
             features = device.f
             self._dark_indices = list(features.spectrometer.get_electric_dark_pixel_indices())
             nonlinearity_feature = features.nonlinearity_coefficients
-            coefficients = (nonlinearity_feature.get_nonlinearity_coefficients()
-                            if nonlinearity and nonlinearity_feature is not None else None)
+            coefficients = (
+                nonlinearity_feature.get_nonlinearity_coefficients()
+                if nonlinearity and nonlinearity_feature is not None
+                else None
+            )
         except self._errors as exc:
             self.close()
             raise DeviceError(f"Ocean Insight spectrometer: {exc}") from None
@@ -161,8 +177,12 @@ class OceanInsightSpectrometer(Spectrometer):
             if dark_mode == "auto":
                 self.dark_mode = "electric" if self._dark_indices else "none"
             elif dark_mode == "electric" and not self._dark_indices:
-                raise ConfigError("dark", "electric", f"{self.model} {self.serial} has no electric-dark pixels; "
-                                                      "measure a dark spectrum (--dark FILE or --dark-now)")
+                raise ConfigError(
+                    "dark",
+                    "electric",
+                    f"{self.model} {self.serial} has no electric-dark pixels; "
+                    "measure a dark spectrum (--dark FILE or --dark-now)",
+                )
             self.set_integration_ms(integration_ms)
         except BaseException:
             self.close()
@@ -180,8 +200,10 @@ class OceanInsightSpectrometer(Spectrometer):
 
     def identity(self) -> str:
         """Model and serial number with what its readings use (recorded with a sweep's devices)."""
-        return (f"Ocean Insight {self.model} {self.serial} (dark {self.dark_mode}, nonlinearity "
-                f"{'corrected' if self.nonlinearity_corrected else 'not corrected'}, A {self.area_cm2:g} cm²)")
+        return (
+            f"Ocean Insight {self.model} {self.serial} (dark {self.dark_mode}, nonlinearity "
+            f"{'corrected' if self.nonlinearity_corrected else 'not corrected'}, A {self.area_cm2:g} cm²)"
+        )
 
     def integration_ms_limits(self) -> tuple[float, float]:
         """The device's integration range [ms] (seabreeze's ``integration_time_micros_limits``)."""
@@ -191,8 +213,9 @@ class OceanInsightSpectrometer(Spectrometer):
         """Set the integration time; `ConfigError` outside the device's range, before anything is sent."""
         low, high = self.integration_ms_limits()
         if isinstance(integration_ms, bool) or not np.isfinite(integration_ms) or not low <= integration_ms <= high:
-            raise ConfigError("integration_ms", integration_ms, f"must be in [{low:g}, {high:g}] ms "
-                                                                f"({self.model}'s range)")
+            raise ConfigError(
+                "integration_ms", integration_ms, f"must be in [{low:g}, {high:g}] ms ({self.model}'s range)"
+            )
         self._set_integration_us(int(round(integration_ms * 1000.0)))
 
     def _set_integration_us(self, integration_us: int) -> None:
@@ -258,17 +281,26 @@ class OceanInsightSpectrometer(Spectrometer):
     def use_dark(self, dark: DarkSpectrum, source: str = "dark") -> None:
         """Subtract ``dark`` from now on (`dark_mode` "measured"); refused unless it was taken on this device's
         pixels at the current integration time."""
-        if dark.wavelength_nm.shape != self.wavelength_nm.shape or \
-                np.max(np.abs(dark.wavelength_nm - self.wavelength_nm)) > WAVELENGTH_MATCH_NM:
-            raise ConfigError("dark", source, f"its {dark.wavelength_nm.size} wavelengths are not the device's "
-                                              f"{self.wavelength_nm.size} pixels")
+        if (
+            dark.wavelength_nm.shape != self.wavelength_nm.shape
+            or np.max(np.abs(dark.wavelength_nm - self.wavelength_nm)) > WAVELENGTH_MATCH_NM
+        ):
+            raise ConfigError(
+                "dark",
+                source,
+                f"its {dark.wavelength_nm.size} wavelengths are not the device's {self.wavelength_nm.size} pixels",
+            )
         self._check_dark_integration(dark, source)
         self.dark_mode, self.dark = "measured", dark
 
     def _check_dark_integration(self, dark: DarkSpectrum, source: str) -> None:
         if abs(dark.integration_ms - self.integration_ms()) > 1e-3:
-            raise ConfigError("dark", source, f"taken at {dark.integration_ms:g} ms integration, the reading at "
-                                              f"{self.integration_ms():g} ms; a dark must match the integration time")
+            raise ConfigError(
+                "dark",
+                source,
+                f"taken at {dark.integration_ms:g} ms integration, the reading at "
+                f"{self.integration_ms():g} ms; a dark must match the integration time",
+            )
 
     def read_counts(self) -> tuple[np.ndarray, bool]:
         """(S − D [counts] per pixel, saturated) of one averaged reading with the configured dark."""
@@ -283,8 +315,9 @@ class OceanInsightSpectrometer(Spectrometer):
     def read_spectrum(self) -> tuple[np.ndarray, np.ndarray]:
         """One (averaged) reading: (wavelength_nm, spectral irradiance [W/m²/nm]); sets `last_saturated`."""
         counts, self.last_saturated = self.read_counts()
-        irradiance = irradiance_w_m2_nm(counts, 0.0, self.uj_per_count, self.integration_ms() / 1000.0,
-                                        self.area_cm2, self.wavelength_nm)
+        irradiance = irradiance_w_m2_nm(
+            counts, 0.0, self.uj_per_count, self.integration_ms() / 1000.0, self.area_cm2, self.wavelength_nm
+        )
         return self.wavelength_nm.copy(), irradiance
 
     def auto_integration(self) -> float:
@@ -306,20 +339,29 @@ class OceanInsightSpectrometer(Spectrometer):
                 trial = wanted
             else:
                 if trial == low:
-                    raise DeviceError(f"{self.port}: the peak reaches 80 % of full scale even at the minimum "
-                                      f"integration {low / 1000:g} ms")
+                    raise DeviceError(
+                        f"{self.port}: the peak reaches 80 % of full scale even at the minimum "
+                        f"integration {low / 1000:g} ms"
+                    )
                 trial = max(low, min(wanted, int(trial * 0.95)))
                 if best is not None and trial <= best:
                     break
         if best is None:
-            raise DeviceError(f"{self.port}: no integration time under 80 % of full scale found in {AUTO_STEPS} "
-                              "readings")
+            raise DeviceError(
+                f"{self.port}: no integration time under 80 % of full scale found in {AUTO_STEPS} readings"
+            )
         self._set_integration_us(best)
         return self.integration_ms()
 
 
-def open_ocean_insight(resource: str | None, calibration: tuple[np.ndarray, np.ndarray], area_cm2: float, *,
-                       backend: str = "auto", **options) -> OceanInsightSpectrometer:
+def open_ocean_insight(
+    resource: str | None,
+    calibration: tuple[np.ndarray, np.ndarray],
+    area_cm2: float,
+    *,
+    backend: str = "auto",
+    **options,
+) -> OceanInsightSpectrometer:
     """Open the spectrometer with serial number ``resource`` (None: the first one found) on the python-seabreeze
     ``backend``; ``options`` go to `OceanInsightSpectrometer`. `DeviceError` when no such device is attached."""
     spectrometer_class = seabreeze_spectrometer_class(backend)
@@ -327,22 +369,38 @@ def open_ocean_insight(resource: str | None, calibration: tuple[np.ndarray, np.n
         device = spectrometer_class.from_serial_number(resource)
     except (*_seabreeze_errors(), ValueError) as exc:  # pyusb's NoBackendError (no libusb) is a ValueError
         found = "the first spectrometer" if resource is None else f"spectrometer {resource!r}"
-        raise DeviceError(f"{found}: not found through seabreeze's {resolve_backend(backend)} backend ({exc})") \
-            from None
+        raise DeviceError(
+            f"{found}: not found through seabreeze's {resolve_backend(backend)} backend ({exc})"
+        ) from None
     return OceanInsightSpectrometer(device, calibration, area_cm2, **options)
 
 
-def open_instrument(name: str, resource: str | None, calibration: str | Path, area_cm2: float | None = None, *,
-                    backend: str | None = None, integration_ms: float | None = None,
-                    dark_mode: DarkMode = "electric") -> OceanInsightSpectrometer:
+def open_instrument(
+    name: str,
+    resource: str | None,
+    calibration: str | Path,
+    area_cm2: float | None = None,
+    *,
+    backend: str | None = None,
+    integration_ms: float | None = None,
+    dark_mode: DarkMode = "electric",
+) -> OceanInsightSpectrometer:
     """Open the spectrometer of instrument definition ``name`` (``configs/instruments/<name>.toml``) with the
     calibration file ``calibration``; ``area_cm2``, ``backend`` and ``integration_ms`` default to the definition's.
     The definition, the calibration file and the values are checked before the device is opened."""
     definition = load_definition(name)
     uj_per_count = read_calibration(calibration)
     area_cm2 = definition.collection_area_cm2 if area_cm2 is None else check(CollectionAreaCm2, area_cm2, "area_cm2")
-    integration_ms = definition.default_integration_ms if integration_ms is None else \
-        check_integration_ms(integration_ms)
-    return open_ocean_insight(resource, uj_per_count, area_cm2, backend=backend or definition.backend,
-                              dark_mode=dark_mode, nonlinearity=definition.nonlinearity_correction,
-                              integration_ms=integration_ms, calibration_source=str(calibration))
+    integration_ms = (
+        definition.default_integration_ms if integration_ms is None else check_integration_ms(integration_ms)
+    )
+    return open_ocean_insight(
+        resource,
+        uj_per_count,
+        area_cm2,
+        backend=backend or definition.backend,
+        dark_mode=dark_mode,
+        nonlinearity=definition.nonlinearity_correction,
+        integration_ms=integration_ms,
+        calibration_source=str(calibration),
+    )

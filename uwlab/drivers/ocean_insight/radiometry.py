@@ -21,6 +21,7 @@ Saturation (`saturated`): any *raw* pixel within 1 % of the device's full scale 
 to which the backends rescale the ADC's saturation level). Automatic integration (`next_integration_us`):
 the longest integration whose raw peak stays under 80 % of full scale.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -63,24 +64,32 @@ def read_calibration(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     bad = ~np.isfinite(factor) | (factor <= 0) | ~np.isfinite(wavelength_nm)
     if bad.any():
         i = int(np.argmax(bad))
-        raise ConfigError("calibration", str(path), f"uJ_per_count must be positive and finite; at "
-                                                    f"{wavelength_nm[i]:g} nm it is {factor[i]:g}")
+        raise ConfigError(
+            "calibration",
+            str(path),
+            f"uJ_per_count must be positive and finite; at {wavelength_nm[i]:g} nm it is {factor[i]:g}",
+        )
     return wavelength_nm, factor
 
 
-def calibration_on(calibration_nm: np.ndarray, uj_per_count: np.ndarray, device_nm: np.ndarray,
-                   source: str = "calibration") -> np.ndarray:
+def calibration_on(
+    calibration_nm: np.ndarray, uj_per_count: np.ndarray, device_nm: np.ndarray, source: str = "calibration"
+) -> np.ndarray:
     """C [µJ/count] linearly interpolated to the device's pixel wavelengths; `ConfigError` on ``source`` when the
     calibration does not cover the device's range (no extrapolation)."""
     device_nm = np.asarray(device_nm, dtype=float)
     if device_nm[0] < calibration_nm[0] or device_nm[-1] > calibration_nm[-1]:
-        raise ConfigError("calibration", source, f"covers {calibration_nm[0]:g}–{calibration_nm[-1]:g} nm, the "
-                                                 f"device {device_nm[0]:g}–{device_nm[-1]:g} nm")
+        raise ConfigError(
+            "calibration",
+            source,
+            f"covers {calibration_nm[0]:g}–{calibration_nm[-1]:g} nm, the device {device_nm[0]:g}–{device_nm[-1]:g} nm",
+        )
     return np.interp(device_nm, calibration_nm, uj_per_count)
 
 
-def irradiance_w_m2_nm(counts, dark_counts, uj_per_count, integration_s: float, area_cm2: float,
-                       wavelength_nm) -> np.ndarray:
+def irradiance_w_m2_nm(
+    counts, dark_counts, uj_per_count, integration_s: float, area_cm2: float, wavelength_nm
+) -> np.ndarray:
     """Spectral irradiance [W/m²/nm] = (S − D) · C / (T · A · dλ) [µW/cm²/nm] × 0.01 (module docstring).
 
     ``counts`` S and ``dark_counts`` D [counts] (D may be a scalar), ``uj_per_count`` C [µJ/count] on the same
@@ -94,8 +103,9 @@ def irradiance_w_m2_nm(counts, dark_counts, uj_per_count, integration_s: float, 
     return signal * np.asarray(uj_per_count, dtype=float) / (integration_s * area_cm2 * spread_nm) * UW_CM2_TO_W_M2
 
 
-def linearize(raw_counts, electric_dark_indices, nonlinearity_coefficients, subtract_electric_dark: bool) -> \
-        tuple[np.ndarray, float]:
+def linearize(
+    raw_counts, electric_dark_indices, nonlinearity_coefficients, subtract_electric_dark: bool
+) -> tuple[np.ndarray, float]:
     """(corrected counts, electric-dark level) of one raw readout, by the device's stored corrections in the order
     seabreeze's ``Spectrometer.intensities`` applies them: the electric-dark level (the mean of the optically
     masked pixels ``electric_dark_indices``; 0 without them) is subtracted, the counts are divided by the device's
@@ -124,8 +134,9 @@ def saturated(raw_counts, max_intensity: float) -> bool:
     return bool(np.max(raw_counts) >= SATURATION_FRACTION * max_intensity)
 
 
-def next_integration_us(integration_us: int, raw_peak: float, baseline: float, max_intensity: float,
-                        limits_us: tuple[int, int]) -> int:
+def next_integration_us(
+    integration_us: int, raw_peak: float, baseline: float, max_intensity: float, limits_us: tuple[int, int]
+) -> int:
     """The integration [µs] that would bring the raw peak to 80 % of full scale, from a reading at
     ``integration_us`` whose highest raw pixel is ``raw_peak`` over a ``baseline`` (the dark level that does not
     grow with integration), assuming counts above the baseline grow in proportion to integration time (the

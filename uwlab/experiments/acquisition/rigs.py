@@ -5,6 +5,7 @@ itself (set a manual aperture, move the spectrometer) is asked of the operator. 
 (`uwlab.experiments.acquisition.sim_rig.SimRig`, for ``uwlab sweep --sim``) follows the same `Rig` protocol; this
 module never imports the simulator.
 """
+
 from __future__ import annotations
 
 from collections.abc import Callable
@@ -60,8 +61,13 @@ class HardwareRig:
             if ports.spectrometer_port is not None:
                 self.spectrometer = open_spectrometer(ports.spectrometer_port, ports.protocol, reopen_s=ports.reopen_s)
             if (usb := ports.seabreeze_spectrometer) is not None:  # dark: electric where it can, else the sweep's
-                self.spectrometer = open_instrument(usb.instrument, usb.resource, resolve_path(
-                    usb.calibration, self.plan.path.parent), usb.area_cm2, dark_mode="auto")
+                self.spectrometer = open_instrument(
+                    usb.instrument,
+                    usb.resource,
+                    resolve_path(usb.calibration, self.plan.path.parent),
+                    usb.area_cm2,
+                    dark_mode="auto",
+                )
         except BaseException:
             self.__exit__()
             raise
@@ -81,8 +87,9 @@ class HardwareRig:
         self.confirm(message)
 
     def set_aperture(self, sweep: SweepSpec, f_number: float) -> None:
-        self._ask(f"sweep.{sweep.id}.values", f_number, f"set the {sweep.lens.focal_length_mm:g} mm lens to "
-                                                          f"F{f_number:g}")
+        self._ask(
+            f"sweep.{sweep.id}.values", f_number, f"set the {sweep.lens.focal_length_mm:g} mm lens to F{f_number:g}"
+        )
 
     def place_spectrometer(self, position: str) -> None:
         if position != self._position:

@@ -9,6 +9,7 @@ their 95 % bands and per configuration), the verdict ``model_adequate`` with its
 model fails, the failing checks and likely causes in ``warnings`` (`uwlab.experiments.calibration.adequacy`),
 the spectra comparison and, per parameter, the simulated ground truth.
 """
+
 from __future__ import annotations
 
 import json
@@ -23,8 +24,14 @@ from uwlab.experiments.calibration.adequacy import Verdict, verdict
 from uwlab.experiments.calibration.fit import FitConfig, FitResult, default_config_for, fit_points, load_fit_config
 from uwlab.experiments.calibration.forward import MODELS, relative_flux
 from uwlab.experiments.calibration.output import check_output_dir, write_fit
-from uwlab.experiments.calibration.validation import (CrossValidation, compare_spectra, cross_validation, default_folds,
-                                                      posterior_predictive_checks, predicted_spectra)
+from uwlab.experiments.calibration.validation import (
+    CrossValidation,
+    compare_spectra,
+    cross_validation,
+    default_folds,
+    posterior_predictive_checks,
+    predicted_spectra,
+)
 from uwlab.experiments.dataset import Dataset
 
 
@@ -67,8 +74,11 @@ def held_out_folds(sweeps: list[str], config: FitConfig, train_sweeps: list[str]
     if train:
         unknown = sorted(set(train) - set(sweeps))
         if unknown:
-            raise ConfigError("--train" if train_sweeps else "holdout.train", ", ".join(unknown),
-                              f"not a sweep of this dataset ({', '.join(sweeps)})")
+            raise ConfigError(
+                "--train" if train_sweeps else "holdout.train",
+                ", ".join(unknown),
+                f"not a sweep of this dataset ({', '.join(sweeps)})",
+            )
         return [[s for s in sweeps if s not in train]]
     return default_folds(sweeps, config.holdout.folds)
 
@@ -94,22 +104,27 @@ class Assessment:
         """The assessment's part of summary.json (module docstring)."""
         table = self.cross.table
         per_config = dict(zip(table["sweep_id"], table["inside_95"], strict=True)) if len(table) else {}
-        return {"model": self.result.model.kind,
-                "predictive_coverage": {"held_out_inside_95": self.cross.inside_95, "per_configuration": per_config},
-                **self.verdict.to_dict(),
-                "warnings": self.result.summary()["warnings"] + self.verdict.warnings(),
-                "cross_configuration": self.cross.table.to_dict(orient="records"), "folds": self.cross.folds,
-                "posterior_predictive_checks": self.ppc.to_dict(orient="records")}
+        return {
+            "model": self.result.model.kind,
+            "predictive_coverage": {"held_out_inside_95": self.cross.inside_95, "per_configuration": per_config},
+            **self.verdict.to_dict(),
+            "warnings": self.result.summary()["warnings"] + self.verdict.warnings(),
+            "cross_configuration": self.cross.table.to_dict(orient="records"),
+            "folds": self.cross.folds,
+            "posterior_predictive_checks": self.ppc.to_dict(orient="records"),
+        }
 
 
-def assess(points: pd.DataFrame, rigs: dict, config: FitConfig, folds: list[list[str]], model: str | None = None,
-           progress=None) -> Assessment:
+def assess(
+    points: pd.DataFrame, rigs: dict, config: FitConfig, folds: list[list[str]], model: str | None = None, progress=None
+) -> Assessment:
     """Fit the points with the chain `model`, check every configuration, predict each held-out fold from a fit of
     the others, and judge the model (`uwlab.experiments.calibration.adequacy`)."""
     result = fit_points(points, rigs, config, progress=progress, kind=model)
     ppc = posterior_predictive_checks(result)
-    cross = cross_validation(points, rigs, config, folds, kind=result.model.kind, progress=progress,
-                             seed=config.sampler.seed)
+    cross = cross_validation(
+        points, rigs, config, folds, kind=result.model.kind, progress=progress, seed=config.sampler.seed
+    )
     return Assessment(result, ppc, cross, verdict(result, ppc, cross))
 
 
@@ -144,13 +159,24 @@ def calibrate(
     predicted = predicted_spectra(result)
     measured = dataset.spectra()
     spectra_table = compare_spectra(predicted, measured)
-    extra = {"dataset": str(Path(dataset_dir).resolve()), "plan_sha256": metadata.get("plan_sha256"),
-             "world": world_of(metadata), **assessment.summary(),
-             "spectra": spectra_table.to_dict(orient="records"), "sim": bool(metadata.get("sim"))}
+    extra = {
+        "dataset": str(Path(dataset_dir).resolve()),
+        "plan_sha256": metadata.get("plan_sha256"),
+        "world": world_of(metadata),
+        **assessment.summary(),
+        "spectra": spectra_table.to_dict(orient="records"),
+        "sim": bool(metadata.get("sim")),
+    }
     summary = write_fit(result, out, truth, extra, cross.points)
-    merged = predicted.merge(measured.groupby(["sweep_id", "position", "wavelength_nm"], as_index=False)[
-        "irradiance_w_m2_nm"].mean(), how="left", on=["sweep_id", "position", "wavelength_nm"]) if not measured.empty \
+    merged = (
+        predicted.merge(
+            measured.groupby(["sweep_id", "position", "wavelength_nm"], as_index=False)["irradiance_w_m2_nm"].mean(),
+            how="left",
+            on=["sweep_id", "position", "wavelength_nm"],
+        )
+        if not measured.empty
         else predicted.assign(irradiance_w_m2_nm=np.nan)
+    )
     merged.to_parquet(out / "spectra.parquet", index=False)
     (out / "cross.json").write_text(json.dumps(cross.table.to_dict(orient="records"), indent=2) + "\n")
     return Calibration(summary, cross.table, spectra_table, out)
