@@ -1,14 +1,26 @@
-"""`uwlab spectrum`: read the spectrometer (or import a Sekonic C-7000 CSV) and derive lux, W/m², photons, CCT."""
+"""`uwlab spectrum`: read the spectrometer (or import a Sekonic C-7000 CSV) and derive lux, W/m², photons, CCT.
+
+Sources: ``--port`` (the serial spectrometer, already calibrated), ``--instrument NAME`` (an instrument definition
+of ``configs/instruments/``: Ocean Insight through python-seabreeze, raw counts turned into W/m²/nm by the
+calibration file, collection area and dark; docs/spectrometers.md) or ``--import`` (a Sekonic C-7000 CSV).
+Every input is checked before a device is opened, and nothing is written unless the reading succeeded.
+"""
 
 from __future__ import annotations
 
 import json
+import sys
 
+from uwlab.drivers.ocean_insight import open_instrument, read_dark, write_dark
+from uwlab.drivers.ocean_insight.definition import BACKENDS
+from uwlab.drivers.ocean_insight.device import DarkMode, DarkSpectrum
 from uwlab.drivers.serial import PROTOCOLS, open_spectrometer
 from uwlab.drivers.serial.base import check_averaging, check_integration_ms
 from uwlab.errors import ConfigError
 from uwlab.experiments.acquisition.spectra import read_sekonic_csv, spectrum_summary, write_spectrum_csv
 from uwlab.outputs import output_file
+
+OCEAN_ONLY = ("resource", "calibration", "area_cm2", "dark", "dark_now", "save_dark", "auto_integration", "backend")
 
 
 def register(subparsers) -> None:
@@ -18,7 +30,37 @@ def register(subparsers) -> None:
     source = p.add_mutually_exclusive_group(required=True)
     source.add_argument("--port", help="serial port of the spectrometer")
     source.add_argument("--import", dest="import_path", metavar="FILE.csv", help="Sekonic C-7000 CSV export")
-    p.add_argument("--protocol", choices=PROTOCOLS, default=PROTOCOLS[0], help="instrument protocol")
+    source.add_argument(
+        "--instrument",
+        metavar="NAME",
+        help="instrument definition in configs/instruments/ "
+        "(ocean-insight: an Ocean Insight spectrometer through python-seabreeze)",
+    )
+    p.add_argument("--protocol", choices=PROTOCOLS, default=PROTOCOLS[0], help="instrument protocol (--port)")
+    ocean = p.add_argument_group("--instrument (seabreeze) options")
+    ocean.add_argument("--resource", metavar="SERIAL", help="the spectrometer's serial number (default: the first)")
+    ocean.add_argument("--backend", choices=BACKENDS, help="python-seabreeze backend (default: the definition's)")
+    ocean.add_argument(
+        "--calibration",
+        metavar="FILE.csv",
+        help="absolute irradiance calibration: columns wavelength_nm, uJ_per_count (OceanView)",
+    )
+    ocean.add_argument(
+        "--area-cm2",
+        type=float,
+        help="collection area of the cosine corrector or fibre [cm²] (default: the definition's)",
+    )
+    dark = ocean.add_mutually_exclusive_group()
+    dark.add_argument(
+        "--dark",
+        metavar="FILE.csv",
+        help="dark spectrum at the same integration time (default: the device's electric-dark pixels)",
+    )
+    dark.add_argument("--dark-now", action="store_true", help="measure the dark first (asks you to block the light)")
+    ocean.add_argument("--save-dark", metavar="FILE.csv", help="with --dark-now: keep the dark for --dark")
+    ocean.add_argument(
+        "--auto-integration", action="store_true", help="choose the longest integration under 80 %% of full scale"
+    )
     p.add_argument("--integration-ms", type=float, help="integration time [ms]")
     p.add_argument("--average", type=int, help="number of spectra averaged")
     p.add_argument("--out", metavar="FILE.csv", help="write wavelength_nm,irradiance_w_m2_nm (never overwritten)")
@@ -33,15 +75,27 @@ def register(subparsers) -> None:
 def run(args) -> int:
     if args.out is not None:
         output_file(args.out, "--out")
+    if args.instrument is None:
+        given = [name for name in OCEAN_ONLY if getattr(args, name) not in (None, False)]
+        if given:
+            raise ConfigError(given[0].replace("_", "-"), getattr(args, given[0]), "needs --instrument")
+    if args.save_dark is not None:
+        output_file(args.save_dark, "--save-dark")
+    details: dict[str, object] = {}
+    dark = None
     if args.import_path is not None:
         if args.integration_ms is not None or args.average is not None:
             raise ConfigError("import", args.import_path, "--integration-ms and --average need --port")
         (wavelength_nm, irradiance), saturated = read_sekonic_csv(args.import_path), None
+    elif args.instrument is not None:
+        (wavelength_nm, irradiance), saturated, details, dark = _measure_ocean(args)
     else:
         (wavelength_nm, irradiance), saturated = _measure(args)
-    summary = {**spectrum_summary(wavelength_nm, irradiance), "saturated": saturated}
+    summary = {**spectrum_summary(wavelength_nm, irradiance), "saturated": saturated, **details}
     if args.out is not None:
         write_spectrum_csv(args.out, wavelength_nm, irradiance)
+    if args.save_dark is not None and dark is not None:
+        write_dark(args.save_dark, dark)
     if args.json:
         print(json.dumps(summary))
     else:
@@ -63,6 +117,67 @@ def _measure(args) -> tuple[tuple, bool]:
         return spectrometer.read_spectrum(), spectrometer.last_saturated
 
 
+def _confirm(message: str) -> None:
+    """Ask the operator on stderr (stdout may carry the JSON) and wait for Enter; 'q' stops."""
+    print(f"{message}, then press Enter (or type 'q' to stop): ", end="", file=sys.stderr, flush=True)
+    reply = sys.stdin.readline()
+    if reply.strip().lower() in ("q", "quit") or not reply:
+        raise ConfigError("operator", reply.strip() or "end of input", "stopped at the prompt")
+
+
+def _measure_ocean(args) -> tuple[tuple, bool, dict[str, object], DarkSpectrum | None]:
+    """((wavelength_nm, irradiance_w_m2_nm), saturated, what the reading used, the dark measured now or None)
+    from a seabreeze spectrometer; every file and value is checked before the device is opened."""
+    if args.calibration is None:
+        raise ConfigError(
+            "calibration", None, "--instrument needs --calibration FILE.csv (wavelength_nm, uJ_per_count)"
+        )
+    if args.save_dark is not None and not args.dark_now:
+        raise ConfigError("save-dark", args.save_dark, "needs --dark-now")
+    if args.integration_ms is not None:
+        check_integration_ms(args.integration_ms)
+    averaging = None if args.average is None else check_averaging(args.average)
+    dark_file = None if args.dark is None else read_dark(args.dark)
+    if dark_file is not None and args.auto_integration:
+        raise ConfigError(
+            "dark", args.dark, "a dark file fixes the integration time; use --dark-now with --auto-integration"
+        )
+    dark_mode: DarkMode = "electric" if dark_file is None and not args.dark_now else "measured"
+    with open_instrument(
+        args.instrument,
+        args.resource,
+        args.calibration,
+        args.area_cm2,
+        backend=args.backend,
+        integration_ms=args.integration_ms,
+        dark_mode=dark_mode,
+    ) as spectrometer:
+        if averaging is not None:
+            spectrometer.set_averaging(averaging)
+        if args.auto_integration:
+            spectrometer.auto_integration()
+        dark = None
+        if dark_file is not None:
+            spectrometer.use_dark(dark_file, args.dark)
+        elif args.dark_now:
+            _confirm("block the light to the spectrometer")
+            dark = spectrometer.measure_dark()
+            spectrometer.use_dark(dark, "--dark-now")
+            _confirm("unblock the light")
+        spectrum = spectrometer.read_spectrum()
+        details = {
+            "integration_ms": spectrometer.integration_ms(),
+            "averaging": spectrometer.averaging(),
+            "serial": spectrometer.serial,
+            "model": spectrometer.model,
+            "dark": spectrometer.dark_mode,
+            "nonlinearity_corrected": spectrometer.nonlinearity_corrected,
+            "area_cm2": spectrometer.area_cm2,
+            "calibration": args.calibration,
+        }
+        return spectrum, spectrometer.last_saturated, details, dark
+
+
 def _print_summary(summary: dict) -> None:
     wavelength_nm = summary["wavelength_nm"]
     cct = summary["cct_k"]
@@ -72,4 +187,11 @@ def _print_summary(summary: dict) -> None:
     print(f"photon flux     {summary['photon_flux_m2_s']:.6g} m⁻² s⁻¹")
     print(f"CCT             {'undefined' if cct is None else f'{cct:.0f} K'}")
     if summary["saturated"]:
-        print("saturated       yes: the readings are clipped; reduce --integration-ms")
+        print("saturated       yes: the readings are clipped; reduce --integration-ms (or --auto-integration)")
+    if "serial" in summary:
+        print(
+            f"spectrometer    {summary['model']} {summary['serial']}, {summary['integration_ms']:g} ms x "
+            f"{summary['averaging']}, dark {summary['dark']}, nonlinearity "
+            f"{'corrected' if summary['nonlinearity_corrected'] else 'not corrected'}, "
+            f"A = {summary['area_cm2']:g} cm²"
+        )

@@ -115,6 +115,10 @@ class Spectrometer(_Instrument):
     @abstractmethod
     def integration_ms(self) -> float: ...
 
+    def integration_ms_limits(self) -> tuple[float, float]:
+        """The integration times [ms] the instrument accepts (a driver whose device reports its own overrides)."""
+        return INTEGRATION_MS_RANGE
+
     @abstractmethod
     def set_averaging(self, averaging: int) -> None: ...
 

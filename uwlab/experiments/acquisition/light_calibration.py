@@ -20,7 +20,7 @@ from collections.abc import Callable, Sequence
 import numpy as np
 import pandas as pd
 
-from uwlab.drivers.serial.base import INTEGRATION_MS_RANGE, Light, Spectrometer
+from uwlab.drivers.serial.base import Light, Spectrometer
 from uwlab.errors import ConfigError, DeviceError
 from uwlab.experiments.acquisition.spectra import illuminance_lux, irradiance_w_m2
 
@@ -77,10 +77,10 @@ def measure_unsaturated(spectrometer: Spectrometer) -> tuple[np.ndarray, np.ndar
         wavelength_nm, irradiance = spectrometer.read_spectrum()
         if not spectrometer.last_saturated:
             return wavelength_nm, irradiance
-        integration_ms = spectrometer.integration_ms()
-        if integration_ms <= INTEGRATION_MS_RANGE[0]:
+        integration_ms, minimum_ms = spectrometer.integration_ms(), spectrometer.integration_ms_limits()[0]
+        if integration_ms <= minimum_ms:
             raise DeviceError(f"{spectrometer.port}: saturated even at the minimum integration time")
-        spectrometer.set_integration_ms(max(INTEGRATION_MS_RANGE[0], integration_ms / 2))
+        spectrometer.set_integration_ms(max(minimum_ms, integration_ms / 2))
 
 
 def _calibration(levels: np.ndarray, wavelength_nm: np.ndarray, spectra: np.ndarray) -> LightCalibration:

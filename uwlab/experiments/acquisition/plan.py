@@ -9,7 +9,9 @@ Schema (docs/sweeps.md has a commented example). Top level:
 - ``[camera]``: ``backend``, ``id``, ``pixel_format``, ``window`` = [x, y, w, h] (device ROI), ``timeout_s``,
   ``reconnect_attempts`` and ``outage_limit_s`` (the reconnect bounds of `uwlab.drivers.camera.Policy`);
 - ``[instruments]``: ``light_port``, ``spectrometer_port``, ``protocol``, ``reopen_s`` (how long a vanished port
-  may take to come back, default 5 s) (real hardware; ``--sim`` replaces them);
+  may take to come back, default 5 s) (real hardware; ``--sim`` replaces them); instead of ``spectrometer_port``,
+  ``[instruments.seabreeze_spectrometer]`` (``instrument``, ``resource``, ``calibration``, ``area_cm2``): a USB
+  spectrometer through python-seabreeze (docs/spectrometers.md);
 - ``[defaults]``: any sweep key, applied to every sweep unless the sweep sets it.
 
 Each ``[[sweep]]``: ``id`` (unique), ``kind`` (exposure | aperture | gain | light-level | dark), ``values``
@@ -45,6 +47,7 @@ from pydantic_core import PydanticCustomError
 
 from uwlab.drivers.camera import BACKENDS, Policy
 from uwlab.drivers.camera.pixels import PIXEL_FORMATS
+from uwlab.drivers.ocean_insight.definition import CollectionAreaCm2
 from uwlab.drivers.serial import PROTOCOLS
 from uwlab.drivers.serial.base import Averaging, IntegrationMs
 from uwlab.model.config import SIMULATION_SECTIONS, rate_design_sections
@@ -71,6 +74,7 @@ from uwlab.model.schema import (
     Number,
     Schema,
     Text,
+    at_most_one,
     check,
     either,
     invalid,
@@ -133,13 +137,31 @@ class CameraSpec(Schema):
         )
 
 
+class SeabreezeSpectrometerTable(Schema):
+    """[instruments.seabreeze_spectrometer]: a USB spectrometer by instrument definition (docs/spectrometers.md)."""
+
+    instrument: NonEmptyText = Field("ocean-insight", description="definition in configs/instruments/")
+    resource: NonEmptyText | None = Field(None, description="serial number (default: the first found)")
+    calibration: NonEmptyText = Field(
+        description="calibration file (wavelength_nm, uJ_per_count), relative to the plan"
+    )
+    area_cm2: CollectionAreaCm2 | None = Field(None, description="collection area [cm²] (default: the definition's)")
+
+
 class InstrumentsSection(Schema):
     """[instruments]: the serial instruments of the real rig (``--sim`` replaces them)."""
 
     light_port: NonEmptyText | None = Field(None, description="serial port of the light controller")
     spectrometer_port: NonEmptyText | None = Field(None, description="serial port of the spectrometer")
+    seabreeze_spectrometer: SeabreezeSpectrometerTable | None = Field(
+        None, description="a USB spectrometer through python-seabreeze instead of spectrometer_port"
+    )
     protocol: Literal[PROTOCOLS] = Field(PROTOCOLS[0], description="instrument protocol")
     reopen_s: ReopenS = Field(5.0, description="how long a vanished serial port may take to come back [s]")
+
+    @model_validator(mode="after")
+    def _one_spectrometer(self):
+        return at_most_one(self, "spectrometer_port", "seabreeze_spectrometer")
 
 
 class LensTable(Schema):

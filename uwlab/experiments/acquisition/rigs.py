@@ -14,10 +14,12 @@ from typing import Protocol
 import numpy as np
 
 from uwlab.drivers.camera import Camera, open_camera
+from uwlab.drivers.ocean_insight import open_instrument
 from uwlab.drivers.serial import Light, Spectrometer, open_light, open_spectrometer
 from uwlab.errors import ConfigError
 from uwlab.experiments.acquisition.plan import Plan, SweepSpec
 from uwlab.experiments.acquisition.roi import Rect, aruco_roi
+from uwlab.model.data import resolve_path
 
 
 class Rig(Protocol):
@@ -58,6 +60,14 @@ class HardwareRig:
                 self.light = open_light(ports.light_port, ports.protocol, reopen_s=ports.reopen_s)
             if ports.spectrometer_port is not None:
                 self.spectrometer = open_spectrometer(ports.spectrometer_port, ports.protocol, reopen_s=ports.reopen_s)
+            if (usb := ports.seabreeze_spectrometer) is not None:  # dark: electric where it can, else the sweep's
+                self.spectrometer = open_instrument(
+                    usb.instrument,
+                    usb.resource,
+                    resolve_path(usb.calibration, self.plan.path.parent),
+                    usb.area_cm2,
+                    dark_mode="auto",
+                )
         except BaseException:
             self.__exit__()
             raise

@@ -1,0 +1,155 @@
+"""Counts → spectral irradiance for Ocean Insight spectrometers: OceanView's absolute-irradiance relation.
+
+OceanView's absolute irradiance (OceanView Installation and Operation Manual, "Absolute Irradiance" and the
+irradiance-calibration appendix; Ocean Insight's irradiance calibration documentation, e.g. the Ocean ST
+Installation & Operation Manual, "Irradiance Calibrations") turns a pixel's counts into spectral irradiance with
+
+    E(λ) [µW/cm²/nm] = (S(λ) − D(λ)) · C(λ) / (T · A · dλ)
+
+- S(λ) the counts of the pixel at λ (linearised: `linearize`), D(λ) the dark counts (the device's electric dark,
+  or a dark spectrum at the same integration time with the light blocked);
+- C(λ) [µJ/count] the lamp calibration: the energy one count stands for, from the user's calibration file
+  (columns ``wavelength_nm, uJ_per_count``: OceanView's export) interpolated linearly to the device's pixels
+  (`calibration_on`), refused where the file does not cover them;
+- T [s] the integration time; A [cm²] the collection area of the cosine corrector or bare fibre;
+- dλ [nm] the wavelength spread of the pixel: the mean distance to its two neighbours, one-sided at the ends
+  (`wavelength_spread_nm`).
+
+1 µW/cm² = 1e-6 W / 1e-4 m² = 0.01 W/m², so `irradiance_w_m2_nm` returns E · 0.01 in W/m²/nm.
+
+Saturation (`saturated`): any *raw* pixel within 1 % of the device's full scale (seabreeze's ``max_intensity``,
+to which the backends rescale the ADC's saturation level). Automatic integration (`next_integration_us`):
+the longest integration whose raw peak stays under 80 % of full scale.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from uwlab.errors import ConfigError
+from uwlab.model.data import read_csv_columns
+
+UW_CM2_TO_W_M2 = 0.01
+"""1 µW/cm² in W/m²."""
+SATURATION_FRACTION = 0.99
+"""A raw pixel at or above this fraction of ``max_intensity`` is saturated (within 1 % of full scale)."""
+AUTO_FRACTION = 0.8
+"""Automatic integration keeps the raw peak under this fraction of ``max_intensity``."""
+CALIBRATION_COLUMNS = ("wavelength_nm", "uJ_per_count")
+
+
+def wavelength_spread_nm(wavelength_nm) -> np.ndarray:
+    """dλ [nm] of each pixel: the mean distance to its two neighbours; the first and last pixels use their one
+    neighbour (OceanView's pixel wavelength spread).
+
+    >>> wavelength_spread_nm([400.0, 401.0, 403.0, 406.0]).tolist()
+    [1.0, 1.5, 2.5, 3.0]
+    """
+    wavelength_nm = np.asarray(wavelength_nm, dtype=float)
+    if wavelength_nm.ndim != 1 or wavelength_nm.size < 2 or not np.all(np.diff(wavelength_nm) > 0):
+        raise ConfigError("wavelength_nm", wavelength_nm.size, "needs ≥ 2 strictly increasing wavelengths")
+    return np.gradient(wavelength_nm)  # central differences (λ[i+1] − λ[i−1]) / 2, one-sided at the ends
+
+
+def read_calibration(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """(wavelength_nm, C [µJ/count]) of a calibration file with columns ``wavelength_nm, uJ_per_count`` (``#``
+    comment lines allowed); `ConfigError` on ``calibration`` for missing columns, fewer than 2 rows, or factors that
+    are negative, zero or not finite (a count always stands for some energy)."""
+    columns = read_csv_columns(Path(path), CALIBRATION_COLUMNS, "calibration")
+    wavelength_nm, factor = columns["wavelength_nm"], columns["uJ_per_count"]
+    if wavelength_nm.size < 2:
+        raise ConfigError("calibration", str(path), "needs at least 2 rows")
+    bad = ~np.isfinite(factor) | (factor <= 0) | ~np.isfinite(wavelength_nm)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise ConfigError(
+            "calibration",
+            str(path),
+            f"uJ_per_count must be positive and finite; at {wavelength_nm[i]:g} nm it is {factor[i]:g}",
+        )
+    return wavelength_nm, factor
+
+
+def calibration_on(
+    calibration_nm: np.ndarray, uj_per_count: np.ndarray, device_nm: np.ndarray, source: str = "calibration"
+) -> np.ndarray:
+    """C [µJ/count] linearly interpolated to the device's pixel wavelengths; `ConfigError` on ``source`` when the
+    calibration does not cover the device's range (no extrapolation)."""
+    device_nm = np.asarray(device_nm, dtype=float)
+    if device_nm[0] < calibration_nm[0] or device_nm[-1] > calibration_nm[-1]:
+        raise ConfigError(
+            "calibration",
+            source,
+            f"covers {calibration_nm[0]:g}–{calibration_nm[-1]:g} nm, the device {device_nm[0]:g}–{device_nm[-1]:g} nm",
+        )
+    return np.interp(device_nm, calibration_nm, uj_per_count)
+
+
+def irradiance_w_m2_nm(
+    counts, dark_counts, uj_per_count, integration_s: float, area_cm2: float, wavelength_nm
+) -> np.ndarray:
+    """Spectral irradiance [W/m²/nm] = (S − D) · C / (T · A · dλ) [µW/cm²/nm] × 0.01 (module docstring).
+
+    ``counts`` S and ``dark_counts`` D [counts] (D may be a scalar), ``uj_per_count`` C [µJ/count] on the same
+    pixels, ``integration_s`` T [s], ``area_cm2`` A [cm²], ``wavelength_nm`` the pixels' wavelengths (for dλ).
+
+    >>> irradiance_w_m2_nm([1100.0, 1100.0], 100.0, [2e-6, 2e-6], 0.1, 0.5, [500.0, 502.0]).tolist()
+    [0.0002, 0.0002]
+    """
+    spread_nm = wavelength_spread_nm(wavelength_nm)
+    signal = np.asarray(counts, dtype=float) - np.asarray(dark_counts, dtype=float)
+    return signal * np.asarray(uj_per_count, dtype=float) / (integration_s * area_cm2 * spread_nm) * UW_CM2_TO_W_M2
+
+
+def linearize(
+    raw_counts, electric_dark_indices, nonlinearity_coefficients, subtract_electric_dark: bool
+) -> tuple[np.ndarray, float]:
+    """(corrected counts, electric-dark level) of one raw readout, by the device's stored corrections in the order
+    seabreeze's ``Spectrometer.intensities`` applies them: the electric-dark level (the mean of the optically
+    masked pixels ``electric_dark_indices``; 0 without them) is subtracted, the counts are divided by the device's
+    nonlinearity polynomial ``Σ cₖ xᵏ`` (``nonlinearity_coefficients`` c₀, c₁, … in ascending order; None: no
+    correction) evaluated at the dark-subtracted counts, and the level is added back unless
+    ``subtract_electric_dark``.
+
+    >>> counts, level = linearize([10.0, 10.0, 1010.0], [0, 1], [1.0, -1e-4], True)
+    >>> level, round(float(counts[2]), 6)
+    (10.0, 1111.111111)
+    """
+    raw = np.asarray(raw_counts, dtype=float)
+    level = float(np.mean(raw[list(electric_dark_indices)])) if len(electric_dark_indices) else 0.0
+    signal = raw - level
+    if nonlinearity_coefficients is not None:
+        signal = signal / np.polynomial.polynomial.polyval(signal, nonlinearity_coefficients)
+    return (signal if subtract_electric_dark else signal + level), level
+
+
+def saturated(raw_counts, max_intensity: float) -> bool:
+    """Whether any raw pixel is within 1 % of full scale ``max_intensity``.
+
+    >>> saturated([100.0, 64900.0], 65535.0), saturated([100.0, 64800.0], 65535.0)
+    (True, False)
+    """
+    return bool(np.max(raw_counts) >= SATURATION_FRACTION * max_intensity)
+
+
+def next_integration_us(
+    integration_us: int, raw_peak: float, baseline: float, max_intensity: float, limits_us: tuple[int, int]
+) -> int:
+    """The integration [µs] that would bring the raw peak to 80 % of full scale, from a reading at
+    ``integration_us`` whose highest raw pixel is ``raw_peak`` over a ``baseline`` (the dark level that does not
+    grow with integration), assuming counts above the baseline grow in proportion to integration time (the
+    detector's linear range); clamped to the device's ``limits_us``. A saturated reading (whose peak says only
+    "too much") halves the integration.
+
+    >>> next_integration_us(10_000, 40_000.0, 0.0, 65_535.0, (1_000, 10_000_000))
+    13107
+    """
+    low, high = limits_us
+    if saturated([raw_peak], max_intensity):
+        wanted = integration_us / 2
+    else:
+        signal = max(raw_peak - baseline, 1.0)
+        wanted = integration_us * (AUTO_FRACTION * max_intensity - baseline) / signal
+    return int(min(high, max(low, np.floor(wanted))))
