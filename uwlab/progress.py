@@ -122,10 +122,10 @@ def bar(total: float | None = None, desc: str = "", unit: str = "it", *, enabled
 TAU_TARGET = 50  # the fit runs until the chain is this many autocorrelation times long
 
 
-def tau_bar(desc: str, enabled: bool = True) -> tuple[Bar, Callable[[int, float], None]]:
+def tau_bar(desc: str, enabled: bool = True, stream: IO[str] | None = None) -> tuple[Bar, Callable[[int, float], None]]:
     """A bar over an MCMC chain's length in autocorrelation times (a fit stops at 50 τ) and the
     ``progress(steps, tau_multiple)`` callback the fit reports to (`uwlab.experiments.calibration.fit.run_fit`)."""
-    shown = bar(total=TAU_TARGET, desc=desc, unit="τ", enabled=enabled,
+    shown = bar(total=TAU_TARGET, desc=desc, unit="τ", enabled=enabled, stream=stream,
                 bar_format="{desc}: {n:.0f}/{total} τ |{bar}| {elapsed} {postfix}")
 
     def update(steps: int, tau_multiple: float) -> None:

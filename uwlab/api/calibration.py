@@ -25,20 +25,36 @@ if TYPE_CHECKING:
 @dataclass(frozen=True)
 class Verdict:
     """Whether the model is adequate for these data (`uwlab.experiments.calibration.adequacy`): the named `checks`
-    ({name: passed}) and, when it is not, the `warnings` naming the failing checks and likely causes. True when
-    adequate."""
+    (each ``{"name", "passed", "detail"}``) and the `warnings` (when it is not adequate: the failing checks and
+    likely causes). True when adequate.
+
+    >>> from uwlab.api.calibration import Verdict
+    >>> verdict = Verdict(False, "paper", ({"name": "held-out levels", "passed": False, "detail": "2 of 6 outside"},),
+    ...                   ())
+    >>> bool(verdict), verdict.failed
+    (False, ['held-out levels'])
+    >>> print(verdict)
+    paper model: NOT adequate
+    failed: held-out levels (2 of 6 outside)
+    """
 
     adequate: bool
     model: str
-    checks: dict[str, Any]
+    checks: tuple[dict[str, Any], ...]
     warnings: tuple[str, ...]
 
     def __bool__(self) -> bool:
         return self.adequate
 
+    @property
+    def failed(self) -> list[str]:
+        """The names of the checks that failed."""
+        return [str(c["name"]) for c in self.checks if not c.get("passed")]
+
     def __str__(self) -> str:
         head = f"{self.model} model: {'adequate' if self.adequate else 'NOT adequate'}"
-        return "\n".join([head, *(f"warning: {w}" for w in self.warnings)])
+        failed = [f"failed: {c['name']} ({c.get('detail', '')})" for c in self.checks if not c.get("passed")]
+        return "\n".join([head, *failed, *(f"warning: {w}" for w in self.warnings)])
 
 
 class Fit:
@@ -97,7 +113,7 @@ class Fit:
     @property
     def verdict(self) -> Verdict:
         s = self.summary
-        return Verdict(bool(s.get("model_adequate")), str(s.get("model")), dict(s.get("checks") or {}),
+        return Verdict(bool(s.get("model_adequate")), str(s.get("model")), tuple(s.get("checks") or ()),
                        tuple(s.get("warnings") or ()))
 
     @property
@@ -165,11 +181,14 @@ def fit(dataset: Dataset | str | os.PathLike[str], model: str | None = "extended
     from uwlab.experiments.calibration.pipeline import calibrate
     from uwlab.progress import tau_bar
 
-    root = Path(getattr(dataset, "path", dataset))
+    from uwlab.api.campaign import dataset_path
+
+    root = dataset_path(dataset)
     target = Path(out) if out is not None else root / "fit"
     shown, update = tau_bar("sampling", enabled=progress)
     with shown:
-        calibrate(root, config, target, train, progress=update, model=model, sampler=dict(sampler) or None)
+        calibrate(root, None if config is None else Path(config), target, train, progress=update, model=model,
+                  sampler=dict(sampler) or None)
     return Fit.open(target)
 
 
@@ -200,5 +219,7 @@ def report(source: Fit | Dataset | str | os.PathLike[str], out: str | os.PathLik
         fit_dir = source.directory.resolve()
         root = Path(os.path.commonpath([fit_dir, Path(dataset).resolve()])) if dataset else fit_dir
     else:
-        root = Path(getattr(source, "path", source))
+        from uwlab.api.campaign import dataset_path
+
+        root = dataset_path(source)
     return write_report(root, Path(out) if out is not None else root / "report.html", replace=force)

@@ -37,6 +37,11 @@ def load_plan(path: str | Path) -> Plan:
     return load(path)
 
 
+def dataset_path(source: Dataset | str | os.PathLike[str]) -> Path:
+    """The directory of a `Dataset`, or a path as a `Path`."""
+    return source.path if isinstance(source, Dataset) else Path(source)
+
+
 class Dataset:
     """A sweep dataset, read-only: ``Dataset.open(path)``; `points` (one row per measured point) and `spectra`
     (long format) as DataFrames, `metadata` (plan, devices, simulated truth), `summary` (``uwlab dataset show``).

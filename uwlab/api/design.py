@@ -28,7 +28,17 @@ if TYPE_CHECKING:
 class Infeasible(UwlabError):
     """`solve` found no values of the free keys meeting every requirement; the message names the requirements that
     cannot be met (alone, even at the bounds, or together); `answer` is the solver's full answer (the JSON of
-    ``uwlab design solve --json``)."""
+    ``uwlab design solve --json``).
+
+    >>> import uwlab
+    >>> try:
+    ...     uwlab.solve(uwlab.load_design(uwlab.config_path("design/example.toml")),
+    ...                 free={"light.luminous_flux_lm": (100, 1000)}, require=["snr_db >= 60"],
+    ...                 minimize="light.luminous_flux_lm")
+    ... except uwlab.Infeasible as exc:
+    ...     print(exc)
+    no feasible design: cannot be met even at the bounds: snr_db >= 60
+    """
 
     def __init__(self, message: str, answer: dict[str, Any]) -> None:
         super().__init__(message)
@@ -78,6 +88,13 @@ class Evaluation:
     `solve`'s requirements take); `units` and `labels` give each dotted name's unit and label; `light_budget` the
     stops of light lost per stage, `limiting_stage` the stage that loses most. ``str(evaluation)`` is the text
     table of ``uwlab design``.
+
+    >>> import uwlab
+    >>> result = uwlab.evaluate(uwlab.load_design(uwlab.config_path("design/example.toml")))
+    >>> result["dof_m.near"] == result.outputs["dof_m"]["near"], result.units["dof_m.near"]
+    (True, 'm')
+    >>> print(str(result).splitlines()[0])
+    effective focal length           39.99 mm
     """
 
     design: Design
@@ -225,8 +242,9 @@ def grid(design: Design, axes: Mapping[str, Iterable[Any]], outputs: Sequence[st
 
 
 def _posterior_dir(posterior: Fit | str | Path) -> Path:
-    directory = getattr(posterior, "directory", posterior)
-    return Path(directory)
+    from uwlab.api.calibration import Fit
+
+    return posterior.directory if isinstance(posterior, Fit) else Path(posterior)
 
 
 def solve(design: Design, free: Mapping[str, tuple[float, float]], require: Sequence[str],

@@ -178,7 +178,9 @@ def characterize(source: Dataset | PhotonTransfer | str | os.PathLike[str], *, m
         check(PixelSizeUm, pixel_size_um, "pixel_size_um")
     if isinstance(source, PhotonTransfer):
         return EmvaResult(run(source, model), source, pixel_size_um=pixel_size_um)
-    path = Path(getattr(source, "path", source))  # a Dataset, or a path
+    from uwlab.api.campaign import dataset_path
+
+    path = dataset_path(source)
     if path.is_file():
         from uwlab.experiments.emva.descriptor import parse_descriptor, photon_transfer_from_descriptor, sheet_info
 

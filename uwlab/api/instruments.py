@@ -75,7 +75,12 @@ def open_spectrometer(port: str, protocol: str | None = None, **options: Any) ->
 class Grab:
     """Frames grabbed from one camera: `device` (backend, id, vendor, model, serial, discarded frames), `frames`
     (each with its image and the settings read back with it) and `stats` (one row per frame: mean, std, min, max,
-    saturated fraction and the clip level it was judged by)."""
+    saturated fraction and the clip level it was judged by).
+
+    Examples
+    --------
+    See `grab`.
+    """
 
     device: dict[str, Any]
     frames: list[Frame] = field(repr=False)

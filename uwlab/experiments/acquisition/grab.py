@@ -37,8 +37,8 @@ def frame_stats(frame: Frame, sensor: SensorProfile | None) -> dict[str, Any]:
     profile_dn = None
     if sensor is not None:
         offset = sensor.dark_offset_dn + (s.black_level or 0.0)
-        profile_dn = sensor_clip_dn(sensor.gain_k(s.gain_db or 0.0), sensor.saturation_e, offset, sensor.bit_depth,
-                                    frame.pixel_format)
+        gain: float = sensor.gain_k(s.gain_db or 0.0)  # type: ignore[no-untyped-call]  # model not yet typed
+        profile_dn = sensor_clip_dn(gain, sensor.saturation_e, offset, sensor.bit_depth, frame.pixel_format)
     clip = clip_level(frame.pixel_format, native_bits=sensor.bit_depth if sensor else None, profile_dn=profile_dn,
                       image=img)
     return {

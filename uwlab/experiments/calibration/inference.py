@@ -51,8 +51,9 @@ def inference_data(result: FitResult) -> arviz.InferenceData:
     posterior = {name: chains[:, :, i] for i, name in enumerate(result.names)}
     attrs = {"model": result.model.kind, "converged": int(result.converged), "steps": int(result.steps),
              "tau_max": float(np.max(result.tau)), "inference_library": "emcee"}
-    data = arviz.from_dict(posterior=posterior, sample_stats={"lp": by_walker(result.log_prob, walkers)})
-    data.posterior.attrs.update(attrs)
+    data: arviz.InferenceData = arviz.from_dict(posterior=posterior,
+                                                sample_stats={"lp": by_walker(result.log_prob, walkers)})
+    data["posterior"].attrs.update(attrs)
     return data
 
 
@@ -71,10 +72,14 @@ def read_inference_data(fit_dir: str | Path) -> arviz.InferenceData:
     fit_dir = Path(fit_dir)
     path = fit_dir / POSTERIOR_NAME
     if path.is_file():
-        return arviz.from_netcdf(str(path), engine=NETCDF_ENGINE)
+        stored: arviz.InferenceData = arviz.from_netcdf(  # type: ignore[no-untyped-call]
+            str(path), engine=NETCDF_ENGINE)
+        return stored
     samples = fit_dir / "samples.parquet"
     if not samples.is_file():
         raise ConfigError("fit", str(fit_dir), f"neither {POSTERIOR_NAME} nor samples.parquet here (not a `uwlab fit` "
                                                "output directory)")
     frame = pd.read_parquet(samples)
-    return arviz.from_dict(posterior={name: frame[name].to_numpy()[None, :] for name in frame.columns})
+    single: arviz.InferenceData = arviz.from_dict(posterior={name: frame[name].to_numpy()[None, :]
+                                                             for name in frame.columns})
+    return single
