@@ -40,3 +40,17 @@ def test_the_cli_verbs_have_their_python_names():
 def test_an_unknown_name_is_an_attribute_error():
     with pytest.raises(AttributeError, match="no attribute 'nonesuch'"):
         uwlab.nonesuch  # noqa: B018
+
+
+def test_docs_api_has_every_name_and_every_readme_workflow():
+    import re
+
+    doc = (ROOT / "docs" / "api.md").read_text()
+    for name in uwlab.__all__:
+        if name != "__version__":
+            assert f"{name}(" in doc or f"`{name}`" in doc or f"{name}." in doc, name
+    readme = (ROOT / "README.md").read_text()
+    rows = re.findall(r"^\| `(uwlab [a-z]+)", readme, flags=re.M)
+    assert len(rows) >= 10
+    python_rows = re.findall(r"^\| `(uwlab [a-z]+)", doc, flags=re.M)
+    assert set(rows) <= set(python_rows)
