@@ -8,6 +8,7 @@
 
 Usage: python benchmarks/bench_camera.py [--frames N] [--gige-frames N] [--no-gige]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -41,16 +42,27 @@ def bench_sim(n_frames: int) -> dict:
         elapsed = time.perf_counter() - t0
         cam.stop()
     fps = n_frames / elapsed
-    return {"source": "sim in-process", "width": width, "height": height, "pixel_format": "Mono16",
-            "frames": n_frames, "fps": round(fps, 1), "dropped": dropped + cam.stats.discarded,
-            "stats_fraction_of_period": round(stats_s / elapsed, 4), "target_fps": 75.0,
-            "meets_target": fps >= 75.0 and dropped == 0 and stats_s / elapsed <= 0.2}
+    return {
+        "source": "sim in-process",
+        "width": width,
+        "height": height,
+        "pixel_format": "Mono16",
+        "frames": n_frames,
+        "fps": round(fps, 1),
+        "dropped": dropped + cam.stats.discarded,
+        "stats_fraction_of_period": round(stats_s / elapsed, 4),
+        "target_fps": 75.0,
+        "meets_target": fps >= 75.0 and dropped == 0 and stats_s / elapsed <= 0.2,
+    }
 
 
 def bench_gige(n_frames: int, address: str = "127.0.0.77") -> dict:
-    proc = subprocess.Popen([sys.executable, "-m", "uwlab.cli.main", "sim", "camera", "--gige", "--json",
-                             "--address", address],
-                            stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "uwlab.cli.main", "sim", "camera", "--gige", "--json", "--address", address],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.DEVNULL,
+        text=True,
+    )
     try:
         info = json.loads(proc.stdout.readline())
         with open_camera("aravis", info["address"], policy=Policy(timeout_s=5.0)) as cam:
@@ -59,10 +71,16 @@ def bench_gige(n_frames: int, address: str = "127.0.0.77") -> dict:
             t0 = time.perf_counter()
             frames = [f.frame_id for f in cam.stream(n_frames)]
             elapsed = time.perf_counter() - t0
-            return {"source": "aravis gige loopback", "width": int(cam.transport.get("Width")),
-                    "height": int(cam.transport.get("Height")), "pixel_format": cam.pixel_format,
-                    "frames": n_frames, "fps": round(n_frames / elapsed, 2),
-                    "dropped": int(np.sum(np.diff(frames) - 1)), "discarded": cam.stats.discarded}
+            return {
+                "source": "aravis gige loopback",
+                "width": int(cam.transport.get("Width")),
+                "height": int(cam.transport.get("Height")),
+                "pixel_format": cam.pixel_format,
+                "frames": n_frames,
+                "fps": round(n_frames / elapsed, 2),
+                "dropped": int(np.sum(np.diff(frames) - 1)),
+                "discarded": cam.stats.discarded,
+            }
     finally:
         proc.terminate()
         try:

@@ -11,6 +11,7 @@
 
 Usage: python benchmarks/bench_dataset.py [--points N] [--dir DIR]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -33,9 +34,20 @@ NM = np.arange(380.0, 781.0)
 
 
 def row(sweep_id: str, index: int) -> dict:
-    return {"sweep_id": sweep_id, "point_index": index, "kind": "exposure", "frames": 2, "exposure_us": 100.0 + index,
-            "mean_dn": 1000.0 + index, "temporal_var_dn2": 40.0, "spatial_var_dn2": 3.0, "saturated": False,
-            "light_on": True, "t_start_ns": time.time_ns(), "t_end_ns": time.time_ns()}
+    return {
+        "sweep_id": sweep_id,
+        "point_index": index,
+        "kind": "exposure",
+        "frames": 2,
+        "exposure_us": 100.0 + index,
+        "mean_dn": 1000.0 + index,
+        "temporal_var_dn2": 40.0,
+        "spatial_var_dn2": 3.0,
+        "saturated": False,
+        "light_on": True,
+        "t_start_ns": time.time_ns(),
+        "t_end_ns": time.time_ns(),
+    }
 
 
 def spectrum(sweep_id: str, index: int):
@@ -55,10 +67,17 @@ def bench_append(root: Path, points: int) -> dict:
     rows = len(opened.points())
     open_s = time.perf_counter() - t0
     first, last = sum(durations[:WINDOW]), sum(durations[-WINDOW:])
-    return {"points": points, "first_100_s": round(first, 4), "last_100_s": round(last, 4),
-            "last_over_first": round(last / first, 3), "median_append_ms": round(1e3 * statistics.median(durations), 2),
-            "max_append_ms": round(1e3 * max(durations), 1), "part_files": len(list((root / "parts").iterdir())),
-            "open_and_read_points_s": round(open_s, 3), "rows_read": rows}
+    return {
+        "points": points,
+        "first_100_s": round(first, 4),
+        "last_100_s": round(last, 4),
+        "last_over_first": round(last / first, 3),
+        "median_append_ms": round(1e3 * statistics.median(durations), 2),
+        "max_append_ms": round(1e3 * max(durations), 1),
+        "part_files": len(list((root / "parts").iterdir())),
+        "open_and_read_points_s": round(open_s, 3),
+        "rows_read": rows,
+    }
 
 
 SWEEP_PLAN = """
@@ -84,15 +103,18 @@ def bench_sweep(directory: Path, rig: SimRig, recorded: int, timed: int = 40) ->
     """Median over `TIMED_SWEEPS` sweeps of ``timed`` points of the milliseconds per point (from each sweep's first
     point on: no set-up), into a dataset already holding ``recorded`` points."""
     path = directory / f"plan-{recorded}.toml"
-    path.write_text(SWEEP_PLAN.format(rig=RIG, recorded=recorded, timed=timed)
-                    + "".join(f'[[sweep]]\nid = "timed-{n}"\n' for n in range(TIMED_SWEEPS)))
+    path.write_text(
+        SWEEP_PLAN.format(rig=RIG, recorded=recorded, timed=timed)
+        + "".join(f'[[sweep]]\nid = "timed-{n}"\n' for n in range(TIMED_SWEEPS))
+    )
     plan = load_plan(path)
     stamps: dict[str, list[float]] = {}
     with Dataset.create(directory / f"sweep-{recorded}", plan.raw, plan_sha256=plan.sha256, sim=True) as data:
         for index in range(recorded):
             data.append_point(row("recorded", index), spectrum("recorded", index))
-        SweepRunner(plan, data, rig, progress=lambda event: stamps.setdefault(event.sweep_id, []).append(
-            time.perf_counter())).run()
+        SweepRunner(
+            plan, data, rig, progress=lambda event: stamps.setdefault(event.sweep_id, []).append(time.perf_counter())
+        ).run()
     return statistics.median(1e3 * (t[-1] - t[0]) / (len(t) - 1) for t in stamps.values())
 
 

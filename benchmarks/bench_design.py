@@ -11,6 +11,7 @@ for every grid. Grids of 1,000,000 points on the example design:
 "model" is `evaluate` on the open mesh (arrays broadcast, outputs materialised over the grid); "rows" is the
 chunked pipeline of `uwlab design --grid` (`DesignGrid` chunks into Arrow tables with every column, no disk).
 """
+
 from __future__ import annotations
 
 import json
@@ -26,15 +27,27 @@ from uwlab.model.design import evaluate, load_design
 EXAMPLE = Path(__file__).resolve().parents[1] / "configs" / "design" / "example.toml"
 
 GRIDS = {
-    "easy": {"operation.altitude_m": np.linspace(0.5, 10.0, 100), "lens.f_number": np.linspace(1.4, 16.0, 50),
-             "operation.exposure_s": np.geomspace(1e-4, 1e-2, 20), "sensor.gain_db": np.linspace(0.0, 18.0, 10)},
-    "hard": {"operation.altitude_m": np.linspace(0.5, 10.0, 100), "water.attenuation_scale": np.linspace(0.5, 2.0, 100),
-             "light.beam_half_angle_deg": np.linspace(10.0, 60.0, 100)},
-    "focal": {"operation.altitude_m": np.linspace(0.5, 10.0, 100), "lens.focal_length_mm": np.linspace(4.0, 50.0, 100),
-              "light.beam_half_angle_deg": np.linspace(10.0, 60.0, 100)},
-    "geometry_per_point": {"operation.altitude_m": np.linspace(0.5, 10.0, 100),
-                           "lens.focal_length_mm": np.linspace(4.0, 50.0, 100),
-                           "housing.water_index": np.linspace(1.33, 1.35, 100)},
+    "easy": {
+        "operation.altitude_m": np.linspace(0.5, 10.0, 100),
+        "lens.f_number": np.linspace(1.4, 16.0, 50),
+        "operation.exposure_s": np.geomspace(1e-4, 1e-2, 20),
+        "sensor.gain_db": np.linspace(0.0, 18.0, 10),
+    },
+    "hard": {
+        "operation.altitude_m": np.linspace(0.5, 10.0, 100),
+        "water.attenuation_scale": np.linspace(0.5, 2.0, 100),
+        "light.beam_half_angle_deg": np.linspace(10.0, 60.0, 100),
+    },
+    "focal": {
+        "operation.altitude_m": np.linspace(0.5, 10.0, 100),
+        "lens.focal_length_mm": np.linspace(4.0, 50.0, 100),
+        "light.beam_half_angle_deg": np.linspace(10.0, 60.0, 100),
+    },
+    "geometry_per_point": {
+        "operation.altitude_m": np.linspace(0.5, 10.0, 100),
+        "lens.focal_length_mm": np.linspace(4.0, 50.0, 100),
+        "housing.water_index": np.linspace(1.33, 1.35, 100),
+    },
 }
 
 
@@ -63,8 +76,12 @@ def model_throughput(design, axes: dict[str, np.ndarray], repeats: int) -> dict:
     first = best_of(run, 1)[0]
     best, median = best_of(run, repeats)
     points = int(np.prod(shape))
-    return {"points": points, "first_points_per_s": points / first, "best_points_per_s": points / best,
-            "median_points_per_s": points / median}
+    return {
+        "points": points,
+        "first_points_per_s": points / first,
+        "best_points_per_s": points / best,
+        "median_points_per_s": points / median,
+    }
 
 
 def rows_throughput(axes: dict[str, np.ndarray]) -> dict:
@@ -83,13 +100,17 @@ def main() -> None:
     single_best, single_median = best_of(lambda: evaluate(design), 200)
     grids = {}
     for name, axes in GRIDS.items():
-        grids[name] = {"axes": list(axes), "model": model_throughput(design, axes, 5),
-                       "rows": rows_throughput(axes)}
-    print(json.dumps({
-        "single_evaluation_ms": {"best": single_best * 1e3, "median": single_median * 1e3, "target": 1.0},
-        "grid_target_points_per_s": 2e6,
-        "grids": grids,
-    }, indent=2))
+        grids[name] = {"axes": list(axes), "model": model_throughput(design, axes, 5), "rows": rows_throughput(axes)}
+    print(
+        json.dumps(
+            {
+                "single_evaluation_ms": {"best": single_best * 1e3, "median": single_median * 1e3, "target": 1.0},
+                "grid_target_points_per_s": 2e6,
+                "grids": grids,
+            },
+            indent=2,
+        )
+    )
 
 
 if __name__ == "__main__":

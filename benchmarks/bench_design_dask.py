@@ -8,6 +8,7 @@ every worker process (their sum, and the largest single process). The output is 
 
     python benchmarks/bench_design_dask.py [--points 1e9] [--dask local|tcp://HOST:PORT] [--out DIR.parquet]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -66,10 +67,12 @@ def grid_axes(points: float) -> dict[str, list]:
     axis scaled by (points/10⁹)^¼ otherwise)."""
     factor = (points / 1e9) ** 0.25
     n = [max(1, int(round(base * factor))) for base in (1000, 1000, 100, 10)]
-    return {"operation.altitude_m": np.linspace(0.5, 10.0, n[0]).tolist(),
-            "water.attenuation_scale": np.linspace(0.5, 2.0, n[1]).tolist(),
-            "light.beam_half_angle_deg": np.linspace(10.0, 60.0, n[2]).tolist(),
-            "lens.f_number": np.linspace(1.4, 16.0, n[3]).tolist()}
+    return {
+        "operation.altitude_m": np.linspace(0.5, 10.0, n[0]).tolist(),
+        "water.attenuation_scale": np.linspace(0.5, 2.0, n[1]).tolist(),
+        "light.beam_half_angle_deg": np.linspace(10.0, 60.0, n[2]).tolist(),
+        "lens.f_number": np.linspace(1.4, 16.0, n[3]).tolist(),
+    }
 
 
 def main() -> None:
@@ -91,23 +94,28 @@ def main() -> None:
     finally:
         if workdir is not None:
             shutil.rmtree(workdir, ignore_errors=True)
-    print(json.dumps({
-        "points": summary["points"],
-        "shape": [len(v) for v in axes.values()],
-        "axes": list(axes),
-        "columns": summary["columns"],
-        "chunks": summary["chunks"],
-        "chunk_points": grid.chunk_points,
-        "workers": summary["workers"],
-        "cpu_count": psutil.cpu_count(),
-        "elapsed_s": elapsed,
-        "points_per_s": summary["points"] / elapsed,
-        "peak_rss_total_mib": rss.total / 2**20,
-        "peak_rss_largest_process_mib": rss.largest / 2**20,
-        "output_gib": size / 2**30,
-        "bytes_per_point": size / summary["points"],
-        "log10_points": math.log10(summary["points"]),
-    }, indent=2))
+    print(
+        json.dumps(
+            {
+                "points": summary["points"],
+                "shape": [len(v) for v in axes.values()],
+                "axes": list(axes),
+                "columns": summary["columns"],
+                "chunks": summary["chunks"],
+                "chunk_points": grid.chunk_points,
+                "workers": summary["workers"],
+                "cpu_count": psutil.cpu_count(),
+                "elapsed_s": elapsed,
+                "points_per_s": summary["points"] / elapsed,
+                "peak_rss_total_mib": rss.total / 2**20,
+                "peak_rss_largest_process_mib": rss.largest / 2**20,
+                "output_gib": size / 2**30,
+                "bytes_per_point": size / summary["points"],
+                "log10_points": math.log10(summary["points"]),
+            },
+            indent=2,
+        )
+    )
 
 
 if __name__ == "__main__":

@@ -18,6 +18,7 @@
 
 Usage: python benchmarks/bench_emva.py [--frames N] [--repeats R] [--reference-python PY]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -60,8 +61,10 @@ print(time.perf_counter() - t0, time.process_time() - c0, results["K"]["value"])
 
 def frame_bank(rng: np.random.Generator) -> list[np.ndarray]:
     base = 1000.0 + 20.0 * rng.standard_normal((HEIGHT, WIDTH), np.float32)
-    return [np.clip(base + 30.0 * rng.standard_normal((HEIGHT, WIDTH), np.float32), 0, 4095).astype(np.uint16)
-            for _ in range(BANK)]
+    return [
+        np.clip(base + 30.0 * rng.standard_normal((HEIGHT, WIDTH), np.float32), 0, 4095).astype(np.uint16)
+        for _ in range(BANK)
+    ]
 
 
 def stream_benchmark(frames: int) -> dict:
@@ -84,10 +87,17 @@ def stream_benchmark(frames: int) -> dict:
     tracemalloc.stop()
     data_mb = frames * frame_bytes / 1e6
     return {
-        "benchmark": "emva_stream", "frames": frames, "width": WIDTH, "height": HEIGHT, "pixel_format": "Mono16",
-        "stack_mb": round(data_mb, 1), "seconds": round(busy, 3), "throughput_mb_s": round(data_mb / busy, 1),
+        "benchmark": "emva_stream",
+        "frames": frames,
+        "width": WIDTH,
+        "height": HEIGHT,
+        "pixel_format": "Mono16",
+        "stack_mb": round(data_mb, 1),
+        "seconds": round(busy, 3),
+        "throughput_mb_s": round(data_mb / busy, 1),
         "peak_traced_frames": round((peak - base_current) / frame_bytes, 2),
-        "temporal_var_dn2": round(stats.temporal_var_dn2, 3), "mean_dn": round(stats.mean_dn, 3),
+        "temporal_var_dn2": round(stats.temporal_var_dn2, 3),
+        "mean_dn": round(stats.mean_dn, 3),
     }
 
 
@@ -100,8 +110,13 @@ def write_descriptor_dataset(root: Path) -> Path:
     from uwlab.experiments.emva.simulate import DirectBench
     from uwlab.model.sensor import load_sensor_profile
 
-    truth = SimTruth.from_sensor_profile(load_sensor_profile("imx250m"), resolution_px=(320, 240),
-                                         dark_current_e_per_s=30.0, dsnu_e=1.0, prnu_percent=0.5)
+    truth = SimTruth.from_sensor_profile(
+        load_sensor_profile("imx250m"),
+        resolution_px=(320, 240),
+        dark_current_e_per_s=30.0,
+        dsnu_e=1.0,
+        prnu_percent=0.5,
+    )
     bench = DirectBench(truth, rate_e_per_s=2.0e5, quantum_efficiency=0.6, seed=1)
     (root / "images").mkdir(parents=True)
     blocks, count = [], 0
@@ -138,12 +153,18 @@ def _timed(argv: list[str]) -> tuple[float, float]:
 
 
 def _uwlab_runs(path: Path, repeats: int) -> dict:
-    cli = [_timed([sys.executable, "-m", "uwlab.cli.main", "emva", "characterize", "--descriptor", str(path),
-                   "--json"]) for _ in range(repeats)]
+    cli = [
+        _timed([sys.executable, "-m", "uwlab.cli.main", "emva", "characterize", "--descriptor", str(path), "--json"])
+        for _ in range(repeats)
+    ]
     alone = [_timed([sys.executable, "-c", SUBCOMMAND_SCRIPT, str(path)]) for _ in range(repeats)]
     median = lambda runs, i: round(statistics.median(r[i] for r in runs), 3)  # noqa: E731
-    return {"cli_wall_s": median(cli, 0), "cli_cpu_s": median(cli, 1), "emva_wall_s": median(alone, 0),
-            "emva_cpu_s": median(alone, 1)}
+    return {
+        "cli_wall_s": median(cli, 0),
+        "cli_cpu_s": median(cli, 1),
+        "emva_wall_s": median(alone, 0),
+        "emva_cpu_s": median(alone, 1),
+    }
 
 
 def _reference_run(python: str, path: Path) -> tuple[float, float, float]:
@@ -172,14 +193,23 @@ def _peak_frames(path: Path) -> float:
 def descriptor_benchmark(repeats: int, reference_python: str | None) -> dict:
     with tempfile.TemporaryDirectory(prefix="uwlab-bench-emva-") as tmp:
         path = write_descriptor_dataset(Path(tmp))
-        result = {"benchmark": "emva_descriptor", "images": 100, "width": 320, "height": 240, "bits": 12,
-                  "repeats": repeats, **_uwlab_runs(path, repeats),
-                  "peak_traced_frames": round(_peak_frames(path), 1)}
+        result = {
+            "benchmark": "emva_descriptor",
+            "images": 100,
+            "width": 320,
+            "height": 240,
+            "bits": 12,
+            "repeats": repeats,
+            **_uwlab_runs(path, repeats),
+            "peak_traced_frames": round(_peak_frames(path), 1),
+        }
         if reference_python:
             ref = [_reference_run(reference_python, path) for _ in range(repeats)]
-            result |= {"reference_wall_s": round(statistics.median(r[0] for r in ref), 3),
-                       "reference_cpu_s": round(statistics.median(r[1] for r in ref), 3),
-                       "reference_K_dn_per_e": ref[0][2]}
+            result |= {
+                "reference_wall_s": round(statistics.median(r[0] for r in ref), 3),
+                "reference_cpu_s": round(statistics.median(r[1] for r in ref), 3),
+                "reference_K_dn_per_e": ref[0][2],
+            }
             for kind in ("cli", "emva"):
                 result[f"speedup_{kind}_wall"] = round(result["reference_wall_s"] / result[f"{kind}_wall_s"], 2)
                 result[f"speedup_{kind}_cpu"] = round(result["reference_cpu_s"] / result[f"{kind}_cpu_s"], 2)

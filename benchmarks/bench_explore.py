@@ -4,6 +4,7 @@ Targets (issue 14): one design ≤ 100 ms (``/api/design``, and ``/api/view``, w
 the numbers, warnings, light budget and the five figures); a 10⁴-point sweep ≤ 1 s (``/api/sweep``, f-number ×
 altitude, 100 × 100). Each request changes the design (a new f-number or altitude), as editing does.
 """
+
 from __future__ import annotations
 
 import json
@@ -46,11 +47,16 @@ def main() -> None:
             sweep = timed(client, "api/sweep", sweep_body)
     finally:
         explorer.stop()
-    print(json.dumps({
-        "design_round_trip": {**design, "target_ms": 100},
-        "view_round_trip": {**view, "target_ms": 100},
-        "sweep_round_trip": {**sweep, "points": points, "target_ms": 1000},
-    }, indent=2))
+    print(
+        json.dumps(
+            {
+                "design_round_trip": {**design, "target_ms": 100},
+                "view_round_trip": {**view, "target_ms": 100},
+                "sweep_round_trip": {**sweep, "points": points, "target_ms": 1000},
+            },
+            indent=2,
+        )
+    )
 
 
 if __name__ == "__main__":

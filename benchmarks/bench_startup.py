@@ -10,6 +10,7 @@ of the import alone (``import_s``, timed inside the process) and of the whole pr
 interpreter's start included); the Python API's names load on first use.
 Usage: ``python benchmarks/bench_startup.py [RUNS]`` (default 7).
 """
+
 from __future__ import annotations
 
 import json
@@ -33,8 +34,13 @@ TARGETS_S = {"help": 0.3, "version": 0.3, "design_json": 1.0}
 
 def run(argv: list[str], env: dict) -> float:
     start = time.perf_counter()
-    subprocess.run([sys.executable, "-m", "uwlab.cli.main", *argv], env=env, check=True,
-                   stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    subprocess.run(
+        [sys.executable, "-m", "uwlab.cli.main", *argv],
+        env=env,
+        check=True,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     return time.perf_counter() - start
 
 
@@ -49,8 +55,14 @@ def import_uwlab(env: dict) -> tuple[float, float]:
 
 
 def modules_imported(argv: list[str], env: dict) -> int:
-    out = subprocess.run([sys.executable, "-X", "importtime", "-m", "uwlab.cli.main", *argv], env=env, check=True,
-                         stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    out = subprocess.run(
+        [sys.executable, "-X", "importtime", "-m", "uwlab.cli.main", *argv],
+        env=env,
+        check=True,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     return sum(line.startswith("import time:") for line in out.stderr.splitlines()) - 1  # minus the header
 
 
@@ -61,17 +73,23 @@ def main() -> None:
     for name, argv in COMMANDS.items():
         run(argv, env)  # warm the file cache and byte-code
         times = [run(argv, env) for _ in range(runs)]
-        entry = {"median_s": round(statistics.median(times), 3), "min_s": round(min(times), 3),
-                 "modules": modules_imported(argv, env)}
+        entry = {
+            "median_s": round(statistics.median(times), 3),
+            "min_s": round(min(times), 3),
+            "modules": modules_imported(argv, env),
+        }
         if name in TARGETS_S:
             entry["target_s"] = TARGETS_S[name]
             entry["meets_target"] = entry["median_s"] <= TARGETS_S[name]
         result[name] = entry
     import_uwlab(env)  # warm
     walls, imports = zip(*(import_uwlab(env) for _ in range(runs)), strict=True)
-    result["import_uwlab"] = {"median_s": round(statistics.median(walls), 3),
-                              "import_s": round(statistics.median(imports), 4), "target_s": 0.3,
-                              "meets_target": statistics.median(imports) <= 0.3}
+    result["import_uwlab"] = {
+        "median_s": round(statistics.median(walls), 3),
+        "import_s": round(statistics.median(imports), 4),
+        "target_s": 0.3,
+        "meets_target": statistics.median(imports) <= 0.3,
+    }
     print(json.dumps(result, indent=2))
 
 

@@ -8,6 +8,7 @@ Prints one JSON object. Usage: python benchmarks/demo_targets.py [SEEDS] [WORLD:
 (default 10 seeds, tank:extended turbid:paper ideal:paper). The slow test tests/sim/test_demo_targets.py checks
 the same targets on a reduced, in-process campaign.
 """
+
 from __future__ import annotations
 
 import json
@@ -19,9 +20,11 @@ from pathlib import Path
 from uwlab.experiments.demo import run_demo, target_tally
 
 DEFAULT_RUNS = ("tank:extended", "turbid:paper", "ideal:paper")
-TARGETS = {"tank:extended": {"held_out_inside_95": ">= 0.90", "truth_inside_95": ">= 0.90", "adequate": "all runs"},
-           "turbid:paper": {"adequate": "no run", "backscatter_named": "all runs"},
-           "ideal:paper": {"adequate": "all runs"}}
+TARGETS = {
+    "tank:extended": {"held_out_inside_95": ">= 0.90", "truth_inside_95": ">= 0.90", "adequate": "all runs"},
+    "turbid:paper": {"adequate": "no run", "backscatter_named": "all runs"},
+    "ideal:paper": {"adequate": "all runs"},
+}
 
 
 def main(seeds: int = 10, runs: tuple[str, ...] = DEFAULT_RUNS) -> None:
@@ -34,8 +37,12 @@ def main(seeds: int = 10, runs: tuple[str, ...] = DEFAULT_RUNS) -> None:
                 t0 = time.perf_counter()
                 summaries.append(run_demo(Path(tmp) / "demo", seed=seed, world=world, model=model))
                 times.append(time.perf_counter() - t0)
-        out[run] = {**target_tally(summaries), "target": TARGETS.get(run), "wall_time_s_mean": sum(times) / len(times),
-                    "wall_time_s_max": max(times)}
+        out[run] = {
+            **target_tally(summaries),
+            "target": TARGETS.get(run),
+            "wall_time_s_mean": sum(times) / len(times),
+            "wall_time_s_max": max(times),
+        }
         print(json.dumps(out, indent=2), file=sys.stderr)
     print(json.dumps(out, indent=2))
 

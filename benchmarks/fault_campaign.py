@@ -17,6 +17,7 @@ against the images: signal / level^γ must be the same for all points of a sweep
 Usage: python benchmarks/fault_campaign.py [--serial-trials 20] [--camera-outages 10] [--max-outage-s 10]
        [--points 30] [--seed 0]
 """
+
 from __future__ import annotations
 
 import argparse
@@ -73,9 +74,23 @@ class CameraServer:
         self.proc = self._start()
 
     def _start(self) -> subprocess.Popen:
-        proc = subprocess.Popen([sys.executable, "-m", "uwlab.cli.main", "sim", "camera", "--gige", "--address",
-                                 self.address, "--rig-state", str(self.rig_state)],
-                                stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True)
+        proc = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "uwlab.cli.main",
+                "sim",
+                "camera",
+                "--gige",
+                "--address",
+                self.address,
+                "--rig-state",
+                str(self.rig_state),
+            ],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.DEVNULL,
+            text=True,
+        )
         if not proc.stdout.readline():
             raise RuntimeError(f"GigE camera server on {self.address} did not start")
         return proc
@@ -116,8 +131,17 @@ def gamma_spread(points, gamma: float) -> float:
     return float(ratio.std() / ratio.mean())
 
 
-def campaign(name: str, faults, wanted: int, every_s: tuple[float, float], rig_files: dict, serial: SerialRig,
-             work: Path, seed: int, gamma: float) -> dict:
+def campaign(
+    name: str,
+    faults,
+    wanted: int,
+    every_s: tuple[float, float],
+    rig_files: dict,
+    serial: SerialRig,
+    work: Path,
+    seed: int,
+    gamma: float,
+) -> dict:
     """Sweeps under ``faults`` until ``wanted`` faults happened while a sweep ran."""
     trials, sweeps, completed, points_total, wrong, re_measured, spreads, errors = [], 0, 0, 0, [], 0, [], []
     while len(trials) < wanted:
@@ -140,10 +164,19 @@ def campaign(name: str, faults, wanted: int, every_s: tuple[float, float], rig_f
         re_measured += int((points["attempts"] > 1).sum())
         wrong += wrong_points(points, serial.state_log("light").entries(), serial.state_log("spectrometer").entries())
         spreads.append(gamma_spread(points, gamma))
-    return {"trials": len(trials), "faults": sorted({t["fault"] for t in trials}),
-            "max_down_s": round(max(t.get("down_s", 0.0) for t in trials), 2), "sweeps": sweeps,
-            "completed_sweeps": completed, "errors": errors, "points": points_total, "wrong_points": len(wrong),
-            "wrong": wrong[:10], "re_measured_points": re_measured, "max_gamma_spread": round(max(spreads), 5)}
+    return {
+        "trials": len(trials),
+        "faults": sorted({t["fault"] for t in trials}),
+        "max_down_s": round(max(t.get("down_s", 0.0) for t in trials), 2),
+        "sweeps": sweeps,
+        "completed_sweeps": completed,
+        "errors": errors,
+        "points": points_total,
+        "wrong_points": len(wrong),
+        "wrong": wrong[:10],
+        "re_measured_points": re_measured,
+        "max_gamma_spread": round(max(spreads), 5),
+    }
 
 
 def main() -> None:
@@ -160,23 +193,59 @@ def main() -> None:
         work = Path(tmp)
         server = CameraServer(f"127.0.{os.getpid() % 200 + 1}.250", serial.rig_state_path)
         try:
-            files = {"rig": RIG, "address": server.address, "light": serial.ports["light"],
-                     "spectrometer": serial.ports["spectrometer"], "points": args.points}
-            serial_result = campaign("serial", [serial_restart(serial, "light", (0.0, 1.0)),
-                                                serial_restart(serial, "spectrometer", (0.0, 1.0))],
-                                     args.serial_trials, (0.2, 1.5), files, serial, work, args.seed,
-                                     settings.light_gamma)
-            camera_result = campaign("camera", camera_faults(server, args.max_outage_s), args.camera_outages,
-                                     (0.5, 2.0), files, serial, work, args.seed + 1000, settings.light_gamma)
+            files = {
+                "rig": RIG,
+                "address": server.address,
+                "light": serial.ports["light"],
+                "spectrometer": serial.ports["spectrometer"],
+                "points": args.points,
+            }
+            serial_result = campaign(
+                "serial",
+                [serial_restart(serial, "light", (0.0, 1.0)), serial_restart(serial, "spectrometer", (0.0, 1.0))],
+                args.serial_trials,
+                (0.2, 1.5),
+                files,
+                serial,
+                work,
+                args.seed,
+                settings.light_gamma,
+            )
+            camera_result = campaign(
+                "camera",
+                camera_faults(server, args.max_outage_s),
+                args.camera_outages,
+                (0.5, 2.0),
+                files,
+                serial,
+                work,
+                args.seed + 1000,
+                settings.light_gamma,
+            )
         finally:
             server.stop()
     results = {"serial_restarts": serial_result, "camera_outages": camera_result}
-    meets = all(r["wrong_points"] == 0 and r["completed_sweeps"] == r["sweeps"] and r["max_gamma_spread"] < 0.01
-                for r in results.values())
-    print(json.dumps({**results, "targets": {"wrong_points": 0, "serial_restarts_min": 20, "camera_outages_min": 10,
-                                             "max_outage_s": args.max_outage_s, "every_sweep_completes": True},
-                      "meets_target": meets and serial_result["trials"] >= 20 and camera_result["trials"] >= 10,
-                      "elapsed_s": round(time.monotonic() - started, 1)}, indent=2))
+    meets = all(
+        r["wrong_points"] == 0 and r["completed_sweeps"] == r["sweeps"] and r["max_gamma_spread"] < 0.01
+        for r in results.values()
+    )
+    print(
+        json.dumps(
+            {
+                **results,
+                "targets": {
+                    "wrong_points": 0,
+                    "serial_restarts_min": 20,
+                    "camera_outages_min": 10,
+                    "max_outage_s": args.max_outage_s,
+                    "every_sweep_completes": True,
+                },
+                "meets_target": meets and serial_result["trials"] >= 20 and camera_result["trials"] >= 10,
+                "elapsed_s": round(time.monotonic() - started, 1),
+            },
+            indent=2,
+        )
+    )
 
 
 if __name__ == "__main__":

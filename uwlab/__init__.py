@@ -20,6 +20,7 @@ equivalent):
 >>> f"{result['snr_db']:.1f} {result.units['snr_db']}"
 '36.5 dB'
 """
+
 from __future__ import annotations
 
 import importlib

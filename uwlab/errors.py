@@ -3,6 +3,7 @@
 `UwlabError` is the one exception the CLI turns into a one-line message and exit code 2.
 Raise it (or a subclass) for bad input: it names the offending key and value.
 """
+
 from __future__ import annotations
 
 

@@ -9,6 +9,7 @@ Anything else is a programming error (`TypeError`), never silently stringified.
 >>> to_jsonable({"far_m": np.inf, "fov_deg": np.array([12.0, 10.5]), "ok": np.bool_(True)})
 {'far_m': None, 'fov_deg': [12.0, 10.5], 'ok': True}
 """
+
 from __future__ import annotations
 
 import datetime as _dt

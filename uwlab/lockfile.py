@@ -17,6 +17,7 @@ an empty file is a free lock.
 ...         refused.holder.pid == os.getpid()
 True
 """
+
 from __future__ import annotations
 
 import fcntl
@@ -94,9 +95,12 @@ class OwnerLock:
                 raise LockHeld(self.path, holder, f"{self.path.parent}: in use by {who}")
             previous = read_holder(self.path)
             if previous is not None and previous.host != socket.gethostname():
-                raise LockHeld(self.path, previous,
-                               f"{self.path.parent}: locked by {previous.describe()}, another host; if that process "
-                               f"is gone, delete {self.path}")
+                raise LockHeld(
+                    self.path,
+                    previous,
+                    f"{self.path.parent}: locked by {previous.describe()}, another host; if that process "
+                    f"is gone, delete {self.path}",
+                )
             record = Holder(socket.gethostname(), os.getpid(), _utc_now(), self.purpose)
             os.ftruncate(fd, 0)
             os.pwrite(fd, (json.dumps(asdict(record)) + "\n").encode(), 0)

@@ -17,6 +17,7 @@ Traceback (most recent call last):
 ...
 uwlab.errors.ConfigError: --out = '/nonexistent/report.html': directory /nonexistent does not exist
 """
+
 from __future__ import annotations
 
 import os
@@ -54,8 +55,11 @@ def checked_name(path: str | os.PathLike, key: str) -> Path:
     limit = _name_max(path.absolute())
     for part in path.parts:
         if len(part.encode("utf-8")) > limit:
-            raise ConfigError(key, text, f"has a {len(part.encode('utf-8'))}-byte name ({part[:20]}...); "
-                                         f"the file system allows {limit}")
+            raise ConfigError(
+                key,
+                text,
+                f"has a {len(part.encode('utf-8'))}-byte name ({part[:20]}...); the file system allows {limit}",
+            )
     return path
 
 
@@ -77,8 +81,7 @@ def _existing_parent(path: Path, key: str) -> Path:
     return parent
 
 
-def output_file(path: str | os.PathLike, key: str, *, replace: bool = False,
-                replace_option: str | None = None) -> Path:
+def output_file(path: str | os.PathLike, key: str, *, replace: bool = False, replace_option: str | None = None) -> Path:
     """A file about to be written: checked name, existing writable parent, not a directory, and not an existing
     file unless `replace` (the refusal names `replace_option`, the option that allows it, if there is one)."""
     path = checked_name(path, key)

@@ -14,6 +14,7 @@ A bar is drawn by the first `Bar.update`, so a command that fails on bad input b
 >>> where(stream=None, enabled=False)
 'off'
 """
+
 from __future__ import annotations
 
 import sys
@@ -54,9 +55,18 @@ class Bar:
     """A progress bar with tqdm's small interface (`update`, `set_postfix_str`, `set_position`, `close`; a context
     manager), drawn where `where` says, opened at its first update."""
 
-    def __init__(self, total: float | None = None, desc: str = "", unit: str = "it", *, enabled: bool = True,
-                 leave: bool = False, stream: IO[str] | None = None, bar_format: str | None = None,
-                 initial: float = 0) -> None:
+    def __init__(
+        self,
+        total: float | None = None,
+        desc: str = "",
+        unit: str = "it",
+        *,
+        enabled: bool = True,
+        leave: bool = False,
+        stream: IO[str] | None = None,
+        bar_format: str | None = None,
+        initial: float = 0,
+    ) -> None:
         self.total = total
         self.desc = desc
         self.unit = unit
@@ -73,9 +83,15 @@ class Bar:
                 from tqdm.auto import tqdm
             else:
                 from tqdm import tqdm
-            self._tqdm = tqdm(total=self.total, desc=self.desc, unit=self.unit, leave=self._leave,
-                              file=self._stream if self._stream is not None else sys.stderr,
-                              bar_format=self._bar_format, initial=self.n)
+            self._tqdm = tqdm(
+                total=self.total,
+                desc=self.desc,
+                unit=self.unit,
+                leave=self._leave,
+                file=self._stream if self._stream is not None else sys.stderr,
+                bar_format=self._bar_format,
+                initial=self.n,
+            )
         return self._tqdm
 
     def update(self, n: float = 1) -> None:
@@ -107,13 +123,23 @@ class Bar:
     def __enter__(self) -> Bar:
         return self
 
-    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None,
-                 traceback: TracebackType | None) -> None:
+    def __exit__(
+        self, exc_type: type[BaseException] | None, exc: BaseException | None, traceback: TracebackType | None
+    ) -> None:
         self.close()
 
 
-def bar(total: float | None = None, desc: str = "", unit: str = "it", *, enabled: bool = True, leave: bool = False,
-        stream: IO[str] | None = None, bar_format: str | None = None, initial: float = 0) -> Bar:
+def bar(
+    total: float | None = None,
+    desc: str = "",
+    unit: str = "it",
+    *,
+    enabled: bool = True,
+    leave: bool = False,
+    stream: IO[str] | None = None,
+    bar_format: str | None = None,
+    initial: float = 0,
+) -> Bar:
     """A `Bar` (module docstring): ``with bar(total=n, desc="sweep", unit="point") as b: ... b.update()``;
     `initial`: the count already done (a resumed sweep)."""
     return Bar(total, desc, unit, enabled=enabled, leave=leave, stream=stream, bar_format=bar_format, initial=initial)
@@ -125,8 +151,14 @@ TAU_TARGET = 50  # the fit runs until the chain is this many autocorrelation tim
 def tau_bar(desc: str, enabled: bool = True, stream: IO[str] | None = None) -> tuple[Bar, Callable[[int, float], None]]:
     """A bar over an MCMC chain's length in autocorrelation times (a fit stops at 50 τ) and the
     ``progress(steps, tau_multiple)`` callback the fit reports to (`uwlab.experiments.calibration.fit.run_fit`)."""
-    shown = bar(total=TAU_TARGET, desc=desc, unit="τ", enabled=enabled, stream=stream,
-                bar_format="{desc}: {n:.0f}/{total} τ |{bar}| {elapsed} {postfix}")
+    shown = bar(
+        total=TAU_TARGET,
+        desc=desc,
+        unit="τ",
+        enabled=enabled,
+        stream=stream,
+        bar_format="{desc}: {n:.0f}/{total} τ |{bar}| {elapsed} {postfix}",
+    )
 
     def update(steps: int, tau_multiple: float) -> None:
         shown.set_position(min(float(TAU_TARGET), tau_multiple), f"{steps} steps")

@@ -1,5 +1,6 @@
 """`uwlab.sweep` on the simulated rig (simulators on pseudo-terminals): the dataset it returns, resuming a complete
 one measures nothing, and with stderr not a terminal no progress is written."""
+
 import pytest
 
 import uwlab
@@ -8,8 +9,9 @@ from tests.support.plans import write_campaign
 
 
 def test_sweep_resume_and_quiet_progress(tmp_path, capfd):
-    plan = write_campaign(tmp_path / "plan.toml", "api-small", sweeps=1, values={"start": 50, "stop": 800, "num": 3,
-                                                                               "spacing": "log"})
+    plan = write_campaign(
+        tmp_path / "plan.toml", "api-small", sweeps=1, values={"start": 50, "stop": 800, "num": 3, "spacing": "log"}
+    )
     data = uwlab.sweep(plan, tmp_path / "data", sim=True, seed=2)
     assert isinstance(data, uwlab.Dataset)
     assert data.points["exposure_us"].tolist() == pytest.approx([50, 200, 800], rel=1e-6)

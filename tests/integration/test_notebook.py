@@ -1,5 +1,6 @@
 """examples/tank-campaign.ipynb runs top to bottom on the simulated rig in a Jupyter kernel (nbclient), and is kept
 in git without outputs."""
+
 import ast
 import os
 import sys
@@ -26,8 +27,9 @@ def test_the_notebook_runs_on_the_simulated_rig(tmp_path, monkeypatch):
     monkeypatch.setenv("PYTHONPATH", os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
     monkeypatch.setenv("PATH", os.pathsep.join([os.path.dirname(sys.executable), os.environ.get("PATH", "")]))
     nb = nbformat.read(NOTEBOOK, as_version=4)
-    client = nbclient.NotebookClient(nb, kernel_name="python3", timeout=600,
-                                     resources={"metadata": {"path": str(tmp_path)}})
+    client = nbclient.NotebookClient(
+        nb, kernel_name="python3", timeout=600, resources={"metadata": {"path": str(tmp_path)}}
+    )
     client.execute()
     outputs = {}
     for cell in nb.cells:
@@ -35,7 +37,7 @@ def test_the_notebook_runs_on_the_simulated_rig(tmp_path, monkeypatch):
             assert output.output_type != "error", output
             if output.output_type == "execute_result":
                 outputs[cell.source.splitlines()[-1]] = output.data["text/plain"]
-    answer = ast.literal_eval(outputs[" \"probability\": float(calibrated[\"probability\"].iloc[0])}"])
+    answer = ast.literal_eval(outputs[' "probability": float(calibrated["probability"].iloc[0])}'])
     assert answer["probability"] >= 0.9
     # the simulated light gives 80 % of its rated flux: the calibrated design needs more light than the nominal
     assert answer["calibrated_lm"] > answer["nominal_lm"]

@@ -9,6 +9,7 @@ Read-only outputs: a directory in which the running user cannot create files. CI
 do not stop, so as root that is ``/sys/fs`` (sysfs refuses new files to everyone); otherwise a directory with mode
 0555. The fixture checks the premise, so that a writable "read-only" directory cannot make the rows pass vacuously.
 """
+
 from __future__ import annotations
 
 import math
@@ -73,8 +74,15 @@ def ctx(tmp_path_factory, read_only_dir):
     assert code == 0, err
     truth = SimTruth.from_sensor_profile(load_sensor_profile("imx250m"), resolution_px=(32, 32))
     emva = base / "emva"
-    simulate_photon_transfer(emva, truth, rate_e_per_s=1.07e5, quantum_efficiency=0.6,
-                             exposures_us=np.linspace(3e3, 120e3, 12), frames=2, seed=1)
+    simulate_photon_transfer(
+        emva,
+        truth,
+        rate_e_per_s=1.07e5,
+        quantum_efficiency=0.6,
+        exposures_us=np.linspace(3e3, 120e3, 12),
+        frames=2,
+        seed=1,
+    )
     empty = base / "empty"
     Dataset.create(empty, {"name": "empty"}, plan_sha256="0" * 64, sim=True).close()
     existing = base / "existing.txt"
@@ -83,15 +91,27 @@ def ctx(tmp_path_factory, read_only_dir):
     stray = base / "stray.csv"
     stray.write_text("".join(sekonic) + "Spectral Data 99999[nm],5\n")
     short = base / "short.csv"
-    short.write_text("".join(line for line in sekonic if not line.startswith("Spectral Data"))
-                     + "".join([line for line in sekonic if line.startswith("Spectral Data")][:3]))
+    short.write_text(
+        "".join(line for line in sekonic if not line.startswith("Spectral Data"))
+        + "".join([line for line in sekonic if line.startswith("Spectral Data")][:3])
+    )
 
     def plan_with(**defaults) -> Path:
         assert set(defaults) <= set(CAMPAIGN_DEFAULTS), defaults  # a changed value, not an unknown key
         return write_sweep_plan(base / f"plan-{abs(hash(repr(defaults)))}.toml", **defaults)
 
-    return SimpleNamespace(plan=plan, sweep=sweep, emva=emva, empty=empty, existing=existing, ro=read_only_dir,
-                           plan_with=plan_with, stray=stray, short=short, base=base)
+    return SimpleNamespace(
+        plan=plan,
+        sweep=sweep,
+        emva=emva,
+        empty=empty,
+        existing=existing,
+        ro=read_only_dir,
+        plan_with=plan_with,
+        stray=stray,
+        short=short,
+        base=base,
+    )
 
 
 # (row id, argv from (ctx, scratch dir), what the one line must name)
@@ -100,78 +120,178 @@ ROWS = [
     ("grab --save unwritable", lambda c, s: ["grab", "--save", c.ro / "frames"], ["--save", "cannot write"]),
     ("grab --save missing parent", lambda c, s: ["grab", "--save", s / "no" / "frames"], ["--save", "does not exist"]),
     ("fit on an empty dataset", lambda c, s: ["fit", c.empty, "--out", s / "fit"], ["dataset", "no points"]),
-    ("demo --out an existing file", lambda c, s: ["demo", "--out", c.existing],
-     ["--out", "existing.txt", "not a directory"]),
+    (
+        "demo --out an existing file",
+        lambda c, s: ["demo", "--out", c.existing],
+        ["--out", "existing.txt", "not a directory"],
+    ),
     ("sim camera bad address", lambda c, s: ["sim", "camera", "--gige", "--address", "127.0.0.300"], ["127.0.0.300"]),
     # refused before sampling: the sampling bar (drawn on stderr at the first step) would precede the line
-    ("fit --train misspelled", lambda c, s: ["fit", c.sweep, "--train", "imx250-30mm-f3", "--out", s / "fit"],
-     ["--train", "imx250-30mm-f3"]),
-    ("report --out in a missing directory", lambda c, s: ["report", c.sweep, "--out", s / "nonexistent" / "r.html"],
-     ["--out", "does not exist"]),
+    (
+        "fit --train misspelled",
+        lambda c, s: ["fit", c.sweep, "--train", "imx250-30mm-f3", "--out", s / "fit"],
+        ["--train", "imx250-30mm-f3"],
+    ),
+    (
+        "report --out in a missing directory",
+        lambda c, s: ["report", c.sweep, "--out", s / "nonexistent" / "r.html"],
+        ["--out", "does not exist"],
+    ),
     ("design on a directory", lambda c, s: ["design", ROOT / "configs"], [str(ROOT / "configs")]),
-    ("design focal length in m", lambda c, s: ["design", EXAMPLE, "--set", "lens.focal_length_mm=0.03"],
-     ["lens.focal_length_mm", "0.03"]),
-    ("design altitude 1e308", lambda c, s: ["design", EXAMPLE, "--set", "operation.altitude_m=1e308"],
-     ["operation.altitude_m"]),
+    (
+        "design focal length in m",
+        lambda c, s: ["design", EXAMPLE, "--set", "lens.focal_length_mm=0.03"],
+        ["lens.focal_length_mm", "0.03"],
+    ),
+    (
+        "design altitude 1e308",
+        lambda c, s: ["design", EXAMPLE, "--set", "operation.altitude_m=1e308"],
+        ["operation.altitude_m"],
+    ),
     ("design infinite grid", lambda c, s: ["design", EXAMPLE, "--grid", "lens.f_number=0:inf:1"], ["lens.f_number"]),
-    ("design grid too large to print",
-     lambda c, s: ["design", EXAMPLE, "--grid", "operation.altitude_m=0.1:100:0.01", "--grid", "lens.f_number=2,4",
-                   "--json"], ["--out"]),
-    ("design --plot unwritable", lambda c, s: ["design", EXAMPLE, "--plot", c.ro / "plots"],
-     ["--plot", "cannot write"]),
-    ("design --plot missing parent", lambda c, s: ["design", EXAMPLE, "--plot", s / "no" / "plots"],
-     ["--plot", "does not exist"]),
-    ("emva wavelength in µm", lambda c, s: ["emva", "characterize", c.emva, "--wavelength-nm", "0.55"],
-     ["--wavelength-nm", "0.55"]),
-    ("emva pixel size in nm", lambda c, s: ["emva", "characterize", c.emva, "--pixel-size-um", "3450"],
-     ["--pixel-size-um", "3450"]),
+    (
+        "design grid too large to print",
+        lambda c, s: [
+            "design",
+            EXAMPLE,
+            "--grid",
+            "operation.altitude_m=0.1:100:0.01",
+            "--grid",
+            "lens.f_number=2,4",
+            "--json",
+        ],
+        ["--out"],
+    ),
+    (
+        "design --plot unwritable",
+        lambda c, s: ["design", EXAMPLE, "--plot", c.ro / "plots"],
+        ["--plot", "cannot write"],
+    ),
+    (
+        "design --plot missing parent",
+        lambda c, s: ["design", EXAMPLE, "--plot", s / "no" / "plots"],
+        ["--plot", "does not exist"],
+    ),
+    (
+        "emva wavelength in µm",
+        lambda c, s: ["emva", "characterize", c.emva, "--wavelength-nm", "0.55"],
+        ["--wavelength-nm", "0.55"],
+    ),
+    (
+        "emva pixel size in nm",
+        lambda c, s: ["emva", "characterize", c.emva, "--pixel-size-um", "3450"],
+        ["--pixel-size-um", "3450"],
+    ),
     # issue 16
-    ("sweep --out 300-byte name", lambda c, s: ["sweep", c.plan, "--sim", "--out", s / ("a" * 300)],
-     ["--out", "300-byte"]),
-    ("sweep --out not UTF-8", lambda c, s: ["sweep", c.plan, "--sim", "--out", os.fsencode(s) + b"/caf\xe9"],
-     ["--out", "UTF-8"]),
+    (
+        "sweep --out 300-byte name",
+        lambda c, s: ["sweep", c.plan, "--sim", "--out", s / ("a" * 300)],
+        ["--out", "300-byte"],
+    ),
+    (
+        "sweep --out not UTF-8",
+        lambda c, s: ["sweep", c.plan, "--sim", "--out", os.fsencode(s) + b"/caf\xe9"],
+        ["--out", "UTF-8"],
+    ),
     ("sweep --out read-only", lambda c, s: ["sweep", c.plan, "--sim", "--out", c.ro / "dataset"], ["--out"]),
     ("sweep --resume read-only", lambda c, s: ["sweep", c.plan, "--sim", "--resume", c.ro], ["--resume"]),
-    ("frames_per_point 200000",
-     lambda c, s: ["sweep", c.plan_with(frames_per_point=200000), "--sim", "--out", s / "d"],
-     ["frames_per_point", "200000"]),
-    ("dark_frames 999999",
-     lambda c, s: ["sweep", c.plan_with(dark_frames=999999), "--sim", "--out", s / "d"],
-     ["dark_frames", "999999"]),
-    ("range to inf",
-     lambda c, s: ["sweep", c.plan_with(values={**CAMPAIGN_DEFAULTS["values"], "stop": math.inf}), "--sim", "--out",
-                   s / "d"], ["stop", "inf"]),
-    ("design --out read-only", lambda c, s: ["design", EXAMPLE, "--out", c.ro / "design.parquet"],
-     ["--out", "cannot write"]),
-    ("design grid --out read-only",
-     lambda c, s: ["design", EXAMPLE, "--grid", "lens.f_number=2,4", "--out", c.ro / "grid.csv"],
-     ["--out", "cannot write"]),
-    ("design grid larger than the disk",  # ~1.8e12 points: refused after its first chunk, the staging removed
-     lambda c, s: ["design", EXAMPLE, "--grid", "operation.altitude_m=0.5:5:0.000001", "--grid",
-                   "lens.f_number=1:20:0.001", "--grid", "sensor.gain_db=0:20:1", "--out", s / "huge.parquet"],
-     ["--out", "GiB free"]),
+    (
+        "frames_per_point 200000",
+        lambda c, s: ["sweep", c.plan_with(frames_per_point=200000), "--sim", "--out", s / "d"],
+        ["frames_per_point", "200000"],
+    ),
+    (
+        "dark_frames 999999",
+        lambda c, s: ["sweep", c.plan_with(dark_frames=999999), "--sim", "--out", s / "d"],
+        ["dark_frames", "999999"],
+    ),
+    (
+        "range to inf",
+        lambda c, s: [
+            "sweep",
+            c.plan_with(values={**CAMPAIGN_DEFAULTS["values"], "stop": math.inf}),
+            "--sim",
+            "--out",
+            s / "d",
+        ],
+        ["stop", "inf"],
+    ),
+    (
+        "design --out read-only",
+        lambda c, s: ["design", EXAMPLE, "--out", c.ro / "design.parquet"],
+        ["--out", "cannot write"],
+    ),
+    (
+        "design grid --out read-only",
+        lambda c, s: ["design", EXAMPLE, "--grid", "lens.f_number=2,4", "--out", c.ro / "grid.csv"],
+        ["--out", "cannot write"],
+    ),
+    (
+        "design grid larger than the disk",  # ~1.8e12 points: refused after its first chunk, the staging removed
+        lambda c, s: [
+            "design",
+            EXAMPLE,
+            "--grid",
+            "operation.altitude_m=0.5:5:0.000001",
+            "--grid",
+            "lens.f_number=1:20:0.001",
+            "--grid",
+            "sensor.gain_db=0:20:1",
+            "--out",
+            s / "huge.parquet",
+        ],
+        ["--out", "GiB free"],
+    ),
     ("Sekonic stray 99999 nm row", lambda c, s: ["spectrum", "--import", c.stray], ["99999", "line"]),
     ("Sekonic 3-sample file", lambda c, s: ["spectrum", "--import", c.short], ["short.csv", "line"]),
     ("dataset check on a non-dataset", lambda c, s: ["dataset", "check", c.base], ["not a dataset"]),
-    ("emva characterize --out read-only", lambda c, s: ["emva", "characterize", c.emva, "--out", c.ro / "emva"],
-     ["--out", "cannot write"]),
-    ("emva export --out read-only", lambda c, s: ["emva", "export", c.emva, "--out", c.ro / "descriptor"],
-     ["--out", "cannot write"]),
+    (
+        "emva characterize --out read-only",
+        lambda c, s: ["emva", "characterize", c.emva, "--out", c.ro / "emva"],
+        ["--out", "cannot write"],
+    ),
+    (
+        "emva export --out read-only",
+        lambda c, s: ["emva", "export", c.emva, "--out", c.ro / "descriptor"],
+        ["--out", "cannot write"],
+    ),
     ("fit --out read-only", lambda c, s: ["fit", c.sweep, "--out", c.ro / "fit"], ["--out", "cannot write"]),
     ("report --out read-only", lambda c, s: ["report", c.sweep, "--out", c.ro / "r.html"], ["--out", "cannot write"]),
     ("demo --out read-only", lambda c, s: ["demo", "--out", c.ro / "demo"], ["--out", "cannot write"]),
-    ("spectrum --out read-only", lambda c, s: ["spectrum", "--import", SEKONIC, "--out", c.ro / "s.csv"],
-     ["--out", "cannot write"]),
-    ("port board --out read-only", lambda c, s: ["port", "board", "--out", c.ro / "board.png"],
-     ["--out", "cannot write"]),
-    ("port trace --plot read-only", lambda c, s: ["port", "trace", EXAMPLE, "--plot", c.ro / "plots"],
-     ["--plot", "cannot write"]),
-    ("sim charuco --out read-only",
-     lambda c, s: ["sim", "charuco", DOME, "--medium", "air", "--poses", "1", "--out", c.ro / "images"],
-     ["--out", "cannot write"]),
-    ("light calibrate --out read-only",
-     lambda c, s: ["light", "calibrate", "--light", s / "no-port", "--spectrometer", s / "no-port", "--out",
-                   c.ro / "calibration.csv"], ["--out", "cannot write"]),
+    (
+        "spectrum --out read-only",
+        lambda c, s: ["spectrum", "--import", SEKONIC, "--out", c.ro / "s.csv"],
+        ["--out", "cannot write"],
+    ),
+    (
+        "port board --out read-only",
+        lambda c, s: ["port", "board", "--out", c.ro / "board.png"],
+        ["--out", "cannot write"],
+    ),
+    (
+        "port trace --plot read-only",
+        lambda c, s: ["port", "trace", EXAMPLE, "--plot", c.ro / "plots"],
+        ["--plot", "cannot write"],
+    ),
+    (
+        "sim charuco --out read-only",
+        lambda c, s: ["sim", "charuco", DOME, "--medium", "air", "--poses", "1", "--out", c.ro / "images"],
+        ["--out", "cannot write"],
+    ),
+    (
+        "light calibrate --out read-only",
+        lambda c, s: [
+            "light",
+            "calibrate",
+            "--light",
+            s / "no-port",
+            "--spectrometer",
+            s / "no-port",
+            "--out",
+            c.ro / "calibration.csv",
+        ],
+        ["--out", "cannot write"],
+    ),
 ]
 
 

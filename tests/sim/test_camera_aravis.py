@@ -1,4 +1,5 @@
 """Aravis backend, for real, against the simulated camera served over GigE Vision on loopback."""
+
 from __future__ import annotations
 
 import json
@@ -33,8 +34,12 @@ def test_server_announces_itself_and_arv_tool_lists_it(server):
     assert server.info["device_id"].startswith("uwlab-SimCam-")
     listed = subprocess.run(["arv-tool-0.8"], capture_output=True, text=True, timeout=60).stdout
     assert f"{server.info['device_id']} ({server.address})" in listed
-    out = subprocess.run(["arv-tool-0.8", "-a", server.address, "control", "DeviceVendorName", "PixelFormat"],
-                         capture_output=True, text=True, timeout=60).stdout
+    out = subprocess.run(
+        ["arv-tool-0.8", "-a", server.address, "control", "DeviceVendorName", "PixelFormat"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    ).stdout
     assert "DeviceVendorName = uwlab" in out and "PixelFormat =" in out
 
 
@@ -129,8 +134,23 @@ def test_server_stopped_mid_stream_gives_bounded_reconnect_then_error():
 
 
 def test_grab_cli_over_aravis(server, tmp_path):
-    code, out, err = run("grab", "--backend", "aravis", "--device", server.address, "--frames", "2", "--roi",
-                         "0,0,128,64", "--pixel-format", "Mono16", "--exposure-us", "1500", "--json", timeout_s=120)
+    code, out, err = run(
+        "grab",
+        "--backend",
+        "aravis",
+        "--device",
+        server.address,
+        "--frames",
+        "2",
+        "--roi",
+        "0,0,128,64",
+        "--pixel-format",
+        "Mono16",
+        "--exposure-us",
+        "1500",
+        "--json",
+        timeout_s=120,
+    )
     assert code == 0, err
     doc = json.loads(out)
     assert doc["device"]["backend"] == "aravis" and len(doc["frames"]) == 2

@@ -1,4 +1,5 @@
 """`uwlab devices` and `uwlab grab` with the sim backend (in-process CLI calls)."""
+
 from __future__ import annotations
 
 import json
@@ -34,11 +35,40 @@ def test_devices_reports_missing_producer_without_failing(capsys, monkeypatch):
 
 
 def test_grab_json_keys_roi_and_settings(capsys):
-    doc = run_json(capsys, ["grab", "--frames", "3", "--roi", "1000,900,128,64", "--exposure-us", "100",
-                            "--gain-db", "3", "--pixel-format", "Mono12p", "--json"])
+    doc = run_json(
+        capsys,
+        [
+            "grab",
+            "--frames",
+            "3",
+            "--roi",
+            "1000,900,128,64",
+            "--exposure-us",
+            "100",
+            "--gain-db",
+            "3",
+            "--pixel-format",
+            "Mono12p",
+            "--json",
+        ],
+    )
     assert doc["device"]["backend"] == "sim" and doc["device"]["model"].startswith("SimCam-")
-    keys = {"frame_id", "timestamp_ns", "width", "height", "pixel_format", "exposure_us", "gain_db", "mean", "std",
-            "min", "max", "saturated_fraction", "clip_level_dn", "clip_source"}
+    keys = {
+        "frame_id",
+        "timestamp_ns",
+        "width",
+        "height",
+        "pixel_format",
+        "exposure_us",
+        "gain_db",
+        "mean",
+        "std",
+        "min",
+        "max",
+        "saturated_fraction",
+        "clip_level_dn",
+        "clip_source",
+    }
     assert len(doc["frames"]) == 3 and all(set(f) == keys for f in doc["frames"])
     f = doc["frames"][0]
     assert (f["width"], f["height"], f["pixel_format"], f["exposure_us"], f["gain_db"]) == (
@@ -69,12 +99,15 @@ def test_grab_save_writes_tiff_with_settings_and_never_overwrites(capsys, tmp_pa
     assert meta["settings"]["width"] == 32 and meta["device"]["backend"] == "sim" and meta["frame_id"] == 1
 
 
-@pytest.mark.parametrize("argv,message", [
-    (["grab", "--exposure-us", "1"], "exposure_us = 1.0: out of range for ExposureTime"),
-    (["grab", "--pixel-format", "RGB8"], "pixel_format = 'RGB8'"),
-    (["grab", "--device", "cam9"], "unknown device id 'cam9'; found: sim0"),
-    (["grab", "--roi", "1,2,3"], "roi = '1,2,3'"),
-])
+@pytest.mark.parametrize(
+    "argv,message",
+    [
+        (["grab", "--exposure-us", "1"], "exposure_us = 1.0: out of range for ExposureTime"),
+        (["grab", "--pixel-format", "RGB8"], "pixel_format = 'RGB8'"),
+        (["grab", "--device", "cam9"], "unknown device id 'cam9'; found: sim0"),
+        (["grab", "--roi", "1,2,3"], "roi = '1,2,3'"),
+    ],
+)
 def test_grab_bad_input_is_one_line_exit_2(capsys, argv, message):
     assert main(argv) == 2
     err = capsys.readouterr().err

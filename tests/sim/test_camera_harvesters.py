@@ -1,4 +1,5 @@
 """harvesters backend, for real, against the GenTL producer ``viky.cti`` shipped in the genicam wheel."""
+
 from __future__ import annotations
 
 import time
@@ -80,6 +81,7 @@ def test_unsupported_pixel_format_is_reported():
 # viky always delivers complete buffers. To make the real producer's buffers incomplete, the one GenTL call
 # that reports completeness, `genicam.gentl.Buffer.is_complete`, is replaced: harvesters' own try_fetch then
 # discards and re-queues those buffers and emits INCOMPLETE_BUFFER, exactly as with a lossy link.
+
 
 def viky_at(frame_rate_hz: float, policy: Policy):
     cam = open_camera("harvesters", "VikyTL_DEV_green", cti=[VIKY], policy=policy)

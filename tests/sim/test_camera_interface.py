@@ -1,5 +1,6 @@
 """The one camera interface driven through the sim backend: settings, read-back, triggers,
 faults (injected), profiles."""
+
 from __future__ import annotations
 
 import time
@@ -43,7 +44,14 @@ def test_frames_carry_settings_read_back_from_the_device():
             assert f.image.shape == (16, 32) and f.image.dtype == np.uint16 and f.pixel_format == "Mono12p"
             s = f.settings
             assert (s.exposure_us, s.gain_db, s.black_level, s.width, s.height, s.offset_x, s.offset_y) == (
-                2000.0, 6.0, 16.0, 32, 16, 8, 4)
+                2000.0,
+                6.0,
+                16.0,
+                32,
+                16,
+                8,
+                4,
+            )
         k = TRUTH.system_gain(6.0)
         expected = k * (1e5 + TRUTH.dark_current_e_per_s) * 2e-3 + TRUTH.dark_offset_dn + 16.0
         assert np.mean([f.image.mean() for f in frames]) == pytest.approx(expected, rel=0.01)
@@ -190,8 +198,9 @@ class StuckExposureTransport(SimTransport):
     def reconnect(self) -> None:
         super().reconnect()
         self.nodes.nodes["ExposureTime"].writable = False
-        self.nodes.set = lambda name, value, nodes=self.nodes: None if name == "ExposureTime" else SimNodeMap.set(
-            nodes, name, value)
+        self.nodes.set = lambda name, value, nodes=self.nodes: (
+            None if name == "ExposureTime" else SimNodeMap.set(nodes, name, value)
+        )
 
 
 class FlappingTransport(SimTransport):
@@ -222,8 +231,9 @@ def test_a_device_lost_again_after_every_reconnect_is_one_error_within_the_limit
 
 def test_a_device_that_does_not_take_its_settings_back_is_one_clear_error():
     sensor = SimSensor(TRUTH, flat_rate_map(1e5), seed=0)
-    with Camera(StuckExposureTransport(sensor), policy=Policy(timeout_s=0.1, reconnect_delay_s=0.001,
-                                                              reconnect_attempts=2)) as cam:
+    with Camera(
+        StuckExposureTransport(sensor), policy=Policy(timeout_s=0.1, reconnect_delay_s=0.001, reconnect_attempts=2)
+    ) as cam:
         cam.exposure_us = 1234.0
         cam.transport.cut(outage_s=0.0)
         with pytest.raises(DeviceError, match="settings not restored after reconnecting: exposure_us: 1234.0 -> "):
@@ -248,38 +258,72 @@ class DictTransport:
     def __init__(self, features: dict[str, Any], bounds: dict[str, tuple[float, float]]):
         self.features, self._bounds, self.writes = dict(features), bounds, []
 
-    def has(self, name): return name in self.features
-    def get(self, name): return self.features[name]
+    def has(self, name):
+        return name in self.features
+
+    def get(self, name):
+        return self.features[name]
+
     def set(self, name, value):
         self.writes.append((name, value))
         self.features[name] = value
 
-    def bounds(self, name): return self._bounds.get(name)
-    def entries(self, name): return ("Off", "Continuous") if name.endswith("Auto") else ()
-    def execute(self, name): pass
-    def start(self): pass
-    def stop(self): pass
-    def fetch(self, timeout_s): return RawFrame(1, 0, 2, 1, "Mono8", b"\x01\x02")
-    def reconnect(self): pass
-    def close(self): pass
+    def bounds(self, name):
+        return self._bounds.get(name)
+
+    def entries(self, name):
+        return ("Off", "Continuous") if name.endswith("Auto") else ()
+
+    def execute(self, name):
+        pass
+
+    def start(self):
+        pass
+
+    def stop(self):
+        pass
+
+    def fetch(self, timeout_s):
+        return RawFrame(1, 0, 2, 1, "Mono8", b"\x01\x02")
+
+    def reconnect(self):
+        pass
+
+    def close(self):
+        pass
 
 
-@pytest.mark.parametrize("vendor,model,profile", [
-    ("FLIR", "Blackfly S BFS-U3-51S5M", "flir-blackfly-s"),
-    ("Allied Vision Technologies", "GT1380", "allied-vision-gt"),
-    ("Aravis", "Fake", "aravis-fake"),
-    ("Machine Vision Games Ltd.", "Viky", "viky"),
-    ("Acme", "X1", "generic-sfnc"),
-])
+@pytest.mark.parametrize(
+    "vendor,model,profile",
+    [
+        ("FLIR", "Blackfly S BFS-U3-51S5M", "flir-blackfly-s"),
+        ("Allied Vision Technologies", "GT1380", "allied-vision-gt"),
+        ("Aravis", "Fake", "aravis-fake"),
+        ("Machine Vision Games Ltd.", "Viky", "viky"),
+        ("Acme", "X1", "generic-sfnc"),
+    ],
+)
 def test_profile_selection(vendor, model, profile):
     assert select_profile(vendor, model).name == profile
 
 
 def test_allied_vision_legacy_names_through_the_same_interface():
-    t = DictTransport({"DeviceVendorName": "Allied Vision Technologies", "DeviceModelName": "GT1380",
-                       "DeviceID": "02-2142A", "ExposureTimeAbs": 1000.0, "GainRaw": 0, "ExposureAuto": "Continuous",
-                       "GainAuto": "Continuous", "AcquisitionFrameRateAbs": 20.0, "PixelFormat": "Mono8",
-                       "Width": 2, "Height": 1}, {"ExposureTimeAbs": (25.0, 6e7), "GainRaw": (0, 26)})
+    t = DictTransport(
+        {
+            "DeviceVendorName": "Allied Vision Technologies",
+            "DeviceModelName": "GT1380",
+            "DeviceID": "02-2142A",
+            "ExposureTimeAbs": 1000.0,
+            "GainRaw": 0,
+            "ExposureAuto": "Continuous",
+            "GainAuto": "Continuous",
+            "AcquisitionFrameRateAbs": 20.0,
+            "PixelFormat": "Mono8",
+            "Width": 2,
+            "Height": 1,
+        },
+        {"ExposureTimeAbs": (25.0, 6e7), "GainRaw": (0, 26)},
+    )
     cam = Camera(t)
     assert cam.profile.name == "allied-vision-gt" and cam.info.serial == "02-2142A"
     assert ("ExposureAuto", "Off") in t.writes and ("GainAuto", "Off") in t.writes

@@ -1,6 +1,7 @@
 """Camera outages for real: the GigE Vision camera server killed and restarted on its address, or frozen
 (SIGSTOP/SIGCONT), while Aravis drives it over loopback. The server restarts at its power-on registers, so
 a camera that only reconnected (without restoring its settings) would deliver frames of the wrong exposure."""
+
 from __future__ import annotations
 
 import subprocess

@@ -1,4 +1,5 @@
 """Pixel formats: packing round trips, byte layouts against an independent bit-stream oracle."""
+
 from __future__ import annotations
 
 import numpy as np

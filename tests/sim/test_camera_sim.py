@@ -1,4 +1,5 @@
 """Simulated camera physics against the EMVA 1288 linear model in closed form."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -13,8 +14,16 @@ TRUTH = SimTruth("test", (96, 64), 12, 0.5, 100.0, 3.0, 7000.0, 50.0, 0.0, 0.0, 
 
 
 def cfg(**kw) -> SensorConfig:
-    base = dict(exposure_us=10_000.0, gain_db=0.0, black_level_dn=0.0, pixel_format="Mono12",
-                offset_x=0, offset_y=0, width=96, height=64)
+    base = dict(
+        exposure_us=10_000.0,
+        gain_db=0.0,
+        black_level_dn=0.0,
+        pixel_format="Mono12",
+        offset_x=0,
+        offset_y=0,
+        width=96,
+        height=64,
+    )
     return SensorConfig(**{**base, **kw})
 
 
@@ -120,7 +129,7 @@ def test_rig_scene_drives_the_sensor():
     image = sensor.render(cfg(width=width, height=height, pixel_format="Mono16", exposure_us=t * 1e6))
     assert image.shape == (height, width)
     native = image.astype(float) / 2 ** (16 - truth.bit_depth)
-    centre = native[height // 2 - 16: height // 2 + 16, width // 2 - 16: width // 2 + 16].mean()
+    centre = native[height // 2 - 16 : height // 2 + 16, width // 2 - 16 : width // 2 + 16].mean()
     electrons = scene.on_axis_rate_e_per_s() * t + truth.dark_current_e_per_s * t
     assert centre == pytest.approx(truth.dark_offset_dn + truth.K_dn_per_e * electrons, rel=0.01)
     corner = native[:32, :32].mean() - truth.dark_offset_dn

@@ -1,4 +1,5 @@
 """`uwlab design` end to end: JSON keys, grids, plots, and one-line errors with exit code 2."""
+
 import json
 
 import pandas as pd
@@ -8,11 +9,30 @@ from uwlab.cli.main import main
 from tests.support.cli_process import run
 from tests.support.paths import EXAMPLE
 
-KEYS = {"effective_focal_length_mm", "fov_deg", "fov_m", "max_exposure_s", "exposure_s", "min_framerate_hz", "dof_m",
-        "min_f_number_for_dof", "dome_virtual_image_m", "focus_image_m", "focus_setting_m", "close_up_lens_dpt",
-        "target_irradiance_w_m2", "sensor_irradiance_w_m2",
-        "mean_electrons", "mean_dn", "mean_fraction", "saturated", "snr", "snr_db", "image_average",
-        "light_budget_stops"}
+KEYS = {
+    "effective_focal_length_mm",
+    "fov_deg",
+    "fov_m",
+    "max_exposure_s",
+    "exposure_s",
+    "min_framerate_hz",
+    "dof_m",
+    "min_f_number_for_dof",
+    "dome_virtual_image_m",
+    "focus_image_m",
+    "focus_setting_m",
+    "close_up_lens_dpt",
+    "target_irradiance_w_m2",
+    "sensor_irradiance_w_m2",
+    "mean_electrons",
+    "mean_dn",
+    "mean_fraction",
+    "saturated",
+    "snr",
+    "snr_db",
+    "image_average",
+    "light_budget_stops",
+}
 
 
 def run_cli(capsys, *args):
@@ -39,8 +59,18 @@ def test_set_overrides_and_max_blur(capsys):
 
 def test_grid_to_parquet(capsys, tmp_path):
     out_file = tmp_path / "grid.parquet"
-    code, out, _ = run_cli(capsys, "--grid", "operation.altitude_m=0.5:2.0:0.5", "--grid", "lens.f_number=2,4,8",
-                           "--grid", "water.type=jerlov-I,jerlov-9C", "--out", str(out_file), "--json")
+    code, out, _ = run_cli(
+        capsys,
+        "--grid",
+        "operation.altitude_m=0.5:2.0:0.5",
+        "--grid",
+        "lens.f_number=2,4,8",
+        "--grid",
+        "water.type=jerlov-I,jerlov-9C",
+        "--out",
+        str(out_file),
+        "--json",
+    )
     assert code == 0 and json.loads(out)["points"] == 24
     frame = pd.read_parquet(out_file)
     assert len(frame) == 24 and {"operation.altitude_m", "lens.f_number", "water.type", "snr"} <= set(frame.columns)
@@ -59,22 +89,25 @@ def test_plots_are_written(capsys, tmp_path):
     assert all(p.stat().st_size > 10_000 for p in tmp_path.glob("*.png"))
 
 
-@pytest.mark.parametrize("override, key", [
-    ("light.colour=5", "light.colour"),
-    ("lens.f_number=0", "lens.f_number"),
-    ("lens.f_number=-2", "lens.f_number"),
-    ("operation.overlap=1.0", "operation.overlap"),
-    ("operation.altitude_m=-3", "operation.altitude_m"),
-    ("light.distance_m='far'", "light.distance_m"),
-    ("sensor.profile='imx999'", "sensor.profile"),
-    ("water.type='jerlov-X'", "water.type"),
-    ("water.type='missing.csv'", "water.type"),
-    ("target.reflectance=1.5", "target.reflectance"),
-    ("sensor.gain_db=80", "sensor.gain_db"),
-    ("housing.port='dome'", "housing.dome_radius_mm"),
-    ("operation.motion_axis='z'", "operation.motion_axis"),
-    ("camera.zoom=2", "camera"),
-])
+@pytest.mark.parametrize(
+    "override, key",
+    [
+        ("light.colour=5", "light.colour"),
+        ("lens.f_number=0", "lens.f_number"),
+        ("lens.f_number=-2", "lens.f_number"),
+        ("operation.overlap=1.0", "operation.overlap"),
+        ("operation.altitude_m=-3", "operation.altitude_m"),
+        ("light.distance_m='far'", "light.distance_m"),
+        ("sensor.profile='imx999'", "sensor.profile"),
+        ("water.type='jerlov-X'", "water.type"),
+        ("water.type='missing.csv'", "water.type"),
+        ("target.reflectance=1.5", "target.reflectance"),
+        ("sensor.gain_db=80", "sensor.gain_db"),
+        ("housing.port='dome'", "housing.dome_radius_mm"),
+        ("operation.motion_axis='z'", "operation.motion_axis"),
+        ("camera.zoom=2", "camera"),
+    ],
+)
 def test_bad_input_is_one_line_naming_the_key(capsys, override, key):
     code, out, err = run_cli(capsys, "--set", override)
     assert code == 2 and out == ""

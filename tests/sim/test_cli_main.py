@@ -1,4 +1,5 @@
 """The `uwlab` dispatcher: the table of verbs, each module imported only when its verb is chosen."""
+
 from __future__ import annotations
 
 import subprocess
@@ -12,14 +13,16 @@ HEAVY = ("numpy", "pandas", "matplotlib", "scipy", "colour", "pyarrow", "emcee")
 
 
 def test_help_and_version_import_no_subcommand_module():
-    code = ("import sys\n"
-            "from uwlab.cli.main import main\n"
-            "for argv in (['--help'], ['--version']):\n"
-            "    try:\n"
-            "        main(argv)\n"
-            "    except SystemExit as exc:\n"
-            "        assert exc.code == 0, exc.code\n"
-            f"print(sorted(m for m in sys.modules if m.split('.')[0] in {HEAVY!r} or m.startswith('uwlab.cli.')))\n")
+    code = (
+        "import sys\n"
+        "from uwlab.cli.main import main\n"
+        "for argv in (['--help'], ['--version']):\n"
+        "    try:\n"
+        "        main(argv)\n"
+        "    except SystemExit as exc:\n"
+        "        assert exc.code == 0, exc.code\n"
+        f"print(sorted(m for m in sys.modules if m.split('.')[0] in {HEAVY!r} or m.startswith('uwlab.cli.')))\n"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip().splitlines()[-1] == "['uwlab.cli.main']"
 

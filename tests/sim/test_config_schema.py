@@ -2,6 +2,7 @@
 naming the dotted key and the value (through the CLI: exit 2, one stderr line, no traceback); wrong units are
 caught by the plausibility limits; every shipped config validates to the values it states, with the defaults
 the validators had before the schemas."""
+
 import shutil
 import subprocess
 import sys
@@ -20,8 +21,16 @@ from uwlab.model.bench import is_bench
 from uwlab.model.components import load_lens_profile
 from uwlab.model.config import apply_override, validate
 from uwlab.model.design import build_design
-from uwlab.model.schema import (ExposureUs, FocalLengthMm, FrameCount, GainDb, PixelSizeUm, WavelengthNm, check,
-                                limits_of)
+from uwlab.model.schema import (
+    ExposureUs,
+    FocalLengthMm,
+    FrameCount,
+    GainDb,
+    PixelSizeUm,
+    WavelengthNm,
+    check,
+    limits_of,
+)
 from uwlab.model.sensor import load_sensor_profile
 
 from tests.support.paths import EXAMPLE, ROOT
@@ -45,26 +54,30 @@ def assert_one_line(error: ConfigError, key: str, value, words: str) -> None:
 
 # --- Bad inputs: design, sensor profile, [sim], plan, fit, single values -----------------------------------------
 
-@pytest.mark.parametrize("dotted, value, key, shown, words", [
-    ("lens.focal_length_mm", 0.03, "lens.focal_length_mm", 0.03, UNIT),          # metres written as mm: FOV 179°
-    ("operation.altitude_m", 1e308, "operation.altitude_m", 1e308, UNIT),
-    ("operation.altitude_m", 15000.0, "operation.altitude_m", 15000.0, UNIT),    # deeper than the ocean
-    ("light.luminous_flux_lm", 3e7, "light.luminous_flux_lm", 3e7, UNIT),
-    ("lens.f_number", 0.1, "lens.f_number", 0.1, UNIT),
-    ("spectral.start_nm", 0.38, "spectral.start_nm", 0.38, UNIT),              # µm written as nm
-    ("housing.dome_radius_mm", 0.05, "housing.dome_radius_mm", 0.05, UNIT),
-    ("operation.circle_of_confusion_mm", 5.0, "operation.circle_of_confusion_mm", 5.0, UNIT),
-    ("target.reflectance", 90, "target.reflectance", 90, "not a percentage"),
-    ("sensor.gain_db", 1000.0, "sensor.gain_db", 1000.0, UNIT),
-    ("operation.exposure_s", 200.0, "operation.exposure_s", 200.0, "IMX250M's range"),  # µs written as s
-    ("operation.exposure_s", "fast", "operation.exposure_s", "fast", '"max-blur"'),
-    ("light.count", 2.5, "light.count", 2.5, "integer"),
-    ("lens.f_number", float("inf"), "lens.f_number", float("inf"), "finite"),
-    ("lens.f_number", "2", "lens.f_number", "2", "number"),
-    ("lens.f_number", True, "lens.f_number", True, "number"),
-    ("lens.zoom", 2, "lens.zoom", 2, "unknown key; allowed: focal_length_mm, f_number, transmittance"),
-    ("spectral.stop_nm", 300.0, "spectral.stop_nm", 300.0, "must exceed start_nm"),
-])
+
+@pytest.mark.parametrize(
+    "dotted, value, key, shown, words",
+    [
+        ("lens.focal_length_mm", 0.03, "lens.focal_length_mm", 0.03, UNIT),  # metres written as mm: FOV 179°
+        ("operation.altitude_m", 1e308, "operation.altitude_m", 1e308, UNIT),
+        ("operation.altitude_m", 15000.0, "operation.altitude_m", 15000.0, UNIT),  # deeper than the ocean
+        ("light.luminous_flux_lm", 3e7, "light.luminous_flux_lm", 3e7, UNIT),
+        ("lens.f_number", 0.1, "lens.f_number", 0.1, UNIT),
+        ("spectral.start_nm", 0.38, "spectral.start_nm", 0.38, UNIT),  # µm written as nm
+        ("housing.dome_radius_mm", 0.05, "housing.dome_radius_mm", 0.05, UNIT),
+        ("operation.circle_of_confusion_mm", 5.0, "operation.circle_of_confusion_mm", 5.0, UNIT),
+        ("target.reflectance", 90, "target.reflectance", 90, "not a percentage"),
+        ("sensor.gain_db", 1000.0, "sensor.gain_db", 1000.0, UNIT),
+        ("operation.exposure_s", 200.0, "operation.exposure_s", 200.0, "IMX250M's range"),  # µs written as s
+        ("operation.exposure_s", "fast", "operation.exposure_s", "fast", '"max-blur"'),
+        ("light.count", 2.5, "light.count", 2.5, "integer"),
+        ("lens.f_number", float("inf"), "lens.f_number", float("inf"), "finite"),
+        ("lens.f_number", "2", "lens.f_number", "2", "number"),
+        ("lens.f_number", True, "lens.f_number", True, "number"),
+        ("lens.zoom", 2, "lens.zoom", 2, "unknown key; allowed: focal_length_mm, f_number, transmittance"),
+        ("spectral.stop_nm", 300.0, "spectral.stop_nm", 300.0, "must exceed start_nm"),
+    ],
+)
 def test_bad_design_values_name_the_key(example_raw, dotted, value, key, shown, words):
     apply_override(example_raw, dotted, value)
     with pytest.raises(ConfigError) as info:
@@ -76,12 +89,17 @@ def test_mutually_exclusive_keys_are_refused(example_raw, tmp_path):
     """A light placed with both a beam angle in water and one in air, a lens profile with both a number and a CSV
     for its transmittance: one line naming the first key."""
     example_raw["model"] = {"kind": "extended"}
-    example_raw["lights"] = [{"position_m": [0.0, -0.2, 0.0], "beam_half_angle_deg": 30.0,
-                              "beam_half_angle_in_air_deg": 40.0}]
+    example_raw["lights"] = [
+        {"position_m": [0.0, -0.2, 0.0], "beam_half_angle_deg": 30.0, "beam_half_angle_in_air_deg": 40.0}
+    ]
     with pytest.raises(ConfigError) as info:
         build_design(example_raw)
-    assert_one_line(info.value, "lights[0].beam_half_angle_deg", 30.0,
-                    "give at most one of beam_half_angle_deg and beam_half_angle_in_air_deg")
+    assert_one_line(
+        info.value,
+        "lights[0].beam_half_angle_deg",
+        30.0,
+        "give at most one of beam_half_angle_deg and beam_half_angle_in_air_deg",
+    )
     lens = tmp_path / "lens.toml"
     lens.write_text('name = "L"\nfocal_length_mm = 12\ntransmittance = 0.9\ntransmittance_csv = "t.csv"\n')
     with pytest.raises(ConfigError) as info:
@@ -117,17 +135,20 @@ def test_grid_arrays_are_checked_element_wise(example_raw):
     assert_one_line(info.value, "spectral.step_nm", [1.0, 2.0], "cannot be varied in a grid")
 
 
-@pytest.mark.parametrize("key, value, shown, words", [
-    ("pixel_size_um", 3450, 3450, UNIT),                  # nm written as µm
-    ("pixel_size_um", 0.00345, 0.00345, UNIT),            # mm written as µm
-    ("K_dn_per_e", 0, 0, "DN/e-"),
-    ("exposure_max_us", 10, 10.0, "must exceed exposure_min_us"),
-    ("bit_depth", 12.5, 12.5, "integer"),
-    ("resolution_px", [2448], [2448], "too few items"),
-    ("resolution_px", [2448, 2048, 3], [2448, 2048, 3], "at most 2 items"),
-    ("prnu_percent", 150, 150, "a percentage"),
-    ("colour", True, True, "unknown key"),
-])
+@pytest.mark.parametrize(
+    "key, value, shown, words",
+    [
+        ("pixel_size_um", 3450, 3450, UNIT),  # nm written as µm
+        ("pixel_size_um", 0.00345, 0.00345, UNIT),  # mm written as µm
+        ("K_dn_per_e", 0, 0, "DN/e-"),
+        ("exposure_max_us", 10, 10.0, "must exceed exposure_min_us"),
+        ("bit_depth", 12.5, 12.5, "integer"),
+        ("resolution_px", [2448], [2448], "too few items"),
+        ("resolution_px", [2448, 2048, 3], [2448, 2048, 3], "at most 2 items"),
+        ("prnu_percent", 150, 150, "a percentage"),
+        ("colour", True, True, "unknown key"),
+    ],
+)
 def test_bad_sensor_profiles_name_the_file_and_key(tmp_path, key, value, shown, words):
     text = (CONFIGS / "sensors" / "imx250m.toml").read_text()
     lines = [line for line in text.splitlines() if not line.startswith(f"{key} =")]
@@ -140,10 +161,17 @@ def test_bad_sensor_profiles_name_the_file_and_key(tmp_path, key, value, shown, 
     assert_one_line(info.value, f"sensor profile bad.toml: {key}", shown, words)
 
 
-@pytest.mark.parametrize("key, value, words", [
-    ("seed", -1, "integer"), ("light_gamma", 0, "(0, 10]"), ("surround_reflectance", 5.0, "not a percentage"),
-    ("board_size_m", [0.15], "too few items"), ("board_size_m", [0.15, 0.0], UNIT), ("seeed", 1, "unknown key"),
-])
+@pytest.mark.parametrize(
+    "key, value, words",
+    [
+        ("seed", -1, "integer"),
+        ("light_gamma", 0, "(0, 10]"),
+        ("surround_reflectance", 5.0, "not a percentage"),
+        ("board_size_m", [0.15], "too few items"),
+        ("board_size_m", [0.15, 0.0], UNIT),
+        ("seeed", 1, "unknown key"),
+    ],
+)
 def test_bad_sim_section_names_the_key(key, value, words):
     raw = read(RIG)
     raw["sim"][key] = value
@@ -157,25 +185,28 @@ PLAN = f'name = "unit"\nrig = "{RIG}"\n[camera]\npixel_format = "Mono12"\nwindow
 SWEEP = '[[sweep]]\nid = "a"\nkind = "exposure"\nvalues = [100]\n'
 
 
-@pytest.mark.parametrize("text, key, shown, words", [
-    (SWEEP + "frames_per_point = 200000", "sweep.a.frames_per_point", 200000, "[2, 10000] frames"),
-    (SWEEP + "dark_frames = 1", "sweep.a.dark_frames", 1, "[2, 10000] frames"),
-    (SWEEP + "exposure_us = 0.5", "sweep.a.exposure_us", 0.5, UNIT),                 # seconds or ms as µs
-    (SWEEP + "lens = {focal_length_mm = 0.03, f_number = 2.0}", "sweep.a.lens.focal_length_mm", 0.03, UNIT),
-    (SWEEP + "spectrometer_integration_ms = 0.01", "sweep.a.spectrometer_integration_ms", 0.01, "[1, 10000] ms"),
-    (SWEEP + "camera = {timeout_s = 0}", "sweep.a.camera.timeout_s", 0, "(0, 600] s"),
-    (SWEEP + 'roi = "auto"', "sweep.a.roi", "auto", '"aruco"'),
-    (SWEEP + 'lens = "nonee"', "sweep.a.lens", "nonee", '"none"'),
-    (SWEEP + 'spectrometer = ["camera", "camera"]', "sweep.a.spectrometer", ["camera", "camera"], "distinct"),
-    (SWEEP.replace("[100]", "{start = 0, stop = inf, num = 3}"), "sweep.a.values.stop", float("inf"), "finite"),
-    (SWEEP.replace("[100]", "{start = 0, stop = 10, num = 3, step = 1}"), "sweep.a.values.step", 1, "unknown key"),
-    (SWEEP.replace("[100]", '"all"'), "sweep.a.values", "all", "{start, stop, num, spacing}"),
-    (SWEEP.replace("[100]", "[]"), "sweep.a.values", [], "at least 1 item "),
-    (SWEEP.replace('id = "a"\n', ""), "sweep[0].id", None, "missing (required)"),
-    ("[defaults]\ncolour = 1\n" + SWEEP, "defaults.colour", 1, "unknown key"),
-    ('[instruments]\nprotocol = "scpi"\n' + SWEEP, "instruments.protocol", "scpi", "'uwlab-ascii'"),
-    ("", "sweep", None, "missing (required)"),
-])
+@pytest.mark.parametrize(
+    "text, key, shown, words",
+    [
+        (SWEEP + "frames_per_point = 200000", "sweep.a.frames_per_point", 200000, "[2, 10000] frames"),
+        (SWEEP + "dark_frames = 1", "sweep.a.dark_frames", 1, "[2, 10000] frames"),
+        (SWEEP + "exposure_us = 0.5", "sweep.a.exposure_us", 0.5, UNIT),  # seconds or ms as µs
+        (SWEEP + "lens = {focal_length_mm = 0.03, f_number = 2.0}", "sweep.a.lens.focal_length_mm", 0.03, UNIT),
+        (SWEEP + "spectrometer_integration_ms = 0.01", "sweep.a.spectrometer_integration_ms", 0.01, "[1, 10000] ms"),
+        (SWEEP + "camera = {timeout_s = 0}", "sweep.a.camera.timeout_s", 0, "(0, 600] s"),
+        (SWEEP + 'roi = "auto"', "sweep.a.roi", "auto", '"aruco"'),
+        (SWEEP + 'lens = "nonee"', "sweep.a.lens", "nonee", '"none"'),
+        (SWEEP + 'spectrometer = ["camera", "camera"]', "sweep.a.spectrometer", ["camera", "camera"], "distinct"),
+        (SWEEP.replace("[100]", "{start = 0, stop = inf, num = 3}"), "sweep.a.values.stop", float("inf"), "finite"),
+        (SWEEP.replace("[100]", "{start = 0, stop = 10, num = 3, step = 1}"), "sweep.a.values.step", 1, "unknown key"),
+        (SWEEP.replace("[100]", '"all"'), "sweep.a.values", "all", "{start, stop, num, spacing}"),
+        (SWEEP.replace("[100]", "[]"), "sweep.a.values", [], "at least 1 item "),
+        (SWEEP.replace('id = "a"\n', ""), "sweep[0].id", None, "missing (required)"),
+        ("[defaults]\ncolour = 1\n" + SWEEP, "defaults.colour", 1, "unknown key"),
+        ('[instruments]\nprotocol = "scpi"\n' + SWEEP, "instruments.protocol", "scpi", "'uwlab-ascii'"),
+        ("", "sweep", None, "missing (required)"),
+    ],
+)
 def test_bad_plans_name_the_key(tmp_path, text, key, shown, words):
     path = tmp_path / "plan.toml"
     path.write_text(PLAN + text)
@@ -184,16 +215,24 @@ def test_bad_plans_name_the_key(tmp_path, text, key, shown, words):
     assert_one_line(info.value, key, shown, words)
 
 
-@pytest.mark.parametrize("line, new, key, shown, words", [
-    ("sigma = 0.0174", "sigma = -1", "parameters.K_dn_per_e:imx250m.sigma", -1, "> 0"),
-    ("kind = \"halfnormal\"", "kind = \"gamma\"", "parameters.discrepancy.kind", "gamma", "'normal', 'lognormal'"),
-    ("walkers = 32", "walkers = 7", "sampler.walkers", 7, "[8, 10000]"),
-    ("walkers = 32", "walkers = 9", "sampler.walkers", 9, "even"),
-    ("seed = 1", "seed = -1", "sampler.seed", -1, "integer"),
-    ("train = ", "train = 1 #", "holdout.train", 1, "must be a list"),
-    ("[parameters.light_efficiency]", "walkers = 32\n[parameters.light_efficiency]", "walkers", 32,
-     "unknown key; allowed: parameters, sampler, holdout"),
-])
+@pytest.mark.parametrize(
+    "line, new, key, shown, words",
+    [
+        ("sigma = 0.0174", "sigma = -1", "parameters.K_dn_per_e:imx250m.sigma", -1, "> 0"),
+        ('kind = "halfnormal"', 'kind = "gamma"', "parameters.discrepancy.kind", "gamma", "'normal', 'lognormal'"),
+        ("walkers = 32", "walkers = 7", "sampler.walkers", 7, "[8, 10000]"),
+        ("walkers = 32", "walkers = 9", "sampler.walkers", 9, "even"),
+        ("seed = 1", "seed = -1", "sampler.seed", -1, "integer"),
+        ("train = ", "train = 1 #", "holdout.train", 1, "must be a list"),
+        (
+            "[parameters.light_efficiency]",
+            "walkers = 32\n[parameters.light_efficiency]",
+            "walkers",
+            32,
+            "unknown key; allowed: parameters, sampler, holdout",
+        ),
+    ],
+)
 def test_bad_fit_configs_name_the_key(tmp_path, line, new, key, shown, words):
     text = (CONFIGS / "fit" / "default.toml").read_text()
     assert line in text
@@ -204,14 +243,17 @@ def test_bad_fit_configs_name_the_key(tmp_path, line, new, key, shown, words):
     assert_one_line(info.value, key, shown, words)
 
 
-@pytest.mark.parametrize("quantity, value, option", [
-    (WavelengthNm, 0.55, "--wavelength-nm"),   # µm: η > 1 follows
-    (WavelengthNm, 550e-9, "--wavelength-nm"),  # m
-    (PixelSizeUm, 3450.0, "--pixel-size-um"),  # nm
-    (ExposureUs, 0.1, "--exposure-us"),
-    (GainDb, 1000.0, "--gain-db"),
-    (FocalLengthMm, 5000.0, "lens.focal_length_mm"),
-])
+@pytest.mark.parametrize(
+    "quantity, value, option",
+    [
+        (WavelengthNm, 0.55, "--wavelength-nm"),  # µm: η > 1 follows
+        (WavelengthNm, 550e-9, "--wavelength-nm"),  # m
+        (PixelSizeUm, 3450.0, "--pixel-size-um"),  # nm
+        (ExposureUs, 0.1, "--exposure-us"),
+        (GainDb, 1000.0, "--gain-db"),
+        (FocalLengthMm, 5000.0, "lens.focal_length_mm"),
+    ],
+)
 def test_single_values_go_through_the_named_quantities(quantity, value, option):
     with pytest.raises(ConfigError) as info:
         check(quantity, value, option)
@@ -226,14 +268,17 @@ def test_frame_count_refuses_before_allocating():
     assert check(FrameCount, 4.0, "frames") == 4 and isinstance(check(FrameCount, 4.0, "frames"), int)
 
 
-@pytest.mark.parametrize("argv, key", [
-    (["design", str(EXAMPLE), "--set", "lens.focal_length_mm=0.03"], "lens.focal_length_mm = 0.03"),
-    (["design", str(EXAMPLE), "--set", "operation.altitude_m=1e308"], "operation.altitude_m = 1e+308"),
-    (["design", str(EXAMPLE), "--grid", "lens.focal_length_mm=0:inf:1"], "lens.focal_length_mm"),
-    (["design", str(EXAMPLE), "--grid", "lens.focal_length_mm=10,0.03"], "lens.focal_length_mm = 0.03"),
-    (["emva", "characterize", "DS", "--wavelength-nm", "0.55"], "--wavelength-nm = 0.55"),
-    (["emva", "characterize", "DS", "--pixel-size-um", "3450"], "--pixel-size-um = 3450.0"),
-])
+@pytest.mark.parametrize(
+    "argv, key",
+    [
+        (["design", str(EXAMPLE), "--set", "lens.focal_length_mm=0.03"], "lens.focal_length_mm = 0.03"),
+        (["design", str(EXAMPLE), "--set", "operation.altitude_m=1e308"], "operation.altitude_m = 1e+308"),
+        (["design", str(EXAMPLE), "--grid", "lens.focal_length_mm=0:inf:1"], "lens.focal_length_mm"),
+        (["design", str(EXAMPLE), "--grid", "lens.focal_length_mm=10,0.03"], "lens.focal_length_mm = 0.03"),
+        (["emva", "characterize", "DS", "--wavelength-nm", "0.55"], "--wavelength-nm = 0.55"),
+        (["emva", "characterize", "DS", "--pixel-size-um", "3450"], "--pixel-size-um = 3450.0"),
+    ],
+)
 def test_cli_exits_2_with_one_line(argv, key):
     proc = subprocess.run([sys.executable, "-m", "uwlab.cli.main", *argv], capture_output=True, text=True)
     assert proc.returncode == 2 and proc.stdout == ""
@@ -244,8 +289,11 @@ def test_sweep_with_absurd_frames_is_refused_before_the_dataset_exists(tmp_path)
     plan = tmp_path / "plan.toml"
     plan.write_text(PLAN + SWEEP + "frames_per_point = 200000\n")
     out = tmp_path / "ds"
-    proc = subprocess.run([sys.executable, "-m", "uwlab.cli.main", "sweep", str(plan), "--sim", "--out", str(out)],
-                          capture_output=True, text=True)
+    proc = subprocess.run(
+        [sys.executable, "-m", "uwlab.cli.main", "sweep", str(plan), "--sim", "--out", str(out)],
+        capture_output=True,
+        text=True,
+    )
     assert proc.returncode == 2 and len(proc.stderr.splitlines()) == 1
     assert "sweep.a.frames_per_point = 200000" in proc.stderr and not out.exists()
 
@@ -256,23 +304,62 @@ def test_sweep_with_absurd_frames_is_refused_before_the_dataset_exists(tmp_path)
 # SWEEP_DEFAULTS, fit.py load_fit_config, the sensor profile's optional keys).
 DESIGN_DEFAULTS = {
     "spectral": {"start_nm": 380.0, "stop_nm": 780.0, "step_nm": 1.0},
-    "light": {"spectrum": "generic-led", "beam_half_angle_deg": None, "beam_half_angle_in_air_deg": None,
-              "beam_model": "cone", "count": 1, "distance_m": None, "incidence_deg": 0.0},
+    "light": {
+        "spectrum": "generic-led",
+        "beam_half_angle_deg": None,
+        "beam_half_angle_in_air_deg": None,
+        "beam_model": "cone",
+        "count": 1,
+        "distance_m": None,
+        "incidence_deg": 0.0,
+    },
     "water": {"attenuation_scale": 1.0},
-    "housing": {"port": "flat", "water_index": 1.333, "port_index": 1.49, "port_transmittance": "fresnel",
-                "dome_radius_mm": None, "dome_thickness_mm": None, "dome_decenter_mm": [0.0, 0.0, 0.0],
-                "flat_thickness_mm": 0.0, "flat_air_gap_mm": 0.0, "flat_tilt_deg": [0.0, 0.0]},
+    "housing": {
+        "port": "flat",
+        "water_index": 1.333,
+        "port_index": 1.49,
+        "port_transmittance": "fresnel",
+        "dome_radius_mm": None,
+        "dome_thickness_mm": None,
+        "dome_decenter_mm": [0.0, 0.0, 0.0],
+        "flat_thickness_mm": 0.0,
+        "flat_air_gap_mm": 0.0,
+        "flat_tilt_deg": [0.0, 0.0],
+    },
     "lens": {"transmittance": 1.0, "min_focus_distance_m": None},
     "sensor": {"gain_db": 0.0, "bit_depth": None, "channel": "combined"},
-    "operation": {"speed_m_s": 0.0, "overlap": 0.0, "max_blur_px": 1.0, "exposure_s": "max-blur", "motion_axis": "y",
-                  "min_dof_m": None, "circle_of_confusion_mm": None},
+    "operation": {
+        "speed_m_s": 0.0,
+        "overlap": 0.0,
+        "max_blur_px": 1.0,
+        "exposure_s": "max-blur",
+        "motion_axis": "y",
+        "min_dof_m": None,
+        "circle_of_confusion_mm": None,
+    },
 }
-SIM_DEFAULTS = {"seed": 1288, "light_gamma": 2.2, "surround_reflectance": 0.05, "light_efficiency": 1.0,
-                "board_size_m": (0.15, 0.12)}
-SWEEP_DEFAULTS = {"frames_per_point": 2, "settle_s": 0.0, "dark": "point", "spectrometer": (),
-                  "spectrometer_integration_ms": 10.0, "spectrometer_averaging": 1, "roi": None,
-                  "aruco_dictionary": "DICT_4X4_50", "saturation_threshold": POINT_SATURATED_FRACTION,
-                  "gain_db": 0.0, "black_level_dn": None, "light_level": 1.0, "save_frames": False}
+SIM_DEFAULTS = {
+    "seed": 1288,
+    "light_gamma": 2.2,
+    "surround_reflectance": 0.05,
+    "light_efficiency": 1.0,
+    "board_size_m": (0.15, 0.12),
+}
+SWEEP_DEFAULTS = {
+    "frames_per_point": 2,
+    "settle_s": 0.0,
+    "dark": "point",
+    "spectrometer": (),
+    "spectrometer_integration_ms": 10.0,
+    "spectrometer_averaging": 1,
+    "roi": None,
+    "aruco_dictionary": "DICT_4X4_50",
+    "saturation_threshold": POINT_SATURATED_FRACTION,
+    "gain_db": 0.0,
+    "black_level_dn": None,
+    "light_level": 1.0,
+    "save_frames": False,
+}
 SENSOR_OPTIONAL = {"dark_current_e_per_s": 0.0, "dsnu_e": 0.0, "prnu_percent": 0.0, "description": "", "color": False}
 
 
@@ -345,10 +432,19 @@ def test_fit_configs_round_trip(path):
         assert prior.kind == table["kind"]
         for key, value in table.items():
             assert getattr(prior, key) == value, f"{name}.{key}"
-    sampler = {"walkers": max(32, 4 * len(raw["parameters"])), "chunk_steps": 1000, "max_steps": 60000, "seed": 0,
-               **raw.get("sampler", {})}
-    assert (config.walkers, config.sampler.chunk_steps, config.sampler.max_steps, config.sampler.seed) == \
-        (sampler["walkers"], sampler["chunk_steps"], sampler["max_steps"], sampler["seed"])
+    sampler = {
+        "walkers": max(32, 4 * len(raw["parameters"])),
+        "chunk_steps": 1000,
+        "max_steps": 60000,
+        "seed": 0,
+        **raw.get("sampler", {}),
+    }
+    assert (config.walkers, config.sampler.chunk_steps, config.sampler.max_steps, config.sampler.seed) == (
+        sampler["walkers"],
+        sampler["chunk_steps"],
+        sampler["max_steps"],
+        sampler["seed"],
+    )
     assert config.holdout.train == raw.get("holdout", {}).get("train", [])
 
 

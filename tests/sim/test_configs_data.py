@@ -1,4 +1,5 @@
 """Properties of the data files in configs/ (sensors, lenses, lights, water) and of their provenance."""
+
 from __future__ import annotations
 
 import tomllib
@@ -13,8 +14,17 @@ from tests.support.paths import CONFIGS
 CONFIGS = CONFIGS
 SENSOR_IDS = ("imx250m", "imx250c", "icx285alm", "imx178m", "imx249m", "imx252m", "imx264c")
 NUMERIC_KEYS = (
-    "pixel_size_um", "resolution_px", "bit_depth", "K_dn_per_e", "dark_offset_dn", "dark_noise_e", "saturation_e",
-    "exposure_min_us", "exposure_max_us", "gain_min_db", "gain_max_db",
+    "pixel_size_um",
+    "resolution_px",
+    "bit_depth",
+    "K_dn_per_e",
+    "dark_offset_dn",
+    "dark_noise_e",
+    "saturation_e",
+    "exposure_min_us",
+    "exposure_max_us",
+    "gain_min_db",
+    "gain_max_db",
 )
 OPTIONAL_NUMERIC_KEYS = ("dark_current_e_per_s", "dsnu_e", "prnu_percent")
 REQUIRED_KEYS = ("name", "description", "color", "qe_csv", *NUMERIC_KEYS)
@@ -155,7 +165,8 @@ def test_jerlov_table_is_complete_on_the_source_grid():
     assert list(table.columns) == ["water_type", "wavelength_nm", "a_per_m", "b_per_m", "a_filled", "b_filled"]
     assert not table.isna().any().any()
     assert sorted(zip(table.water_type, table.wavelength_nm, strict=True)) == sorted(
-        (t, w) for t in JERLOV_TYPES for w in JERLOV_NM)
+        (t, w) for t in JERLOV_TYPES for w in JERLOV_NM
+    )
     assert (table[["a_per_m", "b_per_m"]] > 0).all().all()
 
 

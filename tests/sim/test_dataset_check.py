@@ -1,5 +1,6 @@
 """`dataset_check`: every kind of damage found and named (bit flips, duplicates, NaN, points outside the plan, missing
 frames, a wrong finish time), repair sets aside without deleting, resume refuses a dataset that fails its check."""
+
 import random
 from pathlib import Path
 
@@ -21,8 +22,17 @@ PLAN = {"name": "unit", "sweep": [{"id": "a", "kind": "exposure", "values": {"st
 
 
 def row(index: int, sweep: str = "a", **extra) -> dict:
-    return {"sweep_id": sweep, "point_index": index, "kind": "exposure", "frames": 2, "exposure_us": 10.0 * (index + 1),
-            "mean_dn": 100.0 + index, "signal_dn": 90.0 + index, "saturated": False, **extra}
+    return {
+        "sweep_id": sweep,
+        "point_index": index,
+        "kind": "exposure",
+        "frames": 2,
+        "exposure_us": 10.0 * (index + 1),
+        "mean_dn": 100.0 + index,
+        "signal_dn": 90.0 + index,
+        "saturated": False,
+        **extra,
+    }
 
 
 def spectrum(index: int, sweep: str = "a"):
@@ -171,8 +181,9 @@ def test_points_of_save_frames_sweeps_need_their_frames(tmp_path):
     assert check(Dataset.open(tmp_path)).ok
     Dataset.open(tmp_path).frames("a", 1).bright[0].unlink()
     report = check(Dataset.open(tmp_path))
-    assert [str(p) for p in report.problems] == ["point a#1: has 1/2 bright and 0/0 dark frames stored "
-                                                 "(save_frames = true)"]
+    assert [str(p) for p in report.problems] == [
+        "point a#1: has 1/2 bright and 0/0 dark frames stored (save_frames = true)"
+    ]
     with Dataset.open_for_writing(tmp_path) as writer:
         repair(writer)
     assert Dataset.open(tmp_path).completed() == {("a", 0)}

@@ -1,5 +1,6 @@
 """Datasets through the real `uwlab` command (subprocesses, real signals): one writer at a time, Ctrl-C and SIGKILL,
 stale rig folders, read-only output, a sweep whose devices never opened, `dataset check` and `--resume`."""
+
 import json
 import os
 import resource
@@ -23,8 +24,13 @@ from tests.support.plans import camera, write_plan
 
 
 def plan_file(tmp_path: Path, points: int, settle_s: float = 0.0, name: str = "plan", **tables) -> Path:
-    sweep = {"id": "a", "kind": "exposure", "values": {"start": 50, "stop": 400, "num": points}, "settle_s": settle_s,
-             "dark": "none"}
+    sweep = {
+        "id": "a",
+        "kind": "exposure",
+        "values": {"start": 50, "stop": 400, "num": points},
+        "settle_s": settle_s,
+        "dark": "none",
+    }
     return write_plan(tmp_path / f"{name}.toml", name, [sweep], camera=camera(16, 16), **tables)
 
 
@@ -36,8 +42,11 @@ def test_a_second_writer_is_refused_naming_the_holder_and_no_point_is_lost(tmp_p
     plan, out = plan_file(tmp_path, points=16, settle_s=0.5), tmp_path / "data"
     first = uwlab("sweep", plan, "--sim", "--out", out)
     wait_until(lambda: points_recorded(out) >= 1, first, "a first point")
-    others = [uwlab("sweep", plan, "--sim", "--resume", out), uwlab("sweep", plan, "--sim", "--out", out, "--force"),
-              uwlab("dataset", "check", out, "--repair")]
+    others = [
+        uwlab("sweep", plan, "--sim", "--resume", out),
+        uwlab("sweep", plan, "--sim", "--out", out, "--force"),
+        uwlab("dataset", "check", out, "--repair"),
+    ]
     for other in others:
         code, _, err = finish(other)
         assert code == 2 and one_line(err) and f"pid {first.pid} on host {socket.gethostname()}" in err, err
@@ -53,8 +62,9 @@ def test_ctrl_c_at_start_up_and_while_measuring_exits_130_in_one_line_and_the_da
     plan, out = plan_file(tmp_path, points=4, settle_s=0.3), tmp_path / "data"
     for delay in (0.0, 0.4):  # as the dataset appears, then while the simulators start
         started = uwlab("sweep", plan, "--sim", "--out", out)
-        wait_until(lambda pid=started.pid: getattr(read_holder(out / "lock"), "pid", None) == pid, started,
-                   "the dataset")
+        wait_until(
+            lambda pid=started.pid: getattr(read_holder(out / "lock"), "pid", None) == pid, started, "the dataset"
+        )
         time.sleep(delay)
         os.killpg(started.pid, signal.SIGINT)  # Ctrl-C reaches the whole process group
         code, _, err = finish(started)
@@ -85,9 +95,17 @@ def test_after_sigkill_the_lock_is_taken_over_and_only_stale_rig_folders_are_rem
     for folder in (live_folder, young, old):
         folder.mkdir()
     os.utime(old, (time.time() - 3600, time.time() - 3600))
-    live = subprocess.Popen([sys.executable, "-c", "import sys, time; from uwlab.lockfile import OwnerLock; "
-                             f"lock = OwnerLock({str(live_folder / 'owner.lock')!r}, 'live rig'); lock.acquire(); "
-                             "print('held', flush=True); time.sleep(600)"], stdout=subprocess.PIPE, text=True)
+    live = subprocess.Popen(
+        [
+            sys.executable,
+            "-c",
+            "import sys, time; from uwlab.lockfile import OwnerLock; "
+            f"lock = OwnerLock({str(live_folder / 'owner.lock')!r}, 'live rig'); lock.acquire(); "
+            "print('held', flush=True); time.sleep(600)",
+        ],
+        stdout=subprocess.PIPE,
+        text=True,
+    )
     try:
         assert live.stdout.readline() == "held\n"
         code, _, err = run("sweep", plan, "--sim", "--resume", out, env=env)
@@ -111,8 +129,15 @@ def test_resume_into_read_only_output_is_one_line_and_changes_nothing(tmp_path):
     before = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
     out.chmod(0o555)  # read-only for a user; root writes anyway, so no file may grow either (RLIMIT_FSIZE = 0)
     try:
-        process = uwlab("sweep", plan_path, "--sim", "--resume", out, preexec_fn=_no_writes,
-                        env={**os.environ, "PYTHONDONTWRITEBYTECODE": "1"})
+        process = uwlab(
+            "sweep",
+            plan_path,
+            "--sim",
+            "--resume",
+            out,
+            preexec_fn=_no_writes,
+            env={**os.environ, "PYTHONDONTWRITEBYTECODE": "1"},
+        )
         code, _, err = finish(process)
     finally:
         out.chmod(0o755)
@@ -139,8 +164,10 @@ def test_dataset_check_finds_damage_resume_refuses_repair_sets_it_aside_and_resu
     with Dataset.create(out, plan.raw, plan_sha256=plan.sha256, sim=True) as data:
         for index in range(3):
             nm = np.arange(380.0, 781.0)
-            data.append_point({"sweep_id": "a", "point_index": index, "kind": "exposure", "frames": 2},
-                              spectra_frame("a", index, [("target", nm, np.full_like(nm, 1e-3))]))
+            data.append_point(
+                {"sweep_id": "a", "point_index": index, "kind": "exposure", "frames": 2},
+                spectra_frame("a", index, [("target", nm, np.full_like(nm, 1e-3))]),
+            )
     damaged = out / Dataset.open(out).store.parts[1].tables["spectra"].file
     content = bytearray(damaged.read_bytes())
     content[len(content) // 2] ^= 0x10

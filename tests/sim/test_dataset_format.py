@@ -1,5 +1,6 @@
 """The dataset contract in-process: round trips, append-only parts and their merging, crash safety at every write,
 file modes, the writer lock, refusal to overwrite, disk full, raw frames."""
+
 import errno
 import json
 import os
@@ -29,9 +30,18 @@ PLAN = {"name": "unit", "sweep": [{"id": "a", "kind": "exposure", "values": {"st
 
 
 def row(index: int, **extra) -> dict:
-    base = {"sweep_id": "a", "point_index": index, "kind": "exposure", "frames": 2, "exposure_us": 10.0 * (index + 1),
-            "mean_dn": 100.0 + index, "light_on": True, "frame_ids": [2 * index + 1, 2 * index + 2],
-            "f_number": None, "irradiance_position": None}
+    base = {
+        "sweep_id": "a",
+        "point_index": index,
+        "kind": "exposure",
+        "frames": 2,
+        "exposure_us": 10.0 * (index + 1),
+        "mean_dn": 100.0 + index,
+        "light_on": True,
+        "frame_ids": [2 * index + 1, 2 * index + 2],
+        "f_number": None,
+        "irradiance_position": None,
+    }
     return {**base, **extra}
 
 
@@ -118,6 +128,7 @@ def test_a_crash_at_any_write_leaves_a_readable_dataset_that_resumes(tmp_path, m
             if calls["n"] == crash_at:
                 raise Crash
             return real(*args, **kwargs)
+
         return call
 
     with Dataset.create(tmp_path, PLAN, plan_sha256="abc") as data:
@@ -215,8 +226,12 @@ def test_one_writer_at_a_time_and_stale_locks_are_taken_over(tmp_path):
     data.close()
     # a writer killed without releasing: its pid is dead, its lock file still names it
     dead = subprocess.run([sys.executable, "-c", "import os; print(os.getpid())"], capture_output=True, text=True)
-    holder = {"host": socket.gethostname(), "pid": int(dead.stdout), "since_utc": "2024-01-01T00:00:00+00:00",
-              "purpose": "killed"}
+    holder = {
+        "host": socket.gethostname(),
+        "pid": int(dead.stdout),
+        "since_utc": "2024-01-01T00:00:00+00:00",
+        "purpose": "killed",
+    }
     (tmp_path / "lock").write_text(json.dumps(holder))
     with Dataset.open_for_writing(tmp_path) as taken:
         taken.append_point(row(0))

@@ -1,5 +1,6 @@
 """The main job end to end on the simulated rig (the tank world, the extended model), and the report and fit
 commands on its outputs."""
+
 import json
 
 import pytest
@@ -22,7 +23,13 @@ def test_demo_recovers_the_simulated_truth(demo):
     assert all(check["passed"] for check in summary["checks"])
     coverage = summary["predictive_coverage"]
     assert coverage["held_out_inside_95"] >= 0.9 and set(coverage["per_configuration"]) == {
-        "imx250-no-lens", "imx250-30mm-f2", "imx250-12mm-f4", "icx285-no-lens", "icx285-30mm-f2", "icx285-12mm-f4"}
+        "imx250-no-lens",
+        "imx250-30mm-f2",
+        "imx250-12mm-f4",
+        "icx285-no-lens",
+        "icx285-30mm-f2",
+        "icx285-12mm-f4",
+    }
     for name, p in summary["parameters"].items():
         assert set(p) == {"truth", "median", "p2_5", "p16", "p84", "p97_5", "tau"}
         assert p["p2_5"] <= p["p16"] <= p["median"] <= p["p84"] <= p["p97_5"]
@@ -48,7 +55,7 @@ def test_report_is_self_contained(demo):
         assert heading in html
     assert html.index("Adequate:") < html.index("Set-up")  # the verdict first
     assert "none (bare sensor)" in html and "IMX250M · 30 mm f/2" in html
-    assert html.count("data:image/png;base64,") >= 4 and "src=\"http" not in html and "src=\"/" not in html
+    assert html.count("data:image/png;base64,") >= 4 and 'src="http' not in html and 'src="/' not in html
 
 
 def test_report_refuses_to_overwrite_and_fit_refuses_existing_output(demo, capsys):
@@ -62,8 +69,20 @@ def test_report_refuses_to_overwrite_and_fit_refuses_existing_output(demo, capsy
 
 def test_fit_with_a_config_file_and_bad_configs(demo, tmp_path, capsys):
     out = tmp_path / "fit"
-    assert main(["fit", str(demo / "dataset"), "--config", str(ROOT / "configs/fit/default.toml"), "--out", str(out),
-                 "--json"]) == 0
+    assert (
+        main(
+            [
+                "fit",
+                str(demo / "dataset"),
+                "--config",
+                str(ROOT / "configs/fit/default.toml"),
+                "--out",
+                str(out),
+                "--json",
+            ]
+        )
+        == 0
+    )
     summary = json.loads(capsys.readouterr().out)
     assert [f["trained_on"] for f in summary["folds"]] == [["imx250-30mm-f2"]] and summary["converged"]
     bad = tmp_path / "bad.toml"

@@ -4,6 +4,7 @@ Equal seeds must give equal measurements and equal calibration numbers; another 
 (otherwise the seed would not reach the noise, and equality would prove nothing). A small campaign stands in for
 the demo's plan, which takes ~30 s per run.
 """
+
 from __future__ import annotations
 
 import json
@@ -39,8 +40,9 @@ def test_equal_seeds_give_equal_measurements_and_other_seeds_other_ones(plan_pat
     pd.testing.assert_frame_equal(spectra, again_spectra)
     other_points, other_spectra = measure(plan_path, tmp_path / "c", seed=6)
     assert not points["mean_dn"].equals(other_points["mean_dn"]), "the seed does not reach the cameras' noise"
-    assert not spectra["irradiance_w_m2_nm"].equals(other_spectra["irradiance_w_m2_nm"]), \
+    assert not spectra["irradiance_w_m2_nm"].equals(other_spectra["irradiance_w_m2_nm"]), (
         "the seed does not reach the spectrometer's noise"
+    )
 
 
 @pytest.mark.slow

@@ -2,6 +2,7 @@
 ten seeds is benchmarks/demo_targets.py): the extended model in the tank world predicts held-out configurations
 inside their bands and covers the simulated truths; the paper model in the turbid world is judged inadequate with
 backscatter named; the paper model in the ideal world (the model against itself) is adequate."""
+
 import pytest
 
 from uwlab.experiments.demo import quick_demo, target_tally

@@ -1,6 +1,7 @@
 """Design grids in chunks: row order and values against one broadcast evaluation, streaming to Parquet/CSV with
 bounded memory, refusals before evaluation, and the same bits on a Dask cluster (LocalCluster, and a `dask
 scheduler` + `dask worker` pair as subprocesses on 127.0.0.1)."""
+
 import json
 import os
 import subprocess
@@ -20,8 +21,12 @@ from uwlab.experiments.design import distributed, grid as grid_module
 from uwlab.experiments.design.grid import DesignGrid, evaluate_grid, flatten_outputs, write_grid, write_part
 from uwlab.model.design import build_design, evaluate
 
-AXES = {"operation.altitude_m": [0.5, 1.0, 2.0, 4.0, 7.0], "water.type": ["jerlov-I", "jerlov-5C"],
-        "lens.f_number": [2.0, 2.8, 4.0, 5.6], "light.beam_half_angle_deg": [10.0, 25.0, 40.0]}
+AXES = {
+    "operation.altitude_m": [0.5, 1.0, 2.0, 4.0, 7.0],
+    "water.type": ["jerlov-I", "jerlov-5C"],
+    "lens.f_number": [2.0, 2.8, 4.0, 5.6],
+    "light.beam_half_angle_deg": [10.0, 25.0, 40.0],
+}
 
 
 def parts_bytes(directory: Path) -> dict[str, bytes]:
@@ -37,7 +42,7 @@ def test_chunks_cover_the_grid_in_c_order_with_the_broadcast_values(example_raw,
     assert len(frame) == grid.points == 5 * 2 * 4 * 3
     numeric = {k: np.asarray(v) for k, v in AXES.items() if k != "water.type"}
     for w, water in enumerate(AXES["water.type"]):
-        rows = frame.iloc[w * 60:(w + 1) * 60]
+        rows = frame.iloc[w * 60 : (w + 1) * 60]
         assert (rows["water.type"] == water).all()
         raw = {s: dict(v) for s, v in example_raw.items()}
         raw["water"]["type"] = water
@@ -89,8 +94,9 @@ def test_output_columns_can_be_chosen_and_unknown_ones_are_named(example_raw):
 def test_a_grid_too_large_for_memory_is_refused_before_evaluation(capsys, monkeypatch):
     monkeypatch.setattr(grid_module, "available_memory_bytes", lambda: 10 * 2**20)
     monkeypatch.setattr(DesignGrid, "chunk_columns", lambda self, i: pytest.fail("evaluated"))
-    code = main(["design", str(EXAMPLE), "--grid", "operation.altitude_m=0.1:100:0.01", "--grid",
-                 "lens.f_number=1:22:0.1"])
+    code = main(
+        ["design", str(EXAMPLE), "--grid", "operation.altitude_m=0.1:100:0.01", "--grid", "lens.f_number=1:22:0.1"]
+    )
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and "--out" in err and "GiB" in err
 
@@ -102,8 +108,9 @@ def test_grid_json_prints_the_rows_up_to_a_limit(capsys, example_raw):
     assert code == 0 and out["points"] == 4 and out["columns"] == list(frame.columns)
     assert [r["snr_db"] for r in out["rows"]] == frame["snr_db"].tolist()
     assert out["rows"][0]["saturated"] is False and out["rows"][0]["lens.f_number"] == 2.0
-    code = main(["design", str(EXAMPLE), "--grid", "operation.altitude_m=0.1:100:0.01", "--grid", "lens.f_number=2,4",
-                 "--json"])
+    code = main(
+        ["design", str(EXAMPLE), "--grid", "operation.altitude_m=0.1:100:0.01", "--grid", "lens.f_number=2,4", "--json"]
+    )
     captured = capsys.readouterr()
     assert code == 2 and captured.out == "" and "--out" in captured.err and captured.err.count("\n") == 1
 
@@ -116,19 +123,27 @@ def test_out_without_grid_writes_the_single_design_row(capsys, tmp_path):
     assert row["snr_db"].iloc[0] == result["snr_db"] and row["fov_deg_x"].iloc[0] == result["fov_deg"]["x"]
 
 
-@pytest.mark.parametrize("args, key", [
-    (["design", "DIR"], "is a directory"),
-    (["design", str(EXAMPLE), "--plot", "FILE/sub"], "--plot"),
-    (["design", str(EXAMPLE), "--grid", "lens.f_number=2,4", "--dask", "local"], "--out"),
-    (["design", str(EXAMPLE), "--dask", "local", "--out", "OUT/x.parquet"], "--dask"),
-    (["design", str(EXAMPLE), "--grid", "lens.f_number=2,4", "--dask", "udp://x", "--out", "OUT/x.parquet"], "--dask"),
-    (["design", str(EXAMPLE), "--grid", "lens.f_number=2,4", "--dask", "local", "--out", "OUT/x.csv"], "Parquet"),
-    (["design", str(EXAMPLE), "--grid", "lens.f_number=2,4", "--out", "OUT/x.txt"], "--out"),
-])
+@pytest.mark.parametrize(
+    "args, key",
+    [
+        (["design", "DIR"], "is a directory"),
+        (["design", str(EXAMPLE), "--plot", "FILE/sub"], "--plot"),
+        (["design", str(EXAMPLE), "--grid", "lens.f_number=2,4", "--dask", "local"], "--out"),
+        (["design", str(EXAMPLE), "--dask", "local", "--out", "OUT/x.parquet"], "--dask"),
+        (
+            ["design", str(EXAMPLE), "--grid", "lens.f_number=2,4", "--dask", "udp://x", "--out", "OUT/x.parquet"],
+            "--dask",
+        ),
+        (["design", str(EXAMPLE), "--grid", "lens.f_number=2,4", "--dask", "local", "--out", "OUT/x.csv"], "Parquet"),
+        (["design", str(EXAMPLE), "--grid", "lens.f_number=2,4", "--out", "OUT/x.txt"], "--out"),
+    ],
+)
 def test_bad_design_outputs_are_one_line(capsys, tmp_path, args, key):
     (tmp_path / "FILE").write_text("a file")
-    args = [a.replace("DIR", str(tmp_path)).replace("FILE", str(tmp_path / "FILE")).replace("OUT", str(tmp_path))
-            for a in args]
+    args = [
+        a.replace("DIR", str(tmp_path)).replace("FILE", str(tmp_path / "FILE")).replace("OUT", str(tmp_path))
+        for a in args
+    ]
     code = main(args)
     captured = capsys.readouterr()
     assert code == 2 and captured.out == "" and captured.err.count("\n") == 1 and key in captured.err
@@ -145,16 +160,32 @@ def test_local_dask_cluster_writes_the_same_bits(example_raw, tmp_path):
 
 def _spawn(args, log):
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    return subprocess.Popen([sys.executable, "-m", "dask", *args], stdout=log, stderr=subprocess.STDOUT, env=env,
-                            cwd=log.name.rsplit("/", 1)[0])
+    return subprocess.Popen(
+        [sys.executable, "-m", "dask", *args],
+        stdout=log,
+        stderr=subprocess.STDOUT,
+        env=env,
+        cwd=log.name.rsplit("/", 1)[0],
+    )
 
 
 def test_scheduler_and_worker_processes_on_localhost(tmp_path):
     """A real cluster: `dask scheduler` and `dask worker` as separate processes, the CLI as a third."""
     scheduler_file = tmp_path / "scheduler.json"
     with open(tmp_path / "scheduler.log", "w") as slog, open(tmp_path / "worker.log", "w") as wlog:
-        scheduler = _spawn(["scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard", "--scheduler-file",
-                            str(scheduler_file)], slog)
+        scheduler = _spawn(
+            [
+                "scheduler",
+                "--host",
+                "127.0.0.1",
+                "--port",
+                "0",
+                "--no-dashboard",
+                "--scheduler-file",
+                str(scheduler_file),
+            ],
+            slog,
+        )
         worker = None
         try:
             deadline = time.monotonic() + 60
@@ -164,8 +195,17 @@ def test_scheduler_and_worker_processes_on_localhost(tmp_path):
             address = json.loads(scheduler_file.read_text())["address"]
             assert address.startswith("tcp://127.0.0.1:")
             worker = _spawn(["worker", address, "--nthreads", "1", "--nworkers", "2", "--no-dashboard"], wlog)
-            args = ["design", str(EXAMPLE), "--grid", "operation.altitude_m=0.5:5:0.5", "--grid",
-                    "water.attenuation_scale=0.5,1,1.5", "--grid", "light.beam_half_angle_deg=20,40", "--json"]
+            args = [
+                "design",
+                str(EXAMPLE),
+                "--grid",
+                "operation.altitude_m=0.5:5:0.5",
+                "--grid",
+                "water.attenuation_scale=0.5,1,1.5",
+                "--grid",
+                "light.beam_half_angle_deg=20,40",
+                "--json",
+            ]
             env = dict(os.environ, PYTHONPATH=str(ROOT))
             code, out, err = run(*args, "--dask", address, "--out", tmp_path / "remote.parquet", env=env, timeout_s=300)
             assert code == 0, err
@@ -186,8 +226,18 @@ def test_scheduler_and_worker_processes_on_localhost(tmp_path):
 
 def test_unreachable_scheduler_is_one_line(capsys, tmp_path, monkeypatch):
     monkeypatch.setattr(distributed, "WORKER_TIMEOUT_S", 2)
-    code = main(["design", str(EXAMPLE), "--grid", "lens.f_number=2,4", "--dask", "tcp://127.0.0.1:9",
-                 "--out", str(tmp_path / "x.parquet")])
+    code = main(
+        [
+            "design",
+            str(EXAMPLE),
+            "--grid",
+            "lens.f_number=2,4",
+            "--dask",
+            "tcp://127.0.0.1:9",
+            "--out",
+            str(tmp_path / "x.parquet"),
+        ]
+    )
     captured = capsys.readouterr()
     assert code == 2 and "127.0.0.1:9" in captured.err and captured.err.count("\n") == 1
     assert not (tmp_path / "x.parquet").exists()

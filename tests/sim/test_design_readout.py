@@ -1,5 +1,6 @@
 """The shared design readout (names, rounding, warnings), the figures' data against the design's own numbers, and
 the light and lens profile schemas."""
+
 import numpy as np
 import pytest
 
@@ -39,7 +40,8 @@ def test_figure_curves_pass_through_the_design():
     assert near == pytest.approx(float(result["dof_m"]["near"]), rel=2e-3)
     at = int(np.argmin(abs(curves["distance_m"] - 2.0)))
     assert curves["distance_m"][at] == pytest.approx(2.0) and curves["near_at_distance_m"][at] == pytest.approx(
-        float(result["dof_m"]["near"]))
+        float(result["dof_m"]["near"])
+    )
     op = operation_curves(design)
     speed = float(design["operation.speed_m_s"])
     framerate = np.interp(speed, op["speed_m_s"], op["min_framerate_hz"][list(op["altitude_m"]).index(2.0)])
@@ -59,13 +61,17 @@ def test_shipped_light_and_lens_profiles_validate_and_fill_a_design():
         assert load_design(EXAMPLE, values)["lens.focal_length_mm"] == values["lens.focal_length_mm"]
 
 
-@pytest.mark.parametrize("text, key", [
-    ('name = "x"\nluminous_flux_lm = 1000\nbeam_half_angle_deg = 30\n', "spectrum"),
-    ('name = "x"\nluminous_flux_lm = -5\nbeam_half_angle_deg = 30\nspectrum = "generic-led"\n',
-     "luminous_flux_lm"),
-    ('name = "x"\nluminous_flux_lm = 1000\nbeam_half_angle_deg = 95\nspectrum = "generic-led"\n',
-     "beam_half_angle_deg"),
-])
+@pytest.mark.parametrize(
+    "text, key",
+    [
+        ('name = "x"\nluminous_flux_lm = 1000\nbeam_half_angle_deg = 30\n', "spectrum"),
+        ('name = "x"\nluminous_flux_lm = -5\nbeam_half_angle_deg = 30\nspectrum = "generic-led"\n', "luminous_flux_lm"),
+        (
+            'name = "x"\nluminous_flux_lm = 1000\nbeam_half_angle_deg = 95\nspectrum = "generic-led"\n',
+            "beam_half_angle_deg",
+        ),
+    ],
+)
 def test_bad_light_profiles_are_one_line(tmp_path, text, key):
     path = tmp_path / "light.toml"
     path.write_text(text)

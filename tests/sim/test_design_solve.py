@@ -1,5 +1,6 @@
 """Inverse design against brute-force grid searches, closed forms and the minimality rule; infeasible problems; the
 Pareto front; the calibrated posterior's probabilities against an independent Monte Carlo."""
+
 import json
 
 import numpy as np
@@ -11,12 +12,23 @@ from tests.support.paths import EXAMPLE
 from uwlab.cli.main import main
 from uwlab.errors import ConfigError
 from uwlab.experiments.design.posterior import credible_band, load_posterior
-from uwlab.experiments.design.solve import (FreeKey, Objective, Problem, output_value, parse_free, parse_requirement,
-                                            solve)
+from uwlab.experiments.design.solve import (
+    FreeKey,
+    Objective,
+    Problem,
+    output_value,
+    parse_free,
+    parse_requirement,
+    solve,
+)
 from uwlab.model.design import build_design, evaluate
 
-AUV = {"operation.altitude_m": 2.0, "water.type": "jerlov-I", "lens.focal_length_mm": 12.0,
-       "operation.exposure_s": "max-blur"}
+AUV = {
+    "operation.altitude_m": 2.0,
+    "water.type": "jerlov-I",
+    "lens.focal_length_mm": 12.0,
+    "operation.exposure_s": "max-blur",
+}
 DOF = ["dof_m.near <= 1.7", "dof_m.far >= 2.3"]
 LIGHT = ["snr_db >= 30", "mean_fraction >= 0.25", "mean_fraction <= 0.6"]
 LUMENS = FreeKey("light.luminous_flux_lm", 100.0, 100_000.0)
@@ -32,8 +44,14 @@ def auv_raw(example_raw):
 
 
 def problem(raw, free, requirements, objectives, **kw):
-    return Problem(raw, EXAMPLE.parent, free, [parse_requirement(r) for r in requirements],
-                   [Objective(k, s) for s, k in objectives], **kw)
+    return Problem(
+        raw,
+        EXAMPLE.parent,
+        free,
+        [parse_requirement(r) for r in requirements],
+        [Objective(k, s) for s, k in objectives],
+        **kw,
+    )
 
 
 def meets(raw, values: dict, requirements) -> np.ndarray:
@@ -83,8 +101,9 @@ def test_the_solution_is_minimal_one_percent_less_breaks_a_requirement(auv_raw):
     f_numbers = np.geomspace(F_NUMBER.lo, F_NUMBER.hi, 20_000)
     assert meets(auv_raw, solution, requirements)
     assert not meets(auv_raw, {LUMENS.key: 0.99 * solution[LUMENS.key], F_NUMBER.key: f_numbers}, requirements).any()
-    assert meets(auv_raw, {LUMENS.key: 0.999 * solution[LUMENS.key] / 0.99, F_NUMBER.key: solution[F_NUMBER.key]},
-                 requirements)
+    assert meets(
+        auv_raw, {LUMENS.key: 0.999 * solution[LUMENS.key] / 0.99, F_NUMBER.key: solution[F_NUMBER.key]}, requirements
+    )
 
 
 def test_maximise_the_f_number_for_a_fixed_light(auv_raw):
@@ -99,8 +118,9 @@ def test_maximise_the_f_number_for_a_fixed_light(auv_raw):
 
 def test_pareto_front_points_are_brute_force_minima(auv_raw):
     requirements = LIGHT + DOF
-    result = solve(problem(auv_raw, [LUMENS, F_NUMBER], requirements,
-                           [("minimize", LUMENS.key), ("maximize", F_NUMBER.key)]))
+    result = solve(
+        problem(auv_raw, [LUMENS, F_NUMBER], requirements, [("minimize", LUMENS.key), ("maximize", F_NUMBER.key)])
+    )
     front = [s.values for s in result.solutions]
     assert len(front) >= 8
     lumens = np.geomspace(LUMENS.lo, LUMENS.hi, 200_000)
@@ -117,19 +137,27 @@ def test_pareto_front_points_are_brute_force_minima(auv_raw):
 
 
 def test_infeasible_names_the_requirement_that_fails_even_at_the_bounds(auv_raw):
-    result = solve(problem(auv_raw, [FreeKey(LUMENS.key, 100.0, 1000.0)], ["snr_db >= 30", "dof_m.near <= 1.8"],
-                           [("minimize", LUMENS.key)]))
+    result = solve(
+        problem(
+            auv_raw,
+            [FreeKey(LUMENS.key, 100.0, 1000.0)],
+            ["snr_db >= 30", "dof_m.near <= 1.8"],
+            [("minimize", LUMENS.key)],
+        )
+    )
     assert not result.feasible
     assert [u["requirement"] for u in result.unmet] == ["snr_db >= 30"]
     best = result.unmet[0]
     assert best["at"][LUMENS.key] == pytest.approx(1000.0)
-    assert best["best"] == pytest.approx(float(evaluate(build_design(auv_raw, EXAMPLE.parent).with_values(
-        **{LUMENS.key: 1000.0}))["snr_db"]), rel=1e-9)
+    assert best["best"] == pytest.approx(
+        float(evaluate(build_design(auv_raw, EXAMPLE.parent).with_values(**{LUMENS.key: 1000.0}))["snr_db"]), rel=1e-9
+    )
 
 
 def test_infeasible_pair_of_requirements(auv_raw):
-    result = solve(problem(auv_raw, [LUMENS], ["mean_fraction >= 0.5", "mean_fraction <= 0.3"],
-                           [("minimize", LUMENS.key)]))
+    result = solve(
+        problem(auv_raw, [LUMENS], ["mean_fraction >= 0.5", "mean_fraction <= 0.3"], [("minimize", LUMENS.key)])
+    )
     assert not result.feasible and result.unmet == []
     assert result.conflicting == [["mean_fraction >= 0.5", "mean_fraction <= 0.3"]]
 
@@ -151,8 +179,16 @@ def test_probability_of_the_solution_against_an_independent_monte_carlo(auv_raw,
     rng = np.random.default_rng(11)
     fit = write_fit(tmp_path, rng.lognormal(np.log(0.8), 0.15, 20_000))
     loader = lambda design: load_posterior(fit, design, max_samples=2000)  # noqa: E731
-    result = solve(problem(auv_raw, [LUMENS], ["mean_fraction >= 0.25"], [("minimize", LUMENS.key)],
-                           posterior_loader=loader, confidence=0.9))
+    result = solve(
+        problem(
+            auv_raw,
+            [LUMENS],
+            ["mean_fraction >= 0.25"],
+            [("minimize", LUMENS.key)],
+            posterior_loader=loader,
+            confidence=0.9,
+        )
+    )
     solution = result.solutions[0]
     assert solution.probability >= 0.9 and solution.minimal
     lumens = solution.values[LUMENS.key]
@@ -219,12 +255,35 @@ def test_posterior_directory_must_hold_samples(example_raw, tmp_path):
         load_posterior(tmp_path, build_design(example_raw, EXAMPLE.parent))
 
 
-WORKED = ["design", "solve", str(EXAMPLE), "--set", "operation.altitude_m=2", "--set", "water.type=jerlov-I",
-          "--set", "lens.focal_length_mm=12", "--set", "operation.exposure_s=max-blur",
-          "--free", "light.luminous_flux_lm=100:100000", "--free", "lens.f_number=1.4:22",
-          "--require", "snr_db >= 30", "--require", "mean_fraction >= 0.25", "--require", "mean_fraction <= 0.6",
-          "--require", "dof_m.near <= 1.7", "--require", "dof_m.far >= 2.3",
-          "--minimize", "light.luminous_flux_lm"]
+WORKED = [
+    "design",
+    "solve",
+    str(EXAMPLE),
+    "--set",
+    "operation.altitude_m=2",
+    "--set",
+    "water.type=jerlov-I",
+    "--set",
+    "lens.focal_length_mm=12",
+    "--set",
+    "operation.exposure_s=max-blur",
+    "--free",
+    "light.luminous_flux_lm=100:100000",
+    "--free",
+    "lens.f_number=1.4:22",
+    "--require",
+    "snr_db >= 30",
+    "--require",
+    "mean_fraction >= 0.25",
+    "--require",
+    "mean_fraction <= 0.6",
+    "--require",
+    "dof_m.near <= 1.7",
+    "--require",
+    "dof_m.far >= 2.3",
+    "--minimize",
+    "light.luminous_flux_lm",
+]
 
 
 def test_cli_single_objective_json_has_the_design_outputs(capsys):
@@ -239,8 +298,18 @@ def test_cli_single_objective_json_has_the_design_outputs(capsys):
 
 
 def test_cli_worked_example_front_parquet_and_plot(capsys, tmp_path):
-    code = main(WORKED + ["--maximize", "lens.f_number", "--out", str(tmp_path / "front.parquet"), "--plot",
-                          str(tmp_path / "plots"), "--json"])
+    code = main(
+        WORKED
+        + [
+            "--maximize",
+            "lens.f_number",
+            "--out",
+            str(tmp_path / "front.parquet"),
+            "--plot",
+            str(tmp_path / "plots"),
+            "--json",
+        ]
+    )
     answer = json.loads(capsys.readouterr().out)
     front = pd.read_parquet(tmp_path / "front.parquet")
     assert code == 0 and len(front) == len(answer["front"]) >= 8
@@ -248,20 +317,23 @@ def test_cli_worked_example_front_parquet_and_plot(capsys, tmp_path):
     assert (tmp_path / "plots" / "front.png").stat().st_size > 20_000
 
 
-@pytest.mark.parametrize("extra, key", [
-    (["--free", "lens.f_number=4:2"], "--free"),
-    (["--free", "lens.f_number"], "--free"),
-    (["--free", "lens.fnumber=1:2"], "lens.fnumber"),
-    (["--free", "lens.f_number=-1:2"], "lens.f_number"),
-    (["--require", "snr_db > 30"], "--require"),
-    (["--require", "snr_dbb >= 30"], "snr_dbb"),
-    (["--require", "dof_m >= 1"], "dof_m.near"),
-    (["--require", "saturated <= 0"], "flag"),
-    (["--maximize", "sensor.gain_db"], "sensor.gain_db"),
-    (["--out", "front.txt"], "--out"),
-    (["--confidence", "0.9"], "--posterior"),
-    (["--posterior", "NOWHERE"], "samples.parquet"),
-])
+@pytest.mark.parametrize(
+    "extra, key",
+    [
+        (["--free", "lens.f_number=4:2"], "--free"),
+        (["--free", "lens.f_number"], "--free"),
+        (["--free", "lens.fnumber=1:2"], "lens.fnumber"),
+        (["--free", "lens.f_number=-1:2"], "lens.f_number"),
+        (["--require", "snr_db > 30"], "--require"),
+        (["--require", "snr_dbb >= 30"], "snr_dbb"),
+        (["--require", "dof_m >= 1"], "dof_m.near"),
+        (["--require", "saturated <= 0"], "flag"),
+        (["--maximize", "sensor.gain_db"], "sensor.gain_db"),
+        (["--out", "front.txt"], "--out"),
+        (["--confidence", "0.9"], "--posterior"),
+        (["--posterior", "NOWHERE"], "samples.parquet"),
+    ],
+)
 def test_cli_solve_bad_input_is_one_line(capsys, tmp_path, extra, key):
     extra = [e.replace("NOWHERE", str(tmp_path)) for e in extra]
     code = main(WORKED + extra)
@@ -270,8 +342,18 @@ def test_cli_solve_bad_input_is_one_line(capsys, tmp_path, extra, key):
 
 
 def test_cli_infeasible_json(capsys):
-    code = main(WORKED[:WORKED.index("--free")] + ["--free", "light.luminous_flux_lm=100:1000", "--require",
-                                                   "snr_db >= 30", "--minimize", "light.luminous_flux_lm", "--json"])
+    code = main(
+        WORKED[: WORKED.index("--free")]
+        + [
+            "--free",
+            "light.luminous_flux_lm=100:1000",
+            "--require",
+            "snr_db >= 30",
+            "--minimize",
+            "light.luminous_flux_lm",
+            "--json",
+        ]
+    )
     answer = json.loads(capsys.readouterr().out)
     assert code == 0 and answer["feasible"] is False and answer["unmet"][0]["requirement"] == "snr_db >= 30"
 

@@ -1,6 +1,7 @@
 """`uwlab emva`: characterize a dataset or a descriptor (linear and general model), its outputs (JSON, datasheet,
 XML with the reference implementation's names, figures, profile), no overwriting, a fleet of cameras, one-line errors,
 and the shipped EMVA plan on the simulated bench."""
+
 import json
 import shutil
 import xml.etree.ElementTree as ET
@@ -22,27 +23,82 @@ from tests.support.plans import write_plan
 # doc/datasets/datasets_results.rst and the emva1288 tags of process/results.py), by section.
 REFERENCE_NAMES = {
     "info": {"index_start"},
-    "sensitivity": {"u_p_sat", "u_p_sat_area", "u_e_sat", "u_e_sat_area", "SNR_max", "SNR_max_dB", "SNR_max_bit",
-                    "inverse_SNR_max", "sigma_y_dark", "sigma_d", "K", "inverse_K", "R", "QE", "u_p_min",
-                    "u_p_min_area", "u_e_min", "u_e_min_area", "DR", "DR_dB", "index_u_ysat",
-                    "index_sensitivity_min", "index_sensitivity_max"},
+    "sensitivity": {
+        "u_p_sat",
+        "u_p_sat_area",
+        "u_e_sat",
+        "u_e_sat_area",
+        "SNR_max",
+        "SNR_max_dB",
+        "SNR_max_bit",
+        "inverse_SNR_max",
+        "sigma_y_dark",
+        "sigma_d",
+        "K",
+        "inverse_K",
+        "R",
+        "QE",
+        "u_p_min",
+        "u_p_min_area",
+        "u_e_min",
+        "u_e_min_area",
+        "DR",
+        "DR_dB",
+        "index_u_ysat",
+        "index_sensitivity_min",
+        "index_sensitivity_max",
+    },
     "linearity": {"LE_min", "LE_max", "index_linearity_min", "index_linearity_max"},
     "dark_current": {"u_I_mean", "u_I_mean_DN", "u_I_var", "u_I_var_DN"},
-    "spatial": {"s_2_y", "s_2_y_dark", "s_2_y_measured", "s_2_y_measured_dark", "sigma_2_y_stack",
-                "sigma_2_y_stack_dark", "s_2_y_cav", "s_2_y_cav_dark", "s_2_y_rav", "s_2_y_rav_dark", "s_2_y_col",
-                "s_2_y_col_dark", "s_2_y_row", "s_2_y_row_dark", "s_2_y_pixel", "s_2_y_pixel_dark", "DSNU1288",
-                "DSNU1288_DN", "DSNU1288_row", "DSNU1288_col", "DSNU1288_pixel", "PRNU1288", "PRNU1288_row",
-                "PRNU1288_col", "PRNU1288_pixel"},
+    "spatial": {
+        "s_2_y",
+        "s_2_y_dark",
+        "s_2_y_measured",
+        "s_2_y_measured_dark",
+        "sigma_2_y_stack",
+        "sigma_2_y_stack_dark",
+        "s_2_y_cav",
+        "s_2_y_cav_dark",
+        "s_2_y_rav",
+        "s_2_y_rav_dark",
+        "s_2_y_col",
+        "s_2_y_col_dark",
+        "s_2_y_row",
+        "s_2_y_row_dark",
+        "s_2_y_pixel",
+        "s_2_y_pixel_dark",
+        "DSNU1288",
+        "DSNU1288_DN",
+        "DSNU1288_row",
+        "DSNU1288_col",
+        "DSNU1288_pixel",
+        "PRNU1288",
+        "PRNU1288_row",
+        "PRNU1288_col",
+        "PRNU1288_pixel",
+    },
     "defect_pixel": {"histogram_DSNU", "histogram_DSNU_accumulated", "histogram_PRNU", "histogram_PRNU_accumulated"},
 }
 
 
 def make_dataset(root, seed=3, prnu=1.0):
-    truth = SimTruth.from_sensor_profile(load_sensor_profile("imx250m"), resolution_px=(64, 64),
-                                         dark_current_e_per_s=200.0, dsnu_e=1.5, prnu_percent=prnu)
-    simulate_photon_transfer(root, truth, rate_e_per_s=1.07e5, quantum_efficiency=0.6,
-                             exposures_us=np.linspace(3e3, 120e3, 40), frames=2, seed=seed,
-                             dark_exposures_us=np.linspace(1e5, 6e5, 6))
+    truth = SimTruth.from_sensor_profile(
+        load_sensor_profile("imx250m"),
+        resolution_px=(64, 64),
+        dark_current_e_per_s=200.0,
+        dsnu_e=1.5,
+        prnu_percent=prnu,
+    )
+    simulate_photon_transfer(
+        root,
+        truth,
+        rate_e_per_s=1.07e5,
+        quantum_efficiency=0.6,
+        exposures_us=np.linspace(3e3, 120e3, 40),
+        frames=2,
+        seed=seed,
+        dark_exposures_us=np.linspace(1e5, 6e5, 6),
+    )
     return root
 
 
@@ -61,14 +117,37 @@ def run_json(capsys, *argv):
 def test_characterize_json_and_outputs(dataset, tmp_path, capsys):
     out = tmp_path / "out"
     doc = run_json(capsys, "emva", "characterize", str(dataset), "--out", str(out), "--json", "--name", "cam")
-    for key in ("K_dn_per_e", "quantum_efficiency", "dark_noise_e", "saturation_e", "snr_max_db", "dynamic_range_db",
-                "linearity_error_percent", "dark_current_e_per_s", "dsnu_e", "prnu_percent", "K_dn_per_e_std",
-                "quantum_efficiency_std", "sensitivity_threshold_photons"):
+    for key in (
+        "K_dn_per_e",
+        "quantum_efficiency",
+        "dark_noise_e",
+        "saturation_e",
+        "snr_max_db",
+        "dynamic_range_db",
+        "linearity_error_percent",
+        "dark_current_e_per_s",
+        "dsnu_e",
+        "prnu_percent",
+        "K_dn_per_e_std",
+        "quantum_efficiency_std",
+        "sensitivity_threshold_photons",
+    ):
         assert isinstance(doc[key], float), key
     assert doc["K_dn_per_e"] == pytest.approx(0.3473, rel=0.03)
     names = {p.name for p in out.iterdir()}
-    assert {"emva.json", "datasheet.html", "emva1288.xml", "photon_transfer.png", "snr.png", "linearity.png",
-            "stability.png", "dark_current.png", "spatial_variances.png", "cam.toml", "cam_qe.csv"} == names
+    assert {
+        "emva.json",
+        "datasheet.html",
+        "emva1288.xml",
+        "photon_transfer.png",
+        "snr.png",
+        "linearity.png",
+        "stability.png",
+        "dark_current.png",
+        "spatial_variances.png",
+        "cam.toml",
+        "cam_qe.csv",
+    } == names
     assert json.loads((out / "emva.json").read_text())["K_dn_per_e"] == doc["K_dn_per_e"]
     assert (out / "snr.png").read_bytes()[:4] == b"\x89PNG"
     html = (out / "datasheet.html").read_text()
@@ -84,8 +163,9 @@ def test_characterize_json_and_outputs(dataset, tmp_path, capsys):
     design = tmp_path / "design.toml"
     design.write_text(EXAMPLE.read_text().replace('profile = "imx250m"', f'profile = "{out / "cam.toml"}"'))
     measured = run_json(capsys, "design", str(design), "--json")
-    assert measured["mean_dn"] == pytest.approx(profile.K_dn_per_e * measured["mean_electrons"] +
-                                                profile.dark_offset_dn, rel=1e-6)
+    assert measured["mean_dn"] == pytest.approx(
+        profile.K_dn_per_e * measured["mean_electrons"] + profile.dark_offset_dn, rel=1e-6
+    )
 
 
 def test_xml_has_the_reference_names_and_our_values(dataset, tmp_path, capsys):
@@ -112,8 +192,11 @@ def test_general_model(dataset, tmp_path, capsys):
     assert doc["model"] == "general" and doc["K_dn_per_e"] is None
     assert doc["responsivity_dark_dn_per_photon"] == pytest.approx(0.3473 * 0.6, rel=0.03)
     names = {p.name for p in out.iterdir()}
-    assert "characteristic.png" in names and "photon_transfer.png" not in names and not any(
-        n.endswith(".toml") for n in names)
+    assert (
+        "characteristic.png" in names
+        and "photon_transfer.png" not in names
+        and not any(n.endswith(".toml") for n in names)
+    )
     assert any("no sensor profile written" in n for n in doc["notes"])
     # 40 linear steps from 3 ms start at SNR_p ≈ 20: no μ_p.min by interpolation (General D.1), said so
     assert doc["sensitivity_threshold_photons"] is None and any("D.1" in n for n in doc["notes"])
@@ -162,15 +245,18 @@ def test_fleet(dataset, tmp_path, capsys):
     assert (out / "cam-a" / "datasheet.html").exists() and (out / "cam-c" / "emva1288.xml").exists()
 
 
-@pytest.mark.parametrize("argv, words", [
-    (["emva", "characterize"], "exactly one"),
-    (["emva", "characterize", "/nonexistent/ds"], "not a dataset"),
-    (["emva", "characterize", "--descriptor", "/nonexistent/d.txt"], "/nonexistent/d.txt"),
-    (["emva", "characterize", "DS", "--irradiance", "0.5"], "--wavelength-nm"),
-    (["emva", "characterize", "DS", "--irradiance", "-1"], "--irradiance"),
-    (["emva", "characterize", "DS", "--sweep", "nope"], "--sweep"),
-    (["emva", "fleet", "/nonexistent/folder"], "not a directory"),
-])
+@pytest.mark.parametrize(
+    "argv, words",
+    [
+        (["emva", "characterize"], "exactly one"),
+        (["emva", "characterize", "/nonexistent/ds"], "not a dataset"),
+        (["emva", "characterize", "--descriptor", "/nonexistent/d.txt"], "/nonexistent/d.txt"),
+        (["emva", "characterize", "DS", "--irradiance", "0.5"], "--wavelength-nm"),
+        (["emva", "characterize", "DS", "--irradiance", "-1"], "--irradiance"),
+        (["emva", "characterize", "DS", "--sweep", "nope"], "--sweep"),
+        (["emva", "fleet", "/nonexistent/folder"], "not a directory"),
+    ],
+)
 def test_bad_input_is_one_line(dataset, capsys, argv, words):
     argv = [str(dataset) if a == "DS" else a for a in argv]
     assert main(argv) == 2
@@ -184,8 +270,9 @@ def test_shipped_plan_on_the_bench_measures_the_true_quantum_efficiency(tmp_path
     the simulated sensor's photon-weighted QE under the bench's light (issue 12: 46 % low with the water-side
     irradiance)."""
     data = tmp_path / "emva"
-    assert main(["sweep", str(ROOT / "configs" / "plans" / "emva-photon-transfer.toml"), "--sim", "--out",
-                 str(data)]) == 0
+    assert (
+        main(["sweep", str(ROOT / "configs" / "plans" / "emva-photon-transfer.toml"), "--sim", "--out", str(data)]) == 0
+    )
     capsys.readouterr()
     doc = run_json(capsys, "emva", "characterize", str(data), "--json")
     truth = Dataset.open(data).metadata["sim_truth"]["photon-transfer"]
@@ -200,13 +287,30 @@ FRAMES_PLAN = {
     "rig": ROOT / "configs" / "rigs" / "sim-emva-bench.toml",
     "camera": {"backend": "aravis", "id": "blackfly-s", "pixel_format": "Mono12", "window": [1200, 1000, 48, 40]},
     "instruments": {"light_port": "/dev/ttyUSB0", "spectrometer_port": "/dev/ttyUSB1"},
-    "defaults": {"sensor": "imx250m", "lens": "none", "black_level_dn": 32, "frames_per_point": 2, "dark": "point",
-                 "dark_frames": 2, "save_frames": True},
-    "sweeps": [{"id": "photon-transfer", "kind": "exposure",
-                "values": {"start": 20, "stop": 4600, "num": 16, "spacing": "linear"}, "spectrometer": ["sensor"],
-                "spectrometer_integration_ms": 10},
-               {"id": "dark-current", "kind": "dark",
-                "values": {"start": 500000, "stop": 3000000, "num": 6, "spacing": "linear"}, "dark": "none"}],
+    "defaults": {
+        "sensor": "imx250m",
+        "lens": "none",
+        "black_level_dn": 32,
+        "frames_per_point": 2,
+        "dark": "point",
+        "dark_frames": 2,
+        "save_frames": True,
+    },
+    "sweeps": [
+        {
+            "id": "photon-transfer",
+            "kind": "exposure",
+            "values": {"start": 20, "stop": 4600, "num": 16, "spacing": "linear"},
+            "spectrometer": ["sensor"],
+            "spectrometer_integration_ms": 10,
+        },
+        {
+            "id": "dark-current",
+            "kind": "dark",
+            "values": {"start": 500000, "stop": 3000000, "num": 6, "spacing": "linear"},
+            "dark": "none",
+        },
+    ],
 }
 
 

@@ -1,6 +1,7 @@
 """The EMVA 1288 datasheet (`datasheet.html`) in a real headless Chromium: every figure decodes, the summary table
 holds the Table 2 quantities with values and units, the verdict is visible, nothing overflows the page, and on a
 narrow screen the table moves below the figures."""
+
 import numpy as np
 import pytest
 from selenium import webdriver
@@ -21,16 +22,25 @@ CHROMEDRIVER = "/usr/bin/chromedriver"
 
 @pytest.fixture(scope="module")
 def datasheet(tmp_path_factory):
-    truth = SimTruth.from_sensor_profile(load_sensor_profile("imx250m"), resolution_px=(64, 64),
-                                         dark_current_e_per_s=200.0, dsnu_e=1.5, prnu_percent=1.0)
+    truth = SimTruth.from_sensor_profile(
+        load_sensor_profile("imx250m"), resolution_px=(64, 64), dark_current_e_per_s=200.0, dsnu_e=1.5, prnu_percent=1.0
+    )
     bench = DirectBench(truth, 1.07e5, 0.6, seed=21)
-    pt = bench.photon_transfer(np.linspace(2e3, 115e3, 40), dark_exposures_us=np.linspace(1e5, 6e5, 6),
-                               stack_exposure_us=50e3, stack_frames=16)
+    pt = bench.photon_transfer(
+        np.linspace(2e3, 115e3, 40), dark_exposures_us=np.linspace(1e5, 6e5, 6), stack_exposure_us=50e3, stack_frames=16
+    )
     result = characterize(pt)
     out = tmp_path_factory.mktemp("sheet")
     paths = output_paths(out, result, "cam", with_profile=True)
-    write_characterization(result, pt, paths, name="cam", base=None, pixel_size_um=3.45,
-                           info=SheetInfo(vendor="uwlab", model="SimCam-IMX250M", serial="SIM0001"))
+    write_characterization(
+        result,
+        pt,
+        paths,
+        name="cam",
+        base=None,
+        pixel_size_um=3.45,
+        info=SheetInfo(vendor="uwlab", model="SimCam-IMX250M", serial="SIM0001"),
+    )
     return paths.datasheet, result.values
 
 
@@ -52,13 +62,31 @@ def test_datasheet_in_chromium(datasheet, browser, tmp_path):
     assert "EMVA 1288 datasheet" in browser.title
     images = browser.find_elements(By.TAG_NAME, "img")
     assert len(images) == len(list(path.parent.glob("*.png"))) == 12  # every figure written, each inside the page
-    assert all(browser.execute_script("return arguments[0].complete && arguments[0].naturalWidth > 300", img)
-               for img in images)
+    assert all(
+        browser.execute_script("return arguments[0].complete && arguments[0].naturalWidth > 300", img) for img in images
+    )
     rows = browser.find_elements(By.CSS_SELECTOR, "#summary-table tr")
-    text = {r.find_elements(By.TAG_NAME, "td")[0].text: r.find_elements(By.TAG_NAME, "td")[1].text
-            for r in rows if r.find_elements(By.TAG_NAME, "td")}
-    for symbol in ("η", "K", "1/K", "σ_d", "σ_y.dark", "SNR_max", "μ_e.min", "μ_e.sat", "DR", "DSNU1288",
-                   "PRNU1288.pix", "LE", "μ_I.mean", "μ_I.var"):
+    text = {
+        r.find_elements(By.TAG_NAME, "td")[0].text: r.find_elements(By.TAG_NAME, "td")[1].text
+        for r in rows
+        if r.find_elements(By.TAG_NAME, "td")
+    }
+    for symbol in (
+        "η",
+        "K",
+        "1/K",
+        "σ_d",
+        "σ_y.dark",
+        "SNR_max",
+        "μ_e.min",
+        "μ_e.sat",
+        "DR",
+        "DSNU1288",
+        "PRNU1288.pix",
+        "LE",
+        "μ_I.mean",
+        "μ_I.var",
+    ):
         assert text.get(symbol) not in (None, "", "—"), symbol
     assert float(text["K"]) == pytest.approx(values["K_dn_per_e"], rel=1e-3)
     verdict = browser.find_element(By.CSS_SELECTOR, ".verdicts p.ok")

@@ -1,6 +1,7 @@
 """EMVA 1288 descriptor files: parse/format round trip, every refusal naming the file and line (issue 16: bright blocks
 that mix the exposure methods, negative exposures, unsupported bit depths, non-finite photons ...), image checks, and
 export -> import -> the same results."""
+
 import numpy as np
 import pytest
 import tifffile
@@ -23,12 +24,19 @@ from uwlab.model.sensor import load_sensor_profile
 
 
 def test_parse_format_round_trip(tmp_path):
-    desc = Descriptor("4.0", 12, 64, 48, (
-        Block(False, 40000.0, 120.125, ("images/a.tif", "images/b.tif")),
-        Block(True, 40000.0, 0.0, ("images/c.tif", "images/d.tif")),
-        Block(False, 80000.0, 240.25, tuple(f"images/s{i}.tif" for i in range(5))),
-        Block(True, 80000.0, 0.0, tuple(f"images/t{i}.tif" for i in range(5))),
-    ), {"InterfaceType": "Gigabit Ethernet"})
+    desc = Descriptor(
+        "4.0",
+        12,
+        64,
+        48,
+        (
+            Block(False, 40000.0, 120.125, ("images/a.tif", "images/b.tif")),
+            Block(True, 40000.0, 0.0, ("images/c.tif", "images/d.tif")),
+            Block(False, 80000.0, 240.25, tuple(f"images/s{i}.tif" for i in range(5))),
+            Block(True, 80000.0, 0.0, tuple(f"images/t{i}.tif" for i in range(5))),
+        ),
+        {"InterfaceType": "Gigabit Ethernet"},
+    )
     path = tmp_path / "d.txt"
     path.write_text(format_descriptor(desc, ("a comment",)))
     assert parse_descriptor(path) == desc
@@ -37,8 +45,10 @@ def test_parse_format_round_trip(tmp_path):
 
 def test_reference_style_lines(tmp_path):
     path = tmp_path / "EMVA1288_Data.txt"
-    path.write_text("# n bits width height\nv 3.0\nn 8 4 4 0\nb 1000,5 12,5\ni images\\x1.png\ni images\\x2.png\n"
-                    "d 1000,5\ni images\\x3.png\ni images\\x4.png\n")
+    path.write_text(
+        "# n bits width height\nv 3.0\nn 8 4 4 0\nb 1000,5 12,5\ni images\\x1.png\ni images\\x2.png\n"
+        "d 1000,5\ni images\\x3.png\ni images\\x4.png\n"
+    )
     desc = parse_descriptor(path)
     assert (desc.bits, desc.width, desc.height, desc.version) == (8, 4, 4, "3.0")
     assert desc.blocks[0].exposure_ns == 1000.5 and desc.blocks[0].photons == 12.5
@@ -49,26 +59,36 @@ D1 = "d 1000\ni c.tif\ni d.tif\n"
 HEAD = "v 4.0\nn 12 8 8\n"
 
 
-@pytest.mark.parametrize("text, where, words", [
-    ("v 4.0\nb 1 2\ni a.tif\n", "d.txt:2", "two 'i' image lines"),
-    (HEAD + "x 1 2\n", "d.txt:3", "expected 'v'"),
-    (HEAD + "b one 2\n", "d.txt:3", "not a number"),
-    ("v 4.0\nb 1 2\ni a.tif\ni b.tif\n", "d.txt", "missing 'n"),
-    ("v 4.0\nn 64 8 8\n" + B1 + D1, "d.txt:2", "bits"),
-    ("v 4.0\nn 12 8.5 8\n" + B1 + D1, "d.txt:2", "width"),
-    ("v 4.0\nn 12 0 8\n" + B1 + D1, "d.txt:2", "width"),
-    (HEAD + "b -1000 10\ni a.tif\ni b.tif\n" + D1, "d.txt:3", "exposure [ns]: must be > 0"),
-    (HEAD + "b 1000 nan\ni a.tif\ni b.tif\n" + D1, "d.txt:3", "photons: not a finite number"),
-    (HEAD + "b 1000 inf\ni a.tif\ni b.tif\n" + D1, "d.txt:3", "photons: not a finite number"),
-    (HEAD + "b 1000 -5\ni a.tif\ni b.tif\n" + D1, "d.txt:3", "photons: must be > 0"),
-    (HEAD + "d -3\ni a.tif\ni b.tif\n", "d.txt:3", "must be > 0"),
-    (HEAD + B1 + "b 1000 10\ni e.tif\ni f.tif\n" + D1, "d.txt:6", "same bright measurement"),
-    (HEAD + B1 + "b 1000 20\ni e.tif\ni f.tif\nb 2000 20\ni g.tif\ni h.tif\n" + D1 + "d 2000\ni x.tif\ni y.tif\n",
-     "d.txt:6", "either the exposure"),
-    (HEAD + B1 + D1 + "d 1000\ni e.tif\ni f.tif\n", "d.txt:9", "second dark block"),
-    (HEAD + B1, "d.txt:3", "no dark (d) block"),
-    (HEAD + B1 + D1 + "b 1000 10\ni s1\ni s2\ni s3\n", "d.txt:9", "bright and a dark stack"),
-])
+@pytest.mark.parametrize(
+    "text, where, words",
+    [
+        ("v 4.0\nb 1 2\ni a.tif\n", "d.txt:2", "two 'i' image lines"),
+        (HEAD + "x 1 2\n", "d.txt:3", "expected 'v'"),
+        (HEAD + "b one 2\n", "d.txt:3", "not a number"),
+        ("v 4.0\nb 1 2\ni a.tif\ni b.tif\n", "d.txt", "missing 'n"),
+        ("v 4.0\nn 64 8 8\n" + B1 + D1, "d.txt:2", "bits"),
+        ("v 4.0\nn 12 8.5 8\n" + B1 + D1, "d.txt:2", "width"),
+        ("v 4.0\nn 12 0 8\n" + B1 + D1, "d.txt:2", "width"),
+        (HEAD + "b -1000 10\ni a.tif\ni b.tif\n" + D1, "d.txt:3", "exposure [ns]: must be > 0"),
+        (HEAD + "b 1000 nan\ni a.tif\ni b.tif\n" + D1, "d.txt:3", "photons: not a finite number"),
+        (HEAD + "b 1000 inf\ni a.tif\ni b.tif\n" + D1, "d.txt:3", "photons: not a finite number"),
+        (HEAD + "b 1000 -5\ni a.tif\ni b.tif\n" + D1, "d.txt:3", "photons: must be > 0"),
+        (HEAD + "d -3\ni a.tif\ni b.tif\n", "d.txt:3", "must be > 0"),
+        (HEAD + B1 + "b 1000 10\ni e.tif\ni f.tif\n" + D1, "d.txt:6", "same bright measurement"),
+        (
+            HEAD
+            + B1
+            + "b 1000 20\ni e.tif\ni f.tif\nb 2000 20\ni g.tif\ni h.tif\n"
+            + D1
+            + "d 2000\ni x.tif\ni y.tif\n",
+            "d.txt:6",
+            "either the exposure",
+        ),
+        (HEAD + B1 + D1 + "d 1000\ni e.tif\ni f.tif\n", "d.txt:9", "second dark block"),
+        (HEAD + B1, "d.txt:3", "no dark (d) block"),
+        (HEAD + B1 + D1 + "b 1000 10\ni s1\ni s2\ni s3\n", "d.txt:9", "bright and a dark stack"),
+    ],
+)
 def test_malformed_descriptors_name_file_and_line(tmp_path, text, where, words):
     path = tmp_path / "d.txt"
     path.write_text(text)
@@ -116,8 +136,9 @@ def test_images_are_checked_against_the_n_line(tmp_path):
 
 
 def _sim_transfer():
-    truth = SimTruth.from_sensor_profile(load_sensor_profile("imx250m"), resolution_px=(64, 64),
-                                         dark_current_e_per_s=200.0, dsnu_e=1.5, prnu_percent=1.0)
+    truth = SimTruth.from_sensor_profile(
+        load_sensor_profile("imx250m"), resolution_px=(64, 64), dark_current_e_per_s=200.0, dsnu_e=1.5, prnu_percent=1.0
+    )
     bench = DirectBench(truth, 1.07e5, 0.6, seed=2)
     return bench.photon_transfer(np.linspace(2e3, 115e3, 30), dark_exposures_us=np.linspace(1e5, 6e5, 6))
 

@@ -2,6 +2,7 @@
 compressed quadratically (β = 0.25 at the full well) and a linear one. Referred to the input, the general model must
 find the sensor's own responsivity in the dark R_d = K η, its input SNR (the linear closed form, eq. 21: the noise
 is added before the non-linearity), and DSNU, PRNU, dark noise and dark current in photons."""
+
 import math
 
 import numpy as np
@@ -22,16 +23,22 @@ EXPOSURES_US = np.r_[np.geomspace(20, 2e3, 15), np.linspace(2.5e3, 115e3, 45)]
 
 
 def bench(beta: float, seed: int) -> DirectBench:
-    truth = SimTruth.from_sensor_profile(load_sensor_profile("imx250m"), resolution_px=(96, 96),
-                                         dark_current_e_per_s=DARK_E_S, dsnu_e=DSNU, prnu_percent=PRNU,
-                                         nonlinearity=beta)
+    truth = SimTruth.from_sensor_profile(
+        load_sensor_profile("imx250m"),
+        resolution_px=(96, 96),
+        dark_current_e_per_s=DARK_E_S,
+        dsnu_e=DSNU,
+        prnu_percent=PRNU,
+        nonlinearity=beta,
+    )
     return DirectBench(truth, RATE_E_S, ETA, seed=seed)
 
 
 def measured(beta: float, seed: int = 3):
     b = bench(beta, seed)
-    pt = b.photon_transfer(EXPOSURES_US, dark_exposures_us=np.linspace(1e5, 6e5, 6), stack_exposure_us=50e3,
-                           stack_frames=16)
+    pt = b.photon_transfer(
+        EXPOSURES_US, dark_exposures_us=np.linspace(1e5, 6e5, 6), stack_exposure_us=50e3, stack_frames=16
+    )
     return b.truth, pt
 
 

@@ -1,6 +1,7 @@
 """EMVA 1288 Release 4.0 Linear analysis against closed forms: exact recovery from noise-free model statistics, the
 sensitivity threshold as the root of SNR = 1, the linearity error against an independent regression, the saturation
 rules (including the reference implementation's past-saturation pick), the dark current, and bad input."""
+
 import math
 from dataclasses import replace
 
@@ -39,14 +40,25 @@ def model_transfer(n=40, dark_exposures=DARK_EXPOSURES, temperature=None) -> Pho
     dark_pixel = np.full(n, (K * DSNU_E) ** 2)
     all_t = np.r_[t, dark_exposures]
     return PhotonTransfer(
-        photons=photons, exposure_s=t, mean_dn=dark_mean(t) + K * mu_e, temporal_var_dn2=var, frames=np.full(n, 2.0),
-        dark_mean_dn=dark_mean(t), dark_temporal_var_dn2=dark_var(t), dark_frames=np.full(n, 2.0),
+        photons=photons,
+        exposure_s=t,
+        mean_dn=dark_mean(t) + K * mu_e,
+        temporal_var_dn2=var,
+        frames=np.full(n, 2.0),
+        dark_mean_dn=dark_mean(t),
+        dark_temporal_var_dn2=dark_var(t),
+        dark_frames=np.full(n, 2.0),
         spatial=SpatialSplit(zeros, zeros, dark_pixel + (PRNU * K * mu_e) ** 2),
         dark_spatial=SpatialSplit(zeros, zeros, dark_pixel),
-        dark=DarkSeries(all_t, dark_mean(all_t), dark_var(all_t), np.full(all_t.size, np.nan if temperature is None
-                                                                           else temperature)),
-        bit_depth=12, saturated_fraction=np.where(sat, 1.0, 0.0), temperature_c=None if temperature is None
-        else np.full(n, temperature),
+        dark=DarkSeries(
+            all_t,
+            dark_mean(all_t),
+            dark_var(all_t),
+            np.full(all_t.size, np.nan if temperature is None else temperature),
+        ),
+        bit_depth=12,
+        saturated_fraction=np.where(sat, 1.0, 0.0),
+        temperature_c=None if temperature is None else np.full(n, temperature),
     )
 
 
@@ -169,10 +181,16 @@ def test_saturation_where_the_reference_implementation_picks_a_point_past_it():
     table = pd.read_csv(DATA / "emva1288_reference_saturation.csv", comment="#")
     n = len(table)
     pt = PhotonTransfer(
-        photons=table["photons"], exposure_s=table["exposure_s"], mean_dn=table["mean_dn"],
-        temporal_var_dn2=table["temporal_var_dn2"], frames=np.full(n, 2.0), dark_mean_dn=table["dark_mean_dn"],
-        dark_temporal_var_dn2=table["dark_temporal_var_dn2"], dark_frames=np.full(n, 2.0),
-        spatial=SpatialSplit.unknown(n), dark_spatial=SpatialSplit.unknown(n),
+        photons=table["photons"],
+        exposure_s=table["exposure_s"],
+        mean_dn=table["mean_dn"],
+        temporal_var_dn2=table["temporal_var_dn2"],
+        frames=np.full(n, 2.0),
+        dark_mean_dn=table["dark_mean_dn"],
+        dark_temporal_var_dn2=table["dark_temporal_var_dn2"],
+        dark_frames=np.full(n, 2.0),
+        spatial=SpatialSplit.unknown(n),
+        dark_spatial=SpatialSplit.unknown(n),
         dark=DarkSeries(table["exposure_s"], table["dark_mean_dn"], table["dark_temporal_var_dn2"], np.full(n, np.nan)),
         bit_depth=12,
     )
@@ -198,11 +216,16 @@ def test_dark_current_per_temperature():
     the one reported."""
     pt = model_transfer(temperature=25.0)
     hot_t = np.linspace(0.1, 0.6, 6)
-    hot = DarkSeries(hot_t, OFFSET + K * 4 * DARK_E_S * hot_t, K**2 * (SIGMA_D**2 + 4 * DARK_E_S * hot_t) + 1 / 12,
-                     np.full(6, 45.0))
+    hot = DarkSeries(
+        hot_t, OFFSET + K * 4 * DARK_E_S * hot_t, K**2 * (SIGMA_D**2 + 4 * DARK_E_S * hot_t) + 1 / 12, np.full(6, 45.0)
+    )
     series = pt.dark
-    both = DarkSeries(np.r_[series.exposure_s, hot.exposure_s], np.r_[series.mean_dn, hot.mean_dn],
-                      np.r_[series.var_dn2, hot.var_dn2], np.r_[series.temperature_c, hot.temperature_c])
+    both = DarkSeries(
+        np.r_[series.exposure_s, hot.exposure_s],
+        np.r_[series.mean_dn, hot.mean_dn],
+        np.r_[series.var_dn2, hot.var_dn2],
+        np.r_[series.temperature_c, hot.temperature_c],
+    )
     v = characterize(replace(pt, dark=both)).values
     assert v["dark_current_e_per_s"] == pytest.approx(DARK_E_S, rel=1e-9)
     by_t = {row["temperature_c"]: row["dark_current_e_per_s"] for row in v["dark_current_by_temperature"]}
@@ -214,8 +237,9 @@ def test_a_bent_photon_transfer_suggests_the_general_model():
     signal = pt.mean_dn - pt.dark_mean_dn
     bent = signal * (1 - 0.3 * signal / signal.max())
     slope = 1 - 0.6 * signal / signal.max()
-    v = characterize(replace(pt, mean_dn=pt.dark_mean_dn + bent,
-                             temporal_var_dn2=pt.dark_temporal_var_dn2 + K * bent * slope)).values
+    v = characterize(
+        replace(pt, mean_dn=pt.dark_mean_dn + bent, temporal_var_dn2=pt.dark_temporal_var_dn2 + K * bent * slope)
+    ).values
     assert v["photon_transfer_slope_deviation"] > 0.03
     assert any("--model general" in n for n in v["notes"])
 
@@ -227,13 +251,30 @@ def test_too_few_points_in_the_fit_range():
 
 def _points_frame(pt: PhotonTransfer, position="sensor") -> pd.DataFrame:
     n = len(pt.photons)
-    return pd.DataFrame({
-        "sweep_id": "s", "point_index": np.arange(n), "kind": "exposure", "exposure_us": pt.exposure_s * 1e6,
-        "light_on": True, "frames": 2, "bit_depth": 12, "mean_dn": pt.mean_dn, "temporal_var_dn2": pt.temporal_var_dn2,
-        "dark_mean_dn": pt.dark_mean_dn, "dark_temporal_var_dn2": pt.dark_temporal_var_dn2,
-        "dark_frames": 2, "gain_db": 0.0, "sensor_profile": "imx250m", "camera_id": "c0", "light_level": 1.0,
-        "irradiance_w_m2": 0.5, "irradiance_position": position, "roi_w": 64, "roi_h": 64,
-    })
+    return pd.DataFrame(
+        {
+            "sweep_id": "s",
+            "point_index": np.arange(n),
+            "kind": "exposure",
+            "exposure_us": pt.exposure_s * 1e6,
+            "light_on": True,
+            "frames": 2,
+            "bit_depth": 12,
+            "mean_dn": pt.mean_dn,
+            "temporal_var_dn2": pt.temporal_var_dn2,
+            "dark_mean_dn": pt.dark_mean_dn,
+            "dark_temporal_var_dn2": pt.dark_temporal_var_dn2,
+            "dark_frames": 2,
+            "gain_db": 0.0,
+            "sensor_profile": "imx250m",
+            "camera_id": "c0",
+            "light_level": 1.0,
+            "irradiance_w_m2": 0.5,
+            "irradiance_position": position,
+            "roi_w": 64,
+            "roi_h": 64,
+        }
+    )
 
 
 EMPTY_SPECTRA = pd.DataFrame(columns=["sweep_id", "point_index", "position", "wavelength_nm", "irradiance_w_m2_nm"])

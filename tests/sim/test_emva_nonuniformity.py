@@ -1,6 +1,7 @@
 """Release 4.0 spatial nonuniformity against closed forms: the §8.1 highpass (the three filters, its gains for white
 pixel and line patterns, smooth illumination removed), the row/column/pixel split of eq. 44, spectrograms (eq. 70-72),
 profiles and histograms (eq. 73-81), and the streaming statistics (eq. 18, 35, 65)."""
+
 import numpy as np
 import pytest
 from scipy.ndimage import uniform_filter
@@ -27,6 +28,7 @@ def test_highpass_is_the_three_filters_subtracted():
     smooth = uniform_filter(uniform_filter(image, 7, mode="reflect"), 11, mode="reflect")
     binomial = np.outer([1, 2, 1], [1, 2, 1]) / 16.0
     from scipy.ndimage import convolve
+
     smooth = convolve(smooth, binomial, mode="reflect")
     m = HIGHPASS_MARGIN
     np.testing.assert_allclose(highpass(image), (image - smooth)[m:-m, m:-m], atol=1e-4)
@@ -128,8 +130,9 @@ def test_stack_statistics_closed_form():
     frames[4][0, :3] = 4095
     stats = stack_statistics(iter(frames), 4095)
     stack = np.array(frames, float)
-    pairs = [0.5 * (np.mean((stack[i] - stack[i + 1]) ** 2) - (stack[i].mean() - stack[i + 1].mean()) ** 2)
-             for i in (0, 2)]
+    pairs = [
+        0.5 * (np.mean((stack[i] - stack[i + 1]) ** 2) - (stack[i].mean() - stack[i + 1].mean()) ** 2) for i in (0, 2)
+    ]
     assert stats.frames == 5
     assert stats.mean_dn == pytest.approx(stack.mean())
     assert stats.temporal_var_dn2 == pytest.approx(np.mean(pairs))  # eq. 18

@@ -1,6 +1,7 @@
 """A characterisation of the simulated camera recovers its ground truth, which the analysis never sees: K, η, σ_d,
 saturation, dark current (and its temperature dependence), DSNU, PRNU (also under strong vignetting), the linearity
 error of a known non-linearity, and the nonuniformity images (accuracy stated in docs/emva.md)."""
+
 import math
 from dataclasses import replace
 
@@ -21,8 +22,14 @@ DARK_E_S, DSNU, PRNU = 200.0, 1.5, 1.0
 
 
 def truth(**changes) -> SimTruth:
-    return SimTruth.from_sensor_profile(load_sensor_profile("imx250m"), resolution_px=(96, 96),
-                                        dark_current_e_per_s=DARK_E_S, dsnu_e=DSNU, prnu_percent=PRNU, **changes)
+    return SimTruth.from_sensor_profile(
+        load_sensor_profile("imx250m"),
+        resolution_px=(96, 96),
+        dark_current_e_per_s=DARK_E_S,
+        dsnu_e=DSNU,
+        prnu_percent=PRNU,
+        **changes,
+    )
 
 
 def sim_exposures_us():
@@ -33,9 +40,16 @@ def sim_exposures_us():
 @pytest.fixture(scope="module")
 def sim_dataset(tmp_path_factory):
     root = tmp_path_factory.mktemp("emva") / "ds"
-    simulate_photon_transfer(root, truth(), rate_e_per_s=RATE_E_S, quantum_efficiency=ETA,
-                             exposures_us=sim_exposures_us(), frames=2, seed=7,
-                             dark_exposures_us=np.linspace(0.2e6, 1.2e6, 6))
+    simulate_photon_transfer(
+        root,
+        truth(),
+        rate_e_per_s=RATE_E_S,
+        quantum_efficiency=ETA,
+        exposures_us=sim_exposures_us(),
+        frames=2,
+        seed=7,
+        dark_exposures_us=np.linspace(0.2e6, 1.2e6, 6),
+    )
     return root
 
 
@@ -78,8 +92,9 @@ def test_irradiance_override_matches_the_spectrometer(sim_dataset, result):
     ds = Dataset.open(sim_dataset)
     row = ds.points().iloc[0]
     spectrum = ds.spectra().query("point_index == 0 and sweep_id == 'sim-photon-transfer'")
-    override = IrradianceOverride(spectrum_nm=spectrum["wavelength_nm"].to_numpy(),
-                                  spectrum_w_m2_nm=spectrum["irradiance_w_m2_nm"].to_numpy())
+    override = IrradianceOverride(
+        spectrum_nm=spectrum["wavelength_nm"].to_numpy(), spectrum_w_m2_nm=spectrum["irradiance_w_m2_nm"].to_numpy()
+    )
     pt = photon_transfer_from_points(ds.points(), ds.spectra(), override=override)
     assert characterize(pt).values["quantum_efficiency"] == pytest.approx(result["quantum_efficiency"], rel=1e-9)
     mono = IrradianceOverride(irradiance_w_m2=float(row["irradiance_w_m2"]), wavelength_nm=525.0)
@@ -90,8 +105,11 @@ def test_irradiance_override_matches_the_spectrometer(sim_dataset, result):
 @pytest.fixture(scope="module")
 def stack_result():
     bench = DirectBench(truth(), RATE_E_S, ETA, seed=11)
-    return characterize(bench.photon_transfer(sim_exposures_us(), dark_exposures_us=np.linspace(0.2e6, 1.2e6, 6),
-                                              stack_exposure_us=50e3, stack_frames=32))
+    return characterize(
+        bench.photon_transfer(
+            sim_exposures_us(), dark_exposures_us=np.linspace(0.2e6, 1.2e6, 6), stack_exposure_us=50e3, stack_frames=32
+        )
+    )
 
 
 def test_nonuniformity_stacks(stack_result):
@@ -104,8 +122,9 @@ def test_nonuniformity_stacks(stack_result):
     assert v["dsnu_pixel_e"] == pytest.approx(v["dsnu_e"], rel=0.05)
     # white patterns: flat spectrograms at the DSNU (in DN) and PRNU (in %) levels, plus the residual temporal noise
     k = v["K_dn_per_e"]
-    dsnu_level = np.sqrt((DSNU * k) ** 2 * white_noise_gain()
-                         + v["spatial_variances"]["dark_stack_var"] / 32 * white_noise_gain())
+    dsnu_level = np.sqrt(
+        (DSNU * k) ** 2 * white_noise_gain() + v["spatial_variances"]["dark_stack_var"] / 32 * white_noise_gain()
+    )
     assert np.median(images.dsnu_spectrograms["horizontal"][1][5:]) == pytest.approx(dsnu_level, rel=0.1)
     assert images.dsnu_histograms["log"].counts.sum() == 78 * 78
     assert images.prnu_profiles["horizontal"]["mean"].size == 96
@@ -119,8 +138,9 @@ def test_vignetting_does_not_inflate_prnu():
     r2 = ((x - width / 2) ** 2 + (y - height / 2) ** 2) / ((width / 2) ** 2 + (height / 2) ** 2)
     falloff = (1 - 0.35 * r2).astype(np.float32)
     bench = DirectBench(truth(), RATE_E_S, ETA, rate_map=lambda shape: RATE_E_S * falloff, seed=13)
-    pt = bench.photon_transfer(sim_exposures_us(), dark_exposures_us=np.linspace(0.2e6, 1.2e6, 6),
-                               stack_exposure_us=50e3, stack_frames=32)
+    pt = bench.photon_transfer(
+        sim_exposures_us(), dark_exposures_us=np.linspace(0.2e6, 1.2e6, 6), stack_exposure_us=50e3, stack_frames=32
+    )
     v = characterize(pt).values
     assert v["prnu_percent"] == pytest.approx(PRNU * math.sqrt(white_noise_gain()), rel=0.06)
     s = pt.stack
@@ -133,8 +153,9 @@ def test_dark_current_against_temperature():
     """§7.2 with the Release 3.1 doubling law as the simulated sensor's truth (doubling every 7 °C)."""
     t = truth(dark_current_doubling_c=7.0, temperature_c=30.0)
     bench = DirectBench(t, RATE_E_S, ETA, seed=5)
-    pt = bench.photon_transfer(sim_exposures_us()[::2], dark_exposures_us=np.linspace(0.2e6, 1.2e6, 6),
-                               dark_temperatures_c=(37.0, 44.0))
+    pt = bench.photon_transfer(
+        sim_exposures_us()[::2], dark_exposures_us=np.linspace(0.2e6, 1.2e6, 6), dark_temperatures_c=(37.0, 44.0)
+    )
     rows = characterize(pt).values["dark_current_by_temperature"]
     assert [r["temperature_c"] for r in rows] == [30.0, 37.0, 44.0]
     for row in rows:

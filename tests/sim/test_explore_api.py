@@ -1,6 +1,7 @@
 """The explorer's JSON API (Starlette TestClient over httpx): `/api/design` is `uwlab design --json`, bad input is
 the CLI's one line with 422, the page's view reads like the CLI's table, saved TOML reads back to the same
 numbers, sweeps and solve agree with the CLI, the form follows the config schema, user profiles load."""
+
 import json
 import shutil
 import tomllib
@@ -48,28 +49,34 @@ def sets(overrides: dict) -> list[str]:
     return [arg for key, value in overrides.items() for arg in ("--set", f"{key}={value_text(value)}")]
 
 
-@pytest.mark.parametrize("overrides", [
-    {},
-    {"lens.f_number": 4, "light.luminous_flux_lm": 30000},
-    {"operation.exposure_s": "max-blur", "water.type": "jerlov-3C", "target.reflectance": "sand"},
-    {"housing.port": "dome", "housing.dome_radius_mm": 50, "housing.dome_thickness_mm": 5, "sensor.gain_db": 12.5},
-])
+@pytest.mark.parametrize(
+    "overrides",
+    [
+        {},
+        {"lens.f_number": 4, "light.luminous_flux_lm": 30000},
+        {"operation.exposure_s": "max-blur", "water.type": "jerlov-3C", "target.reflectance": "sand"},
+        {"housing.port": "dome", "housing.dome_radius_mm": 50, "housing.dome_thickness_mm": 5, "sensor.gain_db": 12.5},
+    ],
+)
 def test_api_design_is_the_cli_json(client, capsys, overrides):
     response = client.post("/api/design", json={"set": overrides})
     assert response.status_code == 200
     assert response.json() == cli_json(capsys, "design", str(EXAMPLE), *sets(overrides), "--json")
 
 
-@pytest.mark.parametrize("overrides", [
-    {"lens.f_number": 0},
-    {"lens.f_number": "2"},
-    {"camera.zoom": 2},
-    {"water.type": "jerlov-X"},
-    {"operation.overlap": 1.0},
-    {"sensor.profile": "imx999"},
-    {"housing.port": "dome"},
-    {"lens": 3},
-])
+@pytest.mark.parametrize(
+    "overrides",
+    [
+        {"lens.f_number": 0},
+        {"lens.f_number": "2"},
+        {"camera.zoom": 2},
+        {"water.type": "jerlov-X"},
+        {"operation.overlap": 1.0},
+        {"sensor.profile": "imx999"},
+        {"housing.port": "dome"},
+        {"lens": 3},
+    ],
+)
 def test_bad_input_is_422_with_the_cli_line(client, capsys, overrides):
     response = client.post("/api/design", json={"set": overrides})
     code, out, err = cli(capsys, "design", str(EXAMPLE), *sets(overrides), "--json")
@@ -79,13 +86,16 @@ def test_bad_input_is_422_with_the_cli_line(client, capsys, overrides):
     assert response.json()["key"] in err
 
 
-@pytest.mark.parametrize("body, words", [
-    ("{not json", "must be JSON"),
-    ("[1, 2]", "must be a JSON object"),
-    ('{"sett": {}}', "unknown member"),
-    ('{"set": [1]}', "must be an object"),
-    ('{"text": {"lens.f_number": 4}}', "text values must be strings"),
-])
+@pytest.mark.parametrize(
+    "body, words",
+    [
+        ("{not json", "must be JSON"),
+        ("[1, 2]", "must be a JSON object"),
+        ('{"sett": {}}', "unknown member"),
+        ('{"set": [1]}', "must be an object"),
+        ('{"text": {"lens.f_number": 4}}', "text values must be strings"),
+    ],
+)
 def test_malformed_requests_are_one_line(client, body, words):
     response = client.post("/api/design", content=body, headers={"Content-Type": "application/json"})
     assert response.status_code == 422
@@ -95,13 +105,17 @@ def test_malformed_requests_are_one_line(client, body, words):
 def test_text_values_are_parsed_as_the_cli_parses_set(client):
     served = load_served(EXAMPLE)
     texts = field_texts(served.raw)
-    assert all(parse_value(text) == value for text, value in
-               zip(texts.values(), [v for body in served.raw.values() for v in body.values()], strict=True))
+    assert all(
+        parse_value(text) == value
+        for text, value in zip(texts.values(), [v for body in served.raw.values() for v in body.values()], strict=True)
+    )
     from_texts = client.post("/api/design", json={"config": {}, "text": texts}).json()
     assert from_texts == client.post("/api/design", json={}).json()
     typed = client.post("/api/design", json={"text": {"lens.f_number": "4", "operation.exposure_s": "max-blur"}})
-    assert typed.json() == client.post("/api/design", json={"set": {"lens.f_number": 4,
-                                                                     "operation.exposure_s": "max-blur"}}).json()
+    assert (
+        typed.json()
+        == client.post("/api/design", json={"set": {"lens.f_number": 4, "operation.exposure_s": "max-blur"}}).json()
+    )
     unset = client.post("/api/design", json={"text": {"operation.min_dof_m": ""}}).json()
     assert unset["min_f_number_for_dof"] is None
 
@@ -154,8 +168,10 @@ def test_figures_are_valid_plotly_and_show_the_model(client):
 
 
 def test_sweep_values_are_single_designs(client):
-    answer = client.post("/api/sweep", json={"grid": {"lens.f_number": "2:8:2", "water.type": "jerlov-I,jerlov-9C"},
-                                             "output": "dof_m.near"}).json()
+    answer = client.post(
+        "/api/sweep",
+        json={"grid": {"lens.f_number": "2:8:2", "water.type": "jerlov-I,jerlov-9C"}, "output": "dof_m.near"},
+    ).json()
     assert answer["axes"] == {"lens.f_number": [2.0, 4.0, 6.0, 8.0], "water.type": ["jerlov-I", "jerlov-9C"]}
     assert np.shape(answer["values"]) == (4, 2) and answer["points"] == 8
     for i, n in enumerate(answer["axes"]["lens.f_number"]):
@@ -164,18 +180,22 @@ def test_sweep_values_are_single_designs(client):
             assert answer["values"][i][j] == pytest.approx(single["dof_m"]["near"], rel=1e-12)
     line = client.post("/api/sweep", json={"grid": {"operation.altitude_m": [1, 2]}, "output": "snr_db"}).json()
     for h, value in zip([1, 2], line["values"], strict=True):
-        assert value == pytest.approx(client.post("/api/design", json={"set": {"operation.altitude_m": h}})
-                                      .json()["snr_db"], rel=1e-6)
+        assert value == pytest.approx(
+            client.post("/api/design", json={"set": {"operation.altitude_m": h}}).json()["snr_db"], rel=1e-6
+        )
     go.Figure(answer["figure"])
 
 
-@pytest.mark.parametrize("body, key", [
-    ({"grid": {"lens.f_number": "8:2:1"}, "output": "snr_db"}, "lens.f_number"),
-    ({"grid": {"lens.f_number": "1:4:1"}, "output": "nope"}, "output"),
-    ({"grid": {}, "output": "snr_db"}, "grid"),
-    ({"grid": {"lens.f_number": "1:1000:0.001"}, "output": "snr_db"}, "grid"),
-    ({"grid": {"lens.f_number": "0,2"}, "output": "snr_db"}, "lens.f_number"),
-])
+@pytest.mark.parametrize(
+    "body, key",
+    [
+        ({"grid": {"lens.f_number": "8:2:1"}, "output": "snr_db"}, "lens.f_number"),
+        ({"grid": {"lens.f_number": "1:4:1"}, "output": "nope"}, "output"),
+        ({"grid": {}, "output": "snr_db"}, "grid"),
+        ({"grid": {"lens.f_number": "1:1000:0.001"}, "output": "snr_db"}, "grid"),
+        ({"grid": {"lens.f_number": "0,2"}, "output": "snr_db"}, "lens.f_number"),
+    ],
+)
 def test_bad_sweeps_are_one_line(client, body, key):
     response = client.post("/api/sweep", json=body)
     assert response.status_code == 422 and response.json()["key"] == key
@@ -183,12 +203,32 @@ def test_bad_sweeps_are_one_line(client, body, key):
 
 def test_solve_is_the_cli_solve(client, capsys):
     free, require = ["light.luminous_flux_lm=1000:100000"], ["snr_db >= 30", "mean_fraction <= 0.6"]
-    response = client.post("/api/solve", json={"set": {"operation.exposure_s": "max-blur"}, "free": free,
-                                               "require": require,
-                                               "objectives": [{"minimize": "light.luminous_flux_lm"}]})
-    expected = cli_json(capsys, "design", "solve", str(EXAMPLE), "--set", "operation.exposure_s=max-blur",
-                        "--free", free[0], "--require", require[0], "--require", require[1],
-                        "--minimize", "light.luminous_flux_lm", "--json")
+    response = client.post(
+        "/api/solve",
+        json={
+            "set": {"operation.exposure_s": "max-blur"},
+            "free": free,
+            "require": require,
+            "objectives": [{"minimize": "light.luminous_flux_lm"}],
+        },
+    )
+    expected = cli_json(
+        capsys,
+        "design",
+        "solve",
+        str(EXAMPLE),
+        "--set",
+        "operation.exposure_s=max-blur",
+        "--free",
+        free[0],
+        "--require",
+        require[0],
+        "--require",
+        require[1],
+        "--minimize",
+        "light.luminous_flux_lm",
+        "--json",
+    )
     assert response.status_code == 200 and response.json()["answer"] == expected
     bad = client.post("/api/solve", json={"free": free, "require": ["snr >= x"], "objectives": []})
     assert bad.status_code == 422 and bad.json()["key"] == "--require"
@@ -196,10 +236,16 @@ def test_solve_is_the_cli_solve(client, capsys):
 
 def test_saved_toml_reads_back_to_the_same_numbers(client, capsys, tmp_path):
     lights, lenses = config_dir() / "lights", config_dir() / "lenses"
-    body = {"config": {}, "text": {**field_texts(load_served(EXAMPLE).raw),
-                                   "light.spectrum": str(lights / "test-light_spectrum.csv"),
-                                   "lens.transmittance": str(lenses / "cinegon-1.4-8mm_transmittance.csv"),
-                                   "lens.f_number": "2.8000000000000003", "operation.exposure_s": "0.000123456789"}}
+    body = {
+        "config": {},
+        "text": {
+            **field_texts(load_served(EXAMPLE).raw),
+            "light.spectrum": str(lights / "test-light_spectrum.csv"),
+            "lens.transmittance": str(lenses / "cinegon-1.4-8mm_transmittance.csv"),
+            "lens.f_number": "2.8000000000000003",
+            "operation.exposure_s": "0.000123456789",
+        },
+    }
     response = client.post("/api/toml", json=body)
     assert response.status_code == 200 and "attachment" in response.headers["content-disposition"]
     saved = tmp_path / "elsewhere" / "design.toml"
@@ -237,8 +283,9 @@ def test_load_refuses_what_uwlab_design_refuses(client):
 def test_form_has_every_key_of_the_schema_with_its_unit(client):
     page = client.get("/").text
     sections = {s.name: s for s in form()}
-    tables = {name: field for name, field in DesignConfig.model_fields.items()
-              if hasattr(field.annotation, "model_fields")}
+    tables = {
+        name: field for name, field in DesignConfig.model_fields.items() if hasattr(field.annotation, "model_fields")
+    }
     assert list(sections) == list(tables) and "lights" not in sections  # [[lights]], an array, is edited in the TOML
     for name, field in tables.items():
         model = field.annotation
@@ -287,8 +334,12 @@ def test_presets_are_the_shipped_components(client):
     sensors = [p["text"]["sensor.profile"] for p in presets["sensor"]]
     assert sensors == sorted(p.stem for p in (config_dir() / "sensors").glob("*.toml"))
     led = next(p for p in presets["light"] if p["label"].startswith("Paper tank LED"))
-    assert led["text"] == {"light.luminous_flux_lm": "25000.0", "light.beam_half_angle_deg": "40.0",
-                           "light.beam_half_angle_in_air_deg": "", "light.spectrum": "generic-led"}
+    assert led["text"] == {
+        "light.luminous_flux_lm": "25000.0",
+        "light.beam_half_angle_deg": "40.0",
+        "light.beam_half_angle_in_air_deg": "",
+        "light.spectrum": "generic-led",
+    }
     test_light = next(p for p in presets["light"] if p["label"].startswith("Test Light"))
     view = client.post("/api/design", json={"text": test_light["text"]})
     assert view.status_code == 200  # its spectrum CSV is found wherever the design is
@@ -299,8 +350,15 @@ def emva_profile(tmp_path_factory):
     """A sensor profile written by `uwlab emva characterize` from a simulated photon transfer."""
     truth = SimTruth.from_sensor_profile(load_sensor_profile("imx250m"), resolution_px=(64, 64))
     root = tmp_path_factory.mktemp("explore_emva")
-    simulate_photon_transfer(root / "ds", truth, rate_e_per_s=1.07e5, quantum_efficiency=0.6,
-                             exposures_us=np.linspace(3e3, 120e3, 24), frames=2, seed=5)
+    simulate_photon_transfer(
+        root / "ds",
+        truth,
+        rate_e_per_s=1.07e5,
+        quantum_efficiency=0.6,
+        exposures_us=np.linspace(3e3, 120e3, 24),
+        frames=2,
+        seed=5,
+    )
     assert main(["emva", "characterize", str(root / "ds"), "--out", str(root / "out"), "--name", "mycam"]) == 0
     return root / "out" / "mycam.toml"
 

@@ -2,6 +2,7 @@
 running as a process on 127.0.0.1. Load the page, change a value and see the result change, see a warning beside
 its number, save the design as TOML and load it back, open a shared URL, trigger a bad value and see the message,
 run a sweep. A screenshot of the page is left in the test's folder for people to look at."""
+
 import json
 import time
 from pathlib import Path
@@ -41,12 +42,22 @@ def downloads(tmp_path_factory) -> Path:
 def browser(downloads, tmp_path_factory):
     options = webdriver.ChromeOptions()
     options.binary_location = CHROMIUM
-    for flag in ("--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                 "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                 f"--user-data-dir={tmp_path_factory.mktemp('chromium-profile')}", "--window-size=1600,1000"):
+    for flag in (
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-quic",
+        "--no-first-run",
+        "--disable-background-networking",
+        "--disable-component-update",
+        "--disable-sync",
+        f"--user-data-dir={tmp_path_factory.mktemp('chromium-profile')}",
+        "--window-size=1600,1000",
+    ):
         options.add_argument(flag)
-    options.add_experimental_option("prefs", {"download.default_directory": str(downloads),
-                                              "download.prompt_for_download": False})
+    options.add_experimental_option(
+        "prefs", {"download.default_directory": str(downloads), "download.prompt_for_download": False}
+    )
     driver = webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
     driver.set_page_load_timeout(WAIT_S)
     yield driver
@@ -59,14 +70,19 @@ def wait(driver, condition, message: str):
 
 def readout(driver) -> dict[str, str]:
     """{output key: value text} of the page's readout table."""
-    return driver.execute_script("return Object.fromEntries(Array.from(document.querySelectorAll('#readout tr'))"
-                                 ".map((tr) => [tr.dataset.key, tr.querySelector('td.num').textContent]))")
+    return driver.execute_script(
+        "return Object.fromEntries(Array.from(document.querySelectorAll('#readout tr'))"
+        ".map((tr) => [tr.dataset.key, tr.querySelector('td.num').textContent]))"
+    )
 
 
 def open_page(driver, url: str) -> dict[str, str]:
     driver.get(url)
-    wait(driver, lambda d: readout(d).get("snr_db") and d.find_element(By.ID, "error").get_attribute("hidden"),
-         "the readout never appeared")
+    wait(
+        driver,
+        lambda d: readout(d).get("snr_db") and d.find_element(By.ID, "error").get_attribute("hidden"),
+        "the readout never appeared",
+    )
     return readout(driver)
 
 
@@ -103,8 +119,11 @@ def test_warning_beside_its_number(browser, explorer):
     assert "warn" in row.get_attribute("class")
     assert "motion blur" in row.find_element(By.CSS_SELECTOR, ".badge").text
     set_field(browser, "operation.exposure_s", "max-blur")
-    wait(browser, lambda d: not d.find_elements(By.CSS_SELECTOR, '#readout tr[data-key="exposure_s"] .badge'),
-         "the blur warning stayed after the exposure was set to the blur limit")
+    wait(
+        browser,
+        lambda d: not d.find_elements(By.CSS_SELECTOR, '#readout tr[data-key="exposure_s"] .badge'),
+        "the blur warning stayed after the exposure was set to the blur limit",
+    )
 
 
 def test_bad_value_shows_the_message(browser, explorer):
@@ -132,13 +151,18 @@ def test_save_and_load_a_toml(browser, explorer, downloads, capsys):
     time.sleep(0.5)  # the download is renamed into place when complete
     assert main(["design", str(saved), "--json"]) == 0
     from_cli = json.loads(capsys.readouterr().out)
-    assert from_cli == httpx.post(explorer.url + "api/design", json={"config": {}, "text": page_texts(browser)},
-                                  timeout=30).json()
+    assert (
+        from_cli
+        == httpx.post(explorer.url + "api/design", json={"config": {}, "text": page_texts(browser)}, timeout=30).json()
+    )
     set_field(browser, "light.luminous_flux_lm", "999")
     wait(browser, lambda d: readout(d)["mean_dn"] != shown["mean_dn"], "value not changed")
     browser.find_element(By.ID, "load-file").send_keys(str(saved))
-    wait(browser, lambda d: d.find_element(By.ID, "f-light.luminous_flux_lm").get_attribute("value") == "12345.6",
-         "the loaded TOML did not fill the form")
+    wait(
+        browser,
+        lambda d: d.find_element(By.ID, "f-light.luminous_flux_lm").get_attribute("value") == "12345.6",
+        "the loaded TOML did not fill the form",
+    )
     wait(browser, lambda d: readout(d) == shown, "the loaded design does not show the saved numbers")
 
 
@@ -156,8 +180,12 @@ def test_shared_url_opens_the_design(browser, explorer):
 def test_sweep_panel_draws_the_sweep(browser, explorer):
     open_page(browser, explorer.url)
     browser.find_element(By.ID, "sweep-run").click()
-    wait(browser, lambda d: d.execute_script("const p = document.getElementById('fig-sweep');"
-                                             "return p.data && p.data.length && p.data[0].y.length"),
-         "no sweep drawn")
+    wait(
+        browser,
+        lambda d: d.execute_script(
+            "const p = document.getElementById('fig-sweep');return p.data && p.data.length && p.data[0].y.length"
+        ),
+        "no sweep drawn",
+    )
     status = browser.find_element(By.ID, "sweep-status").text
     assert status.split()[0].isdigit() and "points" in status

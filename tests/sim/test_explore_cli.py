@@ -1,5 +1,6 @@
 """`uwlab explore`: prints its URL (one JSON line with --json), serves the page and the API there, stops on Ctrl-C
 with one line and 130; a bad config, a busy port or a bad profile is one line and exit 2 before anything runs."""
+
 import json
 import socket
 

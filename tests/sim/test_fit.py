@@ -26,8 +26,14 @@ def campaign():
 def test_forward_rescaling_equals_the_full_model(campaign):
     """Changing θ by the analytic ratios gives what the full model computes with those values in the design."""
     points, rigs = campaign
-    names = ("light_efficiency", "beam_half_angle_deg", "attenuation_scale", "reflectance", "lens_transmittance",
-             "K_dn_per_e:imx250m")
+    names = (
+        "light_efficiency",
+        "beam_half_angle_deg",
+        "attenuation_scale",
+        "reflectance",
+        "lens_transmittance",
+        "K_dn_per_e:imx250m",
+    )
     lens_points = points[points["sweep_id"] == "imx250m-30mm-F2.0"].head(1)
     model = build_forward_model(lens_points, rigs, names)
     theta = np.array([[0.7, 25.0, 2.5, 0.4, 0.6, 0.5]])
@@ -98,8 +104,14 @@ def test_relative_flux_needs_a_level_one_reference():
         {"light_level": [1.0, 0.5], "irradiance_w_m2": [10.0, 2.5], "irradiance_position": ["target"] * 2}
     )
     assert relative_flux(points).tolist() == [1.0, 0.25]
-    sweeps = pd.DataFrame({"sweep_id": ["a", "a", "b", "b", "b", "c"], "light_level": [1.0, 1.0, 0.5, 0.5, 0.5, 0.5],
-                           "irradiance_w_m2": [9.0, 11.0, 2.4, 2.7, 2.5, 3.0], "irradiance_position": ["target"] * 6})
+    sweeps = pd.DataFrame(
+        {
+            "sweep_id": ["a", "a", "b", "b", "b", "c"],
+            "light_level": [1.0, 1.0, 0.5, 0.5, 0.5, 0.5],
+            "irradiance_w_m2": [9.0, 11.0, 2.4, 2.7, 2.5, 3.0],
+            "irradiance_position": ["target"] * 6,
+        }
+    )
     assert relative_flux(sweeps).tolist() == pytest.approx([1.0, 1.0, 0.25, 0.25, 0.25, 0.30])
     with pytest.raises(ConfigError, match="light_level"):
         relative_flux(points.assign(irradiance_w_m2=[10.0, None]))
@@ -138,8 +150,14 @@ def test_configuration_discrepancies_are_integrated_out_exactly(campaign):
     integral ∫ Π N(y | μ (1 + δ), σ²) N(δ | 0, τ²) dδ by quadrature (up to the constant n/2 ln 2π), and the
     conditional draws of δ_k have that integrand's mean and variance."""
     points, rigs = campaign
-    names = ("light_efficiency", "attenuation_scale", "K_dn_per_e:imx250m", "K_dn_per_e:icx285alm", "discrepancy",
-             "config_discrepancy")
+    names = (
+        "light_efficiency",
+        "attenuation_scale",
+        "K_dn_per_e:imx250m",
+        "K_dn_per_e:icx285alm",
+        "discrepancy",
+        "config_discrepancy",
+    )
     model = build_forward_model(points[~points["saturated"]], rigs, names)
     post = Posterior(model, {n: Uniform(lo=0.0, hi=100.0) for n in names})
     theta = np.array([[0.83, 1.1, 0.35, 1.1, 0.004, 0.02]])

@@ -1,5 +1,6 @@
 """Priors against closed forms (scipy is what they wrap, so scipy is not the reference), their keys in errors,
 and the split-chain R-hat on known chains."""
+
 import math
 
 import numpy as np
@@ -9,7 +10,7 @@ from uwlab.errors import ConfigError
 from uwlab.experiments.calibration.fit import split_rhat
 from uwlab.experiments.calibration.priors import HalfNormal, LogNormal, Normal, Uniform, parse_prior
 
-PHI_1 = 0.8413447460685429      # Φ(1), the standard normal CDF at one sigma
+PHI_1 = 0.8413447460685429  # Φ(1), the standard normal CDF at one sigma
 PHI_INV_3_4 = 0.6744897501960817  # Φ⁻¹(3/4): the median of |N(0, 1)|
 
 
@@ -57,15 +58,18 @@ def test_draws_follow_the_seed_and_the_distribution():
     assert a.mean() == pytest.approx(0.8 * math.exp(0.02), abs=5 * 0.8 * 0.2 / math.sqrt(20000))
 
 
-@pytest.mark.parametrize("spec, key", [
-    ({"kind": "gamma"}, "parameters.x.kind"),
-    ({"kind": "normal", "mean": 1.0}, "parameters.x.sigma"),
-    ({"kind": "normal", "mean": 1.0, "sigma": -1}, "parameters.x.sigma"),
-    ({"kind": "normal", "mean": 1.0, "sigma": 1, "width": 2}, "parameters.x.width"),
-    ({"kind": "uniform", "lo": 2, "hi": 1}, "parameters.x.hi"),
-    ({"kind": "lognormal", "median": "one", "sigma": 1}, "parameters.x.median"),
-    (3.0, "parameters.x"),
-])
+@pytest.mark.parametrize(
+    "spec, key",
+    [
+        ({"kind": "gamma"}, "parameters.x.kind"),
+        ({"kind": "normal", "mean": 1.0}, "parameters.x.sigma"),
+        ({"kind": "normal", "mean": 1.0, "sigma": -1}, "parameters.x.sigma"),
+        ({"kind": "normal", "mean": 1.0, "sigma": 1, "width": 2}, "parameters.x.width"),
+        ({"kind": "uniform", "lo": 2, "hi": 1}, "parameters.x.hi"),
+        ({"kind": "lognormal", "median": "one", "sigma": 1}, "parameters.x.median"),
+        (3.0, "parameters.x"),
+    ],
+)
 def test_bad_priors_name_the_key(spec, key):
     with pytest.raises(ConfigError) as info:
         parse_prior("parameters.x", spec)

@@ -1,4 +1,5 @@
 """The radiometric chain and the sensor model against closed-form cases; grid results equal scalar results."""
+
 import numpy as np
 import pytest
 
@@ -108,7 +109,8 @@ def test_gain_and_bit_depth_scale_k(example_raw):
     profile = load_sensor_profile("imx250m")
     dark16 = 16 * profile.dark_offset_dn
     assert high["mean_dn"] - dark16 == pytest.approx(
-        16 * 10 ** (6 / 20) * profile.K_dn_per_e * low["mean_electrons"], rel=1e-9)
+        16 * 10 ** (6 / 20) * profile.K_dn_per_e * low["mean_electrons"], rel=1e-9
+    )
 
 
 def test_stage_spectra_integrate_to_the_reported_irradiances(example_raw):
@@ -148,8 +150,12 @@ def test_image_average_drops_outside_narrow_beam(example_raw):
 
 def test_grid_results_equal_scalar_results(example_raw):
     example_raw["operation"]["exposure_s"] = 1e-4
-    axes = {"operation.altitude_m": [0.5, 1.0, 3.0], "lens.f_number": [1.4, 2.8, 8.0],
-            "water.type": ["pure-fresh", "jerlov-3C"], "housing.port": ["flat", "dome"]}
+    axes = {
+        "operation.altitude_m": [0.5, 1.0, 3.0],
+        "lens.f_number": [1.4, 2.8, 8.0],
+        "water.type": ["pure-fresh", "jerlov-3C"],
+        "housing.port": ["flat", "dome"],
+    }
     example_raw["housing"].update(dome_radius_mm=100.0, dome_thickness_mm=10.0)
     frame = evaluate_grid(example_raw, axes)
     assert len(frame) == 36
@@ -183,12 +189,15 @@ def test_dome_port_keeps_fov_and_reports_virtual_image(example_raw):
     assert 0.1 < out["dome_virtual_image_m"] < 1.333 * 0.1 / 0.333 * 1.01
 
 
-@pytest.mark.parametrize("override", [
-    {},
-    {"housing": {"port": "dome", "dome_radius_mm": 100.0, "dome_thickness_mm": 10.0}},
-    {"light": {"beam_model": "disk", "count": 3, "incidence_deg": 20.0}},
-    {"water": {"type": "jerlov-5C", "attenuation_scale": 1.7}, "target": {"reflectance": "sand"}},
-])
+@pytest.mark.parametrize(
+    "override",
+    [
+        {},
+        {"housing": {"port": "dome", "dome_radius_mm": 100.0, "dome_thickness_mm": 10.0}},
+        {"light": {"beam_model": "disk", "count": 3, "incidence_deg": 20.0}},
+        {"water": {"type": "jerlov-5C", "attenuation_scale": 1.7}, "target": {"reflectance": "sand"}},
+    ],
+)
 def test_light_budget_adds_up_to_source_photons_over_sensor_electrons(example_raw, override):
     """Σ stops = log₂(photons emitted per second / electrons per second over the sensor at the on-axis rate)."""
     for section, values in override.items():

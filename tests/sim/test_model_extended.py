@@ -1,4 +1,5 @@
 """The extended chain ([model] kind = "extended") against closed forms, brute-force quadrature and the paper's chain."""
+
 import copy
 
 import numpy as np
@@ -27,8 +28,9 @@ def on_axis_light(raw, water, distance_m, beam_model="cone"):
     which looks through it: the clear water makes that harmless)."""
     raw = copy.deepcopy(raw)
     raw["water"] = {"type": water}
-    raw["light"].update(beam_half_angle_deg=35.0, beam_model=beam_model, distance_m=distance_m, incidence_deg=0.0,
-                        count=1)
+    raw["light"].update(
+        beam_half_angle_deg=35.0, beam_model=beam_model, distance_m=distance_m, incidence_deg=0.0, count=1
+    )
     raw["model"] = {"kind": "extended"}
     raw["lights"] = [{"position_m": [0.0, 0.0, raw["operation"]["altitude_m"] - distance_m]}]
     return raw
@@ -105,8 +107,11 @@ def test_a_water_types_excess_over_pure_water_scatters_as_particles(example_raw,
     raw["lights"] = [{"position_m": [0.0, -0.3, 0.0]}]
     raw["water"] = {"type": water("turbid.csv", b_w + excess)}
     tabulated = evaluate(build_design(raw))
-    raw["water"] = {"type": water("added.csv", b_w), "particle_scattering_per_m": excess,
-                    "particle_scattering_exponent": 0.0}
+    raw["water"] = {
+        "type": water("added.csv", b_w),
+        "particle_scattering_per_m": excess,
+        "particle_scattering_exponent": 0.0,
+    }
     added = evaluate(build_design(raw))
     assert tabulated["veil_electrons"] > 0
     assert tabulated["veil_electrons"] == pytest.approx(added["veil_electrons"], rel=1e-9)
@@ -136,16 +141,24 @@ def test_veiling_integral_against_brute_force_quadrature(example_raw):
     cos_theta = -s / r
     flux = d["light.luminous_flux_lm"]
     beta = pure_water_phase(cos_theta)[:, None] * w.b_water + fournier_forand_phase(cos_theta)[:, None] * w.b_particles
-    radiance = np.trapezoid(flux * kappa[:, None] / r[:, None] ** 2 * beta * w.s_per_lm
-                            * np.exp(-np.outer(r + s, w.c)), s, axis=0)
+    radiance = np.trapezoid(
+        flux * kappa[:, None] / r[:, None] ** 2 * beta * w.s_per_lm * np.exp(-np.outer(r + s, w.c)), s, axis=0
+    )
     electrons = np.sum(radiance * w.qe * photons_per_joule(d.grid.nm) * d.grid.w_nm * w.lens_transmittance)
-    expected = (electrons * d.sensor.pixel_area_m2 * port_transmittance(1.333, 1.49) / 1.333**2 * lens_t
-                * lens_irradiance_factor(d["lens.f_number"]))
+    expected = (
+        electrons
+        * d.sensor.pixel_area_m2
+        * port_transmittance(1.333, 1.49)
+        / 1.333**2
+        * lens_t
+        * lens_irradiance_factor(d["lens.f_number"])
+    )
     assert float(veil[0]) == pytest.approx(expected, rel=2e-3)
 
 
-@pytest.mark.parametrize("model,in_air", [("cone", False), ("disk", False), ("cos-power", False), ("cone", True),
-                                          ("cos-power", True)])
+@pytest.mark.parametrize(
+    "model,in_air", [("cone", False), ("disk", False), ("cos-power", False), ("cone", True), ("cos-power", True)]
+)
 def test_beam_profiles_carry_the_whole_flux(model, in_air):
     """∫ κ dω over the sphere: 1 (flux conserved, also through a flat port by étendue); the disk's 'solid angle'
     π tan²β is the small-angle one, so its integral exceeds 1 by a known amount."""
@@ -164,8 +177,10 @@ def test_lights_add_up_and_separation_is_a_grid_axis(example_raw):
     raw["water"] = {"type": "pure-fresh", "particle_scattering_per_m": 2.0}
     raw["lights"] = [{"position_m": [0.0, -0.2, 0.0]}]
     one = evaluate(build_design(raw))
-    raw["lights"] = [{"position_m": [0.0, -0.2, 0.0]},
-                     {"position_m": [0.0, -0.2, 0.0], "luminous_flux_lm": 2 * 25000.0}]
+    raw["lights"] = [
+        {"position_m": [0.0, -0.2, 0.0]},
+        {"position_m": [0.0, -0.2, 0.0], "luminous_flux_lm": 2 * 25000.0},
+    ]
     three = evaluate(build_design(raw))
     assert three["target_irradiance_w_m2"] == pytest.approx(3 * one["target_irradiance_w_m2"], rel=1e-12)
     assert three["veil_electrons"] == pytest.approx(3 * one["veil_electrons"], rel=1e-9)
@@ -190,8 +205,12 @@ def test_mechanical_vignetting_darkens_the_corner_only(example_raw):
     raw["lens"]["mechanical_vignetting"] = 0.3
     d1 = build_design(raw)
     corner = np.array(d0.sensor.size_m) / 2
-    rates = [extended.Chain(d, spectral_weights(d)).pixel_rates(np.array([0.0, corner[0]]), np.array([0.0, corner[1]]),
-                                                                 0.95, 0.9) for d in (d0, d1)]
+    rates = [
+        extended.Chain(d, spectral_weights(d)).pixel_rates(
+            np.array([0.0, corner[0]]), np.array([0.0, corner[1]]), 0.95, 0.9
+        )
+        for d in (d0, d1)
+    ]
     assert rates[1][0][0] == rates[0][0][0]
     assert rates[1][0][1] / rates[0][0][1] == pytest.approx(0.7, rel=1e-12)
     assert evaluate(d1)["image_average"]["mean_electrons"] < evaluate(d0)["image_average"]["mean_electrons"]

@@ -1,4 +1,5 @@
 """Ports, field of view, depth of field and operation limits against closed forms and hand cases."""
+
 import numpy as np
 import pytest
 

@@ -1,4 +1,5 @@
 """Photometry and light spectra against independent references."""
+
 import colour
 import numpy as np
 import pytest

@@ -1,5 +1,6 @@
 """Gauss rules of discrete measures: exact for polynomials of degree 2m − 1 (the defining property), positive
 weights and nodes inside the points' range, the measure itself when it has no more points than nodes."""
+
 import numpy as np
 import pytest
 

@@ -1,4 +1,5 @@
 """Water IOPs: table values at table wavelengths, documented extension, and the beam refraction at the light port."""
+
 import numpy as np
 import pandas as pd
 import pytest

@@ -1,6 +1,7 @@
 """Port calibration on simulated ChArUco images (`uwlab sim charuco` → `uwlab port calibrate`): the simulated
 truth (decentring, port distance and tilt, focal ratio) is written only to the images' sidecar, which the
 calibration never reads. Targets: decentring within 0.2 mm, f_uw/f_air within 0.5 %, RMS below 0.3 px."""
+
 import json
 
 import cv2
@@ -18,7 +19,7 @@ DOME = ROOT / "configs" / "design" / "dome-8mm.toml"
 DECENTER_MM = (1.5, -1.0, 2.0)
 FLAT = ["--set", "housing.port='flat'", "--set", "housing.flat_thickness_mm=8"]
 FLAT_TRUTH = ["--set", "housing.flat_air_gap_mm=6", "--set", "housing.flat_tilt_deg=[1.5, -1.0]"]
-DOME_VIEWS = ("16", "3")   # poses, downsample: over 8 seeds σ = 0.035–0.057 mm and the largest error 0.12 mm
+DOME_VIEWS = ("16", "3")  # poses, downsample: over 8 seeds σ = 0.035–0.057 mm and the largest error 0.12 mm
 FLAT_VIEWS = ("12", "4")
 
 
@@ -30,8 +31,25 @@ def cli(capsys, *args):
 
 def render(capsys, out, medium, seed, views, *settings):
     poses, downsample = views
-    code, _, err = cli(capsys, "sim", "charuco", DOME, "--medium", medium, "--poses", poses, "--seed", seed,
-                       "--downsample", downsample, "--lens-k1", "-0.05", "--out", out, *settings)
+    code, _, err = cli(
+        capsys,
+        "sim",
+        "charuco",
+        DOME,
+        "--medium",
+        medium,
+        "--poses",
+        poses,
+        "--seed",
+        seed,
+        "--downsample",
+        downsample,
+        "--lens-k1",
+        "-0.05",
+        "--out",
+        out,
+        *settings,
+    )
     assert code == 0, err
 
 
@@ -84,8 +102,18 @@ def test_rendered_corners_lie_where_the_exact_optics_put_them(dome_sets):
 
 
 def test_dome_decentring_and_focal_ratio_are_recovered(capsys, dome_sets):
-    code, out, err = cli(capsys, "port", "calibrate", dome_sets / "air", dome_sets / "water", "--port", "dome",
-                         "--config", DOME, "--json")
+    code, out, err = cli(
+        capsys,
+        "port",
+        "calibrate",
+        dome_sets / "air",
+        dome_sets / "water",
+        "--port",
+        "dome",
+        "--config",
+        DOME,
+        "--json",
+    )
     assert code == 0, err
     result = json.loads(out)
     for key in ("port", "decenter_mm", "decenter_mm_std", "f_ratio", "f_ratio_std", "rms_px", "centred_enough"):
@@ -99,19 +127,52 @@ def test_dome_decentring_and_focal_ratio_are_recovered(capsys, dome_sets):
     assert abs(result["f_ratio"] - true_ratio) < 4 * result["f_ratio_std"] + 1e-4
     assert result["rms_px"] < 0.3 and result["air"]["rms_px"] < 0.3
     assert result["centred_enough"] is False and result["induced_distortion_px"] > result["max_distortion_px"]
-    code, out, _ = cli(capsys, "port", "calibrate", dome_sets / "air", dome_sets / "water", "--port", "dome",
-                       "--config", DOME, "--max-distortion-px", "50")
+    code, out, _ = cli(
+        capsys,
+        "port",
+        "calibrate",
+        dome_sets / "air",
+        dome_sets / "water",
+        "--port",
+        "dome",
+        "--config",
+        DOME,
+        "--max-distortion-px",
+        "50",
+    )
     verdict = next(line for line in out.splitlines() if line.startswith("centred enough"))
     assert code == 0 and verdict.split() == ["centred", "enough", "(≤", "50", "px)", "yes"]
 
 
 def test_flat_port_distance_tilt_and_refocused_focal_ratio(capsys, flat_sets):
-    code, out, err = cli(capsys, "port", "calibrate", flat_sets / "air", flat_sets / "water", "--port", "flat",
-                         "--config", DOME, *FLAT, "--focus", "refocused", "--json")
+    code, out, err = cli(
+        capsys,
+        "port",
+        "calibrate",
+        flat_sets / "air",
+        flat_sets / "water",
+        "--port",
+        "flat",
+        "--config",
+        DOME,
+        *FLAT,
+        "--focus",
+        "refocused",
+        "--json",
+    )
     assert code == 0, err
     result = json.loads(out)
-    true_port = port_of(load_design(DOME, {"housing.port": "flat", "housing.flat_thickness_mm": 8,
-                                           "housing.flat_air_gap_mm": 6, "housing.flat_tilt_deg": [1.5, -1.0]}))
+    true_port = port_of(
+        load_design(
+            DOME,
+            {
+                "housing.port": "flat",
+                "housing.flat_thickness_mm": 8,
+                "housing.flat_air_gap_mm": 6,
+                "housing.flat_tilt_deg": [1.5, -1.0],
+            },
+        )
+    )
     true_ratio = 8.08 / 8.0 * focal_ratio(true_port)
     assert result["f_ratio"] == pytest.approx(true_ratio, rel=0.005)
     assert result["rms_px"] < 0.3
@@ -124,8 +185,19 @@ def test_flat_port_distance_tilt_and_refocused_focal_ratio(capsys, flat_sets):
 def test_too_few_corners_is_a_one_line_refusal(capsys, dome_sets, tmp_path):
     other = tmp_path / "board.toml"
     other.write_text('squares = [7, 5]\nsquare_mm = 40\nmarker_mm = 30\ndictionary = "DICT_4X4_50"\n')
-    code, out, err = cli(capsys, "port", "calibrate", dome_sets / "air", dome_sets / "water", "--port", "dome",
-                         "--config", DOME, "--board", other)
+    code, out, err = cli(
+        capsys,
+        "port",
+        "calibrate",
+        dome_sets / "air",
+        dome_sets / "water",
+        "--port",
+        "dome",
+        "--config",
+        DOME,
+        "--board",
+        other,
+    )
     assert code == 2 and out == ""
     assert err.count("\n") == 1 and "ChArUco corners" in err and "DIR_AIR" in err and "Traceback" not in err
     empty = tmp_path / "empty"
@@ -149,10 +221,14 @@ def test_real_image_path_reads_16_bit_tiffs_as_grab_saves_them(capsys, dome_sets
         (tmp_path / medium).mkdir()
         for number, png in enumerate(sorted((dome_sets / medium).glob("*.png"))):
             image = cv2.imread(str(png), cv2.IMREAD_GRAYSCALE).astype(np.uint16) << 8
-            tifffile.imwrite(tmp_path / medium / f"frame-{number:06d}.tiff", image,
-                             metadata={"pixel_format": "Mono16", "settings": {"exposure_us": 10000.0}})
-    code, out, err = cli(capsys, "port", "calibrate", tmp_path / "air", tmp_path / "water", "--port", "dome",
-                         "--config", DOME, "--json")
+            tifffile.imwrite(
+                tmp_path / medium / f"frame-{number:06d}.tiff",
+                image,
+                metadata={"pixel_format": "Mono16", "settings": {"exposure_us": 10000.0}},
+            )
+    code, out, err = cli(
+        capsys, "port", "calibrate", tmp_path / "air", tmp_path / "water", "--port", "dome", "--config", DOME, "--json"
+    )
     assert code == 0, err
     result = json.loads(out)
     assert result["water"]["views"] == result["air"]["views"] == int(DOME_VIEWS[0])

@@ -1,5 +1,6 @@
 """`uwlab port trace`, `uwlab port board` and the focusing aids of `uwlab design`: keys, closed-form values,
 figures, and one-line errors with exit code 2."""
+
 import json
 import math
 
@@ -38,8 +39,18 @@ def test_trace_json_keys_and_centred_dome_closed_forms(capsys):
 
 
 def test_trace_flat_port_text_and_plots(capsys, tmp_path):
-    code, out, _ = run(capsys, "port", "trace", str(EXAMPLE), "--set", "housing.flat_thickness_mm=10",
-                       "--set", "housing.flat_tilt_deg=[2, 0]", "--plot", str(tmp_path))
+    code, out, _ = run(
+        capsys,
+        "port",
+        "trace",
+        str(EXAMPLE),
+        "--set",
+        "housing.flat_thickness_mm=10",
+        "--set",
+        "housing.flat_tilt_deg=[2, 0]",
+        "--plot",
+        str(tmp_path),
+    )
     assert code == 0
     assert "field of view, exact (x, y)" in out and "(edge, corner)" in out and "paraxial rule error" in out
     names = {p.name for p in tmp_path.glob("*.png")}
@@ -50,14 +61,38 @@ def test_trace_flat_port_text_and_plots(capsys, tmp_path):
 def test_astigmatism_of_a_flat_port_puts_the_corner_out_of_focus_first(capsys):
     """8 mm f/2.8 behind a 10 mm window 15 mm from the pupil, target at 1 m: the corner's tangential image
     (34.5° off axis) falls short of the depth of field while the edge's (27.8°) stays inside."""
-    code, out, _ = run(capsys, "port", "trace", str(EXAMPLE), "--json", "--set", "lens.focal_length_mm=8",
-                       "--set", "lens.f_number=2.8", "--set", "housing.flat_thickness_mm=10",
-                       "--set", "housing.flat_air_gap_mm=15")
+    code, out, _ = run(
+        capsys,
+        "port",
+        "trace",
+        str(EXAMPLE),
+        "--json",
+        "--set",
+        "lens.focal_length_mm=8",
+        "--set",
+        "lens.f_number=2.8",
+        "--set",
+        "housing.flat_thickness_mm=10",
+        "--set",
+        "housing.flat_air_gap_mm=15",
+    )
     aid = json.loads(out)["focus"]
     assert code == 0 and aid["edge_in_focus"] is True and aid["corner_in_focus"] is False
-    code, out, _ = run(capsys, "port", "trace", str(EXAMPLE), "--json", "--set", "lens.focal_length_mm=8",
-                       "--set", "lens.f_number=11", "--set", "housing.flat_thickness_mm=10",
-                       "--set", "housing.flat_air_gap_mm=15")
+    code, out, _ = run(
+        capsys,
+        "port",
+        "trace",
+        str(EXAMPLE),
+        "--json",
+        "--set",
+        "lens.focal_length_mm=8",
+        "--set",
+        "lens.f_number=11",
+        "--set",
+        "housing.flat_thickness_mm=10",
+        "--set",
+        "housing.flat_air_gap_mm=15",
+    )
     assert json.loads(out)["focus"]["corner_in_focus"] is True
 
 
@@ -77,8 +112,9 @@ def test_design_reports_focusing_aids(capsys):
     assert result["focus_image_m"] == pytest.approx(v, rel=1e-12)
     assert result["focus_setting_m"] == pytest.approx(0.2)
     assert result["close_up_lens_dpt"] == pytest.approx(1 / v - 5.0, rel=1e-12)
-    code, out, _ = run(capsys, "design", str(EXAMPLE), "--set", "housing.flat_air_gap_mm=20",
-                       "--set", "housing.flat_thickness_mm=12")
+    code, out, _ = run(
+        capsys, "design", str(EXAMPLE), "--set", "housing.flat_air_gap_mm=20", "--set", "housing.flat_thickness_mm=12"
+    )
     assert code == 0
     expected = 0.02 + 0.012 / 1.49 + (1.0 - 0.032) / 1.333
     line = next(line for line in out.splitlines() if line.startswith("target's image"))
@@ -106,16 +142,19 @@ def test_board_png_prints_at_true_size(capsys, tmp_path):
     assert code == 2 and "exists" in err
 
 
-@pytest.mark.parametrize("args, key", [
-    (["port", "trace", str(DOME), "--set", "housing.dome_decenter_mm=30,0,0"], "housing.dome_decenter_mm"),
-    (["port", "trace", str(DOME), "--set", "housing.dome_decenter_mm=1,2"], "housing.dome_decenter_mm"),
-    (["port", "trace", str(EXAMPLE), "--set", "housing.flat_tilt_deg=[60, 0]"], "housing.flat_tilt_deg"),
-    (["port", "trace", str(EXAMPLE), "--set", "housing.flat_thickness_mm=-1"], "housing.flat_thickness_mm"),
-    (["port", "trace", str(EXAMPLE), "--set", "lens.min_focus_distance_m=0"], "lens.min_focus_distance_m"),
-    (["port", "trace", str(EXAMPLE), "--set", "lens.f_number"], "--set"),
-    (["port", "trace", str(EXAMPLE), "--plot", "/dev/null/plots"], "--plot"),
-    (["design", str(EXAMPLE), "--set", "housing.flat_air_gap_mm='near'"], "housing.flat_air_gap_mm"),
-])
+@pytest.mark.parametrize(
+    "args, key",
+    [
+        (["port", "trace", str(DOME), "--set", "housing.dome_decenter_mm=30,0,0"], "housing.dome_decenter_mm"),
+        (["port", "trace", str(DOME), "--set", "housing.dome_decenter_mm=1,2"], "housing.dome_decenter_mm"),
+        (["port", "trace", str(EXAMPLE), "--set", "housing.flat_tilt_deg=[60, 0]"], "housing.flat_tilt_deg"),
+        (["port", "trace", str(EXAMPLE), "--set", "housing.flat_thickness_mm=-1"], "housing.flat_thickness_mm"),
+        (["port", "trace", str(EXAMPLE), "--set", "lens.min_focus_distance_m=0"], "lens.min_focus_distance_m"),
+        (["port", "trace", str(EXAMPLE), "--set", "lens.f_number"], "--set"),
+        (["port", "trace", str(EXAMPLE), "--plot", "/dev/null/plots"], "--plot"),
+        (["design", str(EXAMPLE), "--set", "housing.flat_air_gap_mm='near'"], "housing.flat_air_gap_mm"),
+    ],
+)
 def test_bad_input_is_one_line_naming_the_key(capsys, args, key):
     code, out, err = run(capsys, *args)
     assert code == 2 and out == ""

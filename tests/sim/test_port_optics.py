@@ -1,13 +1,13 @@
 """Exact port optics against closed forms: Snell's law, slabs, concentric domes, apparent depth, virtual images,
 focusing aids and the lens model (checked against OpenCV's own projection)."""
+
 import cv2
 import numpy as np
 import pytest
 
 from uwlab.model import focus, port
 from uwlab.model.lens import BrownLens
-from uwlab.model.port_field import (exact_fov_rad, focal_ratio, port_distortion, virtual_image_z,
-                                    water_field_angle)
+from uwlab.model.port_field import exact_fov_rad, focal_ratio, port_distortion, virtual_image_z, water_field_angle
 from uwlab.model.raytrace import DomePort, FlatPort, normalize, refract
 
 RNG = np.random.default_rng(15)

@@ -1,4 +1,5 @@
 """The one saturation rule (`uwlab.experiments.saturation`) against simulated truth: grab, frames, points."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -27,8 +28,10 @@ IMX250 = load_sensor_profile("imx250m")
 
 
 def _grab(capsys, exposure_us: float) -> dict:
-    assert main(["grab", "--backend", "sim", "--exposure-us", str(exposure_us), "--roi", "1000,900,256,256",
-                 "--json"]) == 0
+    assert (
+        main(["grab", "--backend", "sim", "--exposure-us", str(exposure_us), "--roi", "1000,900,256,256", "--json"])
+        == 0
+    )
     return json.loads(capsys.readouterr().out)["frames"][0]
 
 
@@ -82,8 +85,9 @@ def test_points_past_the_saturation_exposure_are_flagged_and_earlier_ones_not(tm
     rate = 2.0e6
     t_sat_us = truth.saturation_e / rate * 1e6
     exposures = t_sat_us * np.array([0.2, 0.5, 0.8, 0.9, 1.1, 1.3, 2.0])
-    data = simulate_photon_transfer(tmp_path / "pt", truth, rate_e_per_s=rate, quantum_efficiency=0.6,
-                                    exposures_us=exposures, frames=2)
+    data = simulate_photon_transfer(
+        tmp_path / "pt", truth, rate_e_per_s=rate, quantum_efficiency=0.6, exposures_us=exposures, frames=2
+    )
     points = data.points()
     assert points["saturated"].tolist() == [False, False, False, False, True, True, True]
     assert (points["saturated_fraction"] > POINT_SATURATED_FRACTION).tolist() == points["saturated"].tolist()
@@ -93,9 +97,23 @@ def test_points_past_the_saturation_exposure_are_flagged_and_earlier_ones_not(tm
 def test_point_row_derives_statistics_and_refuses_them_as_columns():
     frames = [np.full((4, 4), 100, np.uint16), np.full((4, 4), 102, np.uint16)]
     bright = stack_statistics(frames, 101)
-    row = point_row(sweep_id="s", point_index=0, kind="exposure", bright=bright, dark=None,
-                    clip=ClipLevel(101.0, "adc"), exposure_us=10.0)
+    row = point_row(
+        sweep_id="s",
+        point_index=0,
+        kind="exposure",
+        bright=bright,
+        dark=None,
+        clip=ClipLevel(101.0, "adc"),
+        exposure_us=10.0,
+    )
     assert (row["mean_dn"], row["saturated_fraction"], row["saturated"], row["signal_dn"]) == (101.0, 1.0, True, None)
     with pytest.raises(ConfigError, match="point.mean_dn"):
-        point_row(sweep_id="s", point_index=0, kind="exposure", bright=bright, dark=None,
-                  clip=ClipLevel(101.0, "adc"), mean_dn=5.0)
+        point_row(
+            sweep_id="s",
+            point_index=0,
+            kind="exposure",
+            bright=bright,
+            dark=None,
+            clip=ClipLevel(101.0, "adc"),
+            mean_dn=5.0,
+        )

@@ -1,4 +1,5 @@
 """`uwlab light`, `uwlab light calibrate`, `uwlab spectrum` and `uwlab sim serial` end to end."""
+
 from __future__ import annotations
 
 import json
@@ -22,8 +23,15 @@ from tests.support.paths import DATA
 
 GAMMA = 1.8
 SEKONIC_SAMPLE = DATA / "sekonic_c7000_synthetic.csv"
-SPECTRUM_KEYS = {"wavelength_nm", "irradiance_w_m2_nm", "irradiance_w_m2", "illuminance_lux", "photon_flux_m2_s",
-                 "cct_k", "saturated"}
+SPECTRUM_KEYS = {
+    "wavelength_nm",
+    "irradiance_w_m2_nm",
+    "irradiance_w_m2",
+    "illuminance_lux",
+    "photon_flux_m2_s",
+    "cct_k",
+    "saturated",
+}
 
 
 def flat_spectrum(position: str, flux_fraction: float):
@@ -34,8 +42,9 @@ def flat_spectrum(position: str, flux_fraction: float):
 
 @pytest.fixture(scope="module")
 def rig(tmp_path_factory):
-    with SerialRig(tmp_path_factory.mktemp("cli"), SerialSimSettings(light_gamma=GAMMA), spectrum=flat_spectrum,
-                   seed=3) as rig:
+    with SerialRig(
+        tmp_path_factory.mktemp("cli"), SerialSimSettings(light_gamma=GAMMA), spectrum=flat_spectrum, seed=3
+    ) as rig:
         yield rig
 
 
@@ -66,21 +75,40 @@ def test_light_cli_sets_and_reads_back(rig, capsys):
 def test_spectrum_cli_measures_and_writes_csv(rig, capsys, tmp_path):
     run_json(capsys, ["light", "--port", rig.ports["light"], "--on", "--level", "1", "--json"])
     out = tmp_path / "spectrum.csv"
-    summary = run_json(capsys, ["spectrum", "--port", rig.ports["spectrometer"], "--integration-ms", "50",
-                                "--average", "2", "--out", str(out), "--json"])
+    summary = run_json(
+        capsys,
+        [
+            "spectrum",
+            "--port",
+            rig.ports["spectrometer"],
+            "--integration-ms",
+            "50",
+            "--average",
+            "2",
+            "--out",
+            str(out),
+            "--json",
+        ],
+    )
     assert set(summary) == SPECTRUM_KEYS and summary["saturated"] is False
     assert summary["irradiance_w_m2"] == pytest.approx(60.0, rel=0.01)
     assert len(summary["wavelength_nm"]) == len(summary["irradiance_w_m2_nm"]) == 401
     assert out.read_text().startswith("wavelength_nm,irradiance_w_m2_nm\n")
-    assert "refusing to overwrite" in run_error(capsys, ["spectrum", "--port", rig.ports["spectrometer"],
-                                                         "--out", str(out)])
+    assert "refusing to overwrite" in run_error(
+        capsys, ["spectrum", "--port", rig.ports["spectrometer"], "--out", str(out)]
+    )
     # 500 ms: the peak (~0.2 W/m²/nm at 1e6 counts per W/m²/nm/s) exceeds the 65535-count full scale
-    assert run_json(capsys, ["spectrum", "--port", rig.ports["spectrometer"], "--integration-ms", "500",
-                             "--json"])["saturated"] is True
+    assert (
+        run_json(capsys, ["spectrum", "--port", rig.ports["spectrometer"], "--integration-ms", "500", "--json"])[
+            "saturated"
+        ]
+        is True
+    )
     assert main(["spectrum", "--port", rig.ports["spectrometer"], "--integration-ms", "500"]) == 0
     assert "saturated       yes" in capsys.readouterr().out
-    assert "integration_ms" in run_error(capsys, ["spectrum", "--port", rig.ports["spectrometer"],
-                                                  "--integration-ms", "0.1"])
+    assert "integration_ms" in run_error(
+        capsys, ["spectrum", "--port", rig.ports["spectrometer"], "--integration-ms", "0.1"]
+    )
 
 
 def test_spectrum_cli_imports_sekonic(capsys):
@@ -93,21 +121,34 @@ def test_spectrum_cli_imports_sekonic(capsys):
 def test_light_calibrate_curve_file_and_no_overwrite(rig, capsys, tmp_path):
     run_json(capsys, ["light", "--port", rig.ports["light"], "--on", "--level", "0.3", "--json"])
     out = tmp_path / "cal.csv"
-    argv = ["light", "calibrate", "--light", rig.ports["light"], "--spectrometer", rig.ports["spectrometer"],
-            "--levels", "5", "--out", str(out), "--json"]
+    argv = [
+        "light",
+        "calibrate",
+        "--light",
+        rig.ports["light"],
+        "--spectrometer",
+        rig.ports["spectrometer"],
+        "--levels",
+        "5",
+        "--out",
+        str(out),
+        "--json",
+    ]
     result = run_json(capsys, argv)
     assert result["level"] == [0.0, 0.25, 0.5, 0.75, 1.0]
     irradiance = np.array(result["irradiance_w_m2"])
     assert np.all(np.diff(irradiance) > 0)
     dark = irradiance[0]
-    np.testing.assert_allclose((irradiance - dark) / (irradiance[-1] - dark), np.array(result["level"]) ** GAMMA,
-                               atol=0.01)
+    np.testing.assert_allclose(
+        (irradiance - dark) / (irradiance[-1] - dark), np.array(result["level"]) ** GAMMA, atol=0.01
+    )
     calibration = load_light_calibration(out)
     np.testing.assert_array_equal(calibration.level, result["level"])
     np.testing.assert_array_equal(calibration.irradiance_w_m2, irradiance)
     assert calibration.irradiance_w_m2_nm.shape == (5, 401)
-    np.testing.assert_allclose([irradiance_w_m2(calibration.wavelength_nm, e) for e in calibration.irradiance_w_m2_nm],
-                               irradiance, rtol=1e-12)
+    np.testing.assert_allclose(
+        [irradiance_w_m2(calibration.wavelength_nm, e) for e in calibration.irradiance_w_m2_nm], irradiance, rtol=1e-12
+    )
     with open_light(rig.ports["light"]) as light:
         assert light.output() is True and light.level() == 0.3
     before = out.read_bytes()
@@ -137,7 +178,7 @@ def test_sim_serial_subprocess_ports_work_and_sigterm_cleans_up():
             light.set_output(False)
             dark = irradiance_w_m2(*spectrometer.read_spectrum())
         assert full - dark == pytest.approx(expected, rel=0.01)
-        assert (half - dark) / (full - dark) == pytest.approx(0.5 ** scene.sim.light_gamma, rel=0.02)
+        assert (half - dark) / (full - dark) == pytest.approx(0.5**scene.sim.light_gamma, rel=0.02)
         process.send_signal(signal.SIGTERM)
         assert process.wait(timeout=30) == 0
         assert not any(os.path.lexists(info[key]) for key in ("light", "spectrometer", "rig_state"))

@@ -1,4 +1,5 @@
 """Drivers against the simulators through real pseudo-terminals and pyserial: round trips, spectra, faults."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -27,8 +28,13 @@ def known_spectrum(position: str, flux_fraction: float):
 
 @pytest.fixture(scope="module")
 def rig(tmp_path_factory):
-    with SerialRig(tmp_path_factory.mktemp("serial"), SerialSimSettings(light_gamma=GAMMA),
-                   spectrum=known_spectrum, seed=7, command_log=True) as rig:
+    with SerialRig(
+        tmp_path_factory.mktemp("serial"),
+        SerialSimSettings(light_gamma=GAMMA),
+        spectrum=known_spectrum,
+        seed=7,
+        command_log=True,
+    ) as rig:
         yield rig
 
 
@@ -114,14 +120,20 @@ def test_saturation_reported_and_autoranged(light, spectrometer):
 
 
 def test_out_of_range_never_sent(rig, light, spectrometer):
-    for call, value in ((light.set_level, 1.5), (light.set_level, -0.01), (spectrometer.set_integration_ms, 0.2),
-                        (spectrometer.set_integration_ms, 1e5), (spectrometer.set_averaging, 0)):
+    for call, value in (
+        (light.set_level, 1.5),
+        (light.set_level, -0.01),
+        (spectrometer.set_integration_ms, 0.2),
+        (spectrometer.set_integration_ms, 1e5),
+        (spectrometer.set_averaging, 0),
+    ):
         with pytest.raises(ConfigError):
             call(value)
     assert light.level() == 1.0 and spectrometer.averaging() == 1
     sent = received(rig, "light") + received(rig, "spectrometer")
-    assert not any(line.startswith(("LEV 1.5", "LEV -0.01", "SPEC:INT 0.2", "SPEC:INT 100000", "SPEC:AVG 0"))
-                   for line in sent)
+    assert not any(
+        line.startswith(("LEV 1.5", "LEV -0.01", "SPEC:INT 0.2", "SPEC:INT 100000", "SPEC:AVG 0")) for line in sent
+    )
 
 
 @pytest.mark.parametrize("fault", ["noreply", "garbage", "partial", "busy"])
@@ -137,8 +149,17 @@ def test_reopened_port_gets_the_full_state_again_verified_by_read_back(rig, ligh
     light.transport.command("SIM:FAULT vanish")
     light.set_level(0.3)
     assert light.readback() == LightReadback(True, 0.3) and light.recoveries == recoveries + 1
-    assert received(rig, "light")[-9:] == ["LEV 0.3", "*IDN?", "OUTP ON", "LEV 1.0", "OUTP?", "LEV?", "LEV 0.3",
-                                           "OUTP?", "LEV?"]
+    assert received(rig, "light")[-9:] == [
+        "LEV 0.3",
+        "*IDN?",
+        "OUTP ON",
+        "LEV 1.0",
+        "OUTP?",
+        "LEV?",
+        "LEV 0.3",
+        "OUTP?",
+        "LEV?",
+    ]
 
 
 @pytest.mark.parametrize("fault", ["noreply", "garbage", "partial", "vanish", "reset"])

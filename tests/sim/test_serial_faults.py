@@ -1,4 +1,5 @@
 """Serial instruments that restart, and simulators that must not fall over: real ptys, pyserial, processes."""
+
 from __future__ import annotations
 
 import json
@@ -30,8 +31,9 @@ def flat_spectrum(position: str, flux_fraction: float):
 
 @pytest.fixture(scope="module")
 def rig(tmp_path_factory):
-    with SerialRig(tmp_path_factory.mktemp("faults"), SerialSimSettings(light_gamma=2.0), spectrum=flat_spectrum,
-                   seed=3) as rig:
+    with SerialRig(
+        tmp_path_factory.mktemp("faults"), SerialSimSettings(light_gamma=2.0), spectrum=flat_spectrum, seed=3
+    ) as rig:
         yield rig
 
 
@@ -60,7 +62,7 @@ def test_restarted_light_gets_its_state_back_verified_and_logged(rig):
         assert RigState(rig.rig_state_path).light.level == 0.7
     events = rig.state_log("light").entries()
     lost = max(i for i, e in enumerate(events) if e["event"] == "power-lost")
-    assert [e["event"] for e in events[lost:lost + 4]] == ["power-lost", "power-on", "command", "command"]
+    assert [e["event"] for e in events[lost : lost + 4]] == ["power-lost", "power-on", "command", "command"]
     assert (events[lost + 3]["on"], events[lost + 3]["level"]) == (True, 0.7)
     now = states_during(events, time.time_ns(), time.time_ns())[-1]
     assert (now["on"], now["level"]) == (True, 0.7) and events[lost + 1]["t_ns"] < t_restarted
@@ -175,14 +177,15 @@ def test_sim_serial_restarts_a_dead_simulator_then_stops_on_a_crash_loop():
             os.kill(pid, signal.SIGKILL)
             line = read_line(process.stderr, 60, "uwlab sim serial's stderr")
             if death <= 3:
-                assert line == (f"uwlab sim serial: the light simulator died (exit code -9); restarted at its "
-                                f"power-on state on {info['light']}\n")
+                assert line == (
+                    f"uwlab sim serial: the light simulator died (exit code -9); restarted at its "
+                    f"power-on state on {info['light']}\n"
+                )
                 with open_light(info["light"], timeout_s=2.0) as light:
                     assert light.readback() == LightReadback(False, 0.0)
                     with pytest.raises(DeviceError, match="ERR 102"):
                         light.transport.command("SIM:FAULT noreply 1000000000000")
-        assert line == "uwlab sim: error: the light simulator died 4 times within 60 s (last exit code -9); " \
-                       "stopping\n"
+        assert line == "uwlab sim: error: the light simulator died 4 times within 60 s (last exit code -9); stopping\n"
         assert process.wait(timeout=60) == 2
         assert not os.path.lexists(info["light"]) and not os.path.lexists(info["spectrometer"])
     finally:

@@ -1,4 +1,5 @@
 """uwlab-ascii reply parsing (fuzzed), value checks, and the simulated instruments without a port."""
+
 from __future__ import annotations
 
 import numpy as np
@@ -85,9 +86,16 @@ def test_spectrum_lines_round_trip_and_order_check():
 
 @pytest.mark.parametrize(
     ("check", "value", "key"),
-    [(check_level, 1.01, "level"), (check_level, -0.1, "level"), (check_level, float("nan"), "level"),
-     (check_integration_ms, 0.5, "integration_ms"), (check_integration_ms, 20000, "integration_ms"),
-     (check_averaging, 0, "averaging"), (check_averaging, 2.5, "averaging"), (check_averaging, 101, "averaging")],
+    [
+        (check_level, 1.01, "level"),
+        (check_level, -0.1, "level"),
+        (check_level, float("nan"), "level"),
+        (check_integration_ms, 0.5, "integration_ms"),
+        (check_integration_ms, 20000, "integration_ms"),
+        (check_averaging, 0, "averaging"),
+        (check_averaging, 2.5, "averaging"),
+        (check_averaging, 101, "averaging"),
+    ],
 )
 def test_out_of_range_values_refused(check, value, key):
     with pytest.raises(ConfigError) as info:

@@ -1,4 +1,5 @@
 """Derived spectral quantities against closed forms; Sekonic C-7000 import; spectrum CSV export."""
+
 from __future__ import annotations
 
 
@@ -63,9 +64,7 @@ def test_illuminance_matches_colour_science():
     wavelength_nm = np.arange(380.0, 781.0)
     irradiance = 1e-3 * planck(wavelength_nm, 3500.0) / planck(np.array([555.0]), 3500.0)
     sd = colour.SpectralDistribution(dict(zip(wavelength_nm, irradiance, strict=True)))
-    assert illuminance_lux(wavelength_nm, irradiance) == pytest.approx(
-        colour.luminous_flux(sd, K_m=683.002), rel=1e-3
-    )
+    assert illuminance_lux(wavelength_nm, irradiance) == pytest.approx(colour.luminous_flux(sd, K_m=683.002), rel=1e-3)
 
 
 def test_sekonic_import_keeps_the_1_nm_block():

@@ -1,4 +1,5 @@
 """The simulated rig's scene renders the model: centre pixel = model on-axis rate, linear in the light."""
+
 import numpy as np
 import pytest
 
@@ -27,7 +28,7 @@ def test_rate_is_linear_in_flux_and_board_is_brighter(scene):
     half = scene.electron_rate_map((64, 80), 0.5)
     assert np.allclose(half, 0.5 * full)
     x, y, w, h = scene.board_roi((64, 80))
-    board = full[y:y + h, x:x + w]
+    board = full[y : y + h, x : x + w]
     assert board.min() > full[0, 0] and board.mean() > 5 * full[:2, :].mean()
     assert full[32, 40] >= board.max() * 0.999  # vignetting: the centre is the brightest
 

@@ -1,5 +1,6 @@
 """The tank world: its optics against closed forms, its effects switchable one by one, and the extended model
 (written independently) agreeing with it where they describe the same physics."""
+
 import copy
 
 import numpy as np
@@ -88,8 +89,12 @@ def test_every_effect_switches_alone(rig, effect):
 
 def test_turbid_water_adds_veiling_light(rig):
     lensed = []
-    for world in ({"backscatter": False}, {}, {"particle_scattering_per_m": 1.8, "backscatter": False},
-                  {"particle_scattering_per_m": 1.8}):
+    for world in (
+        {"backscatter": False},
+        {},
+        {"particle_scattering_per_m": 1.8, "backscatter": False},
+        {"particle_scattering_per_m": 1.8},
+    ):
         s = scene(rig, **world)
         lensed.append(s.on_axis_rate_e_per_s())
     clear_veil, turbid_veil = lensed[1] / lensed[0] - 1, lensed[3] / lensed[2] - 1
@@ -141,8 +146,13 @@ def test_sensor_realism_hot_pixels_and_compression():
     """Hot pixels carry their own dark current; the world's compression bends a full well down by its fraction."""
     profile = load_sensor_profile("imx250m")
     realism = RigScene.from_toml(ROOT / "configs" / "rigs" / "paper-tank.toml").sensor_realism()
-    truth = SimTruth.from_sensor_profile(profile, resolution_px=(256, 256), hot_pixel_fraction=0.01,
-                                         hot_pixel_dark_current_e_per_s=5e5, nonlinearity=realism["nonlinearity"])
+    truth = SimTruth.from_sensor_profile(
+        profile,
+        resolution_px=(256, 256),
+        hot_pixel_fraction=0.01,
+        hot_pixel_dark_current_e_per_s=5e5,
+        nonlinearity=realism["nonlinearity"],
+    )
     sensor = SimSensor(truth, flat_rate_map(0.0), seed=1)
     cfg = SensorConfig(10000.0, 0.0, 0.0, "Mono16", 0, 0, 256, 256)
     mean, _ = sensor.electrons(cfg, 1.0)

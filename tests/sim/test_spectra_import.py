@@ -1,6 +1,7 @@
 """Sekonic C-7000 CSV import refuses what it cannot trust, naming the line: strays, out-of-range wavelengths and
 values, gaps, repeats, short files. The sample is `tests/sim/data/sekonic_c7000_synthetic.csv` (a 5 nm block on
 lines 10–90, a 1 nm block on lines 92–492, both 380–780 nm)."""
+
 from pathlib import Path
 
 import numpy as np
@@ -14,8 +15,11 @@ from tests.support.paths import DATA
 
 SAMPLE = DATA / "sekonic_c7000_synthetic.csv"
 LINES = SAMPLE.read_text().splitlines()
-ONE_NM = {int(line.split()[2].split("[")[0]): number for number, line in enumerate(LINES, start=1)
-          if line.startswith("Spectral Data") and number >= 92}
+ONE_NM = {
+    int(line.split()[2].split("[")[0]): number
+    for number, line in enumerate(LINES, start=1)
+    if line.startswith("Spectral Data") and number >= 92
+}
 
 
 def edited(tmp_path, lines) -> Path:
@@ -25,7 +29,7 @@ def edited(tmp_path, lines) -> Path:
 
 
 def replaced(number: int, text: str) -> list[str]:
-    return LINES[:number - 1] + [text] + LINES[number:]
+    return LINES[: number - 1] + [text] + LINES[number:]
 
 
 CASES = {
@@ -35,10 +39,16 @@ CASES = {
     "negative value": (replaced(ONE_NM[600], "Spectral Data 600[nm],-0.001"), ONE_NM[600], "outside [0"),
     "1e308": (replaced(ONE_NM[700], "Spectral Data 700[nm],1e308"), ONE_NM[700], "outside [0"),
     "not a number": (replaced(ONE_NM[520], "Spectral Data 520[nm],abc"), ONE_NM[520], "must be numbers"),
-    "missing 500-599 nm": ([line for n, line in enumerate(LINES, start=1)
-                            if n not in range(ONE_NM[500], ONE_NM[599] + 1)], ONE_NM[500], "missing 500–599 nm"),
-    "repeated row": (LINES[:ONE_NM[455]] + [LINES[ONE_NM[455] - 1]] + LINES[ONE_NM[455]:], ONE_NM[455] + 1,
-                     "must increase"),
+    "missing 500-599 nm": (
+        [line for n, line in enumerate(LINES, start=1) if n not in range(ONE_NM[500], ONE_NM[599] + 1)],
+        ONE_NM[500],
+        "missing 500–599 nm",
+    ),
+    "repeated row": (
+        LINES[: ONE_NM[455]] + [LINES[ONE_NM[455] - 1]] + LINES[ONE_NM[455] :],
+        ONE_NM[455] + 1,
+        "must increase",
+    ),
     "three rows": (LINES[:9] + LINES[91:94], 12, "ends at 382 nm"),
     "second 1 nm block": (LINES + LINES[91:], len(LINES) + 1, "a second 1 nm block"),
     "block not from 380 nm": (LINES[:9] + LINES[101:], 10, "starts at 390 nm"),

@@ -1,11 +1,19 @@
 """The interpolated spectral integrals against the float64 sum over wavelength, closed forms, and independence of a
 point's value from the grid it is evaluated in."""
+
 import numpy as np
 import pytest
 
 from uwlab.model import design as design_module
-from uwlab.model.design import (IMAGE_DIRECT_PATHS, build_design, electron_rate_at_radius, evaluate, image_radii_m,
-                                path_integrals, spectral_weights)
+from uwlab.model.design import (
+    IMAGE_DIRECT_PATHS,
+    build_design,
+    electron_rate_at_radius,
+    evaluate,
+    image_radii_m,
+    path_integrals,
+    spectral_weights,
+)
 from uwlab.model.spectral_table import SpectralTable
 from uwlab.model.water import WATER_TYPES
 
@@ -52,9 +60,9 @@ def test_a_point_has_the_same_bits_in_any_grid_and_any_build_order(example_raw):
     first = SpectralTable(weights.c, weights.W)
     second = SpectralTable(weights.c, weights.W)
     probe = np.array([0.37, 2.5, 19.0, 150.0])
-    alone = np.array([first(probe[i:i + 1], 2)[0] for i in range(probe.size)])
+    alone = np.array([first(probe[i : i + 1], 2)[0] for i in range(probe.size)])
     second(np.linspace(0, 300, 100_003), 2)  # builds every block first, in another order
-    together = second(np.concatenate([probe, np.linspace(0, 300, 50_000)]), 2)[:probe.size]
+    together = second(np.concatenate([probe, np.linspace(0, 300, 50_000)]), 2)[: probe.size]
     assert alone.tobytes() == together.tobytes()
 
 
@@ -88,9 +96,13 @@ def test_image_average_through_the_cumulative_table_matches_the_wavelength_sum(e
 def test_image_average_over_many_lens_geometries_matches_the_wavelength_sum(example_raw):
     example_raw["water"]["type"] = "jerlov-II"
     base = build_design(example_raw)
-    grid = base.with_values(**{"lens.focal_length_mm": np.array([4.0, 8.0, 16.0, 50.0])[:, None, None],
-                               "housing.water_index": np.array([1.33, 1.34])[None, :, None],
-                               "operation.altitude_m": np.linspace(0.5, 12.0, 9)[None, None, :]})
+    grid = base.with_values(
+        **{
+            "lens.focal_length_mm": np.array([4.0, 8.0, 16.0, 50.0])[:, None, None],
+            "housing.water_index": np.array([1.33, 1.34])[None, :, None],
+            "operation.altitude_m": np.linspace(0.5, 12.0, 9)[None, None, :],
+        }
+    )
     out = design_module._image_average_rate(grid, spectral_weights(grid))
     assert out == pytest.approx(_image_reference(grid), rel=ACCURACY)
 
@@ -99,9 +111,13 @@ def test_image_average_over_many_beams_per_lens_geometry_matches_the_wavelength_
     """Many beam angles per path and geometry (the samples summed once per path, shared by the beams)."""
     example_raw["water"]["type"] = "jerlov-III"
     base = build_design(example_raw)
-    grid = base.with_values(**{"lens.focal_length_mm": np.array([3.0, 8.0, 30.0])[:, None, None],
-                               "operation.altitude_m": np.array([0.4, 3.0, 20.0])[None, :, None],
-                               "light.beam_half_angle_deg": np.linspace(2.0, 88.0, 96)[None, None, :]})
+    grid = base.with_values(
+        **{
+            "lens.focal_length_mm": np.array([3.0, 8.0, 30.0])[:, None, None],
+            "operation.altitude_m": np.array([0.4, 3.0, 20.0])[None, :, None],
+            "light.beam_half_angle_deg": np.linspace(2.0, 88.0, 96)[None, None, :],
+        }
+    )
     out = design_module._image_average_rate(grid, spectral_weights(grid))
     assert out == pytest.approx(_image_reference(grid), rel=ACCURACY)
 
@@ -110,12 +126,23 @@ def _reference_in_pieces(design, keys, piece=200):
     """`_image_reference` of a 1-D design (every key an array of the same length), in pieces (it sums every
     sample × every wavelength)."""
     size = np.size(design[keys[0]])
-    return np.concatenate([_image_reference(design.with_values(**{k: design[k][s:s + piece] for k in keys}))
-                           for s in range(0, size, piece)])
+    return np.concatenate(
+        [
+            _image_reference(design.with_values(**{k: design[k][s : s + piece] for k in keys}))
+            for s in range(0, size, piece)
+        ]
+    )
 
 
-@pytest.mark.parametrize("port, model, water", [("flat", "cone", "jerlov-II"), ("dome", "cone", "jerlov-5C"),
-                                                ("flat", "disk", "pure-fresh"), ("flat", "cone", "jerlov-9C")])
+@pytest.mark.parametrize(
+    "port, model, water",
+    [
+        ("flat", "cone", "jerlov-II"),
+        ("dome", "cone", "jerlov-5C"),
+        ("flat", "disk", "pure-fresh"),
+        ("flat", "cone", "jerlov-9C"),
+    ],
+)
 def test_image_average_with_a_lens_geometry_per_point_matches_the_wavelength_sum(example_raw, port, model, water):
     """Every point its own focal length, water index, beam and path (the Gauss-rule route): narrow to very wide
     fields (f = 1 to 60 mm on a 2/3" sensor: up to 80° off axis) and paths to 300 m, against the float64 sum over
@@ -125,10 +152,12 @@ def test_image_average_with_a_lens_geometry_per_point_matches_the_wavelength_sum
     example_raw["housing"].update(port=port, dome_radius_mm=60.0, dome_thickness_mm=6.0)
     rng = np.random.default_rng(11)
     n = 400
-    values = {"lens.focal_length_mm": np.exp(rng.uniform(0.0, np.log(60.0), n)),
-              "housing.water_index": rng.uniform(1.0, 1.5, n),
-              "operation.altitude_m": np.exp(rng.uniform(np.log(0.1), np.log(150.0), n)),
-              "light.beam_half_angle_deg": rng.uniform(1.0, 89.0, n)}
+    values = {
+        "lens.focal_length_mm": np.exp(rng.uniform(0.0, np.log(60.0), n)),
+        "housing.water_index": rng.uniform(1.0, 1.5, n),
+        "operation.altitude_m": np.exp(rng.uniform(np.log(0.1), np.log(150.0), n)),
+        "light.beam_half_angle_deg": rng.uniform(1.0, 89.0, n),
+    }
     grid = build_design(example_raw).with_values(**values)
     out = design_module._image_average_rate(grid, spectral_weights(grid))
     reference = _reference_in_pieces(grid, list(values))
@@ -142,15 +171,19 @@ def test_a_grid_with_a_lens_geometry_per_point_equals_point_by_point(example_raw
     scalar evaluations of every point."""
     example_raw["operation"]["exposure_s"] = 1e-4
     base = build_design(example_raw)
-    axes = {"operation.altitude_m": np.array([0.5, 3.0, 10.0]),
-            "lens.focal_length_mm": np.array([2.0, 4.0, 12.0, 50.0]),
-            "housing.water_index": np.array([1.33, 1.34, 1.35]), "light.beam_half_angle_deg": np.array([15.0, 60.0])}
+    axes = {
+        "operation.altitude_m": np.array([0.5, 3.0, 10.0]),
+        "lens.focal_length_mm": np.array([2.0, 4.0, 12.0, 50.0]),
+        "housing.water_index": np.array([1.33, 1.34, 1.35]),
+        "light.beam_half_angle_deg": np.array([15.0, 60.0]),
+    }
     shaped = {k: v.reshape([-1 if i == j else 1 for j in range(4)]) for i, (k, v) in enumerate(axes.items())}
     out = evaluate(base.with_values(**shaped))
     for index in np.ndindex(3, 4, 3, 2):
         point = evaluate(base.with_values(**{k: float(v[i]) for (k, v), i in zip(axes.items(), index, strict=True)}))
         assert np.broadcast_to(out["mean_electrons"], (3, 4, 3, 2))[index] == pytest.approx(
-            float(point["mean_electrons"]), rel=1e-12)
+            float(point["mean_electrons"]), rel=1e-12
+        )
         for key in ("mean_electrons", "mean_dn", "snr"):
             assert out["image_average"][key][index] == pytest.approx(float(point["image_average"][key]), rel=1e-12)
 
@@ -159,8 +192,11 @@ def test_grid_evaluation_equals_point_by_point(example_raw):
     """The hard grid (every point its own spectral path) against scalar evaluations of sampled points."""
     example_raw["operation"]["exposure_s"] = 1e-4
     base = build_design(example_raw)
-    axes = {"operation.altitude_m": np.linspace(0.5, 10.0, 40), "water.attenuation_scale": np.linspace(0.5, 2.0, 30),
-            "light.beam_half_angle_deg": np.linspace(10.0, 60.0, 20)}
+    axes = {
+        "operation.altitude_m": np.linspace(0.5, 10.0, 40),
+        "water.attenuation_scale": np.linspace(0.5, 2.0, 30),
+        "light.beam_half_angle_deg": np.linspace(10.0, 60.0, 20),
+    }
     shaped = {k: v.reshape([-1 if i == j else 1 for j in range(3)]) for i, (k, v) in enumerate(axes.items())}
     out = evaluate(base.with_values(**shaped))
     rng = np.random.default_rng(3)
@@ -168,4 +204,5 @@ def test_grid_evaluation_equals_point_by_point(example_raw):
         point = evaluate(base.with_values(**{k: float(v[i]) for (k, v), i in zip(axes.items(), index, strict=True)}))
         assert out["mean_electrons"][index] == pytest.approx(float(point["mean_electrons"]), rel=1e-12)
         assert out["image_average"]["mean_electrons"][index] == pytest.approx(
-            float(point["image_average"]["mean_electrons"]), rel=ACCURACY)
+            float(point["image_average"]["mean_electrons"]), rel=ACCURACY
+        )

@@ -1,4 +1,5 @@
 """`uwlab sweep` and `uwlab dataset show` as subprocesses: crash and resume, Ctrl-C, refusals, exit codes."""
+
 import json
 import os
 import signal
@@ -11,11 +12,12 @@ from uwlab.experiments.acquisition.plan import load_plan
 from tests.support.cli_process import finish, points_recorded, run, uwlab, wait_until
 from tests.support.plans import camera, write_plan
 
-PLAN = {"name": "cli-unit", "camera": camera(32, 32),
-        "defaults": {"kind": "exposure", "values": {"start": 50, "stop": 400, "num": 8}, "settle_s": 0.15,
-                     "dark": "none"},
-        "sweeps": [{"id": "first"}, {"id": "second", "kind": "light-level", "values": [0.3, 0.6, 1.0],
-                                     "exposure_us": 200}]}
+PLAN = {
+    "name": "cli-unit",
+    "camera": camera(32, 32),
+    "defaults": {"kind": "exposure", "values": {"start": 50, "stop": 400, "num": 8}, "settle_s": 0.15, "dark": "none"},
+    "sweeps": [{"id": "first"}, {"id": "second", "kind": "light-level", "values": [0.3, 0.6, 1.0], "exposure_us": 200}],
+}
 
 
 @pytest.fixture
@@ -54,8 +56,9 @@ def test_crash_then_interrupt_then_resume_completes_exactly_the_missing_points(t
 
 def test_refusals_exit_2_with_one_line(tmp_path, plan_path):
     existing = tmp_path / "existing"
-    with Dataset.create(existing, {"sweep": [{"id": "x", "kind": "dark", "values": [1]}]}, plan_sha256="0" * 64,
-                        sim=True) as other:
+    with Dataset.create(
+        existing, {"sweep": [{"id": "x", "kind": "dark", "values": [1]}]}, plan_sha256="0" * 64, sim=True
+    ) as other:
         other.append_point({"sweep_id": "x", "point_index": 0, "kind": "dark", "frames": 2})
     code, _, err = run("sweep", plan_path, "--sim", "--out", existing)
     assert code == 2 and "--force" in err and len(err.strip().splitlines()) == 1
@@ -69,8 +72,17 @@ def test_refusals_exit_2_with_one_line(tmp_path, plan_path):
 def test_dataset_show(tmp_path):
     plan = {"name": "p", "sweep": [{"id": "a", "kind": "exposure", "values": [1, 2, 3]}]}
     data = Dataset.create(tmp_path, plan, plan_sha256="f" * 64, sim=True)
-    data.append_point({"sweep_id": "a", "point_index": 0, "kind": "exposure", "frames": 2, "saturated": True,
-                       "t_start_ns": 1_700_000_000_000_000_000, "t_end_ns": 1_700_000_001_000_000_000})
+    data.append_point(
+        {
+            "sweep_id": "a",
+            "point_index": 0,
+            "kind": "exposure",
+            "frames": 2,
+            "saturated": True,
+            "t_start_ns": 1_700_000_000_000_000_000,
+            "t_end_ns": 1_700_000_001_000_000_000,
+        }
+    )
     code, out, err = run("dataset", "show", tmp_path, "--json")
     summary = json.loads(out)
     assert code == 0 and summary["points_done"] == 1 and summary["points_total"] == 3

@@ -1,6 +1,7 @@
 """Sweeps under device faults never record a wrong point: serial simulators killed and restarted, the camera
 unreachable for seconds, read-backs that disagree. Truth is what the simulators logged (`state_log`), which the
 sweep never reads, and the images' physics. The heavy campaign is benchmarks/fault_campaign.py."""
+
 from __future__ import annotations
 
 import time
@@ -26,13 +27,25 @@ DEFAULTS = {"black_level_dn": 32, "frames_per_point": 4}
 
 
 def levels(num: int, **settings) -> dict:
-    return {"id": "levels", "kind": "light-level", "exposure_us": 400,
-            "values": {"start": 0.4, "stop": 1.0, "num": num}, "spectrometer": ["target"], "dark": "point", **settings}
+    return {
+        "id": "levels",
+        "kind": "light-level",
+        "exposure_us": 400,
+        "values": {"start": 0.4, "stop": 1.0, "num": num},
+        "spectrometer": ["target"],
+        "dark": "point",
+        **settings,
+    }
 
 
 def exposures(num: int) -> dict:
-    return {"id": "exposures", "kind": "exposure", "values": {"start": 50, "stop": 400, "num": num},
-            "spectrometer": ["target"], "dark": "point"}
+    return {
+        "id": "exposures",
+        "kind": "exposure",
+        "values": {"start": 50, "stop": 400, "num": num},
+        "spectrometer": ["target"],
+        "dark": "point",
+    }
 
 
 def plan_file(path, sweep: dict, **tables):
@@ -57,22 +70,45 @@ def gamma_spread(points: pd.DataFrame) -> float:
 
 
 def test_the_truth_check_flags_what_the_logs_contradict():
-    row = {"sweep_id": "s", "point_index": 0, "light_on": True, "light_level": 0.5, "light_on_readback": True,
-           "light_level_readback": 0.5, "irradiance_position": "target", "irradiance_w_m2": 1.0,
-           "spectrometer_integration_ms_readback": 10.0, "spectrometer_averaging_readback": 1,
-           "readback_t_start_ns": 100, "readback_t_end_ns": 200}
+    row = {
+        "sweep_id": "s",
+        "point_index": 0,
+        "light_on": True,
+        "light_level": 0.5,
+        "light_on_readback": True,
+        "light_level_readback": 0.5,
+        "irradiance_position": "target",
+        "irradiance_w_m2": 1.0,
+        "spectrometer_integration_ms_readback": 10.0,
+        "spectrometer_averaging_readback": 1,
+        "readback_t_start_ns": 100,
+        "readback_t_end_ns": 200,
+    }
     light = [{"t_ns": 50, "event": "command", "on": True, "level": 0.5}]
-    read = {"t_ns": 150, "event": "read", "position": "target", "integration_ms": 10.0, "averaging": 1,
-            "light_on": True, "light_level": 0.5}
-    spectrometer = [{"t_ns": 40, "event": "command", "position": "target", "integration_ms": 10.0, "averaging": 1},
-                    read]
+    read = {
+        "t_ns": 150,
+        "event": "read",
+        "position": "target",
+        "integration_ms": 10.0,
+        "averaging": 1,
+        "light_on": True,
+        "light_level": 0.5,
+    }
+    spectrometer = [
+        {"t_ns": 40, "event": "command", "position": "target", "integration_ms": 10.0, "averaging": 1},
+        read,
+    ]
     assert wrong_points(pd.DataFrame([row]), light, spectrometer) == []
-    cut = light + [{"t_ns": 120, "event": "power-lost", "on": False, "level": 0.0},
-                   {"t_ns": 130, "event": "power-on", "on": False, "level": 0.0},
-                   {"t_ns": 131, "event": "command", "on": True, "level": 0.5}]
+    cut = light + [
+        {"t_ns": 120, "event": "power-lost", "on": False, "level": 0.0},
+        {"t_ns": 130, "event": "power-on", "on": False, "level": 0.0},
+        {"t_ns": 131, "event": "command", "on": True, "level": 0.5},
+    ]
     assert len(wrong_points(pd.DataFrame([row]), cut, spectrometer)) == 2
-    reset = spectrometer[:1] + [{"t_ns": 140, "event": "power-on", "position": "target", "integration_ms": 100.0,
-                                 "averaging": 1}, {**read, "integration_ms": 100.0}]
+    reset = spectrometer[:1] + [
+        {"t_ns": 140, "event": "power-on", "position": "target", "integration_ms": 100.0, "averaging": 1},
+        {**read, "integration_ms": 100.0},
+    ]
     assert len(wrong_points(pd.DataFrame([row]), light, reset)) == 2
     assert len(wrong_points(pd.DataFrame([{**row, "light_level": 0.6}]), light, spectrometer)) == 3
 
@@ -106,8 +142,10 @@ def test_a_read_back_that_keeps_disagreeing_stops_the_sweep_with_one_error(tmp_p
     data = Dataset.create(tmp_path / "d", plan.raw, plan_sha256=plan.sha256, sim=True)
     with pytest.raises(DeviceError) as info:
         SweepRunner(plan, data, sim_rig).run()
-    assert str(info.value).startswith("sweep levels point 0: read-backs disagree after 3 attempts (light reads back "
-                                      "on=True level=0.123, want on=True level=0.4)")
+    assert str(info.value).startswith(
+        "sweep levels point 0: read-backs disagree after 3 attempts (light reads back "
+        "on=True level=0.123, want on=True level=0.4)"
+    )
     assert len(Dataset.open(tmp_path / "d").points()) == 0
 
 
@@ -127,8 +165,9 @@ def test_serial_restarts_at_random_moments_never_leave_a_wrong_point(tmp_path, s
 
 def test_camera_outages_within_the_limit_complete_the_sweep(tmp_path, sim_rig, monkeypatch):
     monkeypatch.setattr(sim_rig, "camera", None)  # no camera of an earlier sweep: the faults wait for this one's
-    with FaultInjector([camera_outage(lambda: sim_rig.camera, (0.5, 3.0))], seed=5, every_s=(0.3, 1.0),
-                       limit=3) as injector:
+    with FaultInjector(
+        [camera_outage(lambda: sim_rig.camera, (0.5, 3.0))], seed=5, every_s=(0.3, 1.0), limit=3
+    ) as injector:
         started = time.monotonic()
         points = sweep(tmp_path, sim_rig, exposures(24), "camera")
         finished_ns = time.time_ns()
@@ -151,15 +190,24 @@ def test_a_sweep_over_gige_and_serial_ptys_rides_out_a_camera_restart_and_a_ligh
             servers.append(servers[-1].restarted())
             return {"fault": "camera restart"}
 
-        plan = load_plan(plan_file(tmp_path / "hw.toml", exposures(16),
-                                   camera=camera(64, 48, backend="aravis", id=servers[0].address, timeout_s=2.0),
-                                   instruments={"light_port": serial.ports["light"],
-                                                "spectrometer_port": serial.ports["spectrometer"], "reopen_s": 30}))
+        plan = load_plan(
+            plan_file(
+                tmp_path / "hw.toml",
+                exposures(16),
+                camera=camera(64, 48, backend="aravis", id=servers[0].address, timeout_s=2.0),
+                instruments={
+                    "light_port": serial.ports["light"],
+                    "spectrometer_port": serial.ports["spectrometer"],
+                    "reopen_s": 30,
+                },
+            )
+        )
         data = Dataset.create(tmp_path / "hw", plan.raw, plan_sha256=plan.sha256, sim=False)
         try:
             with HardwareRig(plan, confirm=lambda message: None) as hardware:
-                with FaultInjector([restart_camera, serial_restart(serial, "light")], seed=2, every_s=(0.5, 1.5),
-                                   limit=2) as injector:
+                with FaultInjector(
+                    [restart_camera, serial_restart(serial, "light")], seed=2, every_s=(0.5, 1.5), limit=2
+                ) as injector:
                     SweepRunner(plan, data, hardware).run()
                     finished_ns = time.time_ns()
         finally:

@@ -1,5 +1,6 @@
 """Raw frames of a sweep on the simulated rig (``save_frames = true``): every frame a point was computed from, bright
 and dark, stored with its settings, found through `Dataset.frames`."""
+
 import os
 
 import numpy as np
@@ -11,8 +12,10 @@ from uwlab.experiments.dataset_frames import read_frame
 from tests.support.plans import camera, record, write_plan
 
 DEFAULTS = {"black_level_dn": 32, "frames_per_point": 4, "dark_frames": 2, "save_frames": True, "roi": [2, 3, 16, 12]}
-SWEEPS = [{"id": "per-point", "kind": "exposure", "values": [100, 300], "dark": "point"},
-          {"id": "block", "kind": "light-level", "values": [0.5, 1.0], "exposure_us": 200, "dark": "block"}]
+SWEEPS = [
+    {"id": "per-point", "kind": "exposure", "values": [100, 300], "dark": "point"},
+    {"id": "block", "kind": "light-level", "values": [0.5, 1.0], "exposure_us": 200, "dark": "block"},
+]
 
 
 def test_saved_frames_are_the_frames_each_point_was_computed_from(tmp_path, sim_rig):
@@ -27,9 +30,9 @@ def test_saved_frames_are_the_frames_each_point_was_computed_from(tmp_path, sim_
         x, y, w, h = point.roi_x, point.roi_y, point.roi_w, point.roi_h
         assert [m["frame_id"] for _, m in bright] == list(point.frame_ids)
         assert all(image.shape == (20, 24) and image.dtype == np.uint16 for image, _ in bright + dark)
-        stack = np.stack([image[y:y + h, x:x + w] for image, _ in bright]).astype(float)
+        stack = np.stack([image[y : y + h, x : x + w] for image, _ in bright]).astype(float)
         assert stack.mean() == point.mean_dn
-        dark_stack = np.stack([image[y:y + h, x:x + w] for image, _ in dark]).astype(float)
+        dark_stack = np.stack([image[y : y + h, x : x + w] for image, _ in dark]).astype(float)
         assert dark_stack.mean() == point.dark_mean_dn
         for _, meta in bright:
             assert meta["role"] == "bright" and meta["light_on"] and meta["roi"] == [x, y, w, h]

@@ -1,4 +1,5 @@
 """Plan validation: every bad key or impossible value is a ConfigError naming it; shipped plans parse."""
+
 import numpy as np
 import pytest
 
@@ -40,25 +41,28 @@ A = {"id": "a", "kind": "exposure", "values": [100]}
 LENS = {"focal_length_mm": 12, "f_number": 4.0, "f_number_range": [1.4, 16]}
 
 
-@pytest.mark.parametrize("sweeps, key", [
-    ([{**A, "colour": 1}], "sweep.a.colour"),
-    ([{**A, "values": [-5, 100]}], "sweep.a.values"),
-    ([{**A, "kind": "zoom", "values": [1]}], "sweep.a.kind"),
-    ([{**A, "frames_per_point": 1}], "sweep.a.frames_per_point"),
-    ([{**A, "kind": "aperture", "values": [1.0, 4.0], "lens": LENS}], "sweep.a.values"),
-    ([{**A, "lens": {**LENS, "f_number": 22.0}}], "sweep.a.lens.f_number"),
-    ([{**A, "kind": "aperture", "values": [2.0], "lens": "none"}], "sweep.a.lens"),
-    ([{**A, "dark": "block"}], "sweep.a.dark"),
-    ([{**A, "kind": "light-level", "values": [0.5, 1.5]}], "sweep.a.values"),
-    ([{**A, "kind": "gain", "values": [0, 99]}], "sweep.a.values"),
-    ([{**A, "roi": [0, 0, 1]}], "sweep.a.roi"),
-    ([{**A, "spectrometer": ["moon"]}], "sweep.a.spectrometer"),
-    ([{**A, "values": {"start": 1, "stop": 2, "num": 3, "spacing": "cubic"}}], "sweep.a.values.spacing"),
-    ([{**A, "geometry": {"lens": {"f_number": -2}}}], "sweep.a.lens.f_number"),
-    ([{**A, "sensor": "nosuchsensor"}], "sweep.a.rig.sensor.profile"),
-    ([{**A, "camera": {"pixel_format": "RGB8"}}], "sweep.a.camera.pixel_format"),
-    ([A, {"id": "a", "kind": "gain", "values": [0]}], "sweep.id"),
-])
+@pytest.mark.parametrize(
+    "sweeps, key",
+    [
+        ([{**A, "colour": 1}], "sweep.a.colour"),
+        ([{**A, "values": [-5, 100]}], "sweep.a.values"),
+        ([{**A, "kind": "zoom", "values": [1]}], "sweep.a.kind"),
+        ([{**A, "frames_per_point": 1}], "sweep.a.frames_per_point"),
+        ([{**A, "kind": "aperture", "values": [1.0, 4.0], "lens": LENS}], "sweep.a.values"),
+        ([{**A, "lens": {**LENS, "f_number": 22.0}}], "sweep.a.lens.f_number"),
+        ([{**A, "kind": "aperture", "values": [2.0], "lens": "none"}], "sweep.a.lens"),
+        ([{**A, "dark": "block"}], "sweep.a.dark"),
+        ([{**A, "kind": "light-level", "values": [0.5, 1.5]}], "sweep.a.values"),
+        ([{**A, "kind": "gain", "values": [0, 99]}], "sweep.a.values"),
+        ([{**A, "roi": [0, 0, 1]}], "sweep.a.roi"),
+        ([{**A, "spectrometer": ["moon"]}], "sweep.a.spectrometer"),
+        ([{**A, "values": {"start": 1, "stop": 2, "num": 3, "spacing": "cubic"}}], "sweep.a.values.spacing"),
+        ([{**A, "geometry": {"lens": {"f_number": -2}}}], "sweep.a.lens.f_number"),
+        ([{**A, "sensor": "nosuchsensor"}], "sweep.a.rig.sensor.profile"),
+        ([{**A, "camera": {"pixel_format": "RGB8"}}], "sweep.a.camera.pixel_format"),
+        ([A, {"id": "a", "kind": "gain", "values": [0]}], "sweep.id"),
+    ],
+)
 def test_bad_plans_name_the_key(tmp_path, sweeps, key):
     with pytest.raises(ConfigError) as info:
         load_plan(plan_file(tmp_path, sweeps))
@@ -75,9 +79,15 @@ def test_bad_top_level(tmp_path):
 
 
 def test_points_follow_the_kind(tmp_path):
-    plan = load_plan(plan_file(tmp_path, [
-        {"id": "levels", "kind": "light-level", "values": [0.25, 1.0], "exposure_us": 500},
-        {"id": "dark", "kind": "dark", "values": [100, 200]}]))
+    plan = load_plan(
+        plan_file(
+            tmp_path,
+            [
+                {"id": "levels", "kind": "light-level", "values": [0.25, 1.0], "exposure_us": 500},
+                {"id": "dark", "kind": "dark", "values": [100, 200]},
+            ],
+        )
+    )
     levels, dark = plan.sweeps
     assert [(p.light_level, p.exposure_us, p.light_on) for p in levels.points()] == [
         (0.25, 500, True),

@@ -1,4 +1,5 @@
 """ArUco ROI on a synthetic board generated with cv2.aruco, and rectangle checks."""
+
 import cv2
 import numpy as np
 import pytest
@@ -13,13 +14,17 @@ def board_image(marker_px=40, origin=(60, 50), size=(300, 200), dtype=np.uint16)
     image = np.full((360, 480), 300.0)
     x0, y0 = origin
     w, h = size
-    image[y0:y0 + h, x0:x0 + w] = 3500.0
+    image[y0 : y0 + h, x0 : x0 + w] = 3500.0
     quiet = 10
-    corners = [(x0 + quiet, y0 + quiet), (x0 + w - quiet - marker_px, y0 + quiet),
-               (x0 + quiet, y0 + h - quiet - marker_px), (x0 + w - quiet - marker_px, y0 + h - quiet - marker_px)]
+    corners = [
+        (x0 + quiet, y0 + quiet),
+        (x0 + w - quiet - marker_px, y0 + quiet),
+        (x0 + quiet, y0 + h - quiet - marker_px),
+        (x0 + w - quiet - marker_px, y0 + h - quiet - marker_px),
+    ]
     for marker_id, (cx, cy) in enumerate(corners):
         marker = cv2.aruco.generateImageMarker(dictionary, marker_id, marker_px)
-        image[cy:cy + marker_px, cx:cx + marker_px] = np.where(marker > 0, 3500.0, 300.0)
+        image[cy : cy + marker_px, cx : cx + marker_px] = np.where(marker > 0, 3500.0, 300.0)
     noise = np.random.default_rng(1).normal(0.0, 20.0, image.shape)
     return (image + noise).astype(dtype)
 

@@ -1,5 +1,6 @@
 """Sweeps on the simulated rig (serial light and spectrometer on pseudo-terminals, in-process camera):
 statistics against the EMVA 1288 model, the light path, apertures, device loss, disk full, resume."""
+
 import errno
 
 import numpy as np
@@ -15,13 +16,18 @@ from uwlab.experiments.acquisition.sweep import SweepRunner, check_resumable, op
 
 from tests.support.plans import camera, record, write_plan
 
-EXPOSURE = {"id": "exposure", "kind": "exposure", "values": [50, 100, 200, 300, 400],
-            "spectrometer": ["target", "camera"]}
+EXPOSURE = {
+    "id": "exposure",
+    "kind": "exposure",
+    "values": [50, 100, 200, 300, 400],
+    "spectrometer": ["target", "camera"],
+}
 
 
 def plan_file(path, *sweeps: dict):
-    return write_plan(path, "sim-unit", sweeps, camera=camera(64, 48),
-                      defaults={"black_level_dn": 32, "frames_per_point": 4})
+    return write_plan(
+        path, "sim-unit", sweeps, camera=camera(64, 48), defaults={"black_level_dn": 32, "frames_per_point": 4}
+    )
 
 
 def run(tmp_path, rig, *sweeps: dict, name="d"):
@@ -73,9 +79,19 @@ def test_light_level_sweep_dims_the_images_through_the_serial_light(tmp_path, si
 
 
 def test_aperture_sweep_follows_the_inverse_square_of_the_f_number(tmp_path, sim_rig):
-    _, data = run(tmp_path, sim_rig, {"id": "a", "kind": "aperture", "values": [4.0, 8.0], "exposure_us": 2000,
-                                       "dark": "block", "roi": "aruco",
-                                       "lens": {"focal_length_mm": 12, "f_number": 4.0, "f_number_range": [1.4, 16]}})
+    _, data = run(
+        tmp_path,
+        sim_rig,
+        {
+            "id": "a",
+            "kind": "aperture",
+            "values": [4.0, 8.0],
+            "exposure_us": 2000,
+            "dark": "block",
+            "roi": "aruco",
+            "lens": {"focal_length_mm": 12, "f_number": 4.0, "f_number_range": [1.4, 16]},
+        },
+    )
     points = data.points()
     assert points["signal_dn"].iloc[1] / points["signal_dn"].iloc[0] == pytest.approx(0.25, rel=0.03)
     assert points["lens_label"].tolist() == ["12mm-F4.0", "12mm-F8.0"]
@@ -103,8 +119,9 @@ def test_device_lost_mid_sweep_reconnects_and_completes(tmp_path, sim_rig, monke
 
 
 def test_disk_full_keeps_the_points_and_resume_completes(tmp_path, sim_rig, monkeypatch):
-    plan = load_plan(plan_file(tmp_path / "p.toml", {"id": "e", "kind": "exposure", "values": [100, 200, 300, 400],
-                                                     "dark": "none"}))
+    plan = load_plan(
+        plan_file(tmp_path / "p.toml", {"id": "e", "kind": "exposure", "values": [100, 200, 300, 400], "dark": "none"})
+    )
     data = Dataset.create(tmp_path / "d", plan.raw, plan_sha256=plan.sha256, sim=True)
     parts = []
     real_write = dataset_store.write_durable
@@ -137,8 +154,13 @@ def test_foreign_dataset_is_refused(tmp_path, sim_rig):
 
 
 def test_manual_aperture_prompts_the_operator_or_refuses(tmp_path):
-    manual = {"id": "a", "kind": "aperture", "values": [4.0, 8.0], "dark": "none",
-              "lens": {"focal_length_mm": 12, "f_number": 4.0}}
+    manual = {
+        "id": "a",
+        "kind": "aperture",
+        "values": [4.0, 8.0],
+        "dark": "none",
+        "lens": {"focal_length_mm": 12, "f_number": 4.0},
+    }
     plan = load_plan(plan_file(tmp_path / "hw.toml", manual))
     data = Dataset.create(tmp_path / "d", plan.raw, plan_sha256=plan.sha256)
     with HardwareRig(plan, confirm=None) as rig, pytest.raises(ConfigError, match="--non-interactive"):

@@ -3,6 +3,7 @@
 A process runs in a session of its own, so that a signal to its process group reaches it and the simulators it
 starts as a terminal's Ctrl-C would, and a hung one is killed with everything it started. Its output is text
 (UTF-8, undecodable bytes as backslash escapes)."""
+
 from __future__ import annotations
 
 import os
@@ -24,9 +25,15 @@ def uwlab(*args, **popen) -> subprocess.Popen:
     """``uwlab ARGS`` started (arguments: strings, paths or bytes), stdout and stderr piped; ``popen``: more
     `subprocess.Popen` arguments (``env``, ``preexec_fn``, ...)."""
     argv = [a if isinstance(a, bytes) else str(a) for a in args]
-    return subprocess.Popen([sys.executable, "-m", "uwlab.cli.main", *argv], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, encoding="utf-8", errors="backslashreplace",
-                            start_new_session=True, **popen)
+    return subprocess.Popen(
+        [sys.executable, "-m", "uwlab.cli.main", *argv],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        encoding="utf-8",
+        errors="backslashreplace",
+        start_new_session=True,
+        **popen,
+    )
 
 
 def finish(process: subprocess.Popen, timeout_s: float = TIMEOUT_S) -> tuple[int, str, str]:
@@ -46,8 +53,13 @@ def run(*args, timeout_s: float = TIMEOUT_S, **popen) -> tuple[int, str, str]:
     return finish(uwlab(*args, **popen), timeout_s)
 
 
-def wait_until(condition: Callable[[], bool], process: subprocess.Popen, what: str, every_s: float = 0.05,
-               timeout_s: float = TIMEOUT_S) -> None:
+def wait_until(
+    condition: Callable[[], bool],
+    process: subprocess.Popen,
+    what: str,
+    every_s: float = 0.05,
+    timeout_s: float = TIMEOUT_S,
+) -> None:
     """Return once ``condition()`` holds (tried every ``every_s``); fail if ``process`` exits before, or after
     ``timeout_s``."""
     deadline = time.monotonic() + timeout_s

@@ -1,5 +1,6 @@
 """`uwlab explore` as a real process on 127.0.0.1 for the tests: started with ``--json --port 0 --no-browser``,
 its URL read from the first line, stopped with Ctrl-C (SIGINT)."""
+
 from __future__ import annotations
 
 import json
@@ -13,9 +14,12 @@ START_TIMEOUT_S = 120
 
 class Explorer:
     def __init__(self, *args: str):
-        self.process = subprocess.Popen([sys.executable, "-m", "uwlab.cli.main", "explore", "--no-browser", "--json",
-                                         "--port", "0", *args], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                        text=True)
+        self.process = subprocess.Popen(
+            [sys.executable, "-m", "uwlab.cli.main", "explore", "--no-browser", "--json", "--port", "0", *args],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
         ready, _, _ = select.select([self.process.stdout], [], [], START_TIMEOUT_S)
         line = self.process.stdout.readline() if ready else ""
         if not line:

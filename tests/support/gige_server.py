@@ -1,4 +1,5 @@
 """`uwlab sim camera --gige` in a subprocess on its own loopback address, for tests (always stopped)."""
+
 from __future__ import annotations
 
 import itertools
@@ -18,9 +19,23 @@ class Server:
         self.extra = extra
         for _ in range(5):
             self.address = address or f"127.0.{os.getpid() % 200 + 1}.{next(_hosts) % 250 + 2}"
-            self.proc = subprocess.Popen([sys.executable, "-m", "uwlab.cli.main", "sim", "camera", "--gige", "--json",
-                                          "--address", self.address, *extra],
-                                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+            self.proc = subprocess.Popen(
+                [
+                    sys.executable,
+                    "-m",
+                    "uwlab.cli.main",
+                    "sim",
+                    "camera",
+                    "--gige",
+                    "--json",
+                    "--address",
+                    self.address,
+                    *extra,
+                ],
+                stdout=subprocess.PIPE,
+                stderr=subprocess.PIPE,
+                text=True,
+            )
             line = self.proc.stdout.readline()
             if line:
                 self.info = json.loads(line)

@@ -1,4 +1,5 @@
 """Where the tests find the repository's configs and their own data (tests never read ../shared)."""
+
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[2]

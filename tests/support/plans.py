@@ -1,5 +1,6 @@
 """Sweep plans for the tests, written from tables with tomli-w so that a test states only what its sweeps need, and
 `record`: a plan's sweeps on a simulated rig in process, as ``uwlab sweep --sim`` runs them."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -14,16 +15,28 @@ from tests.support.paths import SIM_TANK
 
 # A small stand-in for the demo's campaign (configs/plans/tank-exposure-sweep.toml): its IMX250 sweeps through the
 # 30 mm F2.0 and the 12 mm F4.0 lens, 8 exposures from 20 µs to 1.5 ms, 32 × 24 px windows, 2 frames a point.
-CAMPAIGN_DEFAULTS = {"kind": "exposure", "values": {"start": 20, "stop": 1500, "num": 8, "spacing": "log"},
-                     "frames_per_point": 2, "dark": "point", "dark_frames": 2, "spectrometer": ["target", "camera"],
-                     "spectrometer_integration_ms": 10}
+CAMPAIGN_DEFAULTS = {
+    "kind": "exposure",
+    "values": {"start": 20, "stop": 1500, "num": 8, "spacing": "log"},
+    "frames_per_point": 2,
+    "dark": "point",
+    "dark_frames": 2,
+    "spectrometer": ["target", "camera"],
+    "spectrometer_integration_ms": 10,
+}
 CAMPAIGN_SWEEPS = [
-    {"id": "imx250-30mm-f2", "sensor": "imx250m",
-     "lens": {"focal_length_mm": 30, "f_number": 2.0, "f_number_range": [2.0, 16.0]},
-     "camera": {"id": "blackfly-s", "pixel_format": "Mono12", "window": [1192, 1000, 32, 24]}},
-    {"id": "imx250-12mm-f4", "sensor": "imx250m",
-     "lens": {"focal_length_mm": 12, "f_number": 4.0, "f_number_range": [1.4, 16.0]},
-     "camera": {"id": "blackfly-s", "pixel_format": "Mono12", "window": [1192, 1000, 32, 24]}},
+    {
+        "id": "imx250-30mm-f2",
+        "sensor": "imx250m",
+        "lens": {"focal_length_mm": 30, "f_number": 2.0, "f_number_range": [2.0, 16.0]},
+        "camera": {"id": "blackfly-s", "pixel_format": "Mono12", "window": [1192, 1000, 32, 24]},
+    },
+    {
+        "id": "imx250-12mm-f4",
+        "sensor": "imx250m",
+        "lens": {"focal_length_mm": 12, "f_number": 4.0, "f_number_range": [1.4, 16.0]},
+        "camera": {"id": "blackfly-s", "pixel_format": "Mono12", "window": [1192, 1000, 32, 24]},
+    },
 ]
 
 
@@ -33,8 +46,7 @@ def camera(width: int, height: int, **settings) -> dict:
     return {"pixel_format": "Mono12", "window": [1192, 1000, width, height], **settings}
 
 
-def write_plan(path: Path, name: str | None, sweeps: list[dict] = (), *, rig: Path | None = SIM_TANK,
-               **tables) -> Path:
+def write_plan(path: Path, name: str | None, sweeps: list[dict] = (), *, rig: Path | None = SIM_TANK, **tables) -> Path:
     """A plan file at ``path`` (docs/sweeps.md): ``name``, ``rig``, the other top-level keys and tables (``camera``,
     ``instruments``, ``defaults``, ...) and a ``[[sweep]]`` table per item of ``sweeps``; None leaves a key out."""
     raw = {"name": name, "rig": None if rig is None else str(rig), **tables, "sweep": list(sweeps) or None}

@@ -1,5 +1,6 @@
 """The layers hold: no import cycles between uwlab's modules (imports inside functions included), and the
 import-linter contracts of pyproject.toml (layers; the real rig never imports the simulator) are kept."""
+
 from __future__ import annotations
 
 import grimp

@@ -5,6 +5,7 @@ A fit directory holds, beside the outputs of ``uwlab fit``, ``posterior.nc``: th
 (`uwlab.experiments.calibration.inference`), so ``arviz.summary(arviz.from_netcdf(".../fit/posterior.nc"))`` and
 ``arviz.plot_trace`` work on it directly.
 """
+
 from __future__ import annotations
 
 import json
@@ -113,8 +114,12 @@ class Fit:
     @property
     def verdict(self) -> Verdict:
         s = self.summary
-        return Verdict(bool(s.get("model_adequate")), str(s.get("model")), tuple(s.get("checks") or ()),
-                       tuple(s.get("warnings") or ()))
+        return Verdict(
+            bool(s.get("model_adequate")),
+            str(s.get("model")),
+            tuple(s.get("checks") or ()),
+            tuple(s.get("warnings") or ()),
+        )
 
     @property
     def held_out(self) -> pd.DataFrame:
@@ -135,17 +140,25 @@ class Fit:
         band = credible_band(design, load_posterior(self.directory, design, max_samples=samples))
         rows = {k: v for k, v in band.items() if isinstance(v, dict)}
         frame = pd.DataFrame.from_dict(rows, orient="index")
-        frame.attrs.update(saturated_fraction=band["saturated_fraction"], carried=band["carried"],
-                           samples=band["samples"])
+        frame.attrs.update(
+            saturated_fraction=band["saturated_fraction"], carried=band["carried"], samples=band["samples"]
+        )
         return frame
 
     def __repr__(self) -> str:
         return f"Fit({str(self.directory)!r})"
 
 
-def fit(dataset: Dataset | str | os.PathLike[str], model: str | None = "extended",
-        out: str | os.PathLike[str] | None = None, *, config: str | os.PathLike[str] | None = None,
-        train: list[str] | None = None, progress: bool = True, **sampler: int) -> Fit:
+def fit(
+    dataset: Dataset | str | os.PathLike[str],
+    model: str | None = "extended",
+    out: str | os.PathLike[str] | None = None,
+    *,
+    config: str | os.PathLike[str] | None = None,
+    train: list[str] | None = None,
+    progress: bool = True,
+    **sampler: int,
+) -> Fit:
     """Calibrate the model against a dataset with emcee, check it and judge it (``uwlab fit``).
 
     Parameters
@@ -187,13 +200,21 @@ def fit(dataset: Dataset | str | os.PathLike[str], model: str | None = "extended
     target = Path(out) if out is not None else root / "fit"
     shown, update = tau_bar("sampling", enabled=progress)
     with shown:
-        calibrate(root, None if config is None else Path(config), target, train, progress=update, model=model,
-                  sampler=dict(sampler) or None)
+        calibrate(
+            root,
+            None if config is None else Path(config),
+            target,
+            train,
+            progress=update,
+            model=model,
+            sampler=dict(sampler) or None,
+        )
     return Fit.open(target)
 
 
-def report(source: Fit | Dataset | str | os.PathLike[str], out: str | os.PathLike[str] | None = None, *,
-           force: bool = False) -> Path:
+def report(
+    source: Fit | Dataset | str | os.PathLike[str], out: str | os.PathLike[str] | None = None, *, force: bool = False
+) -> Path:
     """Write the self-contained HTML validation report (``uwlab report``; verdict first).
 
     Parameters

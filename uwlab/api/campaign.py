@@ -5,6 +5,7 @@
 >>> plan.name, plan.total_points()
 ('tank-exposure-sweep', 72)
 """
+
 from __future__ import annotations
 
 import os
@@ -103,9 +104,17 @@ class Dataset:
         return f"Dataset({str(self.path)!r})"
 
 
-def sweep(plan: Plan | str | Path, out: str | Path | None = None, *, sim: bool = False, resume: bool = False,
-          force: bool = False, seed: int = 0, progress: bool = True,
-          confirm: Callable[[str], None] | None = None) -> Dataset:
+def sweep(
+    plan: Plan | str | Path,
+    out: str | Path | None = None,
+    *,
+    sim: bool = False,
+    resume: bool = False,
+    force: bool = False,
+    seed: int = 0,
+    progress: bool = True,
+    confirm: Callable[[str], None] | None = None,
+) -> Dataset:
     """Run a sweep plan into a dataset (``uwlab sweep``), point by point, each durable as it completes.
 
     Parameters
@@ -145,10 +154,20 @@ def sweep(plan: Plan | str | Path, out: str | Path | None = None, *, sim: bool =
 
     loaded = plan if isinstance(plan, Plan) else load_plan(plan)
     with bar(desc="sweep", unit="point", enabled=progress) as shown:
+
         def report(event: Progress) -> None:
             shown.total = event.total
             shown.set_position(event.done, progress_text(event))
 
-        root = run_session(loaded, out, resume=resume, sim=sim, force=force, confirm=confirm, seed=seed,
-                           progress=report, purpose="uwlab.sweep")
+        root = run_session(
+            loaded,
+            out,
+            resume=resume,
+            sim=sim,
+            force=force,
+            confirm=confirm,
+            seed=seed,
+            progress=report,
+            purpose="uwlab.sweep",
+        )
     return Dataset.open(root)

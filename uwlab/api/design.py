@@ -6,6 +6,7 @@
 >>> round(result["snr_db"], 1), result.units["snr_db"]
 (36.5, 'dB')
 """
+
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
@@ -147,9 +148,16 @@ class Evaluation:
             for output in warning.outputs:
                 notes.setdefault(output, []).append(warning.message)
         labels = self.labels
-        rows = [{"name": name, "value": self[name], "unit": unit, "label": labels[name],
-                 "warning": "; ".join(notes.get(name, notes.get(name.split(".")[0], [])))}
-                for name, unit in self.units.items()]
+        rows = [
+            {
+                "name": name,
+                "value": self[name],
+                "unit": unit,
+                "label": labels[name],
+                "warning": "; ".join(notes.get(name, notes.get(name.split(".")[0], []))),
+            }
+            for name, unit in self.units.items()
+        ]
         return pd.DataFrame(rows).set_index("name")
 
     def __str__(self) -> str:
@@ -181,8 +189,13 @@ def evaluate(design: Design) -> Evaluation:
     from uwlab.jsonable import to_jsonable
     from uwlab.model.design import evaluate as run
 
-    arrays = [v for body in design.values.values() if isinstance(body, dict) for v in body.values()
-              if isinstance(v, np.ndarray) and v.size != 1]
+    arrays = [
+        v
+        for body in design.values.values()
+        if isinstance(body, dict)
+        for v in body.values()
+        if isinstance(v, np.ndarray) and v.size != 1
+    ]
     if arrays:
         raise ConfigError("design", "arrays", "evaluate takes one design; use uwlab.grid for many")
     outputs = to_jsonable(run(design))
@@ -236,8 +249,9 @@ def grid(design: Design, axes: Mapping[str, Iterable[Any]], outputs: Sequence[st
     from uwlab.experiments.design.grid import DesignGrid, in_memory_frame
 
     listed = {_dotted(k): _axis_values(k, v) for k, v in axes.items()}
-    frame = in_memory_frame(DesignGrid(_raw(design), listed, design.base_dir,
-                                       outputs=tuple(outputs) if outputs is not None else None))
+    frame = in_memory_frame(
+        DesignGrid(_raw(design), listed, design.base_dir, outputs=tuple(outputs) if outputs is not None else None)
+    )
     return frame.set_index(list(listed)) if listed else frame
 
 
@@ -247,9 +261,15 @@ def _posterior_dir(posterior: Fit | str | Path) -> Path:
     return posterior.directory if isinstance(posterior, Fit) else Path(posterior)
 
 
-def solve(design: Design, free: Mapping[str, tuple[float, float]], require: Sequence[str],
-          minimize: str | Sequence[str] = (), maximize: str | Sequence[str] = (),
-          posterior: Fit | str | Path | None = None, confidence: float | None = None) -> pd.DataFrame:
+def solve(
+    design: Design,
+    free: Mapping[str, tuple[float, float]],
+    require: Sequence[str],
+    minimize: str | Sequence[str] = (),
+    maximize: str | Sequence[str] = (),
+    posterior: Fit | str | Path | None = None,
+    confidence: float | None = None,
+) -> pd.DataFrame:
     """Inverse design (``uwlab design solve``): values of the `free` keys meeting every requirement with the least
     (`minimize`) and/or most (`maximize`) of one or two of them.
 
@@ -304,15 +324,24 @@ def solve(design: Design, free: Mapping[str, tuple[float, float]], require: Sequ
             return load_posterior(fit_dir, d, max_samples=500)
 
     chosen = 0.9 if confidence is None and posterior is not None else confidence or 1.0
-    problem = Problem(_raw(design), design.base_dir,
-                      [FreeKey(_dotted(k), float(lo), float(hi)) for k, (lo, hi) in free.items()],
-                      [parse_requirement(r) for r in require], objectives, loader, chosen)
+    problem = Problem(
+        _raw(design),
+        design.base_dir,
+        [FreeKey(_dotted(k), float(lo), float(hi)) for k, (lo, hi) in free.items()],
+        [parse_requirement(r) for r in require],
+        objectives,
+        loader,
+        chosen,
+    )
     result = run(problem)
     answer = result_dict(result, problem)
     if not result.feasible:
         unmet = [entry["requirement"] for entry in answer["unmet"]]
-        reason = (f"cannot be met even at the bounds: {', '.join(unmet)}" if unmet else
-                  "cannot be met together: " + " | ".join("; ".join(group) for group in answer["conflicting"]))
+        reason = (
+            f"cannot be met even at the bounds: {', '.join(unmet)}"
+            if unmet
+            else "cannot be met together: " + " | ".join("; ".join(group) for group in answer["conflicting"])
+        )
         raise Infeasible(f"no feasible design: {reason}", answer)
     frame = front_frame(result, problem)
     frame.attrs["answer"] = answer

@@ -3,6 +3,7 @@
 The figures are those of EMVA Standard 1288 Release 4.0 (Linear, or General for non-linear cameras), computed by
 `uwlab.experiments.emva` (docs/emva.md gives the method and equation of each).
 """
+
 from __future__ import annotations
 
 import os
@@ -46,9 +47,16 @@ class EmvaResult:
     True
     """
 
-    def __init__(self, analysis: Analysis, transfer: PhotonTransfer, *, camera: str = "camera",
-                 base: SensorProfile | None = None, info: SheetInfo | None = None,
-                 pixel_size_um: float | None = None) -> None:
+    def __init__(
+        self,
+        analysis: Analysis,
+        transfer: PhotonTransfer,
+        *,
+        camera: str = "camera",
+        base: SensorProfile | None = None,
+        info: SheetInfo | None = None,
+        pixel_size_um: float | None = None,
+    ) -> None:
         self.analysis = analysis
         self.transfer = transfer
         self.camera = camera
@@ -120,9 +128,15 @@ class EmvaResult:
         stem = profile_name(name or f"measured-{self.camera}")
         pt = self.transfer
         exposure_us = (float(np.min(pt.exposure_s) * 1e6), float(np.max(pt.exposure_s) * 1e6))
-        toml_text, csv_text = profile_documents(self.analysis.values, name=stem, width_px=pt.width_px,
-                                                height_px=pt.height_px, exposure_range_us=exposure_us,
-                                                pixel_size_um=self.pixel_size_um, base=self.base)
+        toml_text, csv_text = profile_documents(
+            self.analysis.values,
+            name=stem,
+            width_px=pt.width_px,
+            height_px=pt.height_px,
+            exposure_range_us=exposure_us,
+            pixel_size_um=self.pixel_size_um,
+            base=self.base,
+        )
         folder = Path(directory) if directory is not None else Path(tempfile.mkdtemp(prefix="uwlab-profile-"))
         (folder / f"{stem}.toml").write_text(toml_text)
         (folder / f"{stem}_qe.csv").write_text(csv_text)
@@ -135,9 +149,15 @@ class EmvaResult:
 
         stem = profile_name(name or f"measured-{self.camera}")
         paths = output_paths(Path(out), self.analysis, stem, bool(self.pixel_size_um or self.base))
-        document: dict[str, Any] = write_characterization(self.analysis, self.transfer, paths, name=stem,
-                                                          base=self.base, pixel_size_um=self.pixel_size_um,
-                                                          info=self.info)
+        document: dict[str, Any] = write_characterization(
+            self.analysis,
+            self.transfer,
+            paths,
+            name=stem,
+            base=self.base,
+            pixel_size_um=self.pixel_size_um,
+            info=self.info,
+        )
         return document
 
     def __repr__(self) -> str:
@@ -145,8 +165,13 @@ class EmvaResult:
         return f"EmvaResult({self.camera!r}, model={self.model!r}, K_dn_per_e={k!r}, quantum_efficiency={eta!r})"
 
 
-def characterize(source: Dataset | PhotonTransfer | str | os.PathLike[str], *, model: str = "linear",
-                 sweep: str | None = None, pixel_size_um: float | None = None) -> EmvaResult:
+def characterize(
+    source: Dataset | PhotonTransfer | str | os.PathLike[str],
+    *,
+    model: str = "linear",
+    sweep: str | None = None,
+    pixel_size_um: float | None = None,
+) -> EmvaResult:
     """EMVA 1288 Release 4.0 characterisation of a camera (``uwlab emva characterize``).
 
     Parameters
@@ -193,5 +218,11 @@ def characterize(source: Dataset | PhotonTransfer | str | os.PathLike[str], *, m
     from uwlab.experiments.emva.from_dataset import load_dataset_input
 
     loaded = load_dataset_input(path, sweep_id=sweep, pixel_size_um=pixel_size_um)
-    return EmvaResult(run(loaded.transfer, model), loaded.transfer, camera=loaded.camera, base=loaded.profile,
-                      info=loaded.info, pixel_size_um=pixel_size_um)
+    return EmvaResult(
+        run(loaded.transfer, model),
+        loaded.transfer,
+        camera=loaded.camera,
+        base=loaded.profile,
+        info=loaded.info,
+        pixel_size_um=pixel_size_um,
+    )

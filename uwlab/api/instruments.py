@@ -11,6 +11,7 @@ safe state) on any exit. Limits are checked before anything is sent; every setti
 >>> frame.settings.exposure_us, frame.image.ndim
 (1000.0, 2)
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -24,8 +25,9 @@ if TYPE_CHECKING:
     from uwlab.drivers.serial import Light, Spectrometer
 
 
-def open_camera(backend: str = "sim", device_id: str | None = None, policy: Policy | None = None,
-                **options: Any) -> Camera:
+def open_camera(
+    backend: str = "sim", device_id: str | None = None, policy: Policy | None = None, **options: Any
+) -> Camera:
     """Open a camera (`uwlab.drivers.camera.open_camera`): `backend` ``"sim"``, ``"harvesters"`` (GenTL;
     ``cti=[...]``) or ``"aravis"``; `device_id` the first found when None; ``config=RIG.toml`` for the simulated
     camera's rig. Returns the `uwlab.drivers.camera.Camera` (a context manager).
@@ -98,10 +100,20 @@ class Grab:
         return [frame.image for frame in self.frames]
 
 
-def grab(backend: str = "sim", device_id: str | None = None, *, frames: int = 1, exposure_us: float | None = None,
-         gain_db: float | None = None, pixel_format: str | None = None, roi: tuple[int, int, int, int] | None = None,
-         config: str | None = None, sensor: str | None = None, cti: list[str] | None = None,
-         timeout_s: float = 5.0) -> Grab:
+def grab(
+    backend: str = "sim",
+    device_id: str | None = None,
+    *,
+    frames: int = 1,
+    exposure_us: float | None = None,
+    gain_db: float | None = None,
+    pixel_format: str | None = None,
+    roi: tuple[int, int, int, int] | None = None,
+    config: str | None = None,
+    sensor: str | None = None,
+    cti: list[str] | None = None,
+    timeout_s: float = 5.0,
+) -> Grab:
     """Acquire `frames` frames with read-back settings and their statistics (``uwlab grab``).
 
     Parameters
@@ -127,8 +139,14 @@ def grab(backend: str = "sim", device_id: str | None = None, *, frames: int = 1,
     """
     from uwlab.experiments.acquisition.grab import Settings, grab_frames
 
-    grabbed = grab_frames(backend, device_id, frames=frames, sensor=sensor, config=config, cti=cti,
-                          timeout_s=timeout_s,
-                          settings=Settings(exposure_us=exposure_us, gain_db=gain_db, pixel_format=pixel_format,
-                                            roi=roi))
+    grabbed = grab_frames(
+        backend,
+        device_id,
+        frames=frames,
+        sensor=sensor,
+        config=config,
+        cti=cti,
+        timeout_s=timeout_s,
+        settings=Settings(exposure_us=exposure_us, gain_db=gain_db, pixel_format=pixel_format, roi=roi),
+    )
     return Grab(grabbed.device, grabbed.frames, grabbed.rows)

@@ -1,4 +1,5 @@
 """The bundled configs (designs, plans, rigs, sensors, fit configs): `config_path`."""
+
 from __future__ import annotations
 
 from pathlib import Path

@@ -1,4 +1,5 @@
 """`uwlab demo`: the main job on the simulated rig — campaign, calibration, validation, report."""
+
 from __future__ import annotations
 
 import json
@@ -10,19 +11,31 @@ from uwlab.progress import bar, tau_bar
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("demo",
-                              description="Simulated rig → exposure sweeps (IMX250, ICX285 × three lens settings) → "
-                                          "Bayesian calibration → validation report. Prints the report's path.")
+    p = subparsers.add_parser(
+        "demo",
+        description="Simulated rig → exposure sweeps (IMX250, ICX285 × three lens settings) → "
+        "Bayesian calibration → validation report. Prints the report's path.",
+    )
     p.add_argument("--out", metavar="DIR", help="new output directory (default: out/demo-<date>-<time>)")
-    p.add_argument("--world", choices=("ideal", "tank", "turbid"),
-                   help="what renders the simulated rig: ideal (the paper's model itself), tank (the tank renderer: "
-                        "real beam, refraction, backscatter, stray light, drift, sensor realism), turbid (the tank "
-                        "with added scatterers); default: the rig's, tank")
-    p.add_argument("--model", choices=("paper", "extended"),
-                   help="the chain the calibration fits: the paper's, or the extended one (lights' placement and "
-                        "beam, the board, backscatter, vignetting); default: the rig's, extended")
-    p.add_argument("--seed", type=int, default=0, help="seed of all the simulated noise: camera, spectrometer "
-                   "(default 0; equal seeds give equal numbers)")
+    p.add_argument(
+        "--world",
+        choices=("ideal", "tank", "turbid"),
+        help="what renders the simulated rig: ideal (the paper's model itself), tank (the tank renderer: "
+        "real beam, refraction, backscatter, stray light, drift, sensor realism), turbid (the tank "
+        "with added scatterers); default: the rig's, tank",
+    )
+    p.add_argument(
+        "--model",
+        choices=("paper", "extended"),
+        help="the chain the calibration fits: the paper's, or the extended one (lights' placement and "
+        "beam, the board, backscatter, vignetting); default: the rig's, extended",
+    )
+    p.add_argument(
+        "--seed",
+        type=int,
+        default=0,
+        help="seed of all the simulated noise: camera, spectrometer (default 0; equal seeds give equal numbers)",
+    )
     p.add_argument("--json", action="store_true", help="print summary.json")
     p.set_defaults(func=run)
 
@@ -57,8 +70,10 @@ def run(args) -> int:
     coverage = summary["predictive_coverage"]["held_out_inside_95"]
     print(f"held-out points inside their 95 % bands: {100 * coverage:.0f} %")
     for row in summary["cross_configuration"]:
-        print(f"  {row['sweep_id']:<18} held out: median error {100 * row['median_abs_rel_error']:.2f} %, "
-              f"{100 * row['inside_95']:.0f} % inside")
+        print(
+            f"  {row['sweep_id']:<18} held out: median error {100 * row['median_abs_rel_error']:.2f} %, "
+            f"{100 * row['inside_95']:.0f} % inside"
+        )
     for note in summary["warnings"]:
         print(f"warning: {note}")
     print(summary["report"])

@@ -1,4 +1,5 @@
 """`uwlab design`: the design calculator (one design, or a grid of designs)."""
+
 from __future__ import annotations
 
 import json
@@ -16,35 +17,78 @@ def register(subparsers) -> None:
     p = subparsers.add_parser(
         "design",
         description="Evaluate an underwater camera design (TOML) with the image-formation model: one design, a grid "
-                    "of designs (--grid), or the inverse problem `uwlab design solve CONFIG --free ... --require ...`.")
+        "of designs (--grid), or the inverse problem `uwlab design solve CONFIG --free ... --require ...`.",
+    )
     p.add_argument("config", help="design TOML (see configs/design/example.toml), or `solve` followed by the TOML")
     p.add_argument("solve_config", nargs="?", metavar="CONFIG", help="with `solve`: the design TOML")
     p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE", help="override one value")
-    p.add_argument("--out", metavar="FILE", help="results to FILE: .parquet (a directory of parts) or .csv; without "
-                   "--grid the single design's row; with solve and two objectives the Pareto front")
+    p.add_argument(
+        "--out",
+        metavar="FILE",
+        help="results to FILE: .parquet (a directory of parts) or .csv; without "
+        "--grid the single design's row; with solve and two objectives the Pareto front",
+    )
     p.add_argument("--plot", metavar="DIR", help="write the design figures (PNG) to DIR (solve: the Pareto front)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
-    p.add_argument("--posterior", metavar="FIT_DIR", help="a `uwlab fit` output: carry its posterior into the "
-                   "design (credible band on response and SNR) or into solve (requirements met with probability)")
+    p.add_argument(
+        "--posterior",
+        metavar="FIT_DIR",
+        help="a `uwlab fit` output: carry its posterior into the "
+        "design (credible band on response and SNR) or into solve (requirements met with probability)",
+    )
     solve = p.add_argument_group("solve (uwlab design solve CONFIG ...)")
-    solve.add_argument("--free", action="append", default=[], metavar="SECTION.KEY=LO:HI",
-                       help="a key the solver may choose within [LO, HI] (repeatable)")
-    solve.add_argument("--require", action="append", default=[], metavar='"OUTPUT OP VALUE"',
-                       help='a requirement on an output of `uwlab design --json`, OP >= or <= (repeatable), '
-                            'e.g. "snr_db >= 30", "dof_m.near <= 1.7"')
-    solve.add_argument("--minimize", dest="objectives", action="append", default=[], metavar="SECTION.KEY",
-                       type=lambda key: ("minimize", key), help="a free key to make as small as possible")
-    solve.add_argument("--maximize", dest="objectives", action="append", metavar="SECTION.KEY",
-                       type=lambda key: ("maximize", key), help="a free key to make as large as possible (with a "
-                       "second objective: the Pareto front)")
-    solve.add_argument("--confidence", type=float, metavar="P",
-                       help="with --posterior: the probability the requirements must hold with (default 0.9)")
+    solve.add_argument(
+        "--free",
+        action="append",
+        default=[],
+        metavar="SECTION.KEY=LO:HI",
+        help="a key the solver may choose within [LO, HI] (repeatable)",
+    )
+    solve.add_argument(
+        "--require",
+        action="append",
+        default=[],
+        metavar='"OUTPUT OP VALUE"',
+        help="a requirement on an output of `uwlab design --json`, OP >= or <= (repeatable), "
+        'e.g. "snr_db >= 30", "dof_m.near <= 1.7"',
+    )
+    solve.add_argument(
+        "--minimize",
+        dest="objectives",
+        action="append",
+        default=[],
+        metavar="SECTION.KEY",
+        type=lambda key: ("minimize", key),
+        help="a free key to make as small as possible",
+    )
+    solve.add_argument(
+        "--maximize",
+        dest="objectives",
+        action="append",
+        metavar="SECTION.KEY",
+        type=lambda key: ("maximize", key),
+        help="a free key to make as large as possible (with a second objective: the Pareto front)",
+    )
+    solve.add_argument(
+        "--confidence",
+        type=float,
+        metavar="P",
+        help="with --posterior: the probability the requirements must hold with (default 0.9)",
+    )
     grid = p.add_argument_group("grids")
-    grid.add_argument("--grid", action="append", default=[], metavar="SECTION.KEY=START:STOP:STEP|V1,V2,...",
-                      help="evaluate the Cartesian grid of these values (repeatable)")
+    grid.add_argument(
+        "--grid",
+        action="append",
+        default=[],
+        metavar="SECTION.KEY=START:STOP:STEP|V1,V2,...",
+        help="evaluate the Cartesian grid of these values (repeatable)",
+    )
     grid.add_argument("--columns", metavar="OUT1,OUT2,...", help="grid outputs to keep (default: all)")
-    grid.add_argument("--dask", metavar="local|tcp://HOST:PORT",
-                      help="evaluate the grid on a Dask cluster (a LocalCluster, or a scheduler address) into --out")
+    grid.add_argument(
+        "--dask",
+        metavar="local|tcp://HOST:PORT",
+        help="evaluate the grid on a Dask cluster (a LocalCluster, or a scheduler address) into --out",
+    )
     p.set_defaults(func=run)
 
 
@@ -52,16 +96,20 @@ JSON_POINTS = 10_000
 SOLVE_SAMPLES = 500
 
 
-_BAND = (("mean_dn", "mean response (on axis)", "DN", "{:.1f}"),
-         ("mean_fraction", "fraction of full scale", "", "{:.3f}"),
-         ("snr_db", "SNR", "dB", "{:.1f}"),
-         ("image_average_mean_dn", "image average response", "DN", "{:.1f}"))
+_BAND = (
+    ("mean_dn", "mean response (on axis)", "DN", "{:.1f}"),
+    ("mean_fraction", "fraction of full scale", "", "{:.3f}"),
+    ("snr_db", "SNR", "dB", "{:.1f}"),
+    ("image_average_mean_dn", "image average response", "DN", "{:.1f}"),
+)
 
 
 def _band_text(band: dict) -> str:
-    lines = [f"calibrated uncertainty ({band['samples']} posterior samples of {band['fit']}: "
-             f"{', '.join(band['carried']) or 'nothing carried'})",
-             f"  {'':<30} {'median':>9} {'68 % interval':>22} {'95 % interval':>22}"]
+    lines = [
+        f"calibrated uncertainty ({band['samples']} posterior samples of {band['fit']}: "
+        f"{', '.join(band['carried']) or 'nothing carried'})",
+        f"  {'':<30} {'median':>9} {'68 % interval':>22} {'95 % interval':>22}",
+    ]
     for key, label, unit, fmt in _BAND:
         q = band[key]
         inner = f"[{fmt.format(q['p16'])}, {fmt.format(q['p84'])}]"
@@ -123,8 +171,11 @@ def run_grid(args, raw: dict, base: Path) -> int:
         _print_grid_summary(summary, args.json)
         return 0
     if args.json and grid.points > JSON_POINTS:
-        raise ConfigError("--json", f"{grid.points} points", f"more than {JSON_POINTS} points are not printed; "
-                          "write them with --out FILE.parquet")
+        raise ConfigError(
+            "--json",
+            f"{grid.points} points",
+            f"more than {JSON_POINTS} points are not printed; write them with --out FILE.parquet",
+        )
     frame = in_memory_frame(grid)
     if args.json:
         rows = to_jsonable(frame.to_dict(orient="records"))
@@ -189,12 +240,20 @@ SOLVE_ONLY = ("free", "require", "objectives", "confidence")
 
 
 def run_solve(args) -> int:
-    from uwlab.experiments.design.solve import (Objective, Problem, front_frame, parse_free, parse_requirement,
-                                                result_dict, solve)
+    from uwlab.experiments.design.solve import (
+        Objective,
+        Problem,
+        front_frame,
+        parse_free,
+        parse_requirement,
+        result_dict,
+        solve,
+    )
 
     if args.solve_config is None:
-        raise ConfigError("design solve", None,
-                          "give the design TOML: uwlab design solve CONFIG --free ... --require ...")
+        raise ConfigError(
+            "design solve", None, "give the design TOML: uwlab design solve CONFIG --free ... --require ..."
+        )
     for option in ("grid", "columns", "dask"):
         if getattr(args, option):
             raise ConfigError(f"--{option}", getattr(args, option), "not an option of solve")
@@ -222,8 +281,15 @@ def run_solve(args) -> int:
         from uwlab.experiments.design.posterior import load_posterior
 
         loader = lambda design: load_posterior(args.posterior, design, max_samples=SOLVE_SAMPLES)  # noqa: E731
-    problem = Problem(raw, base, [parse_free(f) for f in args.free], [parse_requirement(r) for r in args.require],
-                      objectives, loader, 0.9 if args.confidence is None and args.posterior else args.confidence or 1.0)
+    problem = Problem(
+        raw,
+        base,
+        [parse_free(f) for f in args.free],
+        [parse_requirement(r) for r in args.require],
+        objectives,
+        loader,
+        0.9 if args.confidence is None and args.posterior else args.confidence or 1.0,
+    )
     result = solve(problem)
     answer = result_dict(result, problem)
     if result.feasible and two:
@@ -236,8 +302,18 @@ def run_solve(args) -> int:
             from uwlab.experiments.design.plots import plot_front
 
             y, x = (f for f in problem.free[:2])
-            answer["plot"] = str(plot_front(frame, x.key, y.key, (objectives[1].sense, objectives[0].sense),
-                                            answer["requirements"], Path(args.plot) / "front.png", x.log, y.log))
+            answer["plot"] = str(
+                plot_front(
+                    frame,
+                    x.key,
+                    y.key,
+                    (objectives[1].sense, objectives[0].sense),
+                    answer["requirements"],
+                    Path(args.plot) / "front.png",
+                    x.log,
+                    y.log,
+                )
+            )
     if args.json:
         json.dump(to_jsonable(answer), sys.stdout, indent=2)
         sys.stdout.write("\n")
@@ -252,13 +328,16 @@ def _solve_text(answer: dict) -> str:
     lines.append(f"objectives: {objectives}")
     if "posterior" in answer:
         post = answer["posterior"]
-        lines.append(f"posterior: {post['samples']} samples of {post['fit']} ({', '.join(post['carried'])}); "
-                     f"requirements must hold together with probability >= {answer['confidence']:g}")
+        lines.append(
+            f"posterior: {post['samples']} samples of {post['fit']} ({', '.join(post['carried'])}); "
+            f"requirements must hold together with probability >= {answer['confidence']:g}"
+        )
     if not answer["feasible"]:
         lines.append("infeasible within the bounds")
         for entry in answer["unmet"]:
-            best = (f"best {entry['best']:.4g}" if "best" in entry
-                    else f"best probability {entry['best_probability']:.3f}")
+            best = (
+                f"best {entry['best']:.4g}" if "best" in entry else f"best probability {entry['best_probability']:.3f}"
+            )
             where = ", ".join(f"{k} = {v:.4g}" for k, v in entry["at"].items())
             lines.append(f"  cannot be met even at the bounds: {entry['requirement']} ({best}, at {where})")
         for group in answer["conflicting"]:
@@ -270,8 +349,10 @@ def _solve_text(answer: dict) -> str:
     for point in points:
         values = ", ".join(f"{k} = {v:.6g}" for k, v in point["solution"].items())
         extra = f"; probability {point['probability']:.3f}" if "probability" in point else ""
-        lines.append(f"  {values}   active: {'; '.join(point['active']) or 'none'}{extra}"
-                     + ("" if point["minimal"] else "   (not minimal)"))
+        lines.append(
+            f"  {values}   active: {'; '.join(point['active']) or 'none'}{extra}"
+            + ("" if point["minimal"] else "   (not minimal)")
+        )
     if "front" not in answer:
         verdict = "yes" if answer["minimal"] else "no"
         lines.append(f"minimal: {verdict} (1 % better objective breaks a requirement)")

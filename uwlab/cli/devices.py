@@ -1,4 +1,5 @@
 """`uwlab devices`: cameras found on every backend (sim, harvesters, aravis)."""
+
 from __future__ import annotations
 
 import json
@@ -8,10 +9,16 @@ from uwlab.drivers.camera import discover
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("devices",
-                              description="List cameras from every available backend; missing backends are reported.")
-    p.add_argument("--cti", action="append", default=[], metavar="PATH",
-                   help="GenTL producer for harvesters (repeatable; default: GENICAM_GENTL64_PATH)")
+    p = subparsers.add_parser(
+        "devices", description="List cameras from every available backend; missing backends are reported."
+    )
+    p.add_argument(
+        "--cti",
+        action="append",
+        default=[],
+        metavar="PATH",
+        help="GenTL producer for harvesters (repeatable; default: GENICAM_GENTL64_PATH)",
+    )
     p.add_argument("--config", metavar="RIG.toml", help="rig of the simulated camera (default rig if omitted)")
     p.add_argument("--json", action="store_true", help="print one JSON list of {backend, id, vendor, model, serial}")
     p.set_defaults(func=run)

@@ -1,5 +1,6 @@
 """`uwlab emva`: EMVA 1288 Release 4.0 characterisation of a sweep dataset, a descriptor dataset or a fleet of them,
 and export to the EMVA 1288 descriptor format."""
+
 from __future__ import annotations
 
 import json
@@ -27,17 +28,24 @@ _SUMMARY = (
     ("dsnu_p", "DSNU1288", "p", "{:.3g}"),
     ("prnu_percent", "PRNU1288", "%", "{:.3g}"),
 )
-_FLEET_COLUMNS = (("K_dn_per_e", "K DN/e-", "{:.4g}"), ("quantum_efficiency", "η", "{:.3f}"),
-                  ("dark_noise_e", "σ_d e-", "{:.3g}"), ("saturation_e", "μe.sat e-", "{:.5g}"),
-                  ("dynamic_range_db", "DR dB", "{:.1f}"), ("linearity_error_percent", "LE %", "{:.2g}"),
-                  ("dsnu_e", "DSNU e-", "{:.3g}"), ("prnu_percent", "PRNU %", "{:.3g}"),
-                  ("dark_current_e_per_s", "Idark e-/s", "{:.3g}"))
+_FLEET_COLUMNS = (
+    ("K_dn_per_e", "K DN/e-", "{:.4g}"),
+    ("quantum_efficiency", "η", "{:.3f}"),
+    ("dark_noise_e", "σ_d e-", "{:.3g}"),
+    ("saturation_e", "μe.sat e-", "{:.5g}"),
+    ("dynamic_range_db", "DR dB", "{:.1f}"),
+    ("linearity_error_percent", "LE %", "{:.2g}"),
+    ("dsnu_e", "DSNU e-", "{:.3g}"),
+    ("prnu_percent", "PRNU %", "{:.3g}"),
+    ("dark_current_e_per_s", "Idark e-/s", "{:.3g}"),
+)
 MODELS = ("linear", "general")
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("emva", description="EMVA 1288 Release 4.0 (linear or general model) "
-                                                  "characterisation (docs/emva.md).")
+    p = subparsers.add_parser(
+        "emva", description="EMVA 1288 Release 4.0 (linear or general model) characterisation (docs/emva.md)."
+    )
     sub = p.add_subparsers(dest="emva_command", required=True, parser_class=type(p))
     c = sub.add_parser("characterize", help="EMVA 1288 parameters, datasheet, XML and a sensor profile")
     c.add_argument("dataset", nargs="?", help="uwlab sweep dataset directory")
@@ -45,40 +53,58 @@ def register(subparsers) -> None:
     _input_options(c)
     _model_option(c)
     c.add_argument("--name", help="name of the sensor profile written to --out (default: measured-<camera>)")
-    c.add_argument("--out", metavar="DIR", help="write emva.json, datasheet.html, emva1288.xml, the figures and the "
-                                                "profile TOML here")
+    c.add_argument(
+        "--out",
+        metavar="DIR",
+        help="write emva.json, datasheet.html, emva1288.xml, the figures and the profile TOML here",
+    )
     c.add_argument("--json", action="store_true", help="print one JSON object")
     c.set_defaults(func=run_characterize)
     f = sub.add_parser("fleet", help="characterise every dataset and descriptor under a folder (one row per camera)")
     f.add_argument("folder", help="folder holding datasets and/or EMVA1288*.txt descriptor files")
     _model_option(f)
-    f.add_argument("--pixel-size-um", type=float,
-                   help="pixel pitch for descriptors (datasets use their sensor profile)")
+    f.add_argument(
+        "--pixel-size-um", type=float, help="pixel pitch for descriptors (datasets use their sensor profile)"
+    )
     f.add_argument("--out", metavar="DIR", help="one sub-directory per camera, plus fleet.csv and fleet.json")
     f.add_argument("--json", action="store_true", help="print the rows as a JSON list")
     f.set_defaults(func=run_fleet)
-    e = sub.add_parser("export", help="write a dataset's photon transfer as an EMVA 1288 descriptor dataset (its "
-                                      "recorded frames, else synthetic images)")
+    e = sub.add_parser(
+        "export",
+        help="write a dataset's photon transfer as an EMVA 1288 descriptor dataset (its "
+        "recorded frames, else synthetic images)",
+    )
     e.add_argument("dataset", help="uwlab sweep dataset directory")
     _input_options(e)
     e.add_argument("--out", metavar="DIR", required=True, help="directory for the descriptor and its images")
-    e.add_argument("--image-size", default="256x256", metavar="WxH",
-                   help="size of synthetic images when the sweep kept no raw frames (default 256x256)")
+    e.add_argument(
+        "--image-size",
+        default="256x256",
+        metavar="WxH",
+        help="size of synthetic images when the sweep kept no raw frames (default 256x256)",
+    )
     e.add_argument("--json", action="store_true", help="print one JSON object")
     e.set_defaults(func=run_export)
 
 
 def _model_option(p) -> None:
-    p.add_argument("--model", choices=MODELS, default="linear",
-                   help="Release 4.0 Linear (default) or General (non-linear cameras; suggested by the linear "
-                        "characterisation when the camera is not linear)")
+    p.add_argument(
+        "--model",
+        choices=MODELS,
+        default="linear",
+        help="Release 4.0 Linear (default) or General (non-linear cameras; suggested by the linear "
+        "characterisation when the camera is not linear)",
+    )
 
 
 def _input_options(p) -> None:
     p.add_argument("--sweep", help="sweep_id of the photon-transfer sweep (default: the only one)")
-    p.add_argument("--irradiance", metavar="W_M2|CSV",
-                   help="irradiance at the sensor plane: a number [W/m²] (with --wavelength-nm) or a spectrum CSV "
-                        "(wavelength_nm, irradiance_w_m2_nm); overrides the dataset's readings")
+    p.add_argument(
+        "--irradiance",
+        metavar="W_M2|CSV",
+        help="irradiance at the sensor plane: a number [W/m²] (with --wavelength-nm) or a spectrum CSV "
+        "(wavelength_nm, irradiance_w_m2_nm); overrides the dataset's readings",
+    )
     p.add_argument("--wavelength-nm", type=float, help="wavelength of monochromatic light, for integrated irradiances")
     p.add_argument("--pixel-size-um", type=float, help="pixel pitch (default: from the dataset's sensor profile)")
 
@@ -113,15 +139,21 @@ def _override(args):
         value = float(args.irradiance)
     except ValueError:
         return IrradianceOverride.from_csv(args.irradiance)
-    return IrradianceOverride(irradiance_w_m2=check(IrradianceWM2, value, "--irradiance"),
-                              wavelength_nm=args.wavelength_nm)
+    return IrradianceOverride(
+        irradiance_w_m2=check(IrradianceWM2, value, "--irradiance"), wavelength_nm=args.wavelength_nm
+    )
 
 
 def _load_dataset(args):
     from uwlab.experiments.emva.from_dataset import load_dataset_input
 
-    return load_dataset_input(args.dataset, sweep_id=args.sweep, pixel_size_um=args.pixel_size_um,
-                              override=_override(args), wavelength_nm=args.wavelength_nm)
+    return load_dataset_input(
+        args.dataset,
+        sweep_id=args.sweep,
+        pixel_size_um=args.pixel_size_um,
+        override=_override(args),
+        wavelength_nm=args.wavelength_nm,
+    )
 
 
 def run_characterize(args) -> int:
@@ -145,8 +177,9 @@ def run_characterize(args) -> int:
     name = profile_name(args.name or f"measured-{camera}")
     if args.out:
         paths = output_paths(Path(args.out), result, name, bool(args.pixel_size_um or base))
-        document = write_characterization(result, pt, paths, name=name, base=base, pixel_size_um=args.pixel_size_um,
-                                          info=info)
+        document = write_characterization(
+            result, pt, paths, name=name, base=base, pixel_size_um=args.pixel_size_um, info=info
+        )
     else:
         document = result_document(result)
     if args.json:
@@ -158,9 +191,11 @@ def run_characterize(args) -> int:
 
 
 def _summary(doc: dict) -> str:
-    lines = [f"EMVA 1288 ({doc['standard']}) — {doc['source']}",
-             f"{doc['points']} points, saturation at point {doc['saturation_index']} ({doc['saturation_rule']}), "
-             f"gain {doc['gain_db']:g} dB, {doc['bit_depth']} bit"]
+    lines = [
+        f"EMVA 1288 ({doc['standard']}) — {doc['source']}",
+        f"{doc['points']} points, saturation at point {doc['saturation_index']} ({doc['saturation_rule']}), "
+        f"gain {doc['gain_db']:g} dB, {doc['bit_depth']} bit",
+    ]
     for key, label, unit, fmt in _SUMMARY:
         if key not in doc:
             continue
@@ -186,12 +221,18 @@ def run_fleet(args) -> int:
     from uwlab.progress import bar
 
     with bar(total=len(inputs), desc="EMVA 1288", unit="camera") as shown:
+
         def progress(row) -> None:
             shown.update(1)
             shown.set_postfix_str(row.camera[:30])
 
-        rows = characterize_fleet(inputs, model=args.model, pixel_size_um=args.pixel_size_um,
-                                  out=Path(args.out) if args.out else None, progress=progress)
+        rows = characterize_fleet(
+            inputs,
+            model=args.model,
+            pixel_size_um=args.pixel_size_um,
+            out=Path(args.out) if args.out else None,
+            progress=progress,
+        )
     documents = [row.document() for row in rows]
     if args.json:
         from uwlab.jsonable import dumps
@@ -252,8 +293,9 @@ def run_export(args) -> int:
         path = write_descriptor(pt, args.out, shape=shape, source=pt.source)
         how = "SYNTHETIC images from the recorded statistics: the sweep kept no raw frames (save_frames = true)"
     if args.json:
-        json.dump({"descriptor": str(path), "points": int(len(pt.photons)), "synthetic_images": not recorded},
-                  sys.stdout)
+        json.dump(
+            {"descriptor": str(path), "points": int(len(pt.photons)), "synthetic_images": not recorded}, sys.stdout
+        )
         sys.stdout.write("\n")
     else:
         print(f"wrote {path} ({len(pt.photons)} points, {how})")

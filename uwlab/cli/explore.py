@@ -1,4 +1,5 @@
 """`uwlab explore`: the design explorer, a local web page over a design (docs/explorer.md)."""
+
 from __future__ import annotations
 
 import asyncio
@@ -15,17 +16,27 @@ DEFAULT_PORT = 8050
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("explore",
-                              description="Serve the design explorer for a design TOML on a local address and open "
-                                          "it in the browser.")
+    p = subparsers.add_parser(
+        "explore",
+        description="Serve the design explorer for a design TOML on a local address and open it in the browser.",
+    )
     p.add_argument("config", nargs="?", help="design TOML (default: configs/design/example.toml)")
-    p.add_argument("--port", type=int, default=DEFAULT_PORT,
-                   help=f"TCP port (default {DEFAULT_PORT}; 0: any free port)")
-    p.add_argument("--host", default="127.0.0.1",
-                   help="address to listen on (default 127.0.0.1; the explorer serves anyone who can reach it)")
-    p.add_argument("--profile", action="append", default=[], metavar="PATH",
-                   help="a sensor (e.g. `uwlab emva` output), light or lens profile TOML, or a directory of them, "
-                        "offered beside the shipped ones (repeatable)")
+    p.add_argument(
+        "--port", type=int, default=DEFAULT_PORT, help=f"TCP port (default {DEFAULT_PORT}; 0: any free port)"
+    )
+    p.add_argument(
+        "--host",
+        default="127.0.0.1",
+        help="address to listen on (default 127.0.0.1; the explorer serves anyone who can reach it)",
+    )
+    p.add_argument(
+        "--profile",
+        action="append",
+        default=[],
+        metavar="PATH",
+        help="a sensor (e.g. `uwlab emva` output), light or lens profile TOML, or a directory of them, "
+        "offered beside the shipped ones (repeatable)",
+    )
     p.add_argument("--no-browser", action="store_true", help="do not open a browser")
     p.add_argument("--json", action="store_true", help='print {"url": ...} as one JSON line')
     p.set_defaults(func=run)
@@ -67,8 +78,9 @@ def run(args) -> int:
     host, port = sock.getsockname()[:2]
     shown = f"[{host}]" if ":" in host else host
     url = f"http://{shown}:{port}/"
-    server = uvicorn.Server(uvicorn.Config(create_app(served, catalog), log_level="warning", access_log=False,
-                                           lifespan="off"))
+    server = uvicorn.Server(
+        uvicorn.Config(create_app(served, catalog), log_level="warning", access_log=False, lifespan="off")
+    )
 
     async def serve() -> None:
         """Serve, and print the URL once the server accepts connections (and handles Ctrl-C itself)."""

@@ -1,4 +1,5 @@
 """`uwlab fit`: Bayesian calibration of the model against a dataset, with validation."""
+
 from __future__ import annotations
 
 import json
@@ -11,13 +12,24 @@ from uwlab.progress import tau_bar
 def register(subparsers) -> None:
     p = subparsers.add_parser("fit", description="Fit the image-formation model's free parameters to a sweep dataset.")
     p.add_argument("dataset", help="dataset directory (from `uwlab sweep`)")
-    p.add_argument("--config", metavar="FIT.toml", help="free parameters and priors (default: light efficiency, "
-                   "attenuation scale, each camera's K, discrepancy; see configs/fit/default.toml)")
+    p.add_argument(
+        "--config",
+        metavar="FIT.toml",
+        help="free parameters and priors (default: light efficiency, "
+        "attenuation scale, each camera's K, discrepancy; see configs/fit/default.toml)",
+    )
     p.add_argument("--out", metavar="DIR", help="output directory (default: DATASET/fit)")
-    p.add_argument("--train", action="append", metavar="SWEEP_ID",
-                   help="sweeps the held-out check fits (it predicts the others; default: two folds of the sweeps)")
-    p.add_argument("--model", choices=("paper", "extended"),
-                   help="the chain to fit: the paper's or the extended one (default: the dataset's rigs' [model] kind)")
+    p.add_argument(
+        "--train",
+        action="append",
+        metavar="SWEEP_ID",
+        help="sweeps the held-out check fits (it predicts the others; default: two folds of the sweeps)",
+    )
+    p.add_argument(
+        "--model",
+        choices=("paper", "extended"),
+        help="the chain to fit: the paper's or the extended one (default: the dataset's rigs' [model] kind)",
+    )
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(func=run)
 
@@ -39,13 +51,17 @@ def run(args) -> int:
         f"{summary['model']} model: {'adequate' if summary['model_adequate'] else 'NOT adequate'}; "
         f"{100 * summary['predictive_coverage']['held_out_inside_95']:.0f} % of held-out points inside their 95 % bands"
     )
-    print(f"converged: {summary['converged']} ({summary['steps']} steps, {summary['tau_multiple']:.0f} τ, "
-          f"acceptance {summary['acceptance_fraction']:.2f})")
+    print(
+        f"converged: {summary['converged']} ({summary['steps']} steps, {summary['tau_multiple']:.0f} τ, "
+        f"acceptance {summary['acceptance_fraction']:.2f})"
+    )
     print(f"{'parameter':<26}{'median':>12}{'68 % interval':>26}{'truth':>10}")
     for name, p in summary["parameters"].items():
         truth = p.get("truth")
-        print(f"{name:<26}{p['median']:>12.4g}   [{p['p16']:.4g}, {p['p84']:.4g}]".ljust(64)
-              + (f"{truth:>10.4g}" if truth is not None else f"{'':>10}"))
+        print(
+            f"{name:<26}{p['median']:>12.4g}   [{p['p16']:.4g}, {p['p84']:.4g}]".ljust(64)
+            + (f"{truth:>10.4g}" if truth is not None else f"{'':>10}")
+        )
     for note in summary["warnings"]:
         print(f"warning: {note}")
     for pair in summary["not_separable"]:

@@ -1,4 +1,5 @@
 """`uwlab grab`: acquire frames from one camera and report per-frame statistics."""
+
 from __future__ import annotations
 
 import json
@@ -12,22 +13,30 @@ from uwlab.outputs import output_dir
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("grab", description="Acquire N frames; report mean, std, min, max and saturated "
-                                                  "fraction per frame.")
+    p = subparsers.add_parser(
+        "grab", description="Acquire N frames; report mean, std, min, max and saturated fraction per frame."
+    )
     p.add_argument("--backend", choices=tuple(BACKENDS), default="sim")
     p.add_argument("--device", metavar="ID", help="device id (aravis: id or IP address); default: first found")
     p.add_argument("--cti", action="append", default=[], metavar="PATH", help="GenTL producer (harvesters)")
     p.add_argument("--config", metavar="RIG.toml", help="rig of the simulated camera")
-    p.add_argument("--sensor", metavar="PROFILE", help="sensor profile (name or TOML) giving the clip level of "
-                   "saturated pixels (default for --backend sim: the rig's; else detected from the frames)")
+    p.add_argument(
+        "--sensor",
+        metavar="PROFILE",
+        help="sensor profile (name or TOML) giving the clip level of "
+        "saturated pixels (default for --backend sim: the rig's; else detected from the frames)",
+    )
     p.add_argument("--exposure-us", type=float)
     p.add_argument("--gain-db", type=float)
     p.add_argument("--pixel-format", metavar="F", help="Mono8, Mono10, Mono10p, Mono12, Mono12p, Mono12Packed, Mono16")
     p.add_argument("--frames", type=int, default=1)
     p.add_argument("--roi", metavar="x,y,w,h", help="device region of interest in pixels")
     p.add_argument("--timeout-s", type=float, default=5.0, help="per-frame acquisition timeout")
-    p.add_argument("--save", metavar="DIR", help="write each frame as TIFF with its settings in the metadata "
-                   "(DIR is created if its parent exists)")
+    p.add_argument(
+        "--save",
+        metavar="DIR",
+        help="write each frame as TIFF with its settings in the metadata (DIR is created if its parent exists)",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object {device, frames}")
     p.set_defaults(func=run)
 
@@ -49,10 +58,12 @@ def frame_stats(frame: Frame, sensor: SensorProfile | None) -> dict:
     profile_dn = None
     if sensor is not None:
         offset = sensor.dark_offset_dn + (s.black_level or 0.0)
-        profile_dn = sensor_clip_dn(sensor.gain_k(s.gain_db or 0.0), sensor.saturation_e, offset, sensor.bit_depth,
-                                    frame.pixel_format)
-    clip = clip_level(frame.pixel_format, native_bits=sensor.bit_depth if sensor else None, profile_dn=profile_dn,
-                      image=img)
+        profile_dn = sensor_clip_dn(
+            sensor.gain_k(s.gain_db or 0.0), sensor.saturation_e, offset, sensor.bit_depth, frame.pixel_format
+        )
+    clip = clip_level(
+        frame.pixel_format, native_bits=sensor.bit_depth if sensor else None, profile_dn=profile_dn, image=img
+    )
     return {
         "frame_id": frame.frame_id,
         "timestamp_ns": frame.timestamp_ns,
@@ -93,8 +104,13 @@ def unique_path(directory: Path, stem: str) -> Path:
 def save_tiff(directory: Path, frame: Frame, device: dict) -> Path:
     import tifffile
 
-    metadata = {"device": device, "frame_id": frame.frame_id, "timestamp_ns": frame.timestamp_ns,
-                "pixel_format": frame.pixel_format, "settings": frame.settings.to_dict()}
+    metadata = {
+        "device": device,
+        "frame_id": frame.frame_id,
+        "timestamp_ns": frame.timestamp_ns,
+        "pixel_format": frame.pixel_format,
+        "settings": frame.settings.to_dict(),
+    }
     while True:
         path = unique_path(directory, f"frame-{frame.frame_id:06d}")
         try:
@@ -139,7 +155,9 @@ def run(args) -> int:
         return 0
     print(f"{device['backend']}:{device['device_id']} {device['vendor']} {device['model']} (serial {device['serial']})")
     for r in rows:
-        print(f"frame {r['frame_id']}: {r['width']}x{r['height']} {r['pixel_format']} exposure {r['exposure_us']} us "
-              f"gain {r['gain_db']} dB  mean {r['mean']:.2f} std {r['std']:.2f} min {r['min']} max {r['max']} "
-              f"saturated {100 * r['saturated_fraction']:.3f} % (clip {r['clip_level_dn']:g} DN, {r['clip_source']})")
+        print(
+            f"frame {r['frame_id']}: {r['width']}x{r['height']} {r['pixel_format']} exposure {r['exposure_us']} us "
+            f"gain {r['gain_db']} dB  mean {r['mean']:.2f} std {r['std']:.2f} min {r['min']} max {r['max']} "
+            f"saturated {100 * r['saturated_fraction']:.3f} % (clip {r['clip_level_dn']:g} DN, {r['clip_source']})"
+        )
     return 0

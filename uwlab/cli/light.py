@@ -1,4 +1,5 @@
 """`uwlab light`: switch and dim the light; `uwlab light calibrate`: its level → irradiance curve."""
+
 from __future__ import annotations
 
 import json
@@ -27,14 +28,21 @@ def register(subparsers) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
     sub = p.add_subparsers(dest="light_command", metavar="calibrate")
-    c = sub.add_parser("calibrate", help="measure irradiance at N light levels",
-                       description="Step the light through N levels in [0, 1] and store the spectrum at each.")
+    c = sub.add_parser(
+        "calibrate",
+        help="measure irradiance at N light levels",
+        description="Step the light through N levels in [0, 1] and store the spectrum at each.",
+    )
     c.add_argument("--light", required=True, metavar="PORT", help="serial port of the light")
     c.add_argument("--spectrometer", required=True, metavar="PORT", help="serial port of the spectrometer")
     c.add_argument("--protocol", choices=PROTOCOLS, default=PROTOCOLS[0], help="instrument protocol")
     c.add_argument("--levels", type=int, default=11, help="number of levels, evenly spaced over [0, 1] (default 11)")
-    c.add_argument("--out", default=DEFAULT_CALIBRATION, metavar="FILE",
-                   help=f"calibration CSV to create; never overwritten (default {DEFAULT_CALIBRATION})")
+    c.add_argument(
+        "--out",
+        default=DEFAULT_CALIBRATION,
+        metavar="FILE",
+        help=f"calibration CSV to create; never overwritten (default {DEFAULT_CALIBRATION})",
+    )
     c.add_argument("--json", action="store_true", help="print one JSON object")
     c.set_defaults(func=run_calibrate)
 
@@ -60,9 +68,11 @@ def run(args) -> int:
 def run_calibrate(args) -> int:
     levels = calibration_levels(args.levels)
     out = output_file(args.out, "--out")
-    with open_light(args.light, args.protocol) as light, \
-            open_spectrometer(args.spectrometer, args.protocol) as spectrometer, \
-            tqdm(total=len(levels), desc="light levels", unit="level", file=sys.stderr, disable=None) as bar:
+    with (
+        open_light(args.light, args.protocol) as light,
+        open_spectrometer(args.spectrometer, args.protocol) as spectrometer,
+        tqdm(total=len(levels), desc="light levels", unit="level", file=sys.stderr, disable=None) as bar,
+    ):
         comments = [
             f"uwlab light calibration, {datetime.now(UTC).isoformat(timespec='seconds')}",
             f"light: {args.light} ({light.identity()})",

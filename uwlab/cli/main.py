@@ -10,6 +10,7 @@ line on stderr and exit code 2; Ctrl-C becomes one line ``interrupted`` and exit
 prints. Ctrl-C is recognised by the SIGINT itself, not only by the KeyboardInterrupt it raises: a module interrupted
 while it imports may turn the KeyboardInterrupt into another error (numpy raises ImportError).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -22,10 +23,14 @@ from uwlab import __version__
 from uwlab.errors import UwlabError
 
 SUBCOMMANDS: dict[str, tuple[str, str]] = {
-    "design": ("uwlab.cli.design", "predict FOV, exposure, framerate, DoF, response and SNR of a design; grids; "
-                                   "inverse design"),
-    "explore": ("uwlab.cli.explore", "the design explorer: edit a design in a local web page, see its numbers and "
-                                     "figures live, sweep, solve, save"),
+    "design": (
+        "uwlab.cli.design",
+        "predict FOV, exposure, framerate, DoF, response and SNR of a design; grids; inverse design",
+    ),
+    "explore": (
+        "uwlab.cli.explore",
+        "the design explorer: edit a design in a local web page, see its numbers and figures live, sweep, solve, save",
+    ),
     "devices": ("uwlab.cli.devices", "list cameras on every backend"),
     "grab": ("uwlab.cli.grab", "acquire frames from a camera and report statistics"),
     "light": ("uwlab.cli.light", "switch and dim the light, or calibrate it"),
@@ -76,8 +81,10 @@ def main(argv: list[str] | None = None) -> int:
         raise KeyboardInterrupt
 
     # noted only where Python's own handler would raise KeyboardInterrupt (not where SIGINT is ignored)
-    watch = (threading.current_thread() is threading.main_thread()
-             and signal.getsignal(signal.SIGINT) is signal.default_int_handler)
+    watch = (
+        threading.current_thread() is threading.main_thread()
+        and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    )
     if watch:
         signal.signal(signal.SIGINT, on_sigint)
     try:

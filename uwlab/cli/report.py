@@ -1,4 +1,5 @@
 """`uwlab report`: the self-contained HTML validation report of a campaign directory."""
+
 from __future__ import annotations
 
 import json
@@ -6,11 +7,12 @@ import sys
 from pathlib import Path
 
 
-
 def register(subparsers) -> None:
-    p = subparsers.add_parser("report",
-                              description="Collect the datasets, calibrations and EMVA characterisations under DIR "
-                                          "into one self-contained HTML file.")
+    p = subparsers.add_parser(
+        "report",
+        description="Collect the datasets, calibrations and EMVA characterisations under DIR "
+        "into one self-contained HTML file.",
+    )
     p.add_argument("dir", help="campaign directory (datasets, `uwlab fit` and `uwlab emva` outputs)")
     p.add_argument("--out", metavar="FILE", help="report file, in an existing directory (default: DIR/report.html)")
     p.add_argument("--force", action="store_true", help="replace an existing report file")

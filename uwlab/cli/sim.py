@@ -1,4 +1,5 @@
 """`uwlab sim`: run simulated instruments (one function pair per sub-subcommand)."""
+
 from __future__ import annotations
 
 import json
@@ -19,8 +20,11 @@ RESTART_WINDOW_S = 60.0
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("sim", description="Run simulated instruments that behave like the rig's hardware, or "
-                                                 "render image sets with the simulated camera.")
+    p = subparsers.add_parser(
+        "sim",
+        description="Run simulated instruments that behave like the rig's hardware, or "
+        "render image sets with the simulated camera.",
+    )
     sub = p.add_subparsers(dest="sim_command", required=True, metavar="INSTRUMENTS")
     register_serial(sub)
     add_sim_camera_parser(sub)
@@ -28,17 +32,27 @@ def register(subparsers) -> None:
 
 
 def register_serial(sub) -> None:
-    p = sub.add_parser("serial", help="simulated light and spectrometer on pseudo-terminals",
-                       description="Start the simulated light and spectrometer behind pseudo-terminals, print "
-                                   "their ports, and run until SIGTERM (exit 0) or Ctrl-C (exit 130). A simulator "
-                                   "that dies is restarted at its power-on state (one line on stderr), like an "
-                                   f"instrument power-cycled; more than {RESTARTS_ALLOWED} deaths of one simulator "
-                                   f"within {RESTART_WINDOW_S:g} s stop the command with exit code 2.")
+    p = sub.add_parser(
+        "serial",
+        help="simulated light and spectrometer on pseudo-terminals",
+        description="Start the simulated light and spectrometer behind pseudo-terminals, print "
+        "their ports, and run until SIGTERM (exit 0) or Ctrl-C (exit 130). A simulator "
+        "that dies is restarted at its power-on state (one line on stderr), like an "
+        f"instrument power-cycled; more than {RESTARTS_ALLOWED} deaths of one simulator "
+        f"within {RESTART_WINDOW_S:g} s stop the command with exit code 2.",
+    )
     p.add_argument("--config", metavar="RIG.toml", help="rig config (default: configs/rigs/sim-tank.toml)")
-    p.add_argument("--spectrometer-position", choices=SPECTROMETER_POSITIONS, default="target",
-                   help="where the spectrometer sits: facing the light at the target board, or at the camera")
-    p.add_argument("--json", action="store_true",
-                   help='print {"light": PORT, "spectrometer": PORT, "rig_state": FILE} as the first line')
+    p.add_argument(
+        "--spectrometer-position",
+        choices=SPECTROMETER_POSITIONS,
+        default="target",
+        help="where the spectrometer sits: facing the light at the target board, or at the camera",
+    )
+    p.add_argument(
+        "--json",
+        action="store_true",
+        help='print {"light": PORT, "spectrometer": PORT, "rig_state": FILE} as the first line',
+    )
     p.set_defaults(func=run_serial)
 
 
@@ -52,8 +66,11 @@ def run_serial(args) -> int:
             if args.json:
                 print(json.dumps(info), flush=True)
             else:
-                print(f"light:        {info['light']}\nspectrometer: {info['spectrometer']}\n"
-                      f"rig state:    {info['rig_state']}\nrunning; Ctrl-C to stop", flush=True)
+                print(
+                    f"light:        {info['light']}\nspectrometer: {info['spectrometer']}\n"
+                    f"rig state:    {info['rig_state']}\nrunning; Ctrl-C to stop",
+                    flush=True,
+                )
             _serve(rig, stop)
     finally:
         signal.signal(signal.SIGTERM, previous)
@@ -69,7 +86,13 @@ def _serve(rig: SerialRig, stop: threading.Event) -> None:
             recent = [t for t in deaths.get(name, []) if now - t < RESTART_WINDOW_S] + [now]
             deaths[name] = recent
             if len(recent) > RESTARTS_ALLOWED:
-                raise DeviceError(f"the {name} simulator died {len(recent)} times within "
-                                  f"{RESTART_WINDOW_S:g} s (last exit code {code}); stopping")
-            print(f"uwlab sim serial: the {name} simulator died (exit code {code}); restarted at its "
-                  f"power-on state on {rig.ports[name]}", file=sys.stderr, flush=True)
+                raise DeviceError(
+                    f"the {name} simulator died {len(recent)} times within "
+                    f"{RESTART_WINDOW_S:g} s (last exit code {code}); stopping"
+                )
+            print(
+                f"uwlab sim serial: the {name} simulator died (exit code {code}); restarted at its "
+                f"power-on state on {rig.ports[name]}",
+                file=sys.stderr,
+                flush=True,
+            )

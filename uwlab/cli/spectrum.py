@@ -1,4 +1,5 @@
 """`uwlab spectrum`: read the spectrometer (or import a Sekonic C-7000 CSV) and derive lux, W/m², photons, CCT."""
+
 from __future__ import annotations
 
 import json
@@ -11,8 +12,9 @@ from uwlab.outputs import output_file
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("spectrum",
-                              description="Spectral irradiance from the spectrometer or a Sekonic C-7000 CSV export.")
+    p = subparsers.add_parser(
+        "spectrum", description="Spectral irradiance from the spectrometer or a Sekonic C-7000 CSV export."
+    )
     source = p.add_mutually_exclusive_group(required=True)
     source.add_argument("--port", help="serial port of the spectrometer")
     source.add_argument("--import", dest="import_path", metavar="FILE.csv", help="Sekonic C-7000 CSV export")
@@ -20,8 +22,11 @@ def register(subparsers) -> None:
     p.add_argument("--integration-ms", type=float, help="integration time [ms]")
     p.add_argument("--average", type=int, help="number of spectra averaged")
     p.add_argument("--out", metavar="FILE.csv", help="write wavelength_nm,irradiance_w_m2_nm (never overwritten)")
-    p.add_argument("--json", action="store_true", help="print one JSON object (with \"saturated\": whether the "
-                   "spectrometer saturated; null for an import)")
+    p.add_argument(
+        "--json",
+        action="store_true",
+        help='print one JSON object (with "saturated": whether the spectrometer saturated; null for an import)',
+    )
     p.set_defaults(func=run)
 
 

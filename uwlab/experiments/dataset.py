@@ -18,6 +18,7 @@ points all resume. Readers (`Dataset.open`) take no lock and see the last commit
 (`Dataset.create`, `Dataset.open_for_writing`) hold the dataset's lock until `Dataset.close`. A failed write
 (disk full, read-only) raises `DatasetWriteError`; what was already recorded stays intact.
 """
+
 from __future__ import annotations
 
 import json
@@ -66,42 +67,91 @@ LOCK_FILE = "lock"
 QUARANTINE_DIR = "quarantine"
 DATASET_ENTRIES = (METADATA_FILE, MANIFEST_FILE, PARTS_DIR, FRAMES_DIR, QUARANTINE_DIR)
 KINDS = ("exposure", "aperture", "gain", "light-level", "dark")
-SOFTWARE_PACKAGES = ("numpy", "scipy", "pandas", "pyarrow", "colour-science", "opencv-contrib-python-headless",
-                     "harvesters", "genicam", "pyserial", "tifffile", "emcee")
+SOFTWARE_PACKAGES = (
+    "numpy",
+    "scipy",
+    "pandas",
+    "pyarrow",
+    "colour-science",
+    "opencv-contrib-python-headless",
+    "harvesters",
+    "genicam",
+    "pyserial",
+    "tifffile",
+    "emcee",
+)
 
-POINT_SCHEMA = pa.schema([
-    ("sweep_id", pa.string()), ("point_index", pa.int64()), ("kind", pa.string()),
-    ("camera_backend", pa.string()), ("camera_id", pa.string()), ("camera_model", pa.string()),
-    ("sensor_profile", pa.string()), ("lens_label", pa.string()),
-    ("focal_length_mm", pa.float64()), ("f_number", pa.float64()),
-    ("exposure_us", pa.float64()), ("gain_db", pa.float64()), ("black_level_dn", pa.float64()),
-    ("light_level", pa.float64()), ("light_on", pa.bool_()),
-    ("frames", pa.int64()), ("bit_depth", pa.int64()),
-    ("roi_x", pa.int64()), ("roi_y", pa.int64()), ("roi_w", pa.int64()), ("roi_h", pa.int64()),
-    ("mean_dn", pa.float64()), ("temporal_var_dn2", pa.float64()), ("spatial_var_dn2", pa.float64()),
-    ("dark_mean_dn", pa.float64()), ("dark_temporal_var_dn2", pa.float64()), ("dark_spatial_var_dn2", pa.float64()),
-    ("dark_frames", pa.int64()), ("signal_dn", pa.float64()),
-    ("spatial_var_row_dn2", pa.float64()), ("spatial_var_col_dn2", pa.float64()),
-    ("spatial_var_pixel_dn2", pa.float64()),
-    ("dark_spatial_var_row_dn2", pa.float64()), ("dark_spatial_var_col_dn2", pa.float64()),
-    ("dark_spatial_var_pixel_dn2", pa.float64()), ("mean_diff_dn", pa.float64()),
-    ("saturated_fraction", pa.float64()), ("saturated", pa.bool_()),
-    ("clip_level_dn", pa.float64()), ("clip_source", pa.string()),
-    ("exposure_us_readback", pa.float64()), ("gain_db_readback", pa.float64()),
-    ("light_on_readback", pa.bool_()), ("light_level_readback", pa.float64()),
-    ("spectrometer_integration_ms_readback", pa.float64()), ("spectrometer_averaging_readback", pa.int64()),
-    ("readback_t_start_ns", pa.int64()), ("readback_t_end_ns", pa.int64()), ("attempts", pa.int64()),
-    ("temperature_c", pa.float64()),
-    ("irradiance_w_m2", pa.float64()), ("irradiance_position", pa.string()),
-    ("t_start_ns", pa.int64()), ("t_end_ns", pa.int64()), ("frame_ids", pa.list_(pa.int64())),
-])
+POINT_SCHEMA = pa.schema(
+    [
+        ("sweep_id", pa.string()),
+        ("point_index", pa.int64()),
+        ("kind", pa.string()),
+        ("camera_backend", pa.string()),
+        ("camera_id", pa.string()),
+        ("camera_model", pa.string()),
+        ("sensor_profile", pa.string()),
+        ("lens_label", pa.string()),
+        ("focal_length_mm", pa.float64()),
+        ("f_number", pa.float64()),
+        ("exposure_us", pa.float64()),
+        ("gain_db", pa.float64()),
+        ("black_level_dn", pa.float64()),
+        ("light_level", pa.float64()),
+        ("light_on", pa.bool_()),
+        ("frames", pa.int64()),
+        ("bit_depth", pa.int64()),
+        ("roi_x", pa.int64()),
+        ("roi_y", pa.int64()),
+        ("roi_w", pa.int64()),
+        ("roi_h", pa.int64()),
+        ("mean_dn", pa.float64()),
+        ("temporal_var_dn2", pa.float64()),
+        ("spatial_var_dn2", pa.float64()),
+        ("dark_mean_dn", pa.float64()),
+        ("dark_temporal_var_dn2", pa.float64()),
+        ("dark_spatial_var_dn2", pa.float64()),
+        ("dark_frames", pa.int64()),
+        ("signal_dn", pa.float64()),
+        ("spatial_var_row_dn2", pa.float64()),
+        ("spatial_var_col_dn2", pa.float64()),
+        ("spatial_var_pixel_dn2", pa.float64()),
+        ("dark_spatial_var_row_dn2", pa.float64()),
+        ("dark_spatial_var_col_dn2", pa.float64()),
+        ("dark_spatial_var_pixel_dn2", pa.float64()),
+        ("mean_diff_dn", pa.float64()),
+        ("saturated_fraction", pa.float64()),
+        ("saturated", pa.bool_()),
+        ("clip_level_dn", pa.float64()),
+        ("clip_source", pa.string()),
+        ("exposure_us_readback", pa.float64()),
+        ("gain_db_readback", pa.float64()),
+        ("light_on_readback", pa.bool_()),
+        ("light_level_readback", pa.float64()),
+        ("spectrometer_integration_ms_readback", pa.float64()),
+        ("spectrometer_averaging_readback", pa.int64()),
+        ("readback_t_start_ns", pa.int64()),
+        ("readback_t_end_ns", pa.int64()),
+        ("attempts", pa.int64()),
+        ("temperature_c", pa.float64()),
+        ("irradiance_w_m2", pa.float64()),
+        ("irradiance_position", pa.string()),
+        ("t_start_ns", pa.int64()),
+        ("t_end_ns", pa.int64()),
+        ("frame_ids", pa.list_(pa.int64())),
+    ]
+)
 CLOCK_COLUMNS = ("readback_t_start_ns", "readback_t_end_ns", "t_start_ns", "t_end_ns")
 """The point columns holding wall-clock times (ns since the epoch): the only ones two runs of one plan with one
 seed on the simulated rig may differ in."""
-SPECTRA_SCHEMA = pa.schema([
-    ("sweep_id", pa.string()), ("point_index", pa.int64()), ("position", pa.string()),
-    ("wavelength_nm", pa.float64()), ("irradiance_w_m2_nm", pa.float64()),
-])
+SPECTRA_SCHEMA = pa.schema(
+    [
+        ("sweep_id", pa.string()),
+        ("point_index", pa.int64()),
+        ("position", pa.string()),
+        ("wavelength_nm", pa.float64()),
+        ("irradiance_w_m2_nm", pa.float64()),
+    ]
+)
 REQUIRED_POINT_KEYS = ("sweep_id", "point_index", "kind", "frames")
 KEY = ["sweep_id", "point_index"]
 TABLES = {"points": POINT_SCHEMA, "spectra": SPECTRA_SCHEMA}
@@ -148,8 +198,17 @@ def check_point_row(row: dict) -> dict:
     return {name: row.get(name) for name in POINT_SCHEMA.names}
 
 
-def point_row(*, sweep_id: str, point_index: int, kind: str, bright: StackStatistics, dark: StackStatistics | None,
-              clip: ClipLevel, saturation_threshold: float = POINT_SATURATED_FRACTION, **columns: Any) -> dict:
+def point_row(
+    *,
+    sweep_id: str,
+    point_index: int,
+    kind: str,
+    bright: StackStatistics,
+    dark: StackStatistics | None,
+    clip: ClipLevel,
+    saturation_threshold: float = POINT_SATURATED_FRACTION,
+    **columns: Any,
+) -> dict:
     """The dataset row of one measured point — the one place a row is built.
 
     From the point's bright and dark stacks (`uwlab.experiments.frames.stack`) come ``frames``, ``mean_dn``,
@@ -163,8 +222,12 @@ def point_row(*, sweep_id: str, point_index: int, kind: str, bright: StackStatis
     `ConfigError` naming it.
     """
     derived = {
-        "frames": bright.frames, "mean_dn": bright.mean_dn, "temporal_var_dn2": bright.temporal_var_dn2,
-        "spatial_var_dn2": bright.spatial_var_dn2, **_split_columns("", bright), "mean_diff_dn": bright.mean_diff_dn,
+        "frames": bright.frames,
+        "mean_dn": bright.mean_dn,
+        "temporal_var_dn2": bright.temporal_var_dn2,
+        "spatial_var_dn2": bright.spatial_var_dn2,
+        **_split_columns("", bright),
+        "mean_diff_dn": bright.mean_diff_dn,
         "dark_mean_dn": dark.mean_dn if dark else None,
         "dark_temporal_var_dn2": dark.temporal_var_dn2 if dark else None,
         "dark_spatial_var_dn2": dark.spatial_var_dn2 if dark else None,
@@ -173,7 +236,8 @@ def point_row(*, sweep_id: str, point_index: int, kind: str, bright: StackStatis
         "signal_dn": bright.mean_dn - dark.mean_dn if dark else None,
         "saturated_fraction": bright.saturated_fraction,
         "saturated": point_saturated(bright.saturated_fraction, saturation_threshold),
-        "clip_level_dn": clip.dn, "clip_source": clip.source,
+        "clip_level_dn": clip.dn,
+        "clip_source": clip.source,
     }
     twice = sorted(set(derived) & set(columns))
     if twice:
@@ -183,16 +247,26 @@ def point_row(*, sweep_id: str, point_index: int, kind: str, bright: StackStatis
 
 def _split_columns(prefix: str, stats: StackStatistics | None) -> dict:
     spatial = stats.spatial if stats is not None else None
-    return {f"{prefix}spatial_var_{part}_dn2": getattr(spatial, part) if spatial is not None else None
-            for part in ("row", "col", "pixel")}
+    return {
+        f"{prefix}spatial_var_{part}_dn2": getattr(spatial, part) if spatial is not None else None
+        for part in ("row", "col", "pixel")
+    }
 
 
 def spectra_frame(sweep_id: str, point_index: int, readings: list[tuple[str, Any, Any]]) -> pd.DataFrame:
     """Long-format spectra rows of one point from ``[(position, wavelength_nm, irradiance_w_m2_nm), ...]``."""
-    parts = [pd.DataFrame({"sweep_id": sweep_id, "point_index": int(point_index), "position": position,
-                           "wavelength_nm": pd.Series(wavelength, dtype=float),
-                           "irradiance_w_m2_nm": pd.Series(irradiance, dtype=float)})
-             for position, wavelength, irradiance in readings]
+    parts = [
+        pd.DataFrame(
+            {
+                "sweep_id": sweep_id,
+                "point_index": int(point_index),
+                "position": position,
+                "wavelength_nm": pd.Series(wavelength, dtype=float),
+                "irradiance_w_m2_nm": pd.Series(irradiance, dtype=float),
+            }
+        )
+        for position, wavelength, irradiance in readings
+    ]
     if not parts:
         return pd.DataFrame(columns=SPECTRA_SCHEMA.names)
     return pd.concat(parts, ignore_index=True)
@@ -212,9 +286,19 @@ class Dataset:
 
     # -- creation and opening ---------------------------------------------------------------------
     @classmethod
-    def create(cls, root: str | os.PathLike, plan: dict, *, plan_sha256: str, devices: dict | None = None,
-               rigs: dict | None = None, sim: bool = False, sim_truth: dict | None = None,
-               force: bool = False, purpose: str = "creating the dataset") -> Dataset:
+    def create(
+        cls,
+        root: str | os.PathLike,
+        plan: dict,
+        *,
+        plan_sha256: str,
+        devices: dict | None = None,
+        rigs: dict | None = None,
+        sim: bool = False,
+        sim_truth: dict | None = None,
+        force: bool = False,
+        purpose: str = "creating the dataset",
+    ) -> Dataset:
         """A new, empty dataset at ``root``, open for writing. A dataset with recorded points there is refused
         (`ConfigError` on ``out``) unless ``force``, which removes only the dataset's own entries
         (`DATASET_ENTRIES`); one with nothing recorded (a sweep that stopped before its first point) is replaced."""
@@ -229,15 +313,26 @@ class Dataset:
         try:
             existing = [name for name in DATASET_ENTRIES if (root / name).exists()]
             if existing and not force and not _nothing_recorded(root):
-                raise ConfigError("out", str(root), "a dataset with recorded points exists there; use --resume to "
-                                                    "complete it or --force to overwrite it")
+                raise ConfigError(
+                    "out",
+                    str(root),
+                    "a dataset with recorded points exists there; use --resume to "
+                    "complete it or --force to overwrite it",
+                )
             for name in existing:
                 _remove(root / name)
             metadata = {
-                "plan": plan, "plan_sha256": plan_sha256, "uwlab_version": __version__,
-                "devices": devices or {}, "rigs": rigs or {}, "host": socket.gethostname(),
-                "started_utc": utc_now(), "finished_utc": None, "software": software_versions(),
-                "sim": bool(sim), "sim_truth": sim_truth or {},
+                "plan": plan,
+                "plan_sha256": plan_sha256,
+                "uwlab_version": __version__,
+                "devices": devices or {},
+                "rigs": rigs or {},
+                "host": socket.gethostname(),
+                "started_utc": utc_now(),
+                "finished_utc": None,
+                "software": software_versions(),
+                "sim": bool(sim),
+                "sim_truth": sim_truth or {},
             }
             dataset = cls(root, metadata, _store(root), lock)
             dataset._save_metadata()
@@ -301,8 +396,10 @@ class Dataset:
             try:
                 frames.commit()
             except OSError as exc:
-                raise DatasetWriteError(f"dataset {self.root}: cannot store the frames of {key[0]}#{key[1]} "
-                                        f"({exc.strerror or exc}); everything recorded before is intact") from exc
+                raise DatasetWriteError(
+                    f"dataset {self.root}: cannot store the frames of {key[0]}#{key[1]} "
+                    f"({exc.strerror or exc}); everything recorded before is intact"
+                ) from exc
         self._store.append(tables)
         self._recorded_keys().add(key)
 
@@ -389,8 +486,9 @@ class Dataset:
             raise ConfigError("point", f"{sweep_id}#{point_index}", "not recorded in this dataset")
         found = point_frames(self.root, sweep_id, point_index)
         if not found.bright:
-            raise ConfigError("point", f"{sweep_id}#{point_index}", "has no raw frames (its sweep ran without "
-                                                                     "save_frames = true)")
+            raise ConfigError(
+                "point", f"{sweep_id}#{point_index}", "has no raw frames (its sweep ran without save_frames = true)"
+            )
         return found
 
     @property
@@ -441,8 +539,9 @@ def _take_lock(root: Path, purpose: str) -> OwnerLock:
     except LockHeld as exc:
         raise DatasetLocked(f"dataset {exc}") from None
     except OSError as exc:
-        raise DatasetWriteError(f"dataset {root}: cannot lock it for writing ({exc.strerror or exc}); "
-                                "nothing was changed") from None
+        raise DatasetWriteError(
+            f"dataset {root}: cannot lock it for writing ({exc.strerror or exc}); nothing was changed"
+        ) from None
     return lock
 
 

@@ -16,6 +16,7 @@ just before the point's row is committed (`uwlab.experiments.dataset.Dataset.app
 has all its frames; a folder of a point that is not recorded (a crash between the two) is removed by the next
 writer.
 """
+
 from __future__ import annotations
 
 import io

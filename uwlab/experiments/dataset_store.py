@@ -21,6 +21,7 @@ it to the table's schema (columns a part predates read as null); a file that fai
 Files are created with the user's umask (lab data is shared). A failed write (disk full, read-only) raises
 `DatasetWriteError`; the previous state stays intact.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -54,8 +55,10 @@ class PartDamaged(UwlabError):
     def __init__(self, root: Path, file: str, reason: str):
         self.file = file
         self.reason = reason
-        super().__init__(f"dataset {root}: {file} is damaged ({reason}); run `uwlab dataset check {root}` "
-                         "(--repair sets the damaged points aside; --resume then measures them again)")
+        super().__init__(
+            f"dataset {root}: {file} is damaged ({reason}); run `uwlab dataset check {root}` "
+            "(--repair sets the damaged points aside; --resume then measures them again)"
+        )
 
 
 class ManifestDamaged(UwlabError):
@@ -101,7 +104,7 @@ def write_durable(path: Path, data: bytes) -> None:
     try:
         view = memoryview(data)
         while view:
-            view = view[os.write(fd, view):]
+            view = view[os.write(fd, view) :]
         os.fsync(fd)
     finally:
         os.close(fd)
@@ -116,8 +119,10 @@ def fsync_directory(path: Path) -> None:
 
 
 def _write_error(path: Path, exc: OSError) -> DatasetWriteError:
-    return DatasetWriteError(f"dataset {path.parent}: cannot write {path.name} ({exc.strerror or exc}); "
-                             "everything recorded before is intact: free space or fix permissions, then --resume")
+    return DatasetWriteError(
+        f"dataset {path.parent}: cannot write {path.name} ({exc.strerror or exc}); "
+        "everything recorded before is intact: free space or fix permissions, then --resume"
+    )
 
 
 def parquet_bytes(tables: list[pa.Table], schema: pa.Schema) -> bytes:
@@ -177,10 +182,17 @@ class PartStore:
         try:
             if document["format"] != FORMAT:
                 raise ValueError(f"format {document['format']!r}, expected {FORMAT!r}")
-            parts = [Part(int(p["id"]), int(p["level"]),
-                          {name: PartFile(str(f["file"]), int(f["rows"]), str(f["sha256"]))
-                           for name, f in p["tables"].items()})
-                     for p in document["parts"]]
+            parts = [
+                Part(
+                    int(p["id"]),
+                    int(p["level"]),
+                    {
+                        name: PartFile(str(f["file"]), int(f["rows"]), str(f["sha256"]))
+                        for name, f in p["tables"].items()
+                    },
+                )
+                for p in document["parts"]
+            ]
             next_id = int(document["next_id"])
         except (KeyError, TypeError, ValueError, AttributeError) as exc:
             raise ManifestDamaged(f"dataset {self.root}: {MANIFEST_FILE} is not a parts manifest ({exc})") from None
@@ -229,8 +241,9 @@ class PartStore:
         parts meanwhile)."""
         for _ in range(READ_RETRIES):
             try:
-                return pa.concat_tables([self.schemas[name].empty_table()]
-                                        + [self.read(part, name) for part in self.parts])
+                return pa.concat_tables(
+                    [self.schemas[name].empty_table()] + [self.read(part, name) for part in self.parts]
+                )
             except FileNotFoundError as exc:
                 missing = Path(exc.filename)
                 self.load()
@@ -256,8 +269,7 @@ class PartStore:
             dropped.extend(self.root / f.file for f in part.tables.values())
             tables = changes[part.id]
             if tables and any(t.num_rows for t in tables.values()):
-                parts.append(self._write_part(next_id, part.level,
-                                              {n: [t] for n, t in tables.items() if t.num_rows}))
+                parts.append(self._write_part(next_id, part.level, {n: [t] for n, t in tables.items() if t.num_rows}))
                 next_id += 1
         self._commit(parts, next_id)
         self._cache = {key: table for key, table in self._cache.items() if key[0] not in changes}
@@ -286,8 +298,9 @@ class PartStore:
                 return
             pieces = {n: [self.read(p, n) for p in tail if n in p.tables] for n in self.schemas}
             merged = self._write_part(self.next_id, level + 1, {n: t for n, t in pieces.items() if t})
-            self._cache.update({(merged.id, n): pa.concat_tables([self.schemas[n].empty_table(), *pieces[n]])
-                                for n in self.cached})
+            self._cache.update(
+                {(merged.id, n): pa.concat_tables([self.schemas[n].empty_table(), *pieces[n]]) for n in self.cached}
+            )
             self._commit([*self.parts[:-FANOUT], merged], self.next_id + 1)
             for part in tail:
                 for name in part.tables:

@@ -14,6 +14,7 @@
 4. Write ``report.html`` and ``summary.json`` (the verdict, per parameter truth, median and interval, the held-out
    table and coverage, warnings).
 """
+
 from __future__ import annotations
 
 import json
@@ -67,16 +68,24 @@ def target_tally(summaries: list[dict]) -> dict:
     and the runs whose warnings name backscatter."""
     points = sum(r["points"] for s in summaries for r in s["cross_configuration"])
     inside = sum(r["points"] * r["inside_95"] for s in summaries for r in s["cross_configuration"])
-    truths = [p["p2_5"] <= p["truth"] <= p["p97_5"] for s in summaries for p in s["parameters"].values()
-              if p.get("truth") is not None]
-    return {"runs": len(summaries), "held_out_inside_95": inside / points if points else None,
-            "truth_inside_95": sum(truths) / len(truths) if truths else None,
-            "adequate": sum(bool(s["model_adequate"]) for s in summaries),
-            "backscatter_named": sum(any("backscatter" in w for w in s["warnings"]) for s in summaries)}
+    truths = [
+        p["p2_5"] <= p["truth"] <= p["p97_5"]
+        for s in summaries
+        for p in s["parameters"].values()
+        if p.get("truth") is not None
+    ]
+    return {
+        "runs": len(summaries),
+        "held_out_inside_95": inside / points if points else None,
+        "truth_inside_95": sum(truths) / len(truths) if truths else None,
+        "adequate": sum(bool(s["model_adequate"]) for s in summaries),
+        "backscatter_named": sum(any("backscatter" in w for w in s["warnings"]) for s in summaries),
+    }
 
 
-def quick_demo(world: str | None = None, model: str | None = None, seed: int = 0, directory: Path | None = None,
-               progress=None) -> dict:
+def quick_demo(
+    world: str | None = None, model: str | None = None, seed: int = 0, directory: Path | None = None, progress=None
+) -> dict:
     """The demo's campaign without devices, a summary like `run_demo`'s: the same rig and world rendered in process
     (`uwlab.experiments.calibration.simulate`: its sweeps span each configuration's own exposure range, the light
     does not drift, there is no spectrometer), calibrated and judged like the demo (`assess`). For tests and quick
@@ -92,8 +101,12 @@ def quick_demo(world: str | None = None, model: str | None = None, seed: int = 0
         assessment = assess(points, rigs, config, default_folds(sweeps, config.holdout.folds), model, progress)
     summary = assessment.result.summary()
     names = assessment.result.names
-    truths = {**{n: None for n in names}, **truth, "attenuation_scale": float(raw["water"]["attenuation_scale"]),
-              **{n: load_sensor_profile(n.split(":", 1)[1]).K_dn_per_e for n in names if n.startswith("K_dn_per_e:")}}
+    truths = {
+        **{n: None for n in names},
+        **truth,
+        "attenuation_scale": float(raw["water"]["attenuation_scale"]),
+        **{n: load_sensor_profile(n.split(":", 1)[1]).K_dn_per_e for n in names if n.startswith("K_dn_per_e:")},
+    }
     for name, entry in summary["parameters"].items():
         entry["truth"] = truths.get(name)
     return {**summary, **assessment.summary(), "world": world}
@@ -107,21 +120,32 @@ def write_inputs(plan_path: Path, world: str | None, directory: Path) -> Path:
     raw = read_toml(rig_path, "rig")
     settings = world_settings(raw.get("world"), world)
     rig = resolved_rig(build_design(design_sections(raw), rig_path.parent))
-    world_table = {**raw.get("world", {}), "preset": settings.preset,
-                   "lens_transmittance_csv": str(resolve_path(settings.lens_transmittance_csv, rig_path.parent))}
+    world_table = {
+        **raw.get("world", {}),
+        "preset": settings.preset,
+        "lens_transmittance_csv": str(resolve_path(settings.lens_transmittance_csv, rig_path.parent)),
+    }
     if settings.preset == "turbid":
-        rig["water"].update(particle_scattering_per_m=settings.particle_b550_per_m,
-                            particle_scattering_exponent=settings.particle_scattering_exponent,
-                            particle_phase_function=settings.particle_phase_function)
+        rig["water"].update(
+            particle_scattering_per_m=settings.particle_b550_per_m,
+            particle_scattering_exponent=settings.particle_scattering_exponent,
+            particle_phase_function=settings.particle_phase_function,
+        )
     directory.mkdir(parents=True)
     (directory / "rig.toml").write_text(tomli_w.dumps({**rig, "sim": raw.get("sim", {}), "world": world_table}))
     (directory / "plan.toml").write_text(tomli_w.dumps({**plan_raw, "rig": "rig.toml"}))
     return directory / "plan.toml"
 
 
-def run_demo(out: Path, sweep_progress: Callable | None = None, fit_progress: Callable | None = None,
-             plan_path: Path | None = None, seed: int = 0, world: str | None = None,
-             model: str | None = None) -> dict:
+def run_demo(
+    out: Path,
+    sweep_progress: Callable | None = None,
+    fit_progress: Callable | None = None,
+    plan_path: Path | None = None,
+    seed: int = 0,
+    world: str | None = None,
+    model: str | None = None,
+) -> dict:
     """Run the campaign into `out` (which must not exist or be empty) in `world`, fit `model` (None: the rig's own
     [world] preset and [model] kind; the demo's rig has the tank world and the extended model), with all simulated
     noise seeded from `seed` (equal seeds, equal numbers); returns the summary written to summary.json."""
@@ -131,8 +155,10 @@ def run_demo(out: Path, sweep_progress: Callable | None = None, fit_progress: Ca
         raise ConfigError("--model", model, f"must be one of {', '.join(MODELS)}")
     out = output_dir(out, "--out", empty=True)
     plan = load_plan(write_inputs(plan_path or config_dir() / DEMO_PLAN, world, out / "inputs"))
-    with Dataset.create(out / "dataset", plan.raw, plan_sha256=plan.sha256, sim=True) as dataset, \
-            SimRig(plan.rig_path, seed=seed) as rig:
+    with (
+        Dataset.create(out / "dataset", plan.raw, plan_sha256=plan.sha256, sim=True) as dataset,
+        SimRig(plan.rig_path, seed=seed) as rig,
+    ):
         SweepRunner(plan, dataset, rig, sweep_progress).run()
     calibration = calibrate(out / "dataset", None, out / "fit", progress=fit_progress, model=model)
     report = write_report(out, out / "report.html")

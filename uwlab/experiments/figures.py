@@ -1,4 +1,5 @@
 """Saving matplotlib figures (Agg backend, no screen needed)."""
+
 from __future__ import annotations
 
 from pathlib import Path

@@ -9,6 +9,7 @@ the measured against predicted response per configuration with residuals in per 
 95 % bands, the held-out table, the posterior beside the simulated truth, the posterior predictive checks per
 configuration and the spectra; the EMVA summary; the provenance of every dataset.
 """
+
 from __future__ import annotations
 
 import base64
@@ -32,10 +33,15 @@ from uwlab.experiments.calibration.forward import PERCENT_PARAMETERS, parameter_
 from uwlab.experiments.calibration.output import configuration_label
 from uwlab.model.optics import BARE_SENSOR_F_NUMBER
 
-EFFECT_NAMES = {"beam_profile": "the light's smooth beam", "vignetting": "vignetting",
-                "lens_transmission": "a spectral lens transmittance", "backscatter": "backscatter",
-                "stray_light": "stray light from the walls", "warmup_drift": "the light's warm-up drift",
-                "sensor_realism": "sensor non-linearity, hot pixels, DSNU and PRNU"}
+EFFECT_NAMES = {
+    "beam_profile": "the light's smooth beam",
+    "vignetting": "vignetting",
+    "lens_transmission": "a spectral lens transmittance",
+    "backscatter": "backscatter",
+    "stray_light": "stray light from the walls",
+    "warmup_drift": "the light's warm-up drift",
+    "sensor_realism": "sensor non-linearity, hot pixels, DSNU and PRNU",
+}
 
 
 def _find(root: Path, marker: str, also: str | None = None) -> list[Path]:
@@ -161,11 +167,15 @@ def _world(metadata: dict) -> str | None:
         return "Simulated rig."
     world = worlds[0]
     if world["preset"] == "ideal":
-        return ("Simulated rig, ideal world: the paper's model itself renders the images (the model is checked "
-                "against itself).")
+        return (
+            "Simulated rig, ideal world: the paper's model itself renders the images (the model is checked "
+            "against itself)."
+        )
     effects = [EFFECT_NAMES[e] for e, on in world["effects"].items() if on]
-    text = (f"Simulated rig, {world['preset']} world: the tank renderer (exact refraction through the wall, the light "
-            f"above the camera) with {', '.join(effects) if effects else 'no further effects'}")
+    text = (
+        f"Simulated rig, {world['preset']} world: the tank renderer (exact refraction through the wall, the light "
+        f"above the camera) with {', '.join(effects) if effects else 'no further effects'}"
+    )
     if world.get("particle_scattering_per_m"):
         text += f", and added scatterers, b(550 nm) = {world['particle_scattering_per_m']:g} /m"
     return text + "."
@@ -175,16 +185,21 @@ def _world_name(summary: dict) -> str:
     world = summary.get("world")
     if world is None:
         return "this rig" if not summary.get("sim") else "the simulated rig"
-    return {"ideal": "the ideal simulated rig", "tank": "the simulated tank",
-            "turbid": "the simulated turbid tank"}.get(world, f"the {world} world")
+    return {
+        "ideal": "the ideal simulated rig",
+        "tank": "the simulated tank",
+        "turbid": "the simulated turbid tank",
+    }.get(world, f"the {world} world")
 
 
 def _headline(summary: dict) -> str:
     coverage = summary["predictive_coverage"]["held_out_inside_95"]
     tau = summary["parameters"].get("config_discrepancy", {}).get("median")
     held = len(summary.get("cross_configuration") or [])
-    text = (f"Each of the {held} configurations was predicted by a fit that did not see it: "
-            f"{_percent(coverage, 0)} of their points lie inside the 95 % bands")
+    text = (
+        f"Each of the {held} configurations was predicted by a fit that did not see it: "
+        f"{_percent(coverage, 0)} of their points lie inside the 95 % bands"
+    )
     if tau is not None:
         text += f"; configurations differ from the model by {_percent(tau)} (τ)"
     if summary["model_adequate"]:
@@ -202,12 +217,20 @@ def _calibration(path: Path) -> dict:
     label = lambda sweep_id: _label(sweep_id, rigs[sweep_id]) if sweep_id in rigs else sweep_id  # noqa: E731
     failing = [f"{c['name']}: {c['detail']}" for c in summary.get("checks", []) if not c["passed"]]
     folds = {s: f for f in summary.get("folds", []) for s in f["held_out"]}
-    held_out = [{"configuration": label(r["sweep_id"]),
-                 "trained_on": ", ".join(label(s) for s in folds.get(r["sweep_id"], {}).get("trained_on", [])),
-                 "points": r["points"], "median_error": _percent(r["median_abs_rel_error"], 2),
-                 "worst_error": _percent(r["max_abs_rel_error"], 2), "inside": _percent(r["inside_95"], 0),
-                 "inside_ok": r["inside_95"] >= 0.75, "level": f"{r['level_offset_percent']:+.2f} %",
-                 "p": _number(r["level_p"], 2)} for r in summary.get("cross_configuration", [])]
+    held_out = [
+        {
+            "configuration": label(r["sweep_id"]),
+            "trained_on": ", ".join(label(s) for s in folds.get(r["sweep_id"], {}).get("trained_on", [])),
+            "points": r["points"],
+            "median_error": _percent(r["median_abs_rel_error"], 2),
+            "worst_error": _percent(r["max_abs_rel_error"], 2),
+            "inside": _percent(r["inside_95"], 0),
+            "inside_ok": r["inside_95"] >= 0.75,
+            "level": f"{r['level_offset_percent']:+.2f} %",
+            "p": _number(r["level_p"], 2),
+        }
+        for r in summary.get("cross_configuration", [])
+    ]
     posterior = []
     for name, p in summary["parameters"].items():
         truth = p.get("truth")
@@ -223,11 +246,21 @@ def _calibration(path: Path) -> dict:
             }
         )
     notes = [w for w in summary.get("warnings", []) if not w.startswith(("model inadequate", "likely cause"))]
-    notes += [f"not separable by these data: {parameter_label(p['a'])} and {parameter_label(p['b'])} (posterior "
-              f"correlation {p['rho']:+.2f})" for p in summary.get("not_separable", [])]
-    ppc = [{"configuration": label(r["sweep_id"]), "points": r["points"], "inside": _percent(r["inside_95"], 0),
-            "offset": f"{r['offset_percent']:+.2f} %", "p": _number(r["ppc_p"], 2)}
-           for r in summary.get("posterior_predictive_checks", [])]
+    notes += [
+        f"not separable by these data: {parameter_label(p['a'])} and {parameter_label(p['b'])} (posterior "
+        f"correlation {p['rho']:+.2f})"
+        for p in summary.get("not_separable", [])
+    ]
+    ppc = [
+        {
+            "configuration": label(r["sweep_id"]),
+            "points": r["points"],
+            "inside": _percent(r["inside_95"], 0),
+            "offset": f"{r['offset_percent']:+.2f} %",
+            "p": _number(r["ppc_p"], 2),
+        }
+        for r in summary.get("posterior_predictive_checks", [])
+    ]
     delta = summary["parameters"].get("discrepancy", {}).get("median")
     tau = summary["parameters"].get("config_discrepancy", {}).get("median")
     model_name = {"paper": "the paper's model", "extended": "the extended model"}.get(summary.get("model"), "the model")
@@ -295,11 +328,24 @@ def _spectra_figure(path: Path, label) -> str:
 
 def _emva(path: Path) -> dict:
     doc = json.loads((path / "emva.json").read_text())
-    keys = ("K_dn_per_e", "quantum_efficiency", "dark_noise_e", "saturation_e", "snr_max_db", "dynamic_range_db",
-            "linearity_error_percent", "dark_current_e_per_s", "dsnu_e", "prnu_percent")
+    keys = (
+        "K_dn_per_e",
+        "quantum_efficiency",
+        "dark_noise_e",
+        "saturation_e",
+        "snr_max_db",
+        "dynamic_range_db",
+        "linearity_error_percent",
+        "dark_current_e_per_s",
+        "dsnu_e",
+        "prnu_percent",
+    )
     rows = [{"quantity": k, "value": _number(doc.get(k)), "std": _number(doc.get(f"{k}_std"))} for k in keys]
-    images = [_img(path / n) for n in ("photon_transfer.png", "snr.png", "linearity.png", "dark_current.png")
-              if (path / n).exists()]
+    images = [
+        _img(path / n)
+        for n in ("photon_transfer.png", "snr.png", "linearity.png", "dark_current.png")
+        if (path / n).exists()
+    ]
     return {"path": str(path), "rows": rows, "images": images}
 
 
@@ -342,12 +388,21 @@ def write_report(root: str | Path, out: str | Path, *, replace: bool = False) ->
     if not (datasets or calibrations or emva):
         raise UwlabError(f"{root}: no dataset, calibration or EMVA characterisation found")
     metadata = [(d, json.loads((d / "metadata.json").read_text())) for d in datasets]
-    environment = Environment(loader=PackageLoader("uwlab.experiments", "templates"), autoescape=True,
-                              undefined=StrictUndefined, trim_blocks=True, lstrip_blocks=True)
+    environment = Environment(
+        loader=PackageLoader("uwlab.experiments", "templates"),
+        autoescape=True,
+        undefined=StrictUndefined,
+        trim_blocks=True,
+        lstrip_blocks=True,
+    )
     html = environment.get_template("report.html.j2").render(
-        root=str(root.resolve()), written=time.strftime("%Y-%m-%d %H:%M"),
+        root=str(root.resolve()),
+        written=time.strftime("%Y-%m-%d %H:%M"),
         calibrations=[_calibration(c) for c in calibrations],
-        setup=_setup(metadata[0][1]) if metadata else [], world=_world(metadata[0][1]) if metadata else None,
-        emva=[_emva(e) for e in emva], provenance=[_provenance(d, m) for d, m in metadata])
+        setup=_setup(metadata[0][1]) if metadata else [],
+        world=_world(metadata[0][1]) if metadata else None,
+        emva=[_emva(e) for e in emva],
+        provenance=[_provenance(d, m) for d, m in metadata],
+    )
     out.write_text(html)
     return out

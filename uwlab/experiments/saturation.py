@@ -23,6 +23,7 @@ when that fraction exceeds `POINT_SATURATED_FRACTION` = 0.2 %: Release 4.0 §6.6
 where "between 0.1 – 0.2 % of the total number of pixels show the maximum value", the most a mean and a variance
 tolerate unbiased (< 0.37 % variance bias for a normal distribution).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -61,8 +62,9 @@ def adc_max_dn(format_name: str, native_bits: int | None = None) -> float:
     return float(((1 << native_bits) - 1) << (fmt.bits - native_bits))
 
 
-def sensor_clip_dn(k_dn_per_e: float, saturation_e: float, offset_dn: float, native_bits: int,
-                   format_name: str) -> float:
+def sensor_clip_dn(
+    k_dn_per_e: float, saturation_e: float, offset_dn: float, native_bits: int, format_name: str
+) -> float:
     """The code of a pixel at the sensor's saturation capacity: K μ_e,sat + offset at the native bit depth
     (K at the current gain; offset = dark offset + black level), rounded, capped at the ADC maximum, and shifted to
     the output format as cameras do (left for wider formats, right for narrower).
@@ -92,8 +94,13 @@ def detect_clip_dn(image: np.ndarray, adc_max: float) -> float | None:
     return float(top) if at_top >= PILEUP_RATIO * next_count else None
 
 
-def clip_level(format_name: str, *, native_bits: int | None = None, profile_dn: float | None = None,
-               image: np.ndarray | None = None) -> ClipLevel:
+def clip_level(
+    format_name: str,
+    *,
+    native_bits: int | None = None,
+    profile_dn: float | None = None,
+    image: np.ndarray | None = None,
+) -> ClipLevel:
     """The clip level of a camera delivering ``format_name`` (see the module docstring for the order)."""
     adc = adc_max_dn(format_name, native_bits)
     detected = detect_clip_dn(image, adc) if image is not None else None

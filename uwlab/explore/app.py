@@ -5,6 +5,7 @@ Requests are parsed like the command line's arguments (`uwlab.explore.inputs`); 
 `uwlab.model.design` and `uwlab.experiments.design` only. Any `UwlabError` (bad input) answers 422 with
 ``{"error": "<the line uwlab design prints after 'uwlab design: error: '>", "key": "<the key>"}``.
 """
+
 from __future__ import annotations
 
 import datetime as _dt
@@ -25,8 +26,7 @@ from uwlab.experiments.design.readout import BUDGET_KEY, budget_rows, design_war
 from uwlab.explore import figures
 from uwlab.explore.catalog import SUGGESTIONS, Catalog
 from uwlab.explore.forms import form_json, gridable_keys
-from uwlab.explore.inputs import (Served, absolute_paths, build, design_raw, field_texts, read_toml_text,
-                                  toml_text)
+from uwlab.explore.inputs import Served, absolute_paths, build, design_raw, field_texts, read_toml_text, toml_text
 from uwlab.explore.studies import solve_answer, sweep_answer
 from uwlab.jsonable import dumps, to_jsonable
 from uwlab.model.design import build_design, evaluate
@@ -70,20 +70,30 @@ def create_app(served: Served, catalog: Catalog | None = None) -> Starlette:
     templates = Jinja2Templates(directory=HERE / "templates")
 
     def presets() -> dict:
-        return {section: [{"label": p.label, "text": field_texts(_nest(p.values)), "user": p.user} for p in found]
-                for section, found in catalog.presets().items()}
+        return {
+            section: [{"label": p.label, "text": field_texts(_nest(p.values)), "user": p.user} for p in found]
+            for section, found in catalog.presets().items()
+        }
 
     async def page(request: Request):
-        return templates.TemplateResponse(request, "index.html", {
-            "sections": form_json(), "served": str(served.path or ""), "version": __version__})
+        return templates.TemplateResponse(
+            request, "index.html", {"sections": form_json(), "served": str(served.path or ""), "version": __version__}
+        )
 
     async def plotly_js(request: Request):
         return FileResponse(PLOTLY_JS, media_type="text/javascript")
 
     async def schema(request: Request):
         suggestions = {**{k: list(v) for k, v in SUGGESTIONS.items()}, "sensor.profile": available_profiles()}
-        return JSON({"sections": form_json(), "presets": presets(), "suggestions": suggestions,
-                     "grid_keys": gridable_keys(), "template": figures.template()})
+        return JSON(
+            {
+                "sections": form_json(),
+                "presets": presets(),
+                "suggestions": suggestions,
+                "grid_keys": gridable_keys(),
+                "template": figures.template(),
+            }
+        )
 
     async def config(request: Request):
         return JSON({"path": str(served.path or ""), "text": field_texts(served.raw)})
@@ -95,10 +105,13 @@ def create_app(served: Served, catalog: Catalog | None = None) -> Starlette:
     def _view(body) -> dict:
         design = build(body, served)
         result = design_result(design)
-        view = {"result": result, "rows": [vars(r) for r in rows(result)],
-                "warnings": [vars(w) for w in design_warnings(design, result)],
-                "outputs": output_leaves(result),
-                "figures": figures.design_figures(design, result, catalog.user_sensors())}
+        view = {
+            "result": result,
+            "rows": [vars(r) for r in rows(result)],
+            "warnings": [vars(w) for w in design_warnings(design, result)],
+            "outputs": output_leaves(result),
+            "figures": figures.design_figures(design, result, catalog.user_sensors()),
+        }
         if result.get(BUDGET_KEY):
             stage_rows, worst, total = budget_rows(result[BUDGET_KEY])
             view["budget"] = {"rows": [vars(r) for r in stage_rows], "worst": worst, "total": total}
@@ -120,15 +133,18 @@ def create_app(served: Served, catalog: Catalog | None = None) -> Starlette:
     def _toml(body) -> str:
         raw = design_raw(body, served)
         build_design(raw, served.base_dir)
-        header = (f"Design saved by uwlab explore {__version__} on {_dt.datetime.now().isoformat(timespec='seconds')}"
-                  + (f"\nstarting from {served.path}" if served.path else ""))
+        header = (
+            f"Design saved by uwlab explore {__version__} on {_dt.datetime.now().isoformat(timespec='seconds')}"
+            + (f"\nstarting from {served.path}" if served.path else "")
+        )
         return toml_text(absolute_paths(raw, served.base_dir), header)
 
     async def save(request: Request):
         body = await _body(request)
         text = await run_in_threadpool(_toml, body)
-        return Response(text, media_type="application/toml",
-                        headers={"Content-Disposition": 'attachment; filename="design.toml"'})
+        return Response(
+            text, media_type="application/toml", headers={"Content-Disposition": 'attachment; filename="design.toml"'}
+        )
 
     def _load(body) -> dict:
         if not isinstance(body, dict):
@@ -144,10 +160,11 @@ def create_app(served: Served, catalog: Catalog | None = None) -> Starlette:
     async def profile(request: Request):
         body = await _body(request)
         if not isinstance(body, dict) or not isinstance(body.get("path"), str):
-            raise ConfigError("path", body, "give {\"path\": \"/path/to/profile.toml\"}")
+            raise ConfigError("path", body, 'give {"path": "/path/to/profile.toml"}')
         section, preset = await run_in_threadpool(catalog.add_profile, body["path"])
-        return JSON({"section": section, "label": preset.label, "text": field_texts(_nest(preset.values)),
-                     "presets": presets()})
+        return JSON(
+            {"section": section, "label": preset.label, "text": field_texts(_nest(preset.values)), "presets": presets()}
+        )
 
     routes = [
         Route("/", page),

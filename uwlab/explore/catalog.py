@@ -5,6 +5,7 @@ A preset is a label and the design values it sets (``{"sensor.profile": "imx250m
 spectrum); the page shows them as a choice per section. A user profile is named by its absolute path, as
 ``sensor.profile`` and the spectrum and transmittance keys accept any file.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -27,8 +28,11 @@ class Preset:
 
 def _sensor_preset(profile: SensorProfile, value: str, user: bool) -> Preset:
     width, height = profile.resolution_px
-    label = (f"{profile.name} · {width}×{height} · {profile.pixel_size_um:g} µm · {profile.bit_depth} bit"
-             + (" · colour" if profile.color else "") + (f" · {profile.source}" if user else ""))
+    label = (
+        f"{profile.name} · {width}×{height} · {profile.pixel_size_um:g} µm · {profile.bit_depth} bit"
+        + (" · colour" if profile.color else "")
+        + (f" · {profile.source}" if user else "")
+    )
     return Preset(label, {"sensor.profile": value}, user)
 
 
@@ -44,8 +48,11 @@ def _lens_preset(path: Path, user: bool) -> Preset:
     return Preset(label + (f" · {path}" if user else ""), lens.design_values(path.parent), user)
 
 
-_LOADERS = {"sensor": lambda path: _sensor_preset(load_sensor_profile(str(path)), str(path), True),
-            "light": lambda path: _light_preset(path, True), "lens": lambda path: _lens_preset(path, True)}
+_LOADERS = {
+    "sensor": lambda path: _sensor_preset(load_sensor_profile(str(path)), str(path), True),
+    "light": lambda path: _light_preset(path, True),
+    "lens": lambda path: _lens_preset(path, True),
+}
 
 
 @dataclass
@@ -95,8 +102,9 @@ class Catalog:
             "light": [_light_preset(p, False) for p in shipped("lights")] + self.user["light"],
             "lens": [_lens_preset(p, False) for p in shipped("lenses")] + self.user["lens"],
             "water": [Preset(name, {"water.type": name}) for name in WATER_TYPES],
-            "target": [Preset(f"{name} · {value:g}", {"target.reflectance": name})
-                       for name, value in NAMED_REFLECTANCE.items()],
+            "target": [
+                Preset(f"{name} · {value:g}", {"target.reflectance": name}) for name, value in NAMED_REFLECTANCE.items()
+            ],
         }
 
     def user_sensors(self) -> tuple[SensorProfile, ...]:
@@ -104,5 +112,8 @@ class Catalog:
 
 
 # Suggested values of free-text keys (names the model knows); any file path is accepted too.
-SUGGESTIONS = {"light.spectrum": NAMED_SPECTRA, "water.type": WATER_TYPES,
-               "target.reflectance": tuple(NAMED_REFLECTANCE)}
+SUGGESTIONS = {
+    "light.spectrum": NAMED_SPECTRA,
+    "water.type": WATER_TYPES,
+    "target.reflectance": tuple(NAMED_REFLECTANCE),
+}

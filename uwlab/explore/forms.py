@@ -7,6 +7,7 @@ required, its default, the words it accepts (``max-blur``, ``fresnel``, a `Liter
 (a name or a file) is accepted, numeric limits (for the slider), and whether `--grid` can vary it (a `Grid`
 quantity, for the sweep panel).
 """
+
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
@@ -88,9 +89,19 @@ def _field(section: str, name: str, schema: dict, required: bool) -> FormField:
             unit = member.get("items", {}).get("unit", unit)
         else:
             text = True  # anything else is typed as a value, in TOML syntax
-    return FormField(key=f"{section}.{name}", name=name, description=schema.get("description", ""), unit=unit,
-                     required=required, default=schema.get("default"), words=tuple(words), text=text, number=number,
-                     grid=grid, list_length=length)
+    return FormField(
+        key=f"{section}.{name}",
+        name=name,
+        description=schema.get("description", ""),
+        unit=unit,
+        required=required,
+        default=schema.get("default"),
+        words=tuple(words),
+        text=text,
+        number=number,
+        grid=grid,
+        list_length=length,
+    )
 
 
 @cache
@@ -106,15 +117,17 @@ def form(config: type[Schema] = DesignConfig) -> tuple[FormSection, ...]:
             continue
         required = set(body.get("required", ()))
         title = body.get("description", "").split("\n")[0]
-        fields = tuple(_field(name, key, _resolve(sub, defs), key in required)
-                       for key, sub in body.get("properties", {}).items())
+        fields = tuple(
+            _field(name, key, _resolve(sub, defs), key in required) for key, sub in body.get("properties", {}).items()
+        )
         sections.append(FormSection(name, title, fields))
     return tuple(sections)
 
 
 def form_json() -> list[dict]:
-    return [asdict(section) | {"fields": [asdict(f) | {"choice": f.choice} for f in section.fields]}
-            for section in form()]
+    return [
+        asdict(section) | {"fields": [asdict(f) | {"choice": f.choice} for f in section.fields]} for section in form()
+    ]
 
 
 def gridable_keys() -> list[str]:

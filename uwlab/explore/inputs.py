@@ -14,6 +14,7 @@ turns a config into those texts (and a shareable URL's query). Relative file nam
 the served config's folder (an uploaded TOML has no folder of its own); files named relative to the served config
 are made absolute when it is loaded, so a saved design names the same files wherever it is saved.
 """
+
 from __future__ import annotations
 
 import tomllib
@@ -112,7 +113,7 @@ def value_text(value) -> str:
         return repr(value)
     if isinstance(value, str):
         bare = value and value == value.strip() and parse_value(value) == value
-        return value if bare else tomli_w.dumps({"v": value})[len("v = "):].strip()
+        return value if bare else tomli_w.dumps({"v": value})[len("v = ") :].strip()
     if isinstance(value, (list, tuple)):
         return "[" + ", ".join(value_text(v) for v in value) + "]"
     raise ConfigError("config", value, "cannot be shown as a value (a table where a value belongs?)")
@@ -120,8 +121,12 @@ def value_text(value) -> str:
 
 def field_texts(raw: dict) -> dict[str, str]:
     """{"section.key": text} of every key of a raw config (`value_text`)."""
-    return {f"{section}.{key}": value_text(value)
-            for section, body in raw.items() if isinstance(body, dict) for key, value in body.items()}
+    return {
+        f"{section}.{key}": value_text(value)
+        for section, body in raw.items()
+        if isinstance(body, dict)
+        for key, value in body.items()
+    }
 
 
 def read_toml_text(text: str, name: str = "uploaded file") -> dict:

@@ -10,6 +10,7 @@ Both bodies carry the design as every request does (`uwlab.explore.inputs`: ``co
   [{"minimize": "SECTION.KEY"} or {"maximize": "SECTION.KEY"}, one or two] — the arguments of ``--free``,
   ``--require``, ``--minimize`` / ``--maximize`` in order.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -29,7 +30,7 @@ SWEEP_POINTS = 250_000  # a sweep the page draws; larger grids belong in `uwlab 
 
 def _axes(grid) -> dict[str, list]:
     if not isinstance(grid, dict) or not 1 <= len(grid) <= 2:
-        raise ConfigError("grid", grid, "give one or two keys: {\"section.key\": \"START:STOP:STEP\" or \"V1,V2,...\"}")
+        raise ConfigError("grid", grid, 'give one or two keys: {"section.key": "START:STOP:STEP" or "V1,V2,..."}')
     axes = {}
     for key, spec in grid.items():
         values = parse_grid_values(key, spec) if isinstance(spec, str) else spec
@@ -58,15 +59,25 @@ def sweep_answer(body, served: Served) -> dict:
         raise ConfigError("output", name, f"unknown output; outputs are {', '.join(leaves)}")
     grid = DesignGrid(raw, axes, served.base_dir)
     if grid.points > SWEEP_POINTS:
-        raise ConfigError("grid", f"{grid.points} points", f"more than {SWEEP_POINTS} points; use "
-                                                           "uwlab design --grid ... --out FILE.parquet")
+        raise ConfigError(
+            "grid",
+            f"{grid.points} points",
+            f"more than {SWEEP_POINTS} points; use uwlab design --grid ... --out FILE.parquet",
+        )
     frame = in_memory_frame(grid)
     order = list(grid.categorical) + list(grid.numeric)  # the grid's row order (outermost first)
     values = frame[_column(name)].to_numpy(float).reshape([len(axes[k]) for k in order])
     values = values.transpose([order.index(k) for k in axes])
     leaf = leaves[name]
-    return {"axes": axes, "output": name, "label": leaf["label"], "unit": leaf["unit"], "values": values,
-            "points": grid.points, "figure": figures.sweep_figure(axes, values, name, leaf["label"], leaf["unit"])}
+    return {
+        "axes": axes,
+        "output": name,
+        "label": leaf["label"],
+        "unit": leaf["unit"],
+        "values": values,
+        "points": grid.points,
+        "figure": figures.sweep_figure(axes, values, name, leaf["label"], leaf["unit"]),
+    }
 
 
 def _objectives(items) -> list[Objective]:
@@ -108,10 +119,21 @@ def front_figure(answer: dict) -> dict:
     x = [p["solution"][second] for p in points]
     y = [p["solution"][first] for p in points]
     text = ["; ".join(p["active"]) or "none" for p in points]
-    trace = {"type": "scatter", "mode": "lines+markers", "x": x, "y": y, "text": text, "name": "Pareto front",
-             "hovertemplate": f"{second} = %{{x:.4g}}<br>{first} = %{{y:.4g}}<br>active: %{{text}}<extra></extra>"}
-    return {"data": [trace], "layout": figures.layout("Pareto front", 360, xaxis=figures.axis(second, log=_wide(x)),
-                                                      yaxis=figures.axis(first, log=_wide(y)))}
+    trace = {
+        "type": "scatter",
+        "mode": "lines+markers",
+        "x": x,
+        "y": y,
+        "text": text,
+        "name": "Pareto front",
+        "hovertemplate": f"{second} = %{{x:.4g}}<br>{first} = %{{y:.4g}}<br>active: %{{text}}<extra></extra>",
+    }
+    return {
+        "data": [trace],
+        "layout": figures.layout(
+            "Pareto front", 360, xaxis=figures.axis(second, log=_wide(x)), yaxis=figures.axis(first, log=_wide(y))
+        ),
+    }
 
 
 def _wide(values: list[float]) -> bool:

@@ -18,6 +18,7 @@ measures is ∫ E λ η dλ / ∫ E λ dλ (the η that Release 4.0 Linear eq. 5
 Config keys besides ``[bench]``: ``[sensor] profile`` and the simulation's ``[sim]`` (``seed``, ``light_gamma``).
 A plan sweeping on a bench must be lensless (``lens = "none"``).
 """
+
 from __future__ import annotations
 
 import math
@@ -85,8 +86,9 @@ class Bench:
     def relative_irradiance(self, r_m) -> np.ndarray:
         """E(r)/E(0) at a distance ``r_m`` from the axis on the sensor plane."""
         d_m = self.distance_mm * 1e-3
-        return disk_source_irradiance_factor(self.f_number, np.asarray(r_m, float) / d_m) / \
-            disk_source_irradiance_factor(self.f_number)
+        return disk_source_irradiance_factor(
+            self.f_number, np.asarray(r_m, float) / d_m
+        ) / disk_source_irradiance_factor(self.f_number)
 
     def on_axis_rate_e_per_s(self, level_fraction: float = 1.0) -> float:
         """Photo-electrons per second of the on-axis pixel: A ∫ E λ/(h c) η dλ."""
@@ -123,6 +125,9 @@ def build_bench(raw: dict, base_dir: Path | None = None) -> Bench:
         raise ConfigError("sensor.profile", profile, "required: the sensor profile of the camera on the bench")
     sensor = load_sensor_profile(profile, base_dir)
     if sensor.diagonal_m * 1e3 > values["source_diameter_mm"]:
-        raise ConfigError("bench.source_diameter_mm", values["source_diameter_mm"],
-                          f"smaller than the sensor's diagonal {sensor.diagonal_m * 1e3:.1f} mm (Release 4.0 §6.1)")
+        raise ConfigError(
+            "bench.source_diameter_mm",
+            values["source_diameter_mm"],
+            f"smaller than the sensor's diagonal {sensor.diagonal_m * 1e3:.1f} mm (Release 4.0 §6.1)",
+        )
     return Bench(**values, sensor=sensor, values={"bench": values, "sensor": {"profile": profile}})

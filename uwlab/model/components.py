@@ -11,6 +11,7 @@ CSV as an absolute path). Files named in a profile are relative to the profile. 
 {'light.luminous_flux_lm': 25000.0, 'light.beam_half_angle_deg': 40.0, 'light.beam_half_angle_in_air_deg': None, \
 'light.spectrum': 'generic-led'}
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -19,8 +20,18 @@ from pydantic import Field, model_validator
 
 from uwlab.model.config import NAME_OR_FILE
 from uwlab.model.data import config_dir, read_toml
-from uwlab.model.schema import (FocalLengthMm, HalfAngleDeg, LuminousFluxLm, NonEmptyText, Schema, Transmittance,
-                                at_most_one, invalid, number_or, parse)
+from uwlab.model.schema import (
+    FocalLengthMm,
+    HalfAngleDeg,
+    LuminousFluxLm,
+    NonEmptyText,
+    Schema,
+    Transmittance,
+    at_most_one,
+    invalid,
+    number_or,
+    parse,
+)
 
 
 class LightProfile(Schema):
@@ -43,8 +54,12 @@ class LightProfile(Schema):
     def design_values(self, folder: Path) -> dict[str, object]:
         """The design config values of this light (``section.key`` → value; None: the key is unset)."""
         spectrum = self.spectrum if self.spectrum is not None else str((folder / self.spectrum_csv).resolve())
-        return {"light.luminous_flux_lm": self.luminous_flux_lm, "light.beam_half_angle_deg": self.beam_half_angle_deg,
-                "light.beam_half_angle_in_air_deg": None, "light.spectrum": spectrum}
+        return {
+            "light.luminous_flux_lm": self.luminous_flux_lm,
+            "light.beam_half_angle_deg": self.beam_half_angle_deg,
+            "light.beam_half_angle_in_air_deg": None,
+            "light.spectrum": spectrum,
+        }
 
 
 class LensProfile(Schema):
@@ -53,7 +68,8 @@ class LensProfile(Schema):
     name: NonEmptyText = Field(description="product name")
     focal_length_mm: FocalLengthMm = Field(description="focal length [mm]")
     transmittance: number_or(Transmittance, NonEmptyText, NAME_OR_FILE) | None = Field(
-        None, description="broadband transmittance (or give transmittance_csv)")
+        None, description="broadband transmittance (or give transmittance_csv)"
+    )
     transmittance_csv: NonEmptyText | None = Field(None, description="spectral transmittance CSV beside the profile")
     provenance: dict[str, str] = Field({}, description="where each value comes from")
 

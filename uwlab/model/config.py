@@ -19,6 +19,7 @@ element-wise. Physical plausibility limits (`uwlab.model.schema`) refuse values 
 {'focal_length_mm': 8.0, 'f_number': 2.8, 'transmittance': 1.0, 'min_focus_distance_m': None,
  'mechanical_vignetting': 0.0}
 """
+
 from __future__ import annotations
 
 import math
@@ -32,10 +33,36 @@ from pydantic import BeforeValidator, Field, model_validator
 from uwlab.errors import ConfigError
 from uwlab.model.data import read_toml
 from uwlab.model.scattering import PHASE_FUNCTIONS
-from uwlab.model.schema import (BitDepth, BlurPx, CircleOfConfusionMm, DistanceM, ExposureS, FNumber, FocalLengthMm,
-                                Fraction, GainDb, Grid, HalfAngleDeg, HousingMm, IncidenceDeg, LuminousFluxLm,
-                                NonEmptyText, PositionM, RefractiveIndex, ScatteringPerM, Schema, SpectralStepNm,
-                                SpeedMS, Transmittance, WavelengthNm, at_most_one, invalid, number_or, parse, quantity)
+from uwlab.model.schema import (
+    BitDepth,
+    BlurPx,
+    CircleOfConfusionMm,
+    DistanceM,
+    ExposureS,
+    FNumber,
+    FocalLengthMm,
+    Fraction,
+    GainDb,
+    Grid,
+    HalfAngleDeg,
+    HousingMm,
+    IncidenceDeg,
+    LuminousFluxLm,
+    NonEmptyText,
+    PositionM,
+    RefractiveIndex,
+    ScatteringPerM,
+    Schema,
+    SpectralStepNm,
+    SpeedMS,
+    Transmittance,
+    WavelengthNm,
+    at_most_one,
+    invalid,
+    number_or,
+    parse,
+    quantity,
+)
 
 # Light count: one to a thousand lights of the same kind.
 LightCount = quantity(1, 1000, "lights", hint="", integer=True)
@@ -69,8 +96,10 @@ Vector3Mm = Annotated[list[DecenterMm], Field(min_length=3, max_length=3), Befor
 # Spectral exponent of the particles' scattering, b ∝ λ^−γ: 0 (large particles) to 4 (Rayleigh).
 ScatteringExponent = quantity(0.0, 4.0, "", hint="")
 BeamModel = Literal["cone", "disk", "cos-power"]
-BEAM_MODEL = ("cone: uniform intensity in the beam; disk: flux spread over the beam's footprint; cos-power (extended "
-              "model; the paper model takes it as a cone): I ∝ cos^m ψ with half the peak intensity at the half-angle")
+BEAM_MODEL = (
+    "cone: uniform intensity in the beam; disk: flux spread over the beam's footprint; cos-power (extended "
+    "model; the paper model takes it as a cone): I ∝ cos^m ψ with half the peak intensity at the half-angle"
+)
 
 
 def _section(model):
@@ -98,26 +127,34 @@ class Light(Schema):
     spectrum: NonEmptyText = Field("generic-led", description="relative spectrum: a named spectrum or a CSV file")
     luminous_flux_lm: Grid[LuminousFluxLm] = Field(description="rated luminous flux of one light [lm]")
     beam_half_angle_deg: Grid[HalfAngleDeg] | None = Field(
-        None, description="beam half-angle in water [deg] (give this or beam_half_angle_in_air_deg)")
+        None, description="beam half-angle in water [deg] (give this or beam_half_angle_in_air_deg)"
+    )
     beam_half_angle_in_air_deg: Grid[HalfAngleDeg] | None = Field(
-        None, description="beam half-angle as specified in air [deg], refracted into the water by the port")
+        None, description="beam half-angle as specified in air [deg], refracted into the water by the port"
+    )
     beam_model: BeamModel = Field("cone", description=BEAM_MODEL)
     count: Grid[LightCount] = Field(1, description="number of identical lights")
-    distance_m: Grid[DistanceM] | None = Field(
-        None, description="light → target distance [m] (default: the altitude)")
+    distance_m: Grid[DistanceM] | None = Field(None, description="light → target distance [m] (default: the altitude)")
     incidence_deg: Grid[IncidenceDeg] = Field(0.0, description="angle of incidence of the light on the target [deg]")
     separation_m: Grid[DistanceM] | None = Field(
-        None, description="extended model: the lights' distance from the optical axis [m], `count` lights spread "
-                          "evenly around it from above the camera, in the camera's plane")
+        None,
+        description="extended model: the lights' distance from the optical axis [m], `count` lights spread "
+        "evenly around it from above the camera, in the camera's plane",
+    )
     aim: Literal["target", "parallel"] = Field(
-        "target", description="extended model: lights placed by separation_m aim at the target's centre or along "
-                              "the optical axis")
+        "target",
+        description="extended model: lights placed by separation_m aim at the target's centre or along "
+        "the optical axis",
+    )
 
     @model_validator(mode="after")
     def _one_beam_angle(self):
         if (self.beam_half_angle_deg is None) == (self.beam_half_angle_in_air_deg is None):
-            raise invalid("beam_half_angle_deg", self.beam_half_angle_deg,
-                          "give exactly one of beam_half_angle_deg (in water) and beam_half_angle_in_air_deg")
+            raise invalid(
+                "beam_half_angle_deg",
+                self.beam_half_angle_deg,
+                "give exactly one of beam_half_angle_deg (in water) and beam_half_angle_in_air_deg",
+            )
         return self
 
 
@@ -127,13 +164,15 @@ class LightPlacement(Schema):
 
     position_m: tuple[PositionM, PositionM, PositionM] = Field(description="the light's position [x, y, z] [m]")
     aim_m: tuple[PositionM, PositionM, PositionM] | None = Field(
-        None, description="a point the light is aimed at [m] (default: along the optical axis)")
+        None, description="a point the light is aimed at [m] (default: along the optical axis)"
+    )
     luminous_flux_lm: LuminousFluxLm | None = Field(None, description="rated luminous flux [lm]")
     beam_half_angle_deg: HalfAngleDeg | None = Field(None, description="beam half-angle in water [deg]")
     beam_half_angle_in_air_deg: HalfAngleDeg | None = Field(None, description="beam half-angle in air [deg]")
     beam_model: BeamModel | None = Field(None, description=BEAM_MODEL)
     transmittance: Transmittance = Field(
-        1.0, description="fraction of the flux entering the water, e.g. through a window between light and water")
+        1.0, description="fraction of the flux entering the water, e.g. through a window between light and water"
+    )
 
     @model_validator(mode="after")
     def _one_beam_angle(self):
@@ -146,21 +185,26 @@ class Water(Schema):
     type: NonEmptyText = Field(description="water type (pure-fresh, pure-sea, jerlov-I … jerlov-9C) or a CSV file")
     attenuation_scale: Grid[AttenuationScale] = Field(1.0, description="factor on the beam attenuation c(λ)")
     particle_scattering_per_m: ScatteringPerM = Field(
-        0.0, description="scattering coefficient b_p(550 nm) of added particles [1/m]: adds to the attenuation; "
-                         "extended model: also veiling light")
+        0.0,
+        description="scattering coefficient b_p(550 nm) of added particles [1/m]: adds to the attenuation; "
+        "extended model: also veiling light",
+    )
     particle_scattering_exponent: ScatteringExponent = Field(1.0, description="γ of b_p(λ) = b_p(550) (550/λ)^γ")
     particle_phase_function: Literal[PHASE_FUNCTIONS] = Field(
-        "fournier-forand", description="particles' phase function (fournier-forand: Petzold's average)")
+        "fournier-forand", description="particles' phase function (fournier-forand: Petzold's average)"
+    )
 
 
 class Target(Schema):
     """The Lambertian target (seafloor, test board)."""
 
     reflectance: number_or(Grid[Fraction], NonEmptyText, NAME_OR_FILE) = Field(
-        description="diffuse reflectance: a fraction, a named material or a CSV file")
+        description="diffuse reflectance: a fraction, a named material or a CSV file"
+    )
     board_size_m: tuple[DistanceM, DistanceM] | None = Field(
-        None, description="extended model: the target is a board [x, y] [m] centred on the axis (default: it fills "
-                          "the view)")
+        None,
+        description="extended model: the target is a board [x, y] [m] centred on the axis (default: it fills the view)",
+    )
     surround_reflectance: Fraction = Field(0.0, description="extended model: reflectance around the board")
 
 
@@ -171,18 +215,24 @@ class Housing(Schema):
     water_index: Grid[RefractiveIndex] = Field(1.333, description="refractive index of the water")
     port_index: Grid[RefractiveIndex] = Field(1.49, description="refractive index of the port material")
     port_transmittance: number_or(Grid[Transmittance], Literal["fresnel"], 'must be a number or "fresnel"') = Field(
-        "fresnel", description='port transmittance: a fraction, or "fresnel" (two interfaces at normal incidence)')
+        "fresnel", description='port transmittance: a fraction, or "fresnel" (two interfaces at normal incidence)'
+    )
     dome_radius_mm: Grid[HousingMm] | None = Field(None, description="dome outer radius [mm] (dome ports)")
     dome_thickness_mm: Grid[HousingMm] | None = Field(None, description="dome wall thickness [mm] (dome ports)")
     dome_decenter_mm: Vector3Mm = Field(
-        [0.0, 0.0, 0.0], description="[x, y, z] of the entrance pupil from the dome's centre, camera axes "
-                                     "(x right, y down, z forward) [mm] (dome ports; `uwlab port`)")
+        [0.0, 0.0, 0.0],
+        description="[x, y, z] of the entrance pupil from the dome's centre, camera axes "
+        "(x right, y down, z forward) [mm] (dome ports; `uwlab port`)",
+    )
     flat_thickness_mm: Grid[WindowMm] = Field(0.0, description="flat window thickness [mm] (0: a thin window)")
     flat_air_gap_mm: Grid[AirGapMm] = Field(
-        0.0, description="entrance pupil → inner face of the flat window, along its normal [mm]")
+        0.0, description="entrance pupil → inner face of the flat window, along its normal [mm]"
+    )
     flat_tilt_deg: Vector2Deg = Field(
-        [0.0, 0.0], description="[x, y] angles of the flat window's normal from the optical axis in the x–z and "
-                                "y–z planes [deg] (`uwlab port`)")
+        [0.0, 0.0],
+        description="[x, y] angles of the flat window's normal from the optical axis in the x–z and "
+        "y–z planes [deg] (`uwlab port`)",
+    )
 
     @model_validator(mode="after")
     def _dome(self):
@@ -194,8 +244,11 @@ class Housing(Schema):
                 raise invalid("dome_thickness_mm", self.dome_thickness_mm, "must be less than dome_radius_mm")
             inner = np.asarray(self.dome_radius_mm) - np.asarray(self.dome_thickness_mm)
             if np.any(np.linalg.norm(self.dome_decenter_mm) >= 0.5 * inner):
-                raise invalid("dome_decenter_mm", list(self.dome_decenter_mm),
-                              "must be well inside the dome (less than half its inner radius)")
+                raise invalid(
+                    "dome_decenter_mm",
+                    list(self.dome_decenter_mm),
+                    "must be well inside the dome (less than half its inner radius)",
+                )
         return self
 
 
@@ -205,11 +258,14 @@ class Lens(Schema):
     focal_length_mm: Grid[FocalLengthMm] = Field(description="focal length (in air) [mm]")
     f_number: Grid[FNumber] = Field(description="f-number N = f / D")
     transmittance: number_or(Grid[Transmittance], NonEmptyText, NAME_OR_FILE) = Field(
-        1.0, description="lens transmittance: a fraction or a CSV file")
+        1.0, description="lens transmittance: a fraction or a CSV file"
+    )
     min_focus_distance_m: Grid[DistanceM] | None = Field(
-        None, description="the lens's closest focus [m] (for the close-up lens of the focusing aids)")
+        None, description="the lens's closest focus [m] (for the close-up lens of the focusing aids)"
+    )
     mechanical_vignetting: Grid[Fraction] = Field(
-        0.0, description="extended model: light lost at the image corner beyond cos⁴ (falls off as (r/r_corner)⁴)")
+        0.0, description="extended model: light lost at the image corner beyond cos⁴ (falls off as (r/r_corner)⁴)"
+    )
 
 
 class Sensor(Schema):
@@ -219,7 +275,8 @@ class Sensor(Schema):
     gain_db: Grid[GainDb] = Field(0.0, description="analog gain [dB]")
     bit_depth: Grid[BitDepth] | None = Field(None, description="output bit depth [bit] (default: the profile's)")
     channel: Literal["combined", "red", "green", "blue"] = Field(
-        "combined", description="colour channel of a colour sensor")
+        "combined", description="colour channel of a colour sensor"
+    )
 
 
 class Operation(Schema):
@@ -230,18 +287,21 @@ class Operation(Schema):
     overlap: Grid[Overlap] = Field(0.0, description="overlap between consecutive frames along the motion")
     max_blur_px: Grid[BlurPx] = Field(1.0, description="largest acceptable motion blur [px]")
     exposure_s: number_or(Grid[ExposureS], Literal["max-blur"], 'must be a number or "max-blur"') = Field(
-        "max-blur", description='exposure time [s], or "max-blur": the longest exposure within max_blur_px')
+        "max-blur", description='exposure time [s], or "max-blur": the longest exposure within max_blur_px'
+    )
     motion_axis: Literal["x", "y"] = Field("y", description="sensor axis along the motion")
     min_dof_m: Grid[DistanceM] | None = Field(None, description="required depth of field [m]")
     circle_of_confusion_mm: Grid[CircleOfConfusionMm] | None = Field(
-        None, description="acceptable circle of confusion on the sensor [mm] (default: the sensor diagonal / 1500)")
+        None, description="acceptable circle of confusion on the sensor [mm] (default: the sensor diagonal / 1500)"
+    )
 
 
 class Model(Schema):
     """The image-formation chain."""
 
-    kind: Literal["paper", "extended"] = Field("paper", description="paper: the paper's chain; extended: "
-                                                                    "`uwlab.model.extended`")
+    kind: Literal["paper", "extended"] = Field(
+        "paper", description="paper: the paper's chain; extended: `uwlab.model.extended`"
+    )
 
 
 class DesignConfig(Schema):

@@ -4,6 +4,7 @@ The configuration directory is `$UWLAB_CONFIG_DIR` if set, else the `configs/` f
 Relative paths in a config file are resolved against that file's folder. CSV files may start with `#` comment
 lines (their provenance header); read with the standard library's `csv` (no pandas: the design path stays light).
 """
+
 from __future__ import annotations
 
 import csv

@@ -26,6 +26,7 @@ and the lens adds cos⁴α_air. The average is taken over a 16 × 16 midpoint gr
 function of the image radius only, is taken through Gauss rules of the samples' radii (`uwlab.model.quadrature`)
 where those match it to 5e-9, else sample by sample (`_image_sum`), or through per-geometry tables.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
@@ -98,8 +99,13 @@ def build_design(raw: dict, base_dir: Path | None = None) -> Design:
     within("sensor.gain_db", sensor_cfg["gain_db"], sensor.gain_min_db, sensor.gain_max_db, f"{sensor.name}'s range")
     exposure = values["operation"]["exposure_s"]
     if not isinstance(exposure, str):
-        within("operation.exposure_s", exposure, sensor.exposure_min_us * 1e-6, sensor.exposure_max_us * 1e-6,
-               f"{sensor.name}'s range")
+        within(
+            "operation.exposure_s",
+            exposure,
+            sensor.exposure_min_us * 1e-6,
+            sensor.exposure_max_us * 1e-6,
+            f"{sensor.name}'s range",
+        )
     design = Design(values=values, grid=grid, sensor=sensor, base_dir=base_dir)
     spectral_weights(design)  # resolve spectra, water and curves now, so bad names fail before evaluation
     return design
@@ -114,9 +120,17 @@ def load_design(path: str | Path, overrides: dict | None = None) -> Design:
 
 
 def _spectral_key(d: Design):
-    return (d.grid, d["light.spectrum"], d["water.type"], _hashable(d["target.reflectance"]),
-            _hashable(d["lens.transmittance"]), id(d.sensor), d["sensor.channel"], d["water.particle_scattering_per_m"],
-            d["water.particle_scattering_exponent"])
+    return (
+        d.grid,
+        d["light.spectrum"],
+        d["water.type"],
+        _hashable(d["target.reflectance"]),
+        _hashable(d["lens.transmittance"]),
+        id(d.sensor),
+        d["sensor.channel"],
+        d["water.particle_scattering_per_m"],
+        d["water.particle_scattering_exponent"],
+    )
 
 
 def _hashable(value):
@@ -194,10 +208,27 @@ def _compute_weights(d: Design) -> SpectralWeights:
     t_spec = t if _is_spectral(d, "lens.transmittance") else np.ones_like(grid.nm)
     base = s * grid.w_nm
     photons = base * photons_per_joule(grid.nm)
-    W = np.stack([base, base * m_spec * t_spec, photons * m_spec * t_spec * qe, photons, photons * m_spec,
-                  photons * m_spec * t_spec], axis=1)
-    return SpectralWeights(c=c, W=W, s_per_lm=s, reflectance=m_spec, lens_transmittance=t_spec, qe=qe,
-                           b_water=b_water, b_particles=b_suspended + added)
+    W = np.stack(
+        [
+            base,
+            base * m_spec * t_spec,
+            photons * m_spec * t_spec * qe,
+            photons,
+            photons * m_spec,
+            photons * m_spec * t_spec,
+        ],
+        axis=1,
+    )
+    return SpectralWeights(
+        c=c,
+        W=W,
+        s_per_lm=s,
+        reflectance=m_spec,
+        lens_transmittance=t_spec,
+        qe=qe,
+        b_water=b_water,
+        b_particles=b_suspended + added,
+    )
 
 
 def _is_spectral(d: Design, dotted: str) -> bool:
@@ -258,8 +289,13 @@ def _radiance_to_sensor_factor(d: Design, weights: SpectralWeights):
     """Broadband factors from target irradiance to sensor irradiance: M/π · T_port/n_w² · T_lens · π/(4N²)."""
     m = broadband_factor(d, "target.reflectance")
     t = broadband_factor(d, "lens.transmittance")
-    return (m / np.pi) * housing_transmittance(d) / d["housing.water_index"] ** 2 * t * optics.lens_irradiance_factor(
-        d["lens.f_number"])
+    return (
+        (m / np.pi)
+        * housing_transmittance(d)
+        / d["housing.water_index"] ** 2
+        * t
+        * optics.lens_irradiance_factor(d["lens.f_number"])
+    )
 
 
 def effective_focal_length_m(d: Design):
@@ -290,8 +326,12 @@ def _image_prefactor(d: Design, weights: SpectralWeights):
     """Electron rate per unit (angular weight × spectral integral) of the off-axis pixels: flux, beam
     concentration without incidence, broadband factors to the sensor, pixel area."""
     beta = beam_half_angle_rad(d)
-    return (d["light.luminous_flux_lm"] * _irradiance_geometry(d, beta, 1.0) * _radiance_to_sensor_factor(d, weights)
-            * d.sensor.pixel_area_m2)
+    return (
+        d["light.luminous_flux_lm"]
+        * _irradiance_geometry(d, beta, 1.0)
+        * _radiance_to_sensor_factor(d, weights)
+        * d.sensor.pixel_area_m2
+    )
 
 
 def electron_rate_at_radius(d: Design, r_m, weights: SpectralWeights | None = None):
@@ -438,8 +478,9 @@ def _image_sum(d: Design, weights: SpectralWeights, path, focal, water, beta) ->
     tan2_air = x_last / focal**2
     kappa = weights.electron_mean_rate_per_m * path * (np.sqrt(1 + tan2_air / water**2) - 1)
     choice = sum(~((tan2_air <= tan2_max) & (kappa <= kappa_max)) for _, tan2_max, kappa_max in IMAGE_RULES)
-    path, f2, n2, prefix, choice = (np.broadcast_to(v, shape).ravel()
-                                    for v in (path, focal**2, water**2, prefix, choice))
+    path, f2, n2, prefix, choice = (
+        np.broadcast_to(v, shape).ravel() for v in (path, focal**2, water**2, prefix, choice)
+    )
     total = np.empty(choice.size)
     used = np.unique(choice)
     for r in used:
@@ -447,7 +488,7 @@ def _image_sum(d: Design, weights: SpectralWeights, path, focal, water, beta) ->
         nodes, node_weights = rules.rule(int(r))
         piece = max(1, IMAGE_PIECE * 8 // nodes.shape[1])
         for s in range(0, members.size, piece):
-            at = members[s:s + piece]
+            at = members[s : s + piece]
             p = prefix[at]
             f2n2 = (f2[at] * n2[at])[:, None]
             x = nodes[p]
@@ -465,15 +506,16 @@ def _mesh_index(index: tuple, axes: tuple, ndim: int) -> tuple:
     """An index of the full grid (`ndim` axes) selecting point `index` of the `axes` shape (right-aligned):
     length-1 slices on the axes longer than 1, whole axes elsewhere."""
     pad = ndim - len(index)
-    return (slice(None),) * pad + tuple(slice(i, i + 1) if n > 1 else slice(None)
-                                        for i, n in zip(index, axes, strict=True))
+    return (slice(None),) * pad + tuple(
+        slice(i, i + 1) if n > 1 else slice(None) for i, n in zip(index, axes, strict=True)
+    )
 
 
 def _pick(array: np.ndarray, where: tuple) -> np.ndarray:
     """`array` at the mesh index `where`, along the axes where the array is not broadcast (length > 1)."""
     if array.ndim == 0:
         return array
-    where = where[len(where) - array.ndim:]
+    where = where[len(where) - array.ndim :]
     return array[tuple(w if n > 1 else slice(None) for w, n in zip(where, array.shape, strict=True))]
 
 
@@ -593,8 +635,9 @@ def evaluate(d: Design) -> dict[str, np.ndarray]:
         target, sensor_irradiance, rate, veil = _extended_on_axis(d, weights)
         mu_e, mu_y, saturated, snr_value, veil_e = _extended_response(rate, veil, exposure, k, dark, bits, sensor)
         image_rate, image_veil = extended_image_rates(d, weights)
-        image_e, image_y, _, image_snr, image_veil_e = _extended_response(image_rate, image_veil, exposure, k, dark,
-                                                                          bits, sensor)
+        image_e, image_y, _, image_snr, image_veil_e = _extended_response(
+            image_rate, image_veil, exposure, k, dark, bits, sensor
+        )
         extras = {"veil_electrons": veil_e}
         image_extras = {"veil_electrons": image_veil_e}
     else:
@@ -657,8 +700,16 @@ the irradiance on the sensor plane (on an EMVA 1288 bench, `uwlab.model.bench`, 
 Release 4.0 Linear §6.4)."""
 
 
-LIGHT_BUDGET_STAGES = ("beam_to_view", "water_to_target", "reflectance", "water_to_camera", "port", "aperture",
-                       "lens_transmittance", "quantum_efficiency")
+LIGHT_BUDGET_STAGES = (
+    "beam_to_view",
+    "water_to_target",
+    "reflectance",
+    "water_to_camera",
+    "port",
+    "aperture",
+    "lens_transmittance",
+    "quantum_efficiency",
+)
 
 
 def light_budget(d: Design, weights: SpectralWeights, fov_m: dict) -> dict[str, np.ndarray]:
@@ -681,8 +732,12 @@ def light_budget(d: Design, weights: SpectralWeights, fov_m: dict) -> dict[str, 
     lit, reflected = table(near, 3), table(near, 4)
     returned, transmitted = table(far, 4), table(far, 5)
     beta = beam_half_angle_rad(d)
-    beam = (_irradiance_geometry(d, beta, np.cos(np.radians(d["light.incidence_deg"]))) / d["light.count"]
-            * fov_m["x"] * fov_m["y"])
+    beam = (
+        _irradiance_geometry(d, beta, np.cos(np.radians(d["light.incidence_deg"])))
+        / d["light.count"]
+        * fov_m["x"]
+        * fov_m["y"]
+    )
     focal = d["lens.focal_length_mm"] * 1e-3
     fractions = {
         "beam_to_view": beam,
@@ -718,8 +773,14 @@ def stage_spectra(d: Design) -> dict[str, np.ndarray]:
     d_l, d_c = light_distance_m(d), d["operation.altitude_m"]
     e_t = geometry * w.s_per_lm * np.exp(-c * d_l)
     l_w = e_t * w.reflectance * broadband_factor(d, "target.reflectance") / np.pi * np.exp(-c * d_c)
-    e_s = (l_w * housing_transmittance(d) / d["housing.water_index"] ** 2 * w.lens_transmittance
-           * broadband_factor(d, "lens.transmittance") * optics.lens_irradiance_factor(d["lens.f_number"]))
+    e_s = (
+        l_w
+        * housing_transmittance(d)
+        / d["housing.water_index"] ** 2
+        * w.lens_transmittance
+        * broadband_factor(d, "lens.transmittance")
+        * optics.lens_irradiance_factor(d["lens.f_number"])
+    )
     return {
         "wavelength_nm": grid.nm,
         "source_w_nm": source,
@@ -737,9 +798,20 @@ def _extended_spectra(d: Design) -> dict[str, np.ndarray]:
     chain = extended.Chain(d, w)
     target, facing, radiance = chain.spectra(w)
     lens = broadband_factor(d, "lens.transmittance") * w.lens_transmittance
-    e_s = radiance * housing_transmittance(d) / d["housing.water_index"] ** 2 * lens * optics.lens_irradiance_factor(
-        d["lens.f_number"])
+    e_s = (
+        radiance
+        * housing_transmittance(d)
+        / d["housing.water_index"] ** 2
+        * lens
+        * optics.lens_irradiance_factor(d["lens.f_number"])
+    )
     flux = sum(np.asarray(light.flux_lm) * np.asarray(light.count) for light in chain.lights)
-    return {"wavelength_nm": d.grid.nm, "source_w_nm": flux * w.s_per_lm, "target_irradiance_w_m2_nm": target,
-            "facing_light_w_m2_nm": facing, "return_radiance_w_m2_sr_nm": radiance, "sensor_irradiance_w_m2_nm": e_s,
-            "absorbed_w_m2_nm": e_s * w.qe}
+    return {
+        "wavelength_nm": d.grid.nm,
+        "source_w_nm": flux * w.s_per_lm,
+        "target_irradiance_w_m2_nm": target,
+        "facing_light_w_m2_nm": facing,
+        "return_radiance_w_m2_sr_nm": radiance,
+        "sensor_irradiance_w_m2_nm": e_s,
+        "absorbed_w_m2_nm": e_s * w.qe,
+    }

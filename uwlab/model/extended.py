@@ -46,6 +46,7 @@ E = π ⟨L_air⟩ over a grid uniform in sin²θ_air and azimuth, its rays trac
 Spectral integrals ∫ w(λ) e^(−c(λ) D) dλ come from the chain's table over the attenuating path length D
 (`uwlab.model.spectral_table.SpectralTable`, 1e-9 of the wavelength sum).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -136,13 +137,25 @@ def check_off_axis(d, placed: list[PlacedLight]) -> None:
     altitude = np.asarray(d["operation.altitude_m"], float)
     for index, light in enumerate(placed):
         position = np.asarray(light.position, float)
-        on_axis = (np.hypot(position[..., 0], position[..., 1]) < 1e-9) & (position[..., 2] >= 0) & (
-            position[..., 2] < altitude)
+        on_axis = (
+            (np.hypot(position[..., 0], position[..., 1]) < 1e-9)
+            & (position[..., 2] >= 0)
+            & (position[..., 2] < altitude)
+        )
         if np.any(on_axis):
-            key = (f"lights[{index}].position_m" if d.values.get("lights") else
-                   "light.separation_m" if d["light.separation_m"] is not None else "light.distance_m")
-            raise ConfigError(key, np.asarray(position).tolist(), "puts a light on the camera's axis in scattering "
-                              "water; the extended model needs the lights beside it ([[lights]] or light.separation_m)")
+            key = (
+                f"lights[{index}].position_m"
+                if d.values.get("lights")
+                else "light.separation_m"
+                if d["light.separation_m"] is not None
+                else "light.distance_m"
+            )
+            raise ConfigError(
+                key,
+                np.asarray(position).tolist(),
+                "puts a light on the camera's axis in scattering "
+                "water; the extended model needs the lights beside it ([[lights]] or light.separation_m)",
+            )
 
 
 def lights(d) -> list[PlacedLight]:
@@ -168,8 +181,9 @@ def lights(d) -> list[PlacedLight]:
         out = []
         for k in range(int(count)):
             angle = -np.pi / 2 + 2 * np.pi * k / int(count)
-            position = np.stack(np.broadcast_arrays(separation * np.cos(angle), separation * np.sin(angle),
-                                                    0.0 * separation), axis=-1)
+            position = np.stack(
+                np.broadcast_arrays(separation * np.cos(angle), separation * np.sin(angle), 0.0 * separation), axis=-1
+            )
             aim = _unit(centre - position) if d["light.aim"] == "target" else np.array([0, 0, 1.0])
             out.append(PlacedLight(position, aim, flux, beam))
         return out
@@ -200,15 +214,27 @@ def chain_weights(d, weights) -> ChainWeights:
     to_sensor = weights.s_per_lm * grid.w_nm * weights.lens_transmittance
     electrons = to_sensor * weights.qe * photons_per_joule(grid.nm)
     m = weights.reflectance
-    W = np.stack([electrons * m, electrons * weights.b_water, electrons * weights.b_particles,
-                  to_sensor * m, to_sensor * weights.b_water, to_sensor * weights.b_particles], axis=1)
+    W = np.stack(
+        [
+            electrons * m,
+            electrons * weights.b_water,
+            electrons * weights.b_particles,
+            to_sensor * m,
+            to_sensor * weights.b_water,
+            to_sensor * weights.b_particles,
+        ],
+        axis=1,
+    )
     return ChainWeights(weights.c, W)
 
 
 def particles(d) -> ParticleScattering:
     """The design's suspended particles."""
-    return ParticleScattering(d["water.particle_scattering_per_m"], d["water.particle_scattering_exponent"],
-                              d["water.particle_phase_function"])
+    return ParticleScattering(
+        d["water.particle_scattering_per_m"],
+        d["water.particle_scattering_exponent"],
+        d["water.particle_phase_function"],
+    )
 
 
 def _g(x):
@@ -351,10 +377,13 @@ class Chain:
         nodes = np.stack([0 * s, 0 * s, s], axis=-1)
         for term, to_point, r in self._light_terms(nodes):
             cos_theta = -to_point[..., 2]
-            veil = (pure_water_phase(cos_theta)[:, None] * weights.b_water
-                    + self.phase.phase_function(cos_theta)[:, None] * weights.b_particles)
-            radiance = radiance + self.scale * np.sum((0.5 * float(self.altitude) * w * term)[:, None] * veil * source
-                                                      * np.exp(-np.outer(r + s, c)), axis=0)
+            veil = (
+                pure_water_phase(cos_theta)[:, None] * weights.b_water
+                + self.phase.phase_function(cos_theta)[:, None] * weights.b_particles
+            )
+            radiance = radiance + self.scale * np.sum(
+                (0.5 * float(self.altitude) * w * term)[:, None] * veil * source * np.exp(-np.outer(r + s, c)), axis=0
+            )
         return target, facing, radiance
 
     def pixel_rates(self, x_m, y_m, port_transmittance, lens_transmittance, watts: bool = False):

@@ -13,6 +13,7 @@ the close virtual images of domes; take it into account when reading a focus sca
   lens at its closest focus, has P = 1/v − 1/s_min; then the focus setting is s_min. Otherwise P = 0 and the
   setting is v.
 """
+
 from __future__ import annotations
 
 import numpy as np

@@ -3,6 +3,7 @@
 Convention: wavelengths in nanometres on a uniform grid (default 380–780 nm in 1 nm steps); spectral
 densities are per nanometre; integrals use the trapezoidal rule, ∫ f dλ ≈ Σ f_i w_i with the weights `w_nm`.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass

@@ -11,6 +11,7 @@ Photogrammetric Engineering 32(3), 1966; the five-coefficient form of OpenCV's `
 and the pixel is (fx x' + cx, fy y' + cy). The inverse (pixel → ray) has no closed form: fixed-point iteration
 x = (x' − tangential(x, y)) / radial(r²), as OpenCV's `undistortPoints`, run to convergence.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass

@@ -25,6 +25,7 @@ degrees only at the config/CLI boundary; the circle of confusion c is given on t
   a = f²/(N c), the total is 2 s a (s − f) / (a² − (s − f)²), so a = (s − f)(s + √(s² + D²)) / D and
   N = f² / (c a). Dome ports have no closed form: bisection on log N.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -129,8 +130,10 @@ def dof_underwater(s_m, focal_length_m, f_number, coc_m, port, water_index, dome
         far = port_model.dome_object_distance(v_far, radius_m, thickness_m, water_index, port_index)
         return near, far
     near, far = dof_in_air(port_model.flat_apparent_distance(s_m, water_index, *flat), focal_length_m, f_number, coc_m)
-    return (port_model.flat_object_distance(near, water_index, *flat),
-            port_model.flat_object_distance(far, water_index, *flat))
+    return (
+        port_model.flat_object_distance(near, water_index, *flat),
+        port_model.flat_object_distance(far, water_index, *flat),
+    )
 
 
 def min_f_number_in_air(s_m, focal_length_m, coc_m, dof_m):
@@ -142,8 +145,7 @@ def min_f_number_in_air(s_m, focal_length_m, coc_m, dof_m):
     return f**2 / (np.asarray(coc_m, float) * a)
 
 
-def min_f_number(s_m, focal_length_m, coc_m, dof_m, port, water_index, dome=None, iterations=60,
-                 flat=(0.0, 0.0, 1.0)):
+def min_f_number(s_m, focal_length_m, coc_m, dof_m, port, water_index, dome=None, iterations=60, flat=(0.0, 0.0, 1.0)):
     """Smallest N whose underwater depth of field (far − near) reaches dof_m (a flat port maps distances
     affinely, v = offset + s / n_w, so depths shrink by n_w)."""
     if port != "dome":

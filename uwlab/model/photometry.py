@@ -5,6 +5,7 @@ K_cd = 683 lm/W at 540 THz ≈ 555.016 nm, where V = 1.00002; 683.002 is the cus
 V(λ) is the CIE 1924 Photopic Standard Observer (1 nm, 360–830 nm; `configs/photometry/cie_1924_photopic_v.csv`,
 exported unchanged from colour-science, which the tests check), interpolated linearly and zero outside its table.
 """
+
 from __future__ import annotations
 
 from functools import lru_cache

@@ -17,6 +17,7 @@ face or at the dome's centre of curvature (a centred dome). Indices: water n_w, 
   water→port at the outer radius R_o, then port→air at R_i = R_o − t. The virtual image of infinity lies at
   ≈ n_w R / (n_w − 1) from the centre for a thin dome.
 """
+
 from __future__ import annotations
 
 import numpy as np

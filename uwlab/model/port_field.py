@@ -22,6 +22,7 @@ from the water-side ray of the image centre (the port's axis as the camera sees 
   On axis behind a centred dome this is the paraxial image of `uwlab.model.port.dome_virtual_distance`; behind a
   flat port, g + t/n_p + (s − g − t)/n_w.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -167,10 +168,20 @@ def trace_design(d, samples: int = 41) -> dict:
     paraxial_fov = {a: float(np.degrees(optics.angular_fov_rad(s, f_eff))) for a, s in zip("xy", size, strict=True)}
 
     u = np.linspace(0.0, 1.0, samples)
-    directions = {"x": np.c_[u * half_x, 0 * u], "y": np.c_[0 * u, u * half_y],
-                  "diagonal": np.c_[u * half_x, u * half_y]}
-    profile = {"field_deg_air": {}, "image_radius_px": {}, "distortion_percent": {}, "distortion_px": {},
-               "paraxial_error_deg": {}, "virtual_image_tangential_m": {}, "virtual_image_sagittal_m": {}}
+    directions = {
+        "x": np.c_[u * half_x, 0 * u],
+        "y": np.c_[0 * u, u * half_y],
+        "diagonal": np.c_[u * half_x, u * half_y],
+    }
+    profile = {
+        "field_deg_air": {},
+        "image_radius_px": {},
+        "distortion_percent": {},
+        "distortion_px": {},
+        "paraxial_error_deg": {},
+        "virtual_image_tangential_m": {},
+        "virtual_image_sagittal_m": {},
+    }
     for name, xy in directions.items():
         r = np.linalg.norm(xy, axis=-1)
         pct, metres = port_distortion(port, xy, f)
@@ -194,8 +205,10 @@ def trace_design(d, samples: int = 41) -> dict:
         "distortion_px": {"edge": _worst(dist_m_e / pixel), "corner": _worst(dist_m_c / pixel)},
         "paraxial_error_deg": {"edge": _worst(np.degrees(err_rad_e)), "corner": _worst(np.degrees(err_rad_c))},
         "paraxial_error_px": {"edge": _worst(err_m_e / pixel), "corner": _worst(err_m_c / pixel)},
-        "virtual_image_m": {"on_axis": float(image_axis),
-                            "edge": float(image_edge[np.argmax(np.abs(image_edge - image_axis))])},
+        "virtual_image_m": {
+            "on_axis": float(image_axis),
+            "edge": float(image_edge[np.argmax(np.abs(image_edge - image_axis))]),
+        },
         "focus": focus_aids(d, float(image_axis), np.r_[tan_edge, sag_edge], np.r_[tan_corner, sag_corner]),
         "profile": profile,
     }
@@ -214,6 +227,7 @@ def focus_aids(d, image_axis_m: float, image_edge_m, image_corner_m) -> dict:
     dpt = float(focus.close_up_lens_dpt(image_axis_m, min_focus))
     near_a, far_a = optics.dof_in_air(image_axis_m, f, n, coc_m)
     near_w, far_w = _dof_in_water(d, f, n, coc_m)
+
     def inside(images):
         images = np.asarray(images, float)
         return bool(np.all((images >= near_a) & (images <= far_a)))

@@ -12,6 +12,7 @@ reorthogonalisation, which keeps it stable for any m ≤ N), and the Golub–Wel
 Welsch, Math. Comp. 23 (1969) 221): nodes are the eigenvalues, λ_j = μ(1) · v_j[0]² with v_j the normalised
 eigenvectors.
 """
+
 from __future__ import annotations
 
 import numpy as np

@@ -23,6 +23,7 @@ Projection (scene point in water → camera ray) has no closed form for a tilted
 gives a 12th-degree polynomial even untilted, Agrawal et al. 2012); `Port.project` solves it by Gauss–Newton
 on the ray's slope (x/z, y/z) in air.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
@@ -145,8 +146,13 @@ class Port:
         done = np.zeros(q.shape[:-1], bool)
         for _ in range(iterations):
             e0 = self._miss(ab, q, o)
-            jac = np.stack([(self._miss(ab + step, q, o) - e0) / _PROJECT_STEP
-                            for step in (np.array([_PROJECT_STEP, 0.0]), np.array([0.0, _PROJECT_STEP]))], axis=-1)
+            jac = np.stack(
+                [
+                    (self._miss(ab + step, q, o) - e0) / _PROJECT_STEP
+                    for step in (np.array([_PROJECT_STEP, 0.0]), np.array([0.0, _PROJECT_STEP]))
+                ],
+                axis=-1,
+            )
             jtj = np.swapaxes(jac, -1, -2) @ jac
             jte = np.swapaxes(jac, -1, -2) @ e0[..., None]
             with np.errstate(invalid="ignore"):
@@ -183,8 +189,10 @@ class FlatPort(Port):
 
     def interfaces(self):
         m = tuple(self.normal)
-        return [(Plane(m, self.air_gap_m, one_sided=False), self.glass_index),
-                (Plane(m, self.air_gap_m + self.thickness_m, one_sided=False), self.water_index)]
+        return [
+            (Plane(m, self.air_gap_m, one_sided=False), self.glass_index),
+            (Plane(m, self.air_gap_m + self.thickness_m, one_sided=False), self.water_index),
+        ]
 
 
 @dataclass(frozen=True)
@@ -199,20 +207,39 @@ class DomePort(Port):
 
     def interfaces(self):
         centre = tuple(-np.asarray(self.decenter_m, float))
-        return [(Sphere(centre, self.outer_radius_m - self.thickness_m), self.glass_index),
-                (Sphere(centre, self.outer_radius_m), self.water_index)]
+        return [
+            (Sphere(centre, self.outer_radius_m - self.thickness_m), self.glass_index),
+            (Sphere(centre, self.outer_radius_m), self.water_index),
+        ]
 
 
 def port_from_housing(values: dict) -> Port:
     """The exact port of a design's [housing] values (single values: a ray trace has one port)."""
-    for key in ("water_index", "port_index", "flat_thickness_mm", "flat_air_gap_mm", "dome_radius_mm",
-                "dome_thickness_mm"):
+    for key in (
+        "water_index",
+        "port_index",
+        "flat_thickness_mm",
+        "flat_air_gap_mm",
+        "dome_radius_mm",
+        "dome_thickness_mm",
+    ):
         if np.ndim(values[key]) > 0:
-            raise ConfigError(f"housing.{key}", np.asarray(values[key]).tolist(),
-                              "must be a single value to trace rays")
+            raise ConfigError(
+                f"housing.{key}", np.asarray(values[key]).tolist(), "must be a single value to trace rays"
+            )
     n_w, n_p = float(values["water_index"]), float(values["port_index"])
     if values["port"] == "dome":
-        return DomePort(values["dome_radius_mm"] * 1e-3, values["dome_thickness_mm"] * 1e-3, n_p, n_w,
-                        tuple(v * 1e-3 for v in values["dome_decenter_mm"]))
-    return FlatPort(values["flat_thickness_mm"] * 1e-3, values["flat_air_gap_mm"] * 1e-3, n_p, n_w,
-                    tuple(np.radians(values["flat_tilt_deg"])))
+        return DomePort(
+            values["dome_radius_mm"] * 1e-3,
+            values["dome_thickness_mm"] * 1e-3,
+            n_p,
+            n_w,
+            tuple(v * 1e-3 for v in values["dome_decenter_mm"]),
+        )
+    return FlatPort(
+        values["flat_thickness_mm"] * 1e-3,
+        values["flat_air_gap_mm"] * 1e-3,
+        n_p,
+        n_w,
+        tuple(np.radians(values["flat_tilt_deg"])),
+    )

@@ -24,6 +24,7 @@ scattered directions (0 = forward). Water and particles scatter independently an
 >>> round(float(fournier_forand_backscatter_fraction(1.10, 3.5835)), 4)
 0.0183
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -53,7 +54,8 @@ def fournier_forand_phase(cos_psi, index=PETZOLD_INDEX, junge_slope=PETZOLD_JUNG
     delta = scale * sin2_half
     d180 = scale
     main = (nu * (1 - delta) - (1 - delta**nu) + (delta * (1 - delta**nu) - nu * (1 - delta)) / sin2_half) / (
-        4 * np.pi * (1 - delta) ** 2 * delta**nu)
+        4 * np.pi * (1 - delta) ** 2 * delta**nu
+    )
     correction = (1 - d180**nu) * (3 * np.asarray(cos_psi, float) ** 2 - 1) / (16 * np.pi * (d180 - 1) * d180**nu)
     return main + correction
 

@@ -49,6 +49,7 @@ Traceback (most recent call last):
 ...
 uwlab.errors.ConfigError: lens.focal_length_mm = 0.03: must be in [1, 2000] mm — is the unit right?
 """
+
 from __future__ import annotations
 
 import types
@@ -59,8 +60,17 @@ from collections.abc import Callable
 from typing import Annotated, Any, Literal, TypeVar, Union
 
 import numpy as np
-from pydantic import (BaseModel, ConfigDict, Discriminator, Field, StringConstraints, Tag, TypeAdapter, ValidationError,
-                      WrapValidator)
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Discriminator,
+    Field,
+    StringConstraints,
+    Tag,
+    TypeAdapter,
+    ValidationError,
+    WrapValidator,
+)
 from pydantic_core import PydanticCustomError, core_schema
 
 from uwlab.errors import ConfigError
@@ -128,7 +138,8 @@ class Limits:
 
     def __get_pydantic_core_schema__(self, source, handler) -> core_schema.CoreSchema:
         return core_schema.no_info_wrap_validator_function(
-            self._validate, core_schema.float_schema(strict=True, allow_inf_nan=False))
+            self._validate, core_schema.float_schema(strict=True, allow_inf_nan=False)
+        )
 
     def _validate(self, value, number):
         if isinstance(value, np.ndarray) and self.grid:
@@ -138,9 +149,11 @@ class Limits:
         return self.check(number(value))
 
     def __get_pydantic_json_schema__(self, schema, handler) -> dict:
-        out = {"type": "integer" if self.integer else "number",
-               "exclusiveMinimum" if self.lo_open else "minimum": self.lo,
-               "exclusiveMaximum" if self.hi_open else "maximum": self.hi}
+        out = {
+            "type": "integer" if self.integer else "number",
+            "exclusiveMinimum" if self.lo_open else "minimum": self.lo,
+            "exclusiveMaximum" if self.hi_open else "maximum": self.hi,
+        }
         if self.unit:
             out["unit"] = self.unit
         if self.grid:
@@ -189,8 +202,12 @@ def either(reason: str, *members: tuple[Callable[[Any], bool], Any]):
         except ValidationError:
             raise PydanticCustomError("either", reason) from None
 
-    tagged = [Annotated[type_, WrapValidator(words), Tag(str(i))] if typing.get_origin(type_) is Literal
-              else Annotated[type_, Tag(str(i))] for i, (_, type_) in enumerate(members)]
+    tagged = [
+        Annotated[type_, WrapValidator(words), Tag(str(i))]
+        if typing.get_origin(type_) is Literal
+        else Annotated[type_, Tag(str(i))]
+        for i, (_, type_) in enumerate(members)
+    ]
     choice = Discriminator(which, custom_error_type="either", custom_error_message=reason)
     return Annotated[Union[tuple(tagged)], choice]  # noqa: UP007 (a union of a computed tuple of types)
 
@@ -251,15 +268,28 @@ Seed = quantity(0, 2**32 - 1, "", hint="", integer=True)
 # --- From ValidationError to ConfigError. ---------------------------------------------------------------------
 
 _TYPE_REASONS = {
-    "missing": "missing (required)", "union_tag_not_found": "missing (required)",
-    "float_type": "must be a number", "float_parsing": "must be a number", "int_type": "must be an integer",
-    "int_from_float": "must be an integer", "finite_number": "must be a finite number",
-    "string_type": "must be a string", "string_too_short": "must be a non-empty string",
-    "bool_type": "must be true or false", "dict_type": "must be a table", "model_type": "must be a table",
-    "model_attributes_type": "must be a table", "list_type": "must be a list", "tuple_type": "must be a list",
+    "missing": "missing (required)",
+    "union_tag_not_found": "missing (required)",
+    "float_type": "must be a number",
+    "float_parsing": "must be a number",
+    "int_type": "must be an integer",
+    "int_from_float": "must be an integer",
+    "finite_number": "must be a finite number",
+    "string_type": "must be a string",
+    "string_too_short": "must be a non-empty string",
+    "bool_type": "must be true or false",
+    "dict_type": "must be a table",
+    "model_type": "must be a table",
+    "model_attributes_type": "must be a table",
+    "list_type": "must be a list",
+    "tuple_type": "must be a list",
 }
-_COMPARISONS = {"greater_than": (">", "gt"), "greater_than_equal": (">=", "ge"), "less_than": ("<", "lt"),
-                "less_than_equal": ("<=", "le")}
+_COMPARISONS = {
+    "greater_than": (">", "gt"),
+    "greater_than_equal": (">=", "ge"),
+    "less_than": ("<", "lt"),
+    "less_than_equal": ("<=", "le"),
+}
 _NUMBER_ERRORS = ("float_type", "int_type", "number_type")
 
 

@@ -7,6 +7,7 @@ EMVA 1288 Release 4.0 (linear), §2: the mean number of electrons generated duri
 output bit depth. μ_e is clipped at the saturation capacity and μ_y at the full scale 2^bits − 1. Temporal noise
 σ_y² = K² (σ_d² + μ_e) + σ_q², σ_q² = 1/12 DN², so SNR = μ_e / √(σ_d² + σ_q²/K² + μ_e).
 """
+
 from __future__ import annotations
 
 from functools import lru_cache
@@ -18,8 +19,18 @@ from pydantic import Field, PrivateAttr, StrictBool, model_validator
 from uwlab.errors import ConfigError
 from uwlab.model.data import config_dir, read_csv_columns, read_toml
 from uwlab.model.grid import WavelengthGrid
-from uwlab.model.schema import (BitDepth, ExposureUs, GainDb, NonEmptyText, PixelSizeUm, Schema, Text, invalid, parse,
-                                quantity)
+from uwlab.model.schema import (
+    BitDepth,
+    ExposureUs,
+    GainDb,
+    NonEmptyText,
+    PixelSizeUm,
+    Schema,
+    Text,
+    invalid,
+    parse,
+    quantity,
+)
 
 # Limits of the profile's EMVA 1288 quantities, wide enough for any area-scan sensor: outside them a value is in
 # another unit (K in e⁻/DN or at another bit depth by orders of magnitude, σ_d in DN, …) or a typing error.

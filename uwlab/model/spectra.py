@@ -10,6 +10,7 @@ Named spectra (all relative, arbitrary scale; the luminous flux sets the absolut
 colour-science's tabulated illuminants are resampled with its default interpolator and held constant beyond
 their range; CSV spectra (columns ``wavelength_nm, relative``) are interpolated linearly and are zero outside.
 """
+
 from __future__ import annotations
 
 from functools import lru_cache

@@ -17,6 +17,7 @@ operations instead of a sum over the wavelength grid, whatever the shape of the 
 Nodes are computed with one matrix product over wavelength per block: e^(−D ⊗ γ) @ w, scaled by e^(γ_min D)
 so that neither underflows at long paths.
 """
+
 from __future__ import annotations
 
 from collections.abc import Callable
@@ -36,8 +37,13 @@ class LogHermiteTable:
     first block [0, L); later blocks double. `tolerance` bounds |ln F_interp − ln F| at interval midpoints.
     """
 
-    def __init__(self, fn: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]], columns: int, first_block: float,
-                 tolerance: float = TOLERANCE):
+    def __init__(
+        self,
+        fn: Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]],
+        columns: int,
+        first_block: float,
+        tolerance: float = TOLERANCE,
+    ):
         if not first_block > 0:
             raise ValueError("first_block must be > 0")
         self._fn = fn
@@ -140,14 +146,14 @@ class LogHermiteTable:
         rows = coef.shape[2]
         flat_x, flat_out = x.ravel(), out.reshape(-1)
         for s in range(0, flat_x.size, PIECE):
-            j, u, step = self._rows(flat_x[s:s + PIECE])
+            j, u, step = self._rows(flat_x[s : s + PIECE])
             if per_point:
-                j += column[s:s + PIECE] * (4 * rows)
+                j += column[s : s + PIECE] * (4 * rows)
                 flat = coef.reshape(-1)
                 c = [flat.take(j + i * rows) for i in range(4)]
             else:
                 c = [coef[column, i].take(j) for i in range(4)]
-            flat_out[s:s + PIECE] = value_of(c, u, step)
+            flat_out[s : s + PIECE] = value_of(c, u, step)
         return out
 
     def log(self, x, column: int) -> np.ndarray:
@@ -246,8 +252,9 @@ def _first_block(spread_per_m: float) -> float:
     return float(np.clip(FIRST_INTERVALS * 0.2 / spread_per_m, 1.0, 100.0)) if spread_per_m > 0 else 100.0
 
 
-def image_table(spectral: SpectralTable, secants: np.ndarray, weights: np.ndarray, column: int = 2,
-                tolerance: float = TOLERANCE) -> LogHermiteTable:
+def image_table(
+    spectral: SpectralTable, secants: np.ndarray, weights: np.ndarray, column: int = 2, tolerance: float = TOLERANCE
+) -> LogHermiteTable:
     """H_k(D) = Σ_{i<k} weights_i G(D · secants_i), k = 1..n (cumulative over the samples in the given order).
 
     The image average of the chain sums the electron-rate integral G over image samples i whose paths are

@@ -4,6 +4,7 @@ Named bottoms carry the original tool's broadband reflectances: sand 0.35, hard 
 coral 0.15, organic 0.10. A CSV gives M(λ) (columns ``wavelength_nm, reflectance``), linearly interpolated with
 end values held.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -25,8 +26,11 @@ def reflectance(spec, grid: WavelengthGrid, key: str = "target.reflectance"):
         return NAMED_REFLECTANCE[spec]
     path = Path(spec)
     if path.suffix.lower() != ".csv":
-        raise ConfigError(key, str(spec), "unknown reflectance; use a number in [0, 1], one of "
-                          f"{', '.join(NAMED_REFLECTANCE)} or a .csv file")
+        raise ConfigError(
+            key,
+            str(spec),
+            f"unknown reflectance; use a number in [0, 1], one of {', '.join(NAMED_REFLECTANCE)} or a .csv file",
+        )
     table = read_csv_columns(path, ("wavelength_nm", "reflectance"), key)
     if np.any((table["reflectance"] < 0) | (table["reflectance"] > 1)):
         raise ConfigError(key, str(spec), "reflectance outside [0, 1]")

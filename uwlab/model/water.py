@@ -19,6 +19,7 @@ Extension outside a table (convention):
   b ∝ λ^−n fitted (log–log least squares) to the type's tabulated b at 550–700 nm.
 - Pure water above its last tabulated wavelength, and CSV water beyond either end: the end value is held.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -130,8 +131,8 @@ def water_iop(spec: str, grid: WavelengthGrid, key: str = "water.type") -> Water
     """A named water type (see WATER_TYPES) or a CSV path → IOPs on the grid."""
     if spec == "pure-fresh":
         return pure_fresh(grid)
-    if spec.startswith("jerlov-") and spec[len("jerlov-"):] in JERLOV_TYPES:
-        return jerlov(spec[len("jerlov-"):], grid)
+    if spec.startswith("jerlov-") and spec[len("jerlov-") :] in JERLOV_TYPES:
+        return jerlov(spec[len("jerlov-") :], grid)
     path = Path(spec)
     if path.suffix.lower() != ".csv":
         raise ConfigError(key, spec, f"unknown water type; use one of {', '.join(WATER_TYPES)} or a .csv file")

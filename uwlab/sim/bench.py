@@ -6,6 +6,7 @@ the full sensor (the on-axis rate times the disk's exact falloff), the spectrum 
 light state, the ``[sim]`` settings (``seed``, ``light_gamma``) and the ground truth, including the photon-weighted
 quantum efficiency the characterisation must recover.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -83,8 +84,13 @@ class BenchScene:
         """The bench's ground truth for checking a characterisation."""
         b = self.design
         nm, e = b.sensor_irradiance_w_m2_nm()
-        return {"quantum_efficiency": b.quantum_efficiency(), "bench_f_number": b.f_number,
-                "source_diameter_mm": b.source_diameter_mm, "source_distance_mm": b.distance_mm,
-                "wavelength_nm": b.wavelength_nm, "fwhm_nm": b.fwhm_nm,
-                "sensor_irradiance_w_m2": float(np.trapezoid(e, nm)),
-                "on_axis_rate_e_per_s": self.on_axis_rate_e_per_s()}
+        return {
+            "quantum_efficiency": b.quantum_efficiency(),
+            "bench_f_number": b.f_number,
+            "source_diameter_mm": b.source_diameter_mm,
+            "source_distance_mm": b.distance_mm,
+            "wavelength_nm": b.wavelength_nm,
+            "fwhm_nm": b.fwhm_nm,
+            "sensor_irradiance_w_m2": float(np.trapezoid(e, nm)),
+            "on_axis_rate_e_per_s": self.on_axis_rate_e_per_s(),
+        }

@@ -11,6 +11,7 @@ by the light with its state; the emitted flux is flux_fraction · (1 + A (1 − 
 its settled output. The heat follows the light's use, not the wall clock, so that equal seeds give equal
 measurements (`uwlab.sim.devices.serial_instruments.SimLight`).
 """
+
 from __future__ import annotations
 
 import json
@@ -68,6 +69,7 @@ class RigState:
         with os.fdopen(fd, "w") as fh:
             json.dump(asdict(state), fh)
         os.replace(tmp, self.path)
+
 
 @dataclass(frozen=True)
 class WarmUp:

@@ -18,6 +18,7 @@ Lambertian target filling the meter's field; at the sensor, the irradiance on th
 
 `load_scene` reads any rig config: a ``[bench]`` table makes it the EMVA 1288 bench (`uwlab.sim.bench`).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -34,8 +35,16 @@ from uwlab.model.config import design_sections
 from uwlab.sim.world import WorldSettings, world_settings
 from uwlab.errors import ConfigError
 from uwlab.model.data import config_dir, read_toml
-from uwlab.model.design import (Design, build_design, effective_focal_length_m, electron_rate_at_radius,
-                                on_axis_electron_rate, paper, SPECTROMETER_POSITIONS, stage_spectra)
+from uwlab.model.design import (
+    Design,
+    build_design,
+    effective_focal_length_m,
+    electron_rate_at_radius,
+    on_axis_electron_rate,
+    paper,
+    SPECTROMETER_POSITIONS,
+    stage_spectra,
+)
 from uwlab.model.optics import NO_LENS
 from uwlab.model.schema import FNumber, FocalLengthMm, check, parse
 from uwlab.model.sensor import SensorProfile
@@ -56,16 +65,18 @@ class RigScene:
     _profile: tuple | None = field(default=None, repr=False)
 
     @classmethod
-    def from_toml(cls, path: str | Path | None = None, state: RigState | None = None,
-                  world: str | None = None) -> RigScene:
+    def from_toml(
+        cls, path: str | Path | None = None, state: RigState | None = None, world: str | None = None
+    ) -> RigScene:
         """Load a rig config (None: the default simulated tank, configs/rigs/sim-tank.toml); `world` replaces its
         [world] preset."""
         path = Path(path) if path is not None else config_dir() / DEFAULT_RIG
         return cls.from_dict(read_toml(path, "--config"), path.resolve().parent, state, world)
 
     @classmethod
-    def from_dict(cls, raw: dict, base_dir: Path | None = None, state: RigState | None = None,
-                  world: str | None = None) -> RigScene:
+    def from_dict(
+        cls, raw: dict, base_dir: Path | None = None, state: RigState | None = None, world: str | None = None
+    ) -> RigScene:
         """A rig from its config dict (design sections + [sim] + [world]); relative paths resolve against
         base_dir; `world` replaces the [world] preset."""
         sim = parse(SimSettings, raw.get("sim", {}), "sim")

@@ -1,4 +1,5 @@
 """The rig config's ``[sim]`` section: what only the simulated rig needs (the tank and the EMVA bench alike)."""
+
 from __future__ import annotations
 
 from pydantic import Field
@@ -17,7 +18,9 @@ class SimSettings(Schema):
     seed: Seed = Field(1288, description="seed of the fixed-pattern noise maps")
     light_gamma: Gamma = Field(2.2, description="light output flux fraction = level ** light_gamma")
     board_size_m: tuple[DistanceM, DistanceM] = Field(
-        (0.15, 0.12), description="the target board's size [x, y] on the target plane, centred on the axis [m]")
+        (0.15, 0.12), description="the target board's size [x, y] on the target plane, centred on the axis [m]"
+    )
     surround_reflectance: Fraction = Field(0.05, description="reflectance around the board")
     light_efficiency: Efficiency = Field(
-        1.0, description="true emitted flux / rated luminous flux (the ground truth a fit should recover)")
+        1.0, description="true emitted flux / rated luminous flux (the ground truth a fit should recover)"
+    )

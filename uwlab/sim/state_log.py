@@ -11,6 +11,7 @@ restarted simulator append to the same file safely)::
 reading: its settings and the light state it saw) or ``power-lost`` (the process was killed; written by
 whoever killed it). Every line carries the instrument's full state after the event.
 """
+
 from __future__ import annotations
 
 import json

@@ -43,6 +43,7 @@ Spectrometer: at the target, the irradiance on its cosine collector at the board
 at the camera, a radiance probe in its enclosure just inside the near wall (`spectrometer_camera_position_m`),
 aimed at the board's centre with a `spectrometer_field_deg` half-angle, reporting π × its mean radiance.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -60,11 +61,11 @@ from uwlab.model.photometry import photons_per_joule
 from uwlab.model.scattering import ParticleScattering, pure_water_phase
 from uwlab.model.water import scattering_parts, water_iop
 
-RAY_GRID = (40, 48)          # coarse chief-ray grid (rows, columns) of a rendered image
-HEMISPHERE_GRID = (64, 96)   # bare sensor: sin²θ × azimuth samples
-PROBE_GRID = 9               # camera-side spectrometer: samples per axis of its field
-SCATTER_NODES = 24           # Gauss–Legendre nodes along a ray for the path radiance
-PATH_STEP_M = 5e-4           # tabulation step of the spectral integrals along the water path
+RAY_GRID = (40, 48)  # coarse chief-ray grid (rows, columns) of a rendered image
+HEMISPHERE_GRID = (64, 96)  # bare sensor: sin²θ × azimuth samples
+PROBE_GRID = 9  # camera-side spectrometer: samples per axis of its field
+SCATTER_NODES = 24  # Gauss–Legendre nodes along a ray for the path radiance
+PATH_STEP_M = 5e-4  # tabulation step of the spectral integrals along the water path
 PATH_MAX_M = 3.0
 NEWTON_STEPS = 40
 
@@ -133,8 +134,15 @@ class TankWorld:
             paths = np.arange(0.0, PATH_MAX_M + PATH_STEP_M, PATH_STEP_M)
             decay = np.exp(-np.outer(paths, c))
             tables = decay @ np.stack([w_e, w_e * b_w, w_e * b_p], axis=1)
-            self._tables[key] = {"nm": grid.nm, "c": c, "b_w": b_w, "b_p": b_p, "s_per_lm": weights.s_per_lm,
-                                 "paths": paths, "tables": tables}
+            self._tables[key] = {
+                "nm": grid.nm,
+                "c": c,
+                "b_w": b_w,
+                "b_p": b_p,
+                "s_per_lm": weights.s_per_lm,
+                "paths": paths,
+                "tables": tables,
+            }
         return self._tables[key]
 
     @staticmethod
@@ -173,11 +181,17 @@ class TankWorld:
         s, d = self.settings, self._design
         half = d["light.beam_half_angle_in_air_deg"]
         if half is None:
-            raise ConfigError("light.beam_half_angle_in_air_deg", None,
-                              "the tank world's light is outside the tank: give its beam half-angle in air")
+            raise ConfigError(
+                "light.beam_half_angle_in_air_deg",
+                None,
+                "the tank world's light is outside the tank: give its beam half-angle in air",
+            )
         tilt = np.radians(s.light_tilt_deg)
-        return {"position": np.array([*s.light_offset_m, s.camera_gap_m - s.light_gap_m]),
-                "aim": np.array([0.0, np.sin(tilt), np.cos(tilt)]), "half_angle": np.radians(float(half))}
+        return {
+            "position": np.array([*s.light_offset_m, s.camera_gap_m - s.light_gap_m]),
+            "aim": np.array([0.0, np.sin(tilt), np.cos(tilt)]),
+            "half_angle": np.radians(float(half)),
+        }
 
     def _intensity_per_flux(self, cos_psi):
         """I(ψ)/Φ [1/sr]: cos-power beam (module docstring) or the top-hat cone of the same half-angle."""
@@ -276,8 +290,13 @@ class TankWorld:
             return 0.0
         centre = np.array([0.0, 0.0, self.z_far])
         e, path = self._surface_irradiance(centre, np.array([0.0, 0.0, -1.0]))
-        return float(self.settings.stray_fraction * self._board_reflectance / np.pi * e
-                     * self._table(spectra, 0, path + (self.z_far - self.z_inner)))
+        return float(
+            self.settings.stray_fraction
+            * self._board_reflectance
+            / np.pi
+            * e
+            * self._table(spectra, 0, path + (self.z_far - self.z_inner))
+        )
 
     def _radiance_rate(self, rays: _Rays, spectra: dict) -> np.ndarray:
         """Water radiance along each ray, in electron-rate units per lumen (the spectral weights applied)."""
@@ -403,13 +422,15 @@ class TankWorld:
         if s.on("backscatter"):
             weight, p_w, p_p, paths = self._scatter_geometry(origin, direction, distance)
             decay = np.exp(-paths[..., None] * c)
-            total = total + np.sum(weight[..., None] * decay * (p_w[..., None] * spectra["b_w"]
-                                                                 + p_p[..., None] * spectra["b_p"]), axis=1)
+            total = total + np.sum(
+                weight[..., None] * decay * (p_w[..., None] * spectra["b_w"] + p_p[..., None] * spectra["b_p"]), axis=1
+            )
         if s.on("stray_light"):
             centre = np.array([0.0, 0.0, self.z_far])
             e0, path0 = self._surface_irradiance(centre, np.array([0.0, 0.0, -1.0]))
             total = total + s.stray_fraction * self._board_reflectance / np.pi * e0 * np.exp(
-                -c * (path0 + self.z_far - self.z_inner))
+                -c * (path0 + self.z_far - self.z_inner)
+            )
         return total.mean(axis=0)
 
 

@@ -11,6 +11,7 @@ Illumination is uniform (no vignetting, no attenuation) and there is no defocus 
 
 Pose convention (OpenCV's): a target point X (target frame) is at R X + t in camera axes.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -67,8 +68,14 @@ class TargetView:
         map_x, map_y = self._sample_maps()
         u = cv2.remap(texel[..., 0], map_x, map_y, cv2.INTER_LINEAR)
         v = cv2.remap(texel[..., 1], map_x, map_y, cv2.INTER_LINEAR)
-        sampled = cv2.remap(target.reflectance, u, v, cv2.INTER_LINEAR,
-                            borderMode=cv2.BORDER_CONSTANT, borderValue=float(target.background))
+        sampled = cv2.remap(
+            target.reflectance,
+            u,
+            v,
+            cv2.INTER_LINEAR,
+            borderMode=cv2.BORDER_CONSTANT,
+            borderValue=float(target.background),
+        )
         return cv2.resize(sampled, (self.width, self.height), interpolation=cv2.INTER_AREA)
 
     def _sample_maps(self):

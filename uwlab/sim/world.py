@@ -19,6 +19,7 @@ Magnitudes are fields below; their values and sources are stated in configs/rigs
 is either cited or marked assumed. Lengths in metres in the camera frame: origin at the entrance pupil, x right,
 y down, z along the optical axis (the camera looks through the tank's near wall at its far wall).
 """
+
 from __future__ import annotations
 
 from typing import Literal
@@ -30,8 +31,15 @@ from uwlab.model.scattering import PHASE_FUNCTIONS
 from uwlab.model.schema import DistanceM, Fraction, RefractiveIndex, Schema, invalid, parse, quantity
 
 PRESETS = ("ideal", "tank", "turbid")
-EFFECTS = ("beam_profile", "vignetting", "lens_transmission", "backscatter", "stray_light", "warmup_drift",
-           "sensor_realism")
+EFFECTS = (
+    "beam_profile",
+    "vignetting",
+    "lens_transmission",
+    "backscatter",
+    "stray_light",
+    "warmup_drift",
+    "sensor_realism",
+)
 TURBID_PARTICLE_SCATTERING_PER_M = 1.8
 
 # Limits that catch wrong units: tank walls are millimetres to centimetres thick, offsets within a metre.
@@ -69,7 +77,8 @@ class WorldSettings(Schema):
     light_gap_m: GapM = Field(0.005, description="light's front to the wall's outer face")
     light_tilt_deg: TiltDeg = Field(0.0, description="aim tilted from the wall normal towards +y (down)")
     spectrometer_camera_position_m: tuple[OffsetM, OffsetM, GapM] = Field(
-        (0.0, 0.07, 0.03), description="camera-side probe [x, y, depth behind the inner wall face]")
+        (0.0, 0.07, 0.03), description="camera-side probe [x, y, depth behind the inner wall face]"
+    )
     spectrometer_field_deg: FieldDeg = 5.0
 
     particle_scattering_per_m: ScatteringPerM | None = Field(None, description="added scatterers' b_p at 550 nm")
@@ -116,8 +125,11 @@ class WorldSettings(Schema):
 
     def summary(self) -> dict:
         """What was rendered: the preset, each effect on or off, the added scattering (for metadata and reports)."""
-        return {"preset": self.preset, "effects": {e: self.on(e) for e in EFFECTS},
-                "particle_scattering_per_m": self.particle_b550_per_m}
+        return {
+            "preset": self.preset,
+            "effects": {e: self.on(e) for e in EFFECTS},
+            "particle_scattering_per_m": self.particle_b550_per_m,
+        }
 
 
 def world_settings(raw: dict | None, preset: str | None = None) -> WorldSettings:

@@ -1,5 +1,6 @@
 """The design API against the CLI and against itself: the same numbers as `uwlab design --json`, a grid whose rows
 are the single designs at those values, a solution that sits exactly on its active requirement."""
+
 import json
 
 import numpy as np
@@ -42,8 +43,11 @@ def test_evaluate_refuses_an_array_design():
 
 def test_grid_rows_are_the_single_designs():
     design = uwlab.load_design(EXAMPLE)
-    frame = uwlab.grid(design, {"operation.altitude_m": np.array([0.8, 1.6]), "water.type": ["jerlov-I", "jerlov-3C"]},
-                       outputs=["snr_db", "mean_dn"])
+    frame = uwlab.grid(
+        design,
+        {"operation.altitude_m": np.array([0.8, 1.6]), "water.type": ["jerlov-I", "jerlov-3C"]},
+        outputs=["snr_db", "mean_dn"],
+    )
     assert len(frame) == 4
     for (altitude, water), row in frame.iterrows():
         single = uwlab.evaluate(uwlab.load_design(EXAMPLE, operation__altitude_m=altitude, water__type=water))
@@ -52,8 +56,9 @@ def test_grid_rows_are_the_single_designs():
 
 
 def test_grid_to_xarray_is_gridded_by_the_axes():
-    frame = uwlab.grid(uwlab.load_design(EXAMPLE), {"lens.f_number": [2, 2.8, 4], "operation.altitude_m": [1, 2]},
-                       outputs=["mean_dn"])
+    frame = uwlab.grid(
+        uwlab.load_design(EXAMPLE), {"lens.f_number": [2, 2.8, 4], "operation.altitude_m": [1, 2]}, outputs=["mean_dn"]
+    )
     cube = frame.to_xarray()["mean_dn"]
     assert cube.shape == (3, 2)
     # the response falls with the square of the f-number at a fixed altitude (no saturation here)
@@ -63,8 +68,12 @@ def test_grid_to_xarray_is_gridded_by_the_axes():
 
 def test_solve_sits_on_its_active_requirement():
     design = uwlab.load_design(EXAMPLE)
-    best = uwlab.solve(design, free={"light.luminous_flux_lm": (100, 100000)}, require=["snr_db >= 30"],
-                       minimize="light.luminous_flux_lm")
+    best = uwlab.solve(
+        design,
+        free={"light.luminous_flux_lm": (100, 100000)},
+        require=["snr_db >= 30"],
+        minimize="light.luminous_flux_lm",
+    )
     flux = float(best["light.luminous_flux_lm"].iloc[0])
     assert uwlab.evaluate(uwlab.load_design(EXAMPLE, light__luminous_flux_lm=flux))["snr_db"] >= 30 - 1e-9
     assert uwlab.evaluate(uwlab.load_design(EXAMPLE, light__luminous_flux_lm=0.99 * flux))["snr_db"] < 30
@@ -73,5 +82,9 @@ def test_solve_sits_on_its_active_requirement():
 
 def test_solve_names_an_unmeetable_requirement():
     with pytest.raises(uwlab.Infeasible, match="snr_db >= 90"):
-        uwlab.solve(uwlab.load_design(EXAMPLE), free={"light.luminous_flux_lm": (100, 1000)},
-                    require=["snr_db >= 90"], minimize="light.luminous_flux_lm")
+        uwlab.solve(
+            uwlab.load_design(EXAMPLE),
+            free={"light.luminous_flux_lm": (100, 1000)},
+            require=["snr_db >= 90"],
+            minimize="light.luminous_flux_lm",
+        )

@@ -1,5 +1,6 @@
 """`uwlab.characterize` and `uwlab.Dataset` on a simulated photon transfer whose ground truth the code cannot see:
 the figures recovered, the same numbers as the CLI, the XML, datasheet and sensor profile written and read back."""
+
 import json
 import xml.etree.ElementTree as ET
 
@@ -16,11 +17,18 @@ from uwlab.sim.devices.camera import SimTruth
 @pytest.fixture(scope="module")
 def photon_transfer(tmp_path_factory):
     root = tmp_path_factory.mktemp("emva") / "pt"
-    truth = SimTruth.from_sensor_profile(load_sensor_profile("imx250m"), resolution_px=(48, 48),
-                                         dark_current_e_per_s=150.0)
-    simulate_photon_transfer(root, truth, rate_e_per_s=1.07e5, quantum_efficiency=0.6,
-                             exposures_us=np.linspace(2e3, 115e3, 40), seed=5,
-                             dark_exposures_us=np.linspace(0.2e6, 1.2e6, 4))
+    truth = SimTruth.from_sensor_profile(
+        load_sensor_profile("imx250m"), resolution_px=(48, 48), dark_current_e_per_s=150.0
+    )
+    simulate_photon_transfer(
+        root,
+        truth,
+        rate_e_per_s=1.07e5,
+        quantum_efficiency=0.6,
+        exposures_us=np.linspace(2e3, 115e3, 40),
+        seed=5,
+        dark_exposures_us=np.linspace(0.2e6, 1.2e6, 4),
+    )
     return root
 
 
@@ -57,7 +65,8 @@ def test_xml_datasheet_and_profile(photon_transfer, tmp_path):
     profile = result.sensor_profile(name="measured-cam", directory=tmp_path)
     assert profile.K_dn_per_e == pytest.approx(result.K_dn_per_e, rel=1e-4)
     # the measured profile drives a design: same sensor geometry, the measured gain
-    design = uwlab.load_design(uwlab.config_path("design/example.toml"),
-                               sensor__profile=str(tmp_path / "measured-cam.toml"))
+    design = uwlab.load_design(
+        uwlab.config_path("design/example.toml"), sensor__profile=str(tmp_path / "measured-cam.toml")
+    )
     assert design.sensor.K_dn_per_e == profile.K_dn_per_e
     assert uwlab.evaluate(design)["mean_dn"] > 0

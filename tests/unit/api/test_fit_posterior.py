@@ -1,5 +1,6 @@
 """The fit's posterior as ArviZ InferenceData: the walkers' order is emcee's, and `arviz.summary` of the NetCDF
 written beside the fit gives the fit's own posterior table (median and 95 % interval) to 4 significant figures."""
+
 import arviz
 import emcee
 import numpy as np
@@ -7,8 +8,7 @@ import pytest
 
 from uwlab.errors import ConfigError
 from uwlab.experiments.calibration.fit import FitConfig, default_config_for, fit_points
-from uwlab.experiments.calibration.inference import POSTERIOR_NAME, by_walker, read_inference_data, \
-    write_inference_data
+from uwlab.experiments.calibration.inference import POSTERIOR_NAME, by_walker, read_inference_data, write_inference_data
 from uwlab.experiments.calibration.pipeline import resolve_fit_config
 from uwlab.experiments.calibration.simulate import simulate_campaign
 from uwlab.model.schema import parse
@@ -42,8 +42,9 @@ def short_fit(tmp_path_factory):
 def test_arviz_summary_of_the_netcdf_matches_the_fit_table(short_fit):
     result, out = short_fit
     table = result.summary()["parameters"]
-    summary = arviz.summary(arviz.from_netcdf(str(out / POSTERIOR_NAME)), stat_focus="median", hdi_prob=0.95,
-                            round_to="none")
+    summary = arviz.summary(
+        arviz.from_netcdf(str(out / POSTERIOR_NAME)), stat_focus="median", hdi_prob=0.95, round_to="none"
+    )
     assert list(summary.index) == list(result.names)
     for name, row in table.items():
         assert significant(summary.loc[name, "median"]) == significant(row["median"])

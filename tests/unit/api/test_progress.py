@@ -1,4 +1,5 @@
 """Progress fits the place: a bar on a terminal, nothing in a file or pipe, tqdm.auto in a Jupyter kernel."""
+
 import io
 import sys
 import types
@@ -56,6 +57,7 @@ def test_the_cli_modules_use_the_one_helper():
     from pathlib import Path
 
     root = Path(progress.__file__).parent
-    users = sorted(str(p.relative_to(root)) for p in root.rglob("*.py") if "tqdm" in p.read_text()
-                   and p.name != "progress.py")
+    users = sorted(
+        str(p.relative_to(root)) for p in root.rglob("*.py") if "tqdm" in p.read_text() and p.name != "progress.py"
+    )
     assert users in ([], ["cli/light.py", "cli/sweep.py"])  # the last two: owned by other branches (lead merges)

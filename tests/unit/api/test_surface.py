@@ -1,5 +1,6 @@
 """The public surface: every name of `uwlab.__all__` resolves, is documented with an example, and `import uwlab`
 loads none of the heavy libraries (the names are imported on first use)."""
+
 import inspect
 import json
 import subprocess
@@ -10,15 +11,31 @@ import pytest
 import uwlab
 from tests.support.paths import ROOT
 
-HEAVY = ("numpy", "pandas", "scipy", "matplotlib", "arviz", "xarray", "emcee", "pyarrow", "uwlab.api",
-         "uwlab.experiments", "uwlab.model")
+HEAVY = (
+    "numpy",
+    "pandas",
+    "scipy",
+    "matplotlib",
+    "arviz",
+    "xarray",
+    "emcee",
+    "pyarrow",
+    "uwlab.api",
+    "uwlab.experiments",
+    "uwlab.model",
+)
 
 
 def test_import_uwlab_loads_no_heavy_module():
-    code = ("import json, sys, uwlab; "
-            f"print(json.dumps(sorted(m for m in {HEAVY!r} if m in sys.modules)))")
-    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=True,
-                         env={"PYTHONPATH": str(ROOT), "PATH": ""})
+    code = f"import json, sys, uwlab; print(json.dumps(sorted(m for m in {HEAVY!r} if m in sys.modules)))"
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        check=True,
+        env={"PYTHONPATH": str(ROOT), "PATH": ""},
+    )
     assert json.loads(out.stdout) == []
 
 

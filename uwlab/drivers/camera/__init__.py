@@ -6,6 +6,7 @@ backends whose libraries are missing instead of failing. Backends are declared a
 this package names no simulator module and a real backend never needs one; another package can add a backend the
 same way.
 """
+
 from __future__ import annotations
 
 import importlib
@@ -33,8 +34,22 @@ ENTRY_POINT_GROUP = "uwlab.camera_backends"
 BACKENDS = {ep.name: ep.value for ep in entry_points(group=ENTRY_POINT_GROUP)}
 
 __all__ = [
-    "AcquisitionStats", "BACKENDS", "BackendUnavailable", "Camera", "CameraInfo", "DeviceEntry", "DeviceLost",
-    "Frame", "FrameTimeout", "Policy", "RawFrame", "Settings", "Transport", "backend_module", "discover", "open_camera",
+    "AcquisitionStats",
+    "BACKENDS",
+    "BackendUnavailable",
+    "Camera",
+    "CameraInfo",
+    "DeviceEntry",
+    "DeviceLost",
+    "Frame",
+    "FrameTimeout",
+    "Policy",
+    "RawFrame",
+    "Settings",
+    "Transport",
+    "backend_module",
+    "discover",
+    "open_camera",
 ]
 
 

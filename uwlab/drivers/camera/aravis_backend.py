@@ -13,6 +13,7 @@ no longer recognises us as its controller (GigE Vision control channel privilege
 buffer arrives in time, one register read and the controller status tell a silent or restarted
 device from a plain timeout. The register cache is disabled, so every read is a device read-back.
 """
+
 from __future__ import annotations
 
 import threading
@@ -34,8 +35,15 @@ except (ImportError, ValueError) as exc:  # the caller reports the backend as un
 N_BUFFERS = 8
 GVCP_CCP_REGISTER = 0x0A00  # GigE Vision 2.0 bootstrap: control channel privilege (bits 0-1: exclusive, control)
 SLOW_ANSWER_S = 0.5
-LOST_CODES = frozenset({Aravis.DeviceError.NOT_CONNECTED, Aravis.DeviceError.TIMEOUT, Aravis.DeviceError.NOT_FOUND,
-                        Aravis.DeviceError.NOT_CONTROLLER, Aravis.DeviceError.PROTOCOL_ERROR_ACCESS_DENIED})
+LOST_CODES = frozenset(
+    {
+        Aravis.DeviceError.NOT_CONNECTED,
+        Aravis.DeviceError.TIMEOUT,
+        Aravis.DeviceError.NOT_FOUND,
+        Aravis.DeviceError.NOT_CONTROLLER,
+        Aravis.DeviceError.PROTOCOL_ERROR_ACCESS_DENIED,
+    }
+)
 REJECTED_CODES = frozenset({Aravis.DeviceError.INVALID_PARAMETER, Aravis.DeviceError.PROTOCOL_ERROR_INVALID_PARAMETER})
 
 
@@ -45,9 +53,16 @@ def _is_device_error(exc: GLib.Error, codes: frozenset) -> bool:
 
 def discover(**_: Any) -> list[DeviceEntry]:
     Aravis.update_device_list()
-    return [DeviceEntry("aravis", Aravis.get_device_id(i), Aravis.get_device_vendor(i) or "",
-                        Aravis.get_device_model(i) or "", Aravis.get_device_serial_nbr(i) or "")
-            for i in range(Aravis.get_n_devices())]
+    return [
+        DeviceEntry(
+            "aravis",
+            Aravis.get_device_id(i),
+            Aravis.get_device_vendor(i) or "",
+            Aravis.get_device_model(i) or "",
+            Aravis.get_device_serial_nbr(i) or "",
+        )
+        for i in range(Aravis.get_n_devices())
+    ]
 
 
 def open_transport(device_id: str | None = None, **_: Any) -> AravisTransport:
@@ -204,8 +219,14 @@ class AravisTransport:
         if not complete:
             return RawFrame(int(buf.get_frame_id()), int(buf.get_timestamp()), 0, 0, "Mono8", b"", complete=False)
         fmt = pixel_format(int(buf.get_image_pixel_format()))
-        return RawFrame(int(buf.get_frame_id()), int(buf.get_timestamp()), int(buf.get_image_width()),
-                        int(buf.get_image_height()), fmt.name, buf.get_data())
+        return RawFrame(
+            int(buf.get_frame_id()),
+            int(buf.get_timestamp()),
+            int(buf.get_image_width()),
+            int(buf.get_image_height()),
+            fmt.name,
+            buf.get_data(),
+        )
 
     def _check_alive(self) -> None:
         """After a frame timeout: `DeviceLost` if the device does not answer a register read at once (it was
@@ -223,8 +244,7 @@ class AravisTransport:
         if answered_s > SLOW_ANSWER_S:
             raise DeviceLost(f"aravis: {self.device_id}: device answered after {answered_s:.1f} s (unreachable)")
         if isinstance(self._device, Aravis.GvDevice) and not (privilege & 0x3 and self._device.is_controller()):
-            raise DeviceLost(f"aravis: {self.device_id}: control of the device lost (it restarted or was "
-                             f"taken over)")
+            raise DeviceLost(f"aravis: {self.device_id}: control of the device lost (it restarted or was taken over)")
 
     def reconnect(self) -> None:
         """Open the device again. The old connection is released in a background thread (`_release`), as it

@@ -14,6 +14,7 @@ counts and discards. Every buffer we receive is queued back (``with buffer``). h
 blocking ``fetch`` is not used: it silently re-queues incomplete buffers and restarts its timeout,
 so a link delivering only incomplete frames would block it forever.
 """
+
 from __future__ import annotations
 
 import os
@@ -33,8 +34,13 @@ except ImportError as exc:  # the caller reports the backend as unavailable
 
 ENV_VAR = "GENICAM_GENTL64_PATH"
 POLL_S = 0.05
-LOST_ERRORS = (gentl.IoException, gentl.InvalidHandleException, gentl.NotInitializedException, gentl.ClosedException,
-               genapi.TimeoutException)
+LOST_ERRORS = (
+    gentl.IoException,
+    gentl.InvalidHandleException,
+    gentl.NotInitializedException,
+    gentl.ClosedException,
+    genapi.TimeoutException,
+)
 
 
 def cti_files(cti: list[str] | tuple[str, ...] | None = None) -> list[Path]:
@@ -73,8 +79,16 @@ def _info_str(info: Any, attr: str) -> str:
 def discover(cti: list[str] | None = None, **_: Any) -> list[DeviceEntry]:
     h = _harvester(cti)
     try:
-        return [DeviceEntry("harvesters", _info_str(d, "id_"), _info_str(d, "vendor"), _info_str(d, "model"),
-                            _info_str(d, "serial_number")) for d in h.device_info_list]
+        return [
+            DeviceEntry(
+                "harvesters",
+                _info_str(d, "id_"),
+                _info_str(d, "vendor"),
+                _info_str(d, "model"),
+                _info_str(d, "serial_number"),
+            )
+            for d in h.device_info_list
+        ]
     finally:
         h.reset()
 
@@ -202,8 +216,15 @@ class HarvestersTransport:
             ts = int(module.timestamp_ns)
         except gentl.GenericException:
             ts = time.time_ns()
-        return RawFrame(int(module.frame_id), ts, width, height, str(component.data_format), data,
-                        complete=bool(module.is_complete()))
+        return RawFrame(
+            int(module.frame_id),
+            ts,
+            width,
+            height,
+            str(component.data_format),
+            data,
+            complete=bool(module.is_complete()),
+        )
 
     def reconnect(self) -> None:
         self.close()

@@ -19,6 +19,7 @@ happened during a measurement.
 Units: exposure in µs, gain in dB, frame rate in Hz, temperature in °C, black level in device
 units (DN on most cameras), timestamps in ns of the device clock.
 """
+
 from __future__ import annotations
 
 import functools
@@ -339,9 +340,11 @@ class Camera:
         self._refresh()
 
     def _auto_modes_left_on(self) -> list[str]:
-        return [f"{name}: {self.transport.get(name)!r} (want {value!r})" for name, value in self.profile.auto_off
-                if self.transport.has(name) and value in self._allowed(name, value)
-                and self.transport.get(name) != value]
+        return [
+            f"{name}: {self.transport.get(name)!r} (want {value!r})"
+            for name, value in self.profile.auto_off
+            if self.transport.has(name) and value in self._allowed(name, value) and self.transport.get(name) != value
+        ]
 
     @property
     @_survives_outages
@@ -406,8 +409,9 @@ class Camera:
     def pixel_format(self, name: str) -> None:
         pixel_format(name)
         if name not in self.pixel_formats:
-            raise ConfigError("pixel_format", name,
-                              f"not offered by the device; offered: {', '.join(self.pixel_formats)}")
+            raise ConfigError(
+                "pixel_format", name, f"not offered by the device; offered: {', '.join(self.pixel_formats)}"
+            )
         self.transport.set("PixelFormat", name)
         self._refresh()
 
@@ -607,8 +611,11 @@ class Camera:
         if self.transport.has("BinningHorizontal"):
             self.set_binning(*wanted.binning)
         self.set_roi(wanted.offset_x, wanted.offset_y, wanted.width, wanted.height)
-        for key, value in (("exposure_us", wanted.exposure_us), ("gain_db", wanted.gain_db),
-                           ("black_level", wanted.black_level)):
+        for key, value in (
+            ("exposure_us", wanted.exposure_us),
+            ("gain_db", wanted.gain_db),
+            ("black_level", wanted.black_level),
+        ):
             if value is not None:
                 setattr(self, key, value)
         if self._state.frame_rate_set and wanted.frame_rate_hz is not None:

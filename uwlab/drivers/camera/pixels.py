@@ -12,6 +12,7 @@ GigE Vision ``*Packed`` formats, the GigE Vision 1.2 specification (section "Pix
 
 Every decoded image is a C-contiguous ``uint8`` (Mono8) or ``uint16`` array of shape (height, width).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass

@@ -18,6 +18,7 @@ Standard Features Naming Convention (SFNC 2.x) unless a vendor's documented lega
 A new camera model is a new `VendorProfile` entry in `PROFILES`; the generic SFNC profile is the
 fallback when no vendor/model pattern matches.
 """
+
 from __future__ import annotations
 
 import re

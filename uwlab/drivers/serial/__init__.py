@@ -3,6 +3,7 @@
 `open_light` / `open_spectrometer` return a driver for the named protocol (``uwlab-ascii`` is the
 only one so far; another protocol is another `Light` / `Spectrometer` subclass registered here).
 """
+
 from __future__ import annotations
 
 from uwlab.drivers.serial.ascii import PROTOCOL as ASCII_PROTOCOL

@@ -9,6 +9,7 @@ every setting again and reads each one back, until the read-backs agree with no 
 (at most `RESTORE_ATTEMPTS` times), then retries the interrupted command. A restored state that still
 disagrees, or another instrument on the port, is one `DeviceError`.
 """
+
 from __future__ import annotations
 
 import time
@@ -107,15 +108,18 @@ class _AsciiInstrument:
             if not disagreeing and self.transport.recoveries == recoveries:
                 return
         detail = "; ".join(disagreeing) or "the instrument kept resetting"
-        raise DeviceError(f"{self.port}: settings not restored after a reset or reopen "
-                          f"({RESTORE_ATTEMPTS} attempts): {detail}")
+        raise DeviceError(
+            f"{self.port}: settings not restored after a reset or reopen ({RESTORE_ATTEMPTS} attempts): {detail}"
+        )
 
     def _check_identity(self) -> None:
         deadline = time.monotonic() + self.transport.reopen_s
         while (found := self.identity()) != self.identity_at_open:
             if time.monotonic() > deadline:
-                raise DeviceError(f"{self.port}: another instrument answers after a reopen ({found!r}; this port's "
-                                  f"was {self.identity_at_open!r})")
+                raise DeviceError(
+                    f"{self.port}: another instrument answers after a reopen ({found!r}; this port's "
+                    f"was {self.identity_at_open!r})"
+                )
             self.transport.close()
             time.sleep(IDENTITY_RETRY_S)
 

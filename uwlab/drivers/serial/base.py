@@ -11,6 +11,7 @@ instrument reports now, not what was sent) and `recoveries`, the number of times
 instrument reset or its port reopened and re-applied its settings. A caller that reads back before and
 after a measurement and sees `recoveries` unchanged knows the settings held throughout.
 """
+
 from __future__ import annotations
 
 from abc import ABC, abstractmethod

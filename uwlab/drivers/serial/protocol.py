@@ -12,6 +12,7 @@ Every reply is one ASCII line terminated by ``\\n`` (a preceding ``\\r`` is acce
 
 The parsers are pure and raise only `ReplyParseError`, whatever bytes they are given.
 """
+
 from __future__ import annotations
 
 import math
@@ -74,7 +75,7 @@ def parse_reply(raw: bytes) -> Reply:
     if text == "OK":
         return Reply("ok")
     if text.startswith(BANNER_PREFIX):
-        return Reply("banner", text[len(BANNER_PREFIX):].strip())
+        return Reply("banner", text[len(BANNER_PREFIX) :].strip())
     if text == "ERR" or text.startswith("ERR "):
         code, _, message = text[4:].strip().partition(" ")
         if not re.fullmatch(r"[0-9]{1,4}", code):

@@ -17,6 +17,7 @@ block, a header, data lines and ``END``). What is recovered, each within ``1 + r
 Giving up raises one `DeviceError` naming the port and the command. All commands of the protocol are
 idempotent, so repeating one is safe.
 """
+
 from __future__ import annotations
 
 import termios

@@ -19,6 +19,7 @@ raised as `ConfigError` by opening or reported as a problem that `repair` refuse
 the other rows), frame folders of points no longer recorded move there too, and a wrong ``finished_utc`` is
 cleared. ``uwlab sweep --resume`` then measures exactly the points set aside.
 """
+
 from __future__ import annotations
 
 import os
@@ -37,6 +38,7 @@ from uwlab.experiments.dataset import KEY, POINT_SCHEMA, QUARANTINE_DIR, Dataset
 from uwlab.experiments.dataset_frames import FRAMES_DIR, point_frames, stored_point_folders, sweep_folder
 from uwlab.experiments.dataset_store import PartDamaged
 from uwlab.jsonable import dumps
+
 
 @dataclass(frozen=True)
 class Problem:
@@ -87,8 +89,10 @@ def check(dataset: Dataset) -> CheckReport:
     report = CheckReport(dataset.root, strays=dataset.store.stray_files())
     try:
         report.totals = point_counts(dataset.metadata.get("plan", {}))
-        save_frames = {sweep_id: body.get("save_frames") is True
-                       for sweep_id, body in sweep_tables(dataset.metadata.get("plan", {})).items()}
+        save_frames = {
+            sweep_id: body.get("save_frames") is True
+            for sweep_id, body in sweep_tables(dataset.metadata.get("plan", {})).items()
+        }
     except ConfigError as exc:
         report.problems.append(Problem("metadata.json", f"the plan's points cannot be counted ({exc}); not repairable"))
         save_frames = {}
@@ -126,8 +130,13 @@ def _check_part(dataset: Dataset, part, report: CheckReport) -> dict[tuple[str, 
     except (PartDamaged, FileNotFoundError) as exc:
         file, reason = (exc.file, exc.reason) if isinstance(exc, PartDamaged) else (Path(exc.filename).name, "missing")
         report.damaged_parts.add(part.id)
-        report.problems.append(Problem(file, f"{reason}; its {part.rows('points')} points will be set aside by "
-                                             "--repair and measured again by --resume"))
+        report.problems.append(
+            Problem(
+                file,
+                f"{reason}; its {part.rows('points')} points will be set aside by "
+                "--repair and measured again by --resume",
+            )
+        )
         return None
     rows = {}
     for row in points.to_pylist():
@@ -143,11 +152,16 @@ def _check_part(dataset: Dataset, part, report: CheckReport) -> dict[tuple[str, 
         nm, values = reading["wavelength_nm"].to_numpy(), reading["irradiance_w_m2_nm"].to_numpy()
         if not (np.isfinite(nm).all() and np.isfinite(values).all() and np.all(np.diff(nm) > 0)):
             report.set_aside.setdefault(part.id, set()).add(key)
-            report.problems.append(Problem(f"point {sweep_id}#{index}", f"spectrum at {position}: wavelengths not "
-                                                                       "strictly increasing or values not finite"))
+            report.problems.append(
+                Problem(
+                    f"point {sweep_id}#{index}",
+                    f"spectrum at {position}: wavelengths not strictly increasing or values not finite",
+                )
+            )
     if len(rows) != points.num_rows:
-        counts = Counter(zip(points.column("sweep_id").to_pylist(), points.column("point_index").to_pylist(),
-                             strict=True))
+        counts = Counter(
+            zip(points.column("sweep_id").to_pylist(), points.column("point_index").to_pylist(), strict=True)
+        )
         for key, count in counts.items():
             if count > 1:
                 report.set_aside.setdefault(part.id, set()).add(key)
@@ -155,8 +169,9 @@ def _check_part(dataset: Dataset, part, report: CheckReport) -> dict[tuple[str, 
     return rows
 
 
-def _row_problem(dataset: Dataset, row: dict, copies: int, totals: dict[str, int] | None,
-                 save_frames: dict[str, bool]) -> str | None:
+def _row_problem(
+    dataset: Dataset, row: dict, copies: int, totals: dict[str, int] | None, save_frames: dict[str, bool]
+) -> str | None:
     key = (row["sweep_id"], row["point_index"])
     if copies > 1:
         return f"recorded {copies} times (in several parts)"
@@ -165,13 +180,18 @@ def _row_problem(dataset: Dataset, row: dict, copies: int, totals: dict[str, int
     except ConfigError as exc:
         return str(exc)
     if totals is not None and not 0 <= key[1] < totals.get(key[0], 0):
-        return (f"not in the plan (sweep {key[0]!r} has {totals[key[0]]} points)" if key[0] in totals
-                else f"not in the plan (no sweep {key[0]!r})")
+        return (
+            f"not in the plan (sweep {key[0]!r} has {totals[key[0]]} points)"
+            if key[0] in totals
+            else f"not in the plan (no sweep {key[0]!r})"
+        )
     if save_frames.get(key[0]):
         frames = point_frames(dataset.root, *key)
         if len(frames.bright) != row["frames"] or len(frames.dark) != (row["dark_frames"] or 0):
-            return (f"has {len(frames.bright)}/{row['frames']} bright and {len(frames.dark)}/{row['dark_frames'] or 0} "
-                    "dark frames stored (save_frames = true)")
+            return (
+                f"has {len(frames.bright)}/{row['frames']} bright and {len(frames.dark)}/{row['dark_frames'] or 0} "
+                "dark frames stored (save_frames = true)"
+            )
     return None
 
 
@@ -202,8 +222,10 @@ def repair(dataset: Dataset) -> list[str]:
         elif part.id in report.set_aside or part.id in report.orphan_spectra:
             keys = report.set_aside.get(part.id, set())
             changes[part.id] = _without(store.read(part, "points"), store.read(part, "spectra"), keys)
-            done.append(f"rewrote {files} without {len(keys)} points "
-                        f"({', '.join(f'{s}#{i}' for s, i in sorted(keys)) or 'stray spectra only'})")
+            done.append(
+                f"rewrote {files} without {len(keys)} points "
+                f"({', '.join(f'{s}#{i}' for s, i in sorted(keys)) or 'stray spectra only'})"
+            )
     keep = set(zip(report.points["sweep_id"], report.points["point_index"], strict=True))
     for key, folder in stored_point_folders(dataset.root).items():
         if key not in keep:
@@ -219,10 +241,13 @@ def repair(dataset: Dataset) -> list[str]:
     if report.finished_early:
         dataset.update_metadata(finished_utc=None)
         done.append("cleared finished_utc: points are missing")
-    (quarantine / "repair.json").write_text(dumps({"problems": [str(p) for p in report.problems],
-                                                   "actions": done}, indent=2) + "\n")
-    done.append(f"originals and a record of this repair are in {quarantine}; measure the points set aside with "
-                f"`uwlab sweep PLAN --resume {dataset.root}`")
+    (quarantine / "repair.json").write_text(
+        dumps({"problems": [str(p) for p in report.problems], "actions": done}, indent=2) + "\n"
+    )
+    done.append(
+        f"originals and a record of this repair are in {quarantine}; measure the points set aside with "
+        f"`uwlab sweep PLAN --resume {dataset.root}`"
+    )
     return done
 
 
@@ -232,8 +257,10 @@ def _without(points: pa.Table, spectra: pa.Table, keys: set[tuple[str, int]]) ->
     kept = frame[[(s, i) not in keys for s, i in zip(frame["sweep_id"], frame["point_index"], strict=True)]]
     kept_keys = kept[KEY].drop_duplicates()
     spectra_kept = spectra.to_pandas().merge(kept_keys, on=KEY, how="inner")
-    return {"points": pa.Table.from_pandas(kept, schema=POINT_SCHEMA, preserve_index=False),
-            "spectra": pa.Table.from_pandas(spectra_kept, schema=spectra.schema, preserve_index=False)}
+    return {
+        "points": pa.Table.from_pandas(kept, schema=POINT_SCHEMA, preserve_index=False),
+        "spectra": pa.Table.from_pandas(spectra_kept, schema=spectra.schema, preserve_index=False),
+    }
 
 
 def _quarantine_folder(root: Path) -> Path:
@@ -263,24 +290,41 @@ def summarize(dataset: Dataset) -> dict:
     sweeps = []
     for sweep_id, total in totals.items():
         rows = points[points["sweep_id"] == sweep_id]
-        sweeps.append({"id": sweep_id, "kind": rows["kind"].iloc[0] if len(rows) else None,
-                       "points_done": int(len(rows)), "points_total": int(total),
-                       "saturated_points": int(rows["saturated"].fillna(False).astype(bool).sum()),
-                       "sensor_profile": rows["sensor_profile"].iloc[0] if len(rows) else None,
-                       "lens_label": rows["lens_label"].iloc[0] if len(rows) else None})
+        sweeps.append(
+            {
+                "id": sweep_id,
+                "kind": rows["kind"].iloc[0] if len(rows) else None,
+                "points_done": int(len(rows)),
+                "points_total": int(total),
+                "saturated_points": int(rows["saturated"].fillna(False).astype(bool).sum()),
+                "sensor_profile": rows["sensor_profile"].iloc[0] if len(rows) else None,
+                "lens_label": rows["lens_label"].iloc[0] if len(rows) else None,
+            }
+        )
     span = None
     if len(points) and points["t_start_ns"].notna().any():
-        span = {"start_utc": _iso_ns(int(points["t_start_ns"].min())),
-                "end_utc": _iso_ns(int(points["t_end_ns"].max()))}
+        span = {
+            "start_utc": _iso_ns(int(points["t_start_ns"].min())),
+            "end_utc": _iso_ns(int(points["t_end_ns"].max())),
+        }
     done, total = int(len(points)), int(sum(totals.values()))
-    state = ("damaged" if not report.ok else "empty" if done == 0 else "complete" if done == total else "incomplete")
+    state = "damaged" if not report.ok else "empty" if done == 0 else "complete" if done == total else "incomplete"
     return {
-        "path": str(dataset.root), "plan_name": meta.get("plan", {}).get("name"), "plan_sha256": meta["plan_sha256"],
-        "sim": meta.get("sim"), "state": state, "started_utc": meta.get("started_utc"),
-        "finished_utc": meta.get("finished_utc"), "points_done": done, "points_total": total,
-        "saturated_points": int(sum(s["saturated_points"] for s in sweeps)), "time_span": span,
-        "spectra_rows": int(sum(p.rows("spectra") for p in dataset.store.parts)), "sweeps": sweeps,
-        "devices": meta.get("devices", {}), "problems": [str(p) for p in report.problems],
+        "path": str(dataset.root),
+        "plan_name": meta.get("plan", {}).get("name"),
+        "plan_sha256": meta["plan_sha256"],
+        "sim": meta.get("sim"),
+        "state": state,
+        "started_utc": meta.get("started_utc"),
+        "finished_utc": meta.get("finished_utc"),
+        "points_done": done,
+        "points_total": total,
+        "saturated_points": int(sum(s["saturated_points"] for s in sweeps)),
+        "time_span": span,
+        "spectra_rows": int(sum(p.rows("spectra") for p in dataset.store.parts)),
+        "sweeps": sweeps,
+        "devices": meta.get("devices", {}),
+        "problems": [str(p) for p in report.problems],
     }
 
 

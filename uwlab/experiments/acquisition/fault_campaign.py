@@ -9,6 +9,7 @@ true-state logs (`uwlab.sim.state_log`), which the sweep never reads: over the p
 (``readback_t_start_ns`` … ``readback_t_end_ns``) the light must have held the recorded output and level without
 interruption, and the spectrometer must have taken the recorded reading with the recorded settings in that light.
 """
+
 from __future__ import annotations
 
 import threading
@@ -108,32 +109,52 @@ def wrong_points(points: pd.DataFrame, light_log: list[dict], spectrometer_log: 
         if light_log and row.light_level is not None and not pd.isna(row.light_level):
             level_error = abs(row.light_level_readback - row.light_level)
             if row.light_on_readback != row.light_on or level_error > LEVEL_TOLERANCE:
-                wrong.append(f"{where}: read-back {row.light_on_readback}/{row.light_level_readback} recorded for "
-                             f"{row.light_on}/{row.light_level}")
+                wrong.append(
+                    f"{where}: read-back {row.light_on_readback}/{row.light_level_readback} recorded for "
+                    f"{row.light_on}/{row.light_level}"
+                )
             for state in states_during(light_log, t0, t1):
-                if (state["event"] == "power-lost" or state["on"] != row.light_on
-                        or abs(state["level"] - row.light_level) > LEVEL_TOLERANCE):
-                    wrong.append(f"{where}: recorded light {row.light_on}/{row.light_level}, the light was "
-                                 f"{state['event']} {state['on']}/{state['level']} at {state['t_ns']}")
+                if (
+                    state["event"] == "power-lost"
+                    or state["on"] != row.light_on
+                    or abs(state["level"] - row.light_level) > LEVEL_TOLERANCE
+                ):
+                    wrong.append(
+                        f"{where}: recorded light {row.light_on}/{row.light_level}, the light was "
+                        f"{state['event']} {state['on']}/{state['level']} at {state['t_ns']}"
+                    )
         if row.irradiance_position is not None and not pd.isna(row.irradiance_w_m2):
-            wrong += _spectrometer_disagreements(where, row, reads_during(spectrometer_log, t0, t1),
-                                                 states_during(spectrometer_log, t0, t1)[1:])
+            wrong += _spectrometer_disagreements(
+                where, row, reads_during(spectrometer_log, t0, t1), states_during(spectrometer_log, t0, t1)[1:]
+            )
     return wrong
 
 
 def _spectrometer_disagreements(where: str, row, reads: list[dict], changes: list[dict]) -> list[str]:
-    wrong = [f"{where}: spectrometer {c['event']} during the window" for c in changes
-             if c["event"] in ("power-lost", "power-on")]
-    matching = [r for r in reads if r["position"] == row.irradiance_position
-                and r["integration_ms"] == row.spectrometer_integration_ms_readback
-                and r["averaging"] == row.spectrometer_averaging_readback]
+    wrong = [
+        f"{where}: spectrometer {c['event']} during the window"
+        for c in changes
+        if c["event"] in ("power-lost", "power-on")
+    ]
+    matching = [
+        r
+        for r in reads
+        if r["position"] == row.irradiance_position
+        and r["integration_ms"] == row.spectrometer_integration_ms_readback
+        and r["averaging"] == row.spectrometer_averaging_readback
+    ]
     if not matching:
-        wrong.append(f"{where}: no reading at the {row.irradiance_position} with "
-                     f"{row.spectrometer_integration_ms_readback} ms x {row.spectrometer_averaging_readback} "
-                     f"in the window (reads: {[(r['position'], r['integration_ms'], r['averaging']) for r in reads]})")
+        wrong.append(
+            f"{where}: no reading at the {row.irradiance_position} with "
+            f"{row.spectrometer_integration_ms_readback} ms x {row.spectrometer_averaging_readback} "
+            f"in the window (reads: {[(r['position'], r['integration_ms'], r['averaging']) for r in reads]})"
+        )
     for read in reads:
         if read["light_on"] != row.light_on or (
-                row.light_level is not None and abs(read["light_level"] - row.light_level) > LEVEL_TOLERANCE):
-            wrong.append(f"{where}: spectrometer read in light {read['light_on']}/{read['light_level']}, recorded "
-                         f"{row.light_on}/{row.light_level}")
+            row.light_level is not None and abs(read["light_level"] - row.light_level) > LEVEL_TOLERANCE
+        ):
+            wrong.append(
+                f"{where}: spectrometer read in light {read['light_on']}/{read['light_level']}, recorded "
+                f"{row.light_on}/{row.light_level}"
+            )
     return wrong

@@ -4,6 +4,7 @@ Each frame's statistics: size, pixel format, the settings read back with it, mea
 maximum and the fraction of saturated pixels by the one rule of `uwlab.experiments.saturation` (the clip level from
 the sensor profile when one is known, else from the pixel format and the image).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -39,8 +40,9 @@ def frame_stats(frame: Frame, sensor: SensorProfile | None) -> dict[str, Any]:
         offset = sensor.dark_offset_dn + (s.black_level or 0.0)
         gain: float = sensor.gain_k(s.gain_db or 0.0)  # type: ignore[no-untyped-call]  # model not yet typed
         profile_dn = sensor_clip_dn(gain, sensor.saturation_e, offset, sensor.bit_depth, frame.pixel_format)
-    clip = clip_level(frame.pixel_format, native_bits=sensor.bit_depth if sensor else None, profile_dn=profile_dn,
-                      image=img)
+    clip = clip_level(
+        frame.pixel_format, native_bits=sensor.bit_depth if sensor else None, profile_dn=profile_dn, image=img
+    )
     return {
         "frame_id": frame.frame_id,
         "timestamp_ns": frame.timestamp_ns,
@@ -111,9 +113,18 @@ def sensor_for(backend: str, sensor: str | None, config: str | None) -> SensorPr
     return None
 
 
-def grab_frames(backend: str = "sim", device_id: str | None = None, *, frames: int = 1,
-                settings: Settings | None = None, sensor: str | None = None, config: str | None = None,
-                cti: list[str] | None = None, timeout_s: float = 5.0, keep_frames: bool = True) -> Grabbed:
+def grab_frames(
+    backend: str = "sim",
+    device_id: str | None = None,
+    *,
+    frames: int = 1,
+    settings: Settings | None = None,
+    sensor: str | None = None,
+    config: str | None = None,
+    cti: list[str] | None = None,
+    timeout_s: float = 5.0,
+    keep_frames: bool = True,
+) -> Grabbed:
     """Open the camera, apply `settings`, acquire `frames` frames and compute their statistics; the camera is
     closed on any exit. `keep_frames` False keeps only the statistics (long grabs)."""
     if frames < 1:
@@ -133,4 +144,3 @@ def grab_frames(backend: str = "sim", device_id: str | None = None, *, frames: i
                 result.frames.append(frame)
         result.device["discarded_frames"] = cam.stats.discarded
     return result
-

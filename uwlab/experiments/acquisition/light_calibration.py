@@ -9,6 +9,7 @@ File format (CSV, docs/serial-protocol.md "Light calibration file"): ``#`` comme
 then a header ``level,irradiance_w_m2,illuminance_lux,irradiance_w_m2_nm_<λ>,...`` with one column per
 wavelength [nm], and one row per level in increasing order. `load_light_calibration` reads it back.
 """
+
 from __future__ import annotations
 
 import csv
@@ -48,8 +49,9 @@ def calibration_levels(count: int) -> np.ndarray:
     return np.linspace(0.0, 1.0, count)
 
 
-def calibrate_light(light: Light, spectrometer: Spectrometer, levels: np.ndarray,
-                    progress: Progress | None = None) -> LightCalibration:
+def calibrate_light(
+    light: Light, spectrometer: Spectrometer, levels: np.ndarray, progress: Progress | None = None
+) -> LightCalibration:
     """Measure one spectrum per level; ``progress(done, total)`` is called after each."""
     initial_output, initial_level = light.output(), light.level()
     spectra = []
@@ -123,7 +125,7 @@ def load_light_calibration(path: str | Path) -> LightCalibration:
         reason = f"not a light calibration file (missing {missing or 'spectral columns'})"
         raise ConfigError("light_calibration", str(path), reason)
     try:
-        wavelength_nm = np.array([float(c[len(SPECTRAL_PREFIX):]) for c in spectral])
+        wavelength_nm = np.array([float(c[len(SPECTRAL_PREFIX) :]) for c in spectral])
         values = table.to_numpy(dtype=float)
     except ValueError as exc:
         raise ConfigError("light_calibration", str(path), f"non-numeric entry ({exc})") from None

@@ -30,6 +30,7 @@ No lens: the resolved rig of a "no lens" sweep carries the bare sensor's f-numbe
 
 Unknown keys and impossible values raise `ConfigError` naming the key (``sweep.<id>.<key>``).
 """
+
 from __future__ import annotations
 
 import copy
@@ -55,9 +56,29 @@ from uwlab.model.data import read_toml, resolve_path
 from uwlab.model.bench import Bench, build_bench, is_bench
 from uwlab.model.design import SPECTROMETER_POSITIONS, Design, build_design
 from uwlab.model.optics import NO_LENS, LensSetting
-from uwlab.model.schema import (DurationS, ExposureUs, FNumber, FocalLengthMm, Fraction, FrameCount, GainDb,
-                                NonEmptyText, Number, Schema, Text, check, either, invalid, is_list, is_table,
-                                is_text, limits_of, parse, quantity, within)
+from uwlab.model.schema import (
+    DurationS,
+    ExposureUs,
+    FNumber,
+    FocalLengthMm,
+    Fraction,
+    FrameCount,
+    GainDb,
+    NonEmptyText,
+    Number,
+    Schema,
+    Text,
+    check,
+    either,
+    invalid,
+    is_list,
+    is_table,
+    is_text,
+    limits_of,
+    parse,
+    quantity,
+    within,
+)
 
 KINDS = ("exposure", "aperture", "gain", "light-level", "dark")
 DARK_MODES = ("point", "block", "none")
@@ -105,8 +126,9 @@ class CameraSpec(Schema):
 
     def policy(self) -> Policy:
         """The camera's fault-handling bounds (docs/cameras.md, "Reconnect policy")."""
-        return Policy(timeout_s=self.timeout_s, reconnect_attempts=self.reconnect_attempts,
-                      outage_limit_s=self.outage_limit_s)
+        return Policy(
+            timeout_s=self.timeout_s, reconnect_attempts=self.reconnect_attempts, outage_limit_s=self.outage_limit_s
+        )
 
 
 class Instruments(Schema):
@@ -159,11 +181,16 @@ class ValueRange(Schema):
         return tuple(float(v) for v in space(self.start, self.stop, self.num))
 
 
-SweepValues = either("must be a list of numbers or {start, stop, num, spacing}",
-                     (is_list, Annotated[list[Number], Field(min_length=1, max_length=MAX_POINTS)]),
-                     (is_table, ValueRange))
-LensSpec = either('must be "none" or {focal_length_mm, f_number, f_number_range, manual}',
-                  (is_text, Literal["none"]), (is_table, LensTable))
+SweepValues = either(
+    "must be a list of numbers or {start, stop, num, spacing}",
+    (is_list, Annotated[list[Number], Field(min_length=1, max_length=MAX_POINTS)]),
+    (is_table, ValueRange),
+)
+LensSpec = either(
+    'must be "none" or {focal_length_mm, f_number, f_number_range, manual}',
+    (is_text, Literal["none"]),
+    (is_table, LensTable),
+)
 Roi = either('must be [x, y, width, height] in pixels or "aruco"', (is_text, Literal["aruco"]), (is_list, Rectangle))
 DesignSections = dict[str, dict[str, Any]]
 
@@ -183,9 +210,11 @@ class SweepTable(Schema):
     spectrometer_averaging: Averaging = Field(1, description="spectra averaged per reading")
     roi: Roi | None = Field(None, description='[x, y, width, height] within the image [px], or "aruco"')
     aruco_dictionary: Annotated[NonEmptyText, AfterValidator(_aruco)] = Field(
-        "DICT_4X4_50", description="cv2.aruco dictionary of the ROI markers")
-    saturation_threshold: Fraction = Field(POINT_SATURATED_FRACTION,
-                                           description="fraction of saturated ROI pixels flagging a point")
+        "DICT_4X4_50", description="cv2.aruco dictionary of the ROI markers"
+    )
+    saturation_threshold: Fraction = Field(
+        POINT_SATURATED_FRACTION, description="fraction of saturated ROI pixels flagging a point"
+    )
     lens: LensSpec | None = Field(None, description='"none", or the lens table (default: the rig\'s lens)')
     sensor: NonEmptyText | None = Field(None, description="sensor profile (sets the rig's sensor.profile)")
     camera: dict[str, Any] = Field({}, description="keys overriding [camera]")
@@ -286,10 +315,19 @@ class SweepSpec:
         return [self._point(i, v) for i, v in enumerate(self.values)]
 
     def _point(self, index: int, value: float) -> Point:
-        settings = {"exposure_us": self.exposure_us, "gain_db": self.gain_db, "f_number": self.lens.f_number,
-                    "light_level": self.light_level}
-        key = {"exposure": "exposure_us", "dark": "exposure_us", "gain": "gain_db", "aperture": "f_number",
-               "light-level": "light_level"}[self.kind]
+        settings = {
+            "exposure_us": self.exposure_us,
+            "gain_db": self.gain_db,
+            "f_number": self.lens.f_number,
+            "light_level": self.light_level,
+        }
+        key = {
+            "exposure": "exposure_us",
+            "dark": "exposure_us",
+            "gain": "gain_db",
+            "aperture": "f_number",
+            "light-level": "light_level",
+        }[self.kind]
         settings[key] = value
         return Point(index=index, light_on=self.kind != "dark", **settings)
 
@@ -324,14 +362,23 @@ def parse_plan(raw: dict, path: Path, sha256: str) -> Plan:
     rig_path = resolve_path(plan.rig, path.resolve().parent)
     rig_raw = read_toml(rig_path, "rig")
     camera = raw.get("camera", {})
-    sweeps = [_sweep({**plan.defaults, **body}, number, rig_raw, rig_path.parent, plan.geometry, camera)
-              for number, body in enumerate(plan.sweep)]
+    sweeps = [
+        _sweep({**plan.defaults, **body}, number, rig_raw, rig_path.parent, plan.geometry, camera)
+        for number, body in enumerate(plan.sweep)
+    ]
     ids = [s.id for s in sweeps]
     duplicated = sorted({i for i in ids if ids.count(i) > 1})
     if duplicated:
         raise ConfigError("sweep.id", duplicated[0], "sweep ids must be unique within the plan")
-    return Plan(path=path, sha256=sha256, raw=raw, name=plan.name or path.stem, rig_path=rig_path,
-                sweeps=tuple(sweeps), instruments=plan.instruments)
+    return Plan(
+        path=path,
+        sha256=sha256,
+        raw=raw,
+        name=plan.name or path.stem,
+        rig_path=rig_path,
+        sweeps=tuple(sweeps),
+        instruments=plan.instruments,
+    )
 
 
 def sweep_tables(raw: dict) -> dict[str, dict]:
@@ -347,8 +394,10 @@ def sweep_tables(raw: dict) -> dict[str, dict]:
 
 def point_counts(raw: dict) -> dict[str, int]:
     """``{sweep_id: number of points}`` of a parsed plan TOML (as stored in a dataset's metadata)."""
-    return {sweep_id: len(expand_values(f"sweep.{sweep_id}.values", body.get("values")))
-            for sweep_id, body in sweep_tables(raw).items()}
+    return {
+        sweep_id: len(expand_values(f"sweep.{sweep_id}.values", body.get("values")))
+        for sweep_id, body in sweep_tables(raw).items()
+    }
 
 
 def expand_values(key: str, spec: Any) -> tuple[float, ...]:
@@ -376,21 +425,40 @@ def _sweep(body: dict, number: int, rig_raw: dict, rig_dir: Path, geometry: dict
     exposure_us = table.exposure_us
     if exposure_us is None:
         exposure_us = float(np.median(values)) if table.kind in ("exposure", "dark") else 1000.0
-    within(f"{prefix}.exposure_us", exposure_us, sensor.exposure_min_us, sensor.exposure_max_us,
-           f"{sensor.name}'s exposure range [µs]")
-    within(f"{prefix}.gain_db", table.gain_db, sensor.gain_min_db, sensor.gain_max_db,
-           f"{sensor.name}'s gain range [dB]")
+    within(
+        f"{prefix}.exposure_us",
+        exposure_us,
+        sensor.exposure_min_us,
+        sensor.exposure_max_us,
+        f"{sensor.name}'s exposure range [µs]",
+    )
+    within(
+        f"{prefix}.gain_db", table.gain_db, sensor.gain_min_db, sensor.gain_max_db, f"{sensor.name}'s gain range [dB]"
+    )
     spec = SweepSpec(
-        id=table.id, kind=table.kind, values=values, frames_per_point=table.frames_per_point,
-        settle_s=table.settle_s, dark=table.dark,
+        id=table.id,
+        kind=table.kind,
+        values=values,
+        frames_per_point=table.frames_per_point,
+        settle_s=table.settle_s,
+        dark=table.dark,
         dark_frames=table.frames_per_point if table.dark_frames is None else table.dark_frames,
-        spectrometer=tuple(table.spectrometer), spectrometer_integration_ms=table.spectrometer_integration_ms,
-        spectrometer_averaging=table.spectrometer_averaging, roi=table.roi, aruco_dictionary=table.aruco_dictionary,
+        spectrometer=tuple(table.spectrometer),
+        spectrometer_integration_ms=table.spectrometer_integration_ms,
+        spectrometer_averaging=table.spectrometer_averaging,
+        roi=table.roi,
+        aruco_dictionary=table.aruco_dictionary,
         saturation_threshold=table.saturation_threshold,
-        lens=lens, sensor_profile=str(rig["sensor"]["profile"]),
+        lens=lens,
+        sensor_profile=str(rig["sensor"]["profile"]),
         camera=parse(CameraSpec, {**camera, **table.camera}, f"{prefix}.camera"),
-        exposure_us=float(exposure_us), gain_db=table.gain_db, black_level_dn=table.black_level_dn,
-        light_level=table.light_level, save_frames=table.save_frames, rig_raw=rig, design=design,
+        exposure_us=float(exposure_us),
+        gain_db=table.gain_db,
+        black_level_dn=table.black_level_dn,
+        light_level=table.light_level,
+        save_frames=table.save_frames,
+        rig_raw=rig,
+        design=design,
     )
     _check_values(spec, sensor)
     _check_dark_mode(spec)
@@ -443,15 +511,20 @@ def _check_values(spec: SweepSpec, sensor) -> None:
 
 def _check_dark_mode(spec: SweepSpec) -> None:
     if spec.dark == "block" and spec.kind in ("exposure", "gain"):
-        raise ConfigError(f"sweep.{spec.id}.dark", "block",
-                          f"an {spec.kind} sweep changes the camera settings at every point: use 'point'")
+        raise ConfigError(
+            f"sweep.{spec.id}.dark",
+            "block",
+            f"an {spec.kind} sweep changes the camera settings at every point: use 'point'",
+        )
 
 
 def resolved_rig(design: Design) -> dict:
     """The validated design of a sweep as plain TOML-able sections (defaults filled, paths absolute)."""
+
     def table(body: dict) -> dict:
         return {k: to_jsonable(v) for k, v in body.items() if v is not None}
 
-    return {section: [table(b) for b in body] if isinstance(body, list) else table(body)
-            for section, body in design.values.items()}
-
+    return {
+        section: [table(b) for b in body] if isinstance(body, list) else table(body)
+        for section, body in design.values.items()
+    }

@@ -16,6 +16,7 @@ a *window* bracketed by read-backs (docs/sweeps.md, "What a point guarantees"):
 Any disagreement makes the attempt void; the window is measured again from step 1, at most `ATTEMPTS` times,
 then the sweep stops with one `DeviceError` naming what disagreed. Nothing of a void attempt is recorded.
 """
+
 from __future__ import annotations
 
 import time
@@ -56,8 +57,9 @@ def _marks(rig: Instruments, camera: Camera | None) -> dict[str, int]:
     return marks
 
 
-def _readbacks(rig: Instruments, camera: Camera | None,
-               light: LightReadback | None) -> tuple[LightReadback | None, list[str]]:
+def _readbacks(
+    rig: Instruments, camera: Camera | None, light: LightReadback | None
+) -> tuple[LightReadback | None, list[str]]:
     """The light's read-back and whether it disagrees with ``light``; the camera's settings verified (if it takes
     part)."""
     got = rig.light.readback() if rig.light is not None else None
@@ -69,8 +71,14 @@ def _readbacks(rig: Instruments, camera: Camera | None,
     return got, problems
 
 
-def verified(what: str, rig: Instruments, camera: Camera | None, light: LightReadback | None,
-             prepare: Callable[[], None], measure: Callable[[], T]) -> tuple[T, Window]:
+def verified(
+    what: str,
+    rig: Instruments,
+    camera: Camera | None,
+    light: LightReadback | None,
+    prepare: Callable[[], None],
+    measure: Callable[[], T],
+) -> tuple[T, Window]:
     """``measure()``'s result and its `Window`, from the first attempt whose read-backs held (module docstring);
     ``camera`` is the camera the measurement uses (None: a spectrometer-only measurement, which a camera outage
     does not void); ``light`` is the light state wanted (None: the rig has no light)."""
@@ -86,9 +94,13 @@ def verified(what: str, rig: Instruments, camera: Camera | None, light: LightRea
         t_end = time.time_ns()
         light_after, problems = _readbacks(rig, camera, light)
         after = _marks(rig, camera)
-        problems += [f"{name} {before[name]} -> {after[name]} during the measurement"
-                     for name in before if after[name] != before[name]]
+        problems += [
+            f"{name} {before[name]} -> {after[name]} during the measurement"
+            for name in before
+            if after[name] != before[name]
+        ]
         if not problems:
             return result, Window(t_start, t_end, attempt, light_after)
-    raise DeviceError(f"{what}: read-backs disagree after {ATTEMPTS} attempts ({'; '.join(problems)}); "
-                      "nothing of it was recorded")
+    raise DeviceError(
+        f"{what}: read-backs disagree after {ATTEMPTS} attempts ({'; '.join(problems)}); nothing of it was recorded"
+    )

@@ -5,6 +5,7 @@ itself (set a manual aperture, move the spectrometer) is asked of the operator. 
 (`uwlab.experiments.acquisition.sim_rig.SimRig`, for ``uwlab sweep --sim``) follows the same `Rig` protocol; this
 module never imports the simulator.
 """
+
 from __future__ import annotations
 
 from collections.abc import Callable
@@ -76,8 +77,9 @@ class HardwareRig:
         self.confirm(message)
 
     def set_aperture(self, sweep: SweepSpec, f_number: float) -> None:
-        self._ask(f"sweep.{sweep.id}.values", f_number, f"set the {sweep.lens.focal_length_mm:g} mm lens to "
-                                                          f"F{f_number:g}")
+        self._ask(
+            f"sweep.{sweep.id}.values", f_number, f"set the {sweep.lens.focal_length_mm:g} mm lens to F{f_number:g}"
+        )
 
     def place_spectrometer(self, position: str) -> None:
         if position != self._position:

@@ -6,6 +6,7 @@ Recognition 47(6), 2014). Convention: the markers sit at the board's edges (e.g.
 interior is the bounding box of all detected marker corners shrunk on every side by the largest marker side,
 so no marker pixel (nor its quiet zone, up to one marker side) lies inside the ROI.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -36,8 +37,9 @@ def detect_markers(image: np.ndarray, dictionary: str = "DICT_4X4_50") -> tuple[
     """(corners (n, 4, 2) float, ids (n,)) of the ArUco markers found in a grey image."""
     import cv2
 
-    detector = cv2.aruco.ArucoDetector(cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, dictionary)),
-                                       cv2.aruco.DetectorParameters())
+    detector = cv2.aruco.ArucoDetector(
+        cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, dictionary)), cv2.aruco.DetectorParameters()
+    )
     corners, ids, _ = detector.detectMarkers(to_uint8(image))
     if ids is None:
         return np.empty((0, 4, 2)), np.empty(0, int)

@@ -6,6 +6,7 @@ checked to come from the same plan) before any device is opened; the rig is a co
 their safe state and the simulators stop on any exit; every point is durable before the next one starts
 (`uwlab.experiments.acquisition.sweep`).
 """
+
 from __future__ import annotations
 
 from collections.abc import Callable
@@ -28,8 +29,15 @@ def default_out(plan: Plan) -> Path:
     return Path(f"{plan.path.stem}-dataset")
 
 
-def open_target(plan: Plan, out: str | Path | None = None, *, resume: bool = False, sim: bool = False,
-                force: bool = False, purpose: str = "uwlab sweep") -> Dataset:
+def open_target(
+    plan: Plan,
+    out: str | Path | None = None,
+    *,
+    resume: bool = False,
+    sim: bool = False,
+    force: bool = False,
+    purpose: str = "uwlab sweep",
+) -> Dataset:
     """The dataset a session writes, its lock held, checked before any device is opened: a new one at `out`
     (default `default_out`; `force` replaces an existing one), or with `resume` the unfinished dataset at `out`
     (same plan, passing its check)."""
@@ -56,13 +64,24 @@ def progress_text(event: Progress) -> str:
     """The latest point in a few words, for a progress bar's postfix: ``exposure#3 t=200us signal=812.4DN``."""
     latest = event.latest
     signal = "n/a" if latest.get("signal_dn") is None else f"{latest['signal_dn']:.1f}"
-    return (f"{event.sweep_id}#{event.point_index} t={latest['exposure_us']:g}us signal={signal}DN"
-            f"{' SAT' if latest.get('saturated') else ''}")
+    return (
+        f"{event.sweep_id}#{event.point_index} t={latest['exposure_us']:g}us signal={signal}DN"
+        f"{' SAT' if latest.get('saturated') else ''}"
+    )
 
 
-def run_session(plan: Plan, out: str | Path | None = None, *, resume: bool = False, sim: bool = False,
-                force: bool = False, confirm: Confirm | None = None, seed: int = 0,
-                progress: Callable[[Progress], None] | None = None, purpose: str = "uwlab sweep") -> Path:
+def run_session(
+    plan: Plan,
+    out: str | Path | None = None,
+    *,
+    resume: bool = False,
+    sim: bool = False,
+    force: bool = False,
+    confirm: Confirm | None = None,
+    seed: int = 0,
+    progress: Callable[[Progress], None] | None = None,
+    purpose: str = "uwlab sweep",
+) -> Path:
     """Run every missing point of `plan` into the dataset `open_target` gives, on `make_rig`'s rig; `progress` is
     called after each recorded point. Returns the dataset's directory."""
     with open_target(plan, out, resume=resume, sim=sim, force=force, purpose=purpose) as dataset:

@@ -20,6 +20,7 @@ rig state) is removed when the rig closes. A process killed outright (SIGKILL) c
 such stale folders (`remove_stale_rig_folders`): each holds an owner lock (`uwlab.lockfile`) that a dead owner no
 longer holds. Live rigs' folders are never touched.
 """
+
 from __future__ import annotations
 
 import os
@@ -151,9 +152,13 @@ class SimRig:
             "dn_scale": 2.0 ** (fmt_bits - truth.bit_depth),
             "K_dn_per_e_output": truth.system_gain(s.gain_db or 0.0) * 2.0 ** (fmt_bits - truth.bit_depth),
             "black_level_dn": s.black_level,
-            "clip_level_dn": sensor_clip_dn(truth.system_gain(s.gain_db or 0.0), truth.saturation_e,
-                                            truth.dark_offset_dn + (s.black_level or 0.0), truth.bit_depth,
-                                            s.pixel_format),
+            "clip_level_dn": sensor_clip_dn(
+                truth.system_gain(s.gain_db or 0.0),
+                truth.saturation_e,
+                truth.dark_offset_dn + (s.black_level or 0.0),
+                truth.bit_depth,
+                s.pixel_format,
+            ),
             "light_gamma": self._scene.sim.light_gamma,
             "light_curve": "flux_fraction = level ** light_gamma",
             "window_mean_rate_e_per_s": float(self._window_rate(s).mean()),
@@ -175,7 +180,7 @@ class SimRig:
     def _window_rate(self, s) -> np.ndarray:
         rate = self._sensor.rate_e_per_s
         bh, bv = s.binning
-        return rate[s.offset_y * bv: (s.offset_y + s.height) * bv, s.offset_x * bh: (s.offset_x + s.width) * bh]
+        return rate[s.offset_y * bv : (s.offset_y + s.height) * bv, s.offset_x * bh : (s.offset_x + s.width) * bh]
 
 
 def remove_stale_rig_folders(directory: str | os.PathLike | None = None) -> list[Path]:

@@ -19,6 +19,7 @@ of the range, without gaps, repeats or strays; a block of each step at most. A f
 one line naming the line. `SEKONIC_MAX_W_M2_NM` is an assumed plausibility limit, 50 times the peak spectral
 irradiance of sunlight at sea level (about 2 W m⁻² nm⁻¹): beyond it a value is a unit error or corruption.
 """
+
 from __future__ import annotations
 
 import csv
@@ -117,8 +118,13 @@ def read_sekonic_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
         if blocks and sample[1] > blocks[-1][-1][1]:
             blocks[-1].append(sample)
         elif blocks and not (blocks[-1][-1][1] == SEKONIC_RANGE_NM[1] and sample[1] == SEKONIC_RANGE_NM[0]):
-            raise _sekonic_error(path, line, row, f"{sample[1]:g} nm after {blocks[-1][-1][1]:g} nm: wavelengths "
-                                                  "must increase within a block (a repeated or stray row)")
+            raise _sekonic_error(
+                path,
+                line,
+                row,
+                f"{sample[1]:g} nm after {blocks[-1][-1][1]:g} nm: wavelengths "
+                "must increase within a block (a repeated or stray row)",
+            )
         else:
             blocks.append([sample])
     if not blocks:
@@ -157,17 +163,26 @@ def _sekonic_step(path: Path, block: list[tuple[int, float, float]]) -> float:
     if first_nm != lo:
         raise ConfigError("import", str(path), f"line {first_line}: a block starts at {first_nm:g} nm, not {lo:g} nm")
     if len(block) < 2 or block[1][1] - first_nm not in SEKONIC_STEPS_NM:
-        raise ConfigError("import", str(path), f"line {first_line}: a block must step by "
-                                               f"{' or '.join(f'{s:g}' for s in SEKONIC_STEPS_NM)} nm from {lo:g} nm")
+        raise ConfigError(
+            "import",
+            str(path),
+            f"line {first_line}: a block must step by "
+            f"{' or '.join(f'{s:g}' for s in SEKONIC_STEPS_NM)} nm from {lo:g} nm",
+        )
     step = block[1][1] - first_nm
     for (_, previous, _), (line, nm, _) in zip(block, block[1:], strict=False):
         if nm - previous != step:
-            raise ConfigError("import", str(path), f"line {line}: {previous:g} → {nm:g} nm breaks the {step:g} nm "
-                                                   f"steps (missing {previous + step:g}–{nm - step:g} nm)")
+            raise ConfigError(
+                "import",
+                str(path),
+                f"line {line}: {previous:g} → {nm:g} nm breaks the {step:g} nm "
+                f"steps (missing {previous + step:g}–{nm - step:g} nm)",
+            )
     last_line, last_nm, _ = block[-1]
     if last_nm != hi:
-        raise ConfigError("import", str(path), f"line {last_line}: the {step:g} nm block ends at {last_nm:g} nm, "
-                                               f"not {hi:g} nm")
+        raise ConfigError(
+            "import", str(path), f"line {last_line}: the {step:g} nm block ends at {last_nm:g} nm, not {hi:g} nm"
+        )
     return step
 
 

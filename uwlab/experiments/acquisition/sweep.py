@@ -29,6 +29,7 @@ Every point is durable before the next starts, so Ctrl-C or a crash loses at mos
 disappears is reconnected by its driver (settings restored and verified) and the point in progress is measured
 again; a failed write raises `DatasetWriteError` with the dataset intact.
 """
+
 from __future__ import annotations
 
 import time
@@ -80,14 +81,20 @@ class Reading:
 
 def _crop(image: np.ndarray, roi: Rect) -> np.ndarray:
     x, y, w, h = roi
-    return image[y:y + h, x:x + w]
+    return image[y : y + h, x : x + w]
 
 
 class SweepRunner:
     """Runs the points of a plan missing from ``dataset`` on ``rig``."""
 
-    def __init__(self, plan: Plan, dataset: Dataset, rig: Rig, progress: Callable[[Progress], None] | None = None,
-                 sleep: Callable[[float], None] = time.sleep):
+    def __init__(
+        self,
+        plan: Plan,
+        dataset: Dataset,
+        rig: Rig,
+        progress: Callable[[Progress], None] | None = None,
+        sleep: Callable[[float], None] = time.sleep,
+    ):
         self.plan = plan
         self.dataset = dataset
         self.rig = rig
@@ -124,8 +131,15 @@ class SweepRunner:
                 if block_frames is not None:
                     block_frames.discard()
 
-    def _record(self, sweep: SweepSpec, camera: Camera, roi: Rect, point: Point, block: StackStatistics | None,
-                block_frames: FrameRecorder | None) -> None:
+    def _record(
+        self,
+        sweep: SweepSpec,
+        camera: Camera,
+        roi: Rect,
+        point: Point,
+        block: StackStatistics | None,
+        block_frames: FrameRecorder | None,
+    ) -> None:
         """Measure one point and record it (with its frames when the sweep saves them)."""
         frames = self.dataset.frame_recorder(sweep.id, point.index) if sweep.save_frames else None
         try:
@@ -138,8 +152,15 @@ class SweepRunner:
                 frames.discard()  # nothing left once committed; an interrupted point's frames otherwise
         self._done += 1
         if self.progress is not None:
-            self.progress(Progress(self._done, self.plan.total_points(), sweep.id, point.index,
-                                   {k: row[k] for k in ("exposure_us", "signal_dn", "saturated")}))
+            self.progress(
+                Progress(
+                    self._done,
+                    self.plan.total_points(),
+                    sweep.id,
+                    point.index,
+                    {k: row[k] for k in ("exposure_us", "signal_dn", "saturated")},
+                )
+            )
 
     def _needs_instruments(self, sweep: SweepSpec) -> None:
         if self.rig.light is None and (sweep.kind in ("light-level", "dark") or sweep.dark != "none"):
@@ -163,10 +184,18 @@ class SweepRunner:
 
     def _record_devices(self, sweep: SweepSpec, camera: Camera) -> None:
         info = camera.info
-        devices = {"camera": {"vendor": info.vendor, "model": info.model, "serial": info.serial,
-                              "firmware": info.firmware, "backend": info.backend, "id": info.device_id},
-                   "light": self.rig.light.identity() if self.rig.light is not None else None,
-                   "spectrometer": self.rig.spectrometer.identity() if self.rig.spectrometer is not None else None}
+        devices = {
+            "camera": {
+                "vendor": info.vendor,
+                "model": info.model,
+                "serial": info.serial,
+                "firmware": info.firmware,
+                "backend": info.backend,
+                "id": info.device_id,
+            },
+            "light": self.rig.light.identity() if self.rig.light is not None else None,
+            "spectrometer": self.rig.spectrometer.identity() if self.rig.spectrometer is not None else None,
+        }
         changes = {"devices": {sweep.id: devices}, "rigs": {sweep.id: resolved_rig(sweep.design)}}
         truth = self.rig.truth(camera)
         if truth is not None:
@@ -192,8 +221,14 @@ class SweepRunner:
             return check_inside(f"sweep.{sweep.id}.roi", self.rig.board_roi(sweep, camera, image), image.shape)
         return check_inside(f"sweep.{sweep.id}.roi", sweep.roi, image.shape)
 
-    def _dark(self, sweep: SweepSpec, camera: Camera, roi: Rect, recorder: FrameRecorder | None = None,
-              point: Point | None = None) -> StackStatistics:
+    def _dark(
+        self,
+        sweep: SweepSpec,
+        camera: Camera,
+        roi: Rect,
+        recorder: FrameRecorder | None = None,
+        point: Point | None = None,
+    ) -> StackStatistics:
         """Statistics of dark frames (light read back off before and after), leaving the light as the sweep
         wants it; with a ``recorder``, the frames of the recorded attempt are kept."""
         level = sweep.light_level
@@ -201,16 +236,24 @@ class SweepRunner:
         def stack() -> StackStatistics:
             if recorder is not None:
                 recorder.forget("dark")
-            return self._stack(sweep, camera, roi, sweep.dark_frames,
-                               self._keeper(recorder, "dark", sweep, camera, roi, point))[0]
+            return self._stack(
+                sweep, camera, roi, sweep.dark_frames, self._keeper(recorder, "dark", sweep, camera, roi, point)
+            )[0]
 
-        stats, _ = verified(f"sweep {sweep.id}: dark frames", self.rig, camera, self._wanted_light(False, level),
-                            lambda: self._set_light(False, level, sweep.settle_s), stack)
+        stats, _ = verified(
+            f"sweep {sweep.id}: dark frames",
+            self.rig,
+            camera,
+            self._wanted_light(False, level),
+            lambda: self._set_light(False, level, sweep.settle_s),
+            stack,
+        )
         self._set_light(sweep.kind != "dark", level, 0.0)
         return stats
 
-    def _stack(self, sweep: SweepSpec, camera: Camera, roi: Rect, count: int,
-               keep: Callable[[Frame], None] | None = None) -> tuple[StackStatistics, ClipLevel, list[Frame]]:
+    def _stack(
+        self, sweep: SweepSpec, camera: Camera, roi: Rect, count: int, keep: Callable[[Frame], None] | None = None
+    ) -> tuple[StackStatistics, ClipLevel, list[Frame]]:
         """Streaming statistics of ``count`` frames over the ROI (one frame in memory at a time), the clip level
         (from the sweep's sensor profile and the first frame, `uwlab.experiments.saturation`) and the frames'
         metadata (images dropped); ``keep`` (saving raw frames) sees every frame."""
@@ -232,8 +275,9 @@ class SweepRunner:
         force (gain, black level) and the frame's data."""
         sensor, settings = sweep.design.sensor, frame.settings
         offset = sensor.dark_offset_dn + (settings.black_level or 0.0)
-        profile_dn = sensor_clip_dn(sensor.gain_k(settings.gain_db or 0.0), sensor.saturation_e, offset,
-                                    sensor.bit_depth, frame.pixel_format)
+        profile_dn = sensor_clip_dn(
+            sensor.gain_k(settings.gain_db or 0.0), sensor.saturation_e, offset, sensor.bit_depth, frame.pixel_format
+        )
         return clip_level(frame.pixel_format, native_bits=sensor.bit_depth, profile_dn=profile_dn, image=image)
 
     def _apply(self, sweep: SweepSpec, camera: Camera, point: Point) -> None:
@@ -245,22 +289,35 @@ class SweepRunner:
         self._set_light(point.light_on, point.light_level, 0.0)
         self.sleep(sweep.settle_s)
 
-    def _lit(self, sweep: SweepSpec, camera: Camera, roi: Rect, point: Point,
-             recorder: FrameRecorder | None) -> tuple[StackStatistics, ClipLevel, list[Frame], list[Reading]]:
+    def _lit(
+        self, sweep: SweepSpec, camera: Camera, roi: Rect, point: Point, recorder: FrameRecorder | None
+    ) -> tuple[StackStatistics, ClipLevel, list[Frame], list[Reading]]:
         """The point's own frames and spectrometer readings (the verified window)."""
         if recorder is not None:
             recorder.forget("bright")
-        bright, clip, frames = self._stack(sweep, camera, roi, sweep.frames_per_point,
-                                           self._keeper(recorder, "bright", sweep, camera, roi, point))
+        bright, clip, frames = self._stack(
+            sweep, camera, roi, sweep.frames_per_point, self._keeper(recorder, "bright", sweep, camera, roi, point)
+        )
         return bright, clip, frames, [self._reading(position) for position in sweep.spectrometer]
 
-    def _measure(self, sweep: SweepSpec, camera: Camera, roi: Rect, point: Point, block: StackStatistics | None,
-                 recorder: FrameRecorder | None) -> tuple[dict, pd.DataFrame]:
+    def _measure(
+        self,
+        sweep: SweepSpec,
+        camera: Camera,
+        roi: Rect,
+        point: Point,
+        block: StackStatistics | None,
+        recorder: FrameRecorder | None,
+    ) -> tuple[dict, pd.DataFrame]:
         t_start = time.time_ns()
         (bright, clip, frames, raw), window = verified(
-            f"sweep {sweep.id} point {point.index}", self.rig, camera,
+            f"sweep {sweep.id} point {point.index}",
+            self.rig,
+            camera,
             self._wanted_light(point.light_on, point.light_level),
-            lambda: self._apply(sweep, camera, point), lambda: self._lit(sweep, camera, roi, point, recorder))
+            lambda: self._apply(sweep, camera, point),
+            lambda: self._lit(sweep, camera, roi, point, recorder),
+        )
         for reading in reversed(raw):  # the spectrometer is at the last position: measure its darks first
             self._spectrometer_dark(sweep, reading.position, reading.readback.integration_ms)
         readings = [self._minus_dark(sweep, reading) for reading in raw]
@@ -270,25 +327,45 @@ class SweepRunner:
         settings = frames[-1].settings
         lens = replace(sweep.lens, f_number=point.f_number)
         row = point_row(
-            sweep_id=sweep.id, point_index=point.index, kind=sweep.kind, bright=bright, dark=dark, clip=clip,
+            sweep_id=sweep.id,
+            point_index=point.index,
+            kind=sweep.kind,
+            bright=bright,
+            dark=dark,
+            clip=clip,
             saturation_threshold=sweep.saturation_threshold,
-            camera_backend=camera.info.backend, camera_id=camera.info.device_id, camera_model=camera.info.model,
-            sensor_profile=sweep.sensor_profile, lens_label=lens.label, focal_length_mm=lens.focal_length_mm,
-            f_number=point.f_number, exposure_us=point.exposure_us, gain_db=point.gain_db,
+            camera_backend=camera.info.backend,
+            camera_id=camera.info.device_id,
+            camera_model=camera.info.model,
+            sensor_profile=sweep.sensor_profile,
+            lens_label=lens.label,
+            focal_length_mm=lens.focal_length_mm,
+            f_number=point.f_number,
+            exposure_us=point.exposure_us,
+            gain_db=point.gain_db,
             black_level_dn=settings.black_level,
-            light_level=point.light_level if self.rig.light is not None else None, light_on=point.light_on,
+            light_level=point.light_level if self.rig.light is not None else None,
+            light_on=point.light_on,
             bit_depth=pixel_format(settings.pixel_format).bits,
-            roi_x=roi[0], roi_y=roi[1], roi_w=roi[2], roi_h=roi[3],
-            exposure_us_readback=settings.exposure_us, gain_db_readback=settings.gain_db,
+            roi_x=roi[0],
+            roi_y=roi[1],
+            roi_w=roi[2],
+            roi_h=roi[3],
+            exposure_us_readback=settings.exposure_us,
+            gain_db_readback=settings.gain_db,
             light_on_readback=window.light.on if window.light else None,
             light_level_readback=window.light.level if window.light else None,
             spectrometer_integration_ms_readback=raw[0].readback.integration_ms if raw else None,
             spectrometer_averaging_readback=raw[0].readback.averaging if raw else None,
-            readback_t_start_ns=window.t_start_ns, readback_t_end_ns=window.t_end_ns, attempts=window.attempts,
+            readback_t_start_ns=window.t_start_ns,
+            readback_t_end_ns=window.t_end_ns,
+            attempts=window.attempts,
             temperature_c=camera.temperature_c,
             irradiance_w_m2=irradiance_w_m2(readings[0][1], readings[0][2]) if readings else None,
             irradiance_position=readings[0][0] if readings else None,
-            frame_ids=[f.frame_id for f in frames], t_start_ns=t_start, t_end_ns=time.time_ns(),
+            frame_ids=[f.frame_id for f in frames],
+            t_start_ns=t_start,
+            t_end_ns=time.time_ns(),
         )
         return row, spectra_frame(sweep.id, point.index, readings)
 
@@ -301,11 +378,15 @@ class SweepRunner:
     def _minus_dark(self, sweep: SweepSpec, reading: Reading) -> tuple[str, np.ndarray, np.ndarray]:
         """The reading minus the spectrometer's own light-off reading (see `_spectrometer_dark`)."""
         dark_nm, dark = self._spectrometer_dark(sweep, reading.position, reading.readback.integration_ms)
-        return reading.position, reading.wavelength_nm, reading.irradiance_w_m2_nm - np.interp(
-            reading.wavelength_nm, dark_nm, dark)
+        return (
+            reading.position,
+            reading.wavelength_nm,
+            reading.irradiance_w_m2_nm - np.interp(reading.wavelength_nm, dark_nm, dark),
+        )
 
-    def _spectrometer_dark(self, sweep: SweepSpec, position: str,
-                           integration_ms: float) -> tuple[np.ndarray, np.ndarray]:
+    def _spectrometer_dark(
+        self, sweep: SweepSpec, position: str, integration_ms: float
+    ) -> tuple[np.ndarray, np.ndarray]:
         """What the spectrometer reports with the light off at ``integration_ms`` (its imperfectly subtracted
         dark signal), measured once per sweep, position and integration time in a verified window (light read
         back off). It is read with DARK_AVERAGING times the usual averaging (up to the instrument's limit): every
@@ -324,29 +405,54 @@ class SweepRunner:
 
             try:
                 self._spectrometer_darks[key], _ = verified(
-                    f"sweep {sweep.id}: spectrometer dark at the {position}", self.rig, None,
-                    self._wanted_light(False, sweep.light_level), prepare, spectrometer.read_spectrum)
+                    f"sweep {sweep.id}: spectrometer dark at the {position}",
+                    self.rig,
+                    None,
+                    self._wanted_light(False, sweep.light_level),
+                    prepare,
+                    spectrometer.read_spectrum,
+                )
             finally:
                 spectrometer.set_integration_ms(was.integration_ms)
                 spectrometer.set_averaging(was.averaging)
             self._set_light(sweep.kind != "dark", sweep.light_level, sweep.settle_s)
         return self._spectrometer_darks[key]
 
-    def _keeper(self, recorder: FrameRecorder | None, role: str, sweep: SweepSpec, camera: Camera, roi: Rect,
-                point: Point | None = None) -> Callable[[Frame], None] | None:
+    def _keeper(
+        self,
+        recorder: FrameRecorder | None,
+        role: str,
+        sweep: SweepSpec,
+        camera: Camera,
+        roi: Rect,
+        point: Point | None = None,
+    ) -> Callable[[Frame], None] | None:
         """What writes each ``role`` frame to ``recorder`` with its settings (None without a recorder)."""
         if recorder is None:
             return None
-        context = {"sweep_id": sweep.id, "point_index": None if point is None else point.index,
-                   "light_on": role == "bright" and sweep.kind != "dark",
-                   "light_level": sweep.light_level if point is None else point.light_level,
-                   "f_number": sweep.lens.f_number if point is None else point.f_number,
-                   "roi": list(roi), "camera": asdict(camera.info)}
+        context = {
+            "sweep_id": sweep.id,
+            "point_index": None if point is None else point.index,
+            "light_on": role == "bright" and sweep.kind != "dark",
+            "light_level": sweep.light_level if point is None else point.light_level,
+            "f_number": sweep.lens.f_number if point is None else point.f_number,
+            "roi": list(roi),
+            "camera": asdict(camera.info),
+        }
 
         def keep(frame: Frame) -> None:
-            recorder.add(role, frame.image, {"frame_id": frame.frame_id, "timestamp_ns": frame.timestamp_ns,
-                                             "pixel_format": frame.pixel_format,
-                                             "settings": frame.settings.to_dict(), **context})
+            recorder.add(
+                role,
+                frame.image,
+                {
+                    "frame_id": frame.frame_id,
+                    "timestamp_ns": frame.timestamp_ns,
+                    "pixel_format": frame.pixel_format,
+                    "settings": frame.settings.to_dict(),
+                    **context,
+                },
+            )
+
         return keep
 
 
@@ -360,10 +466,14 @@ def open_for_resume(root: str | Path, plan: Plan, sim: bool, purpose: str = "res
         check_resumable(dataset, plan, sim)
         report = check(dataset)
         if not report.ok:
-            raise ConfigError("resume", str(root), f"the dataset fails its check: {report.summary_line()}; "
-                                                   f"`uwlab dataset check {root}` lists the problems, `--repair` "
-                                                   "sets the damaged points aside (kept in quarantine/) so that "
-                                                   "--resume measures them again")
+            raise ConfigError(
+                "resume",
+                str(root),
+                f"the dataset fails its check: {report.summary_line()}; "
+                f"`uwlab dataset check {root}` lists the problems, `--repair` "
+                "sets the damaged points aside (kept in quarantine/) so that "
+                "--resume measures them again",
+            )
         dataset.remove_strays()
         dataset.update_metadata(finished_utc=None)
     except BaseException:
@@ -375,9 +485,12 @@ def open_for_resume(root: str | Path, plan: Plan, sim: bool, purpose: str = "res
 def check_resumable(dataset: Dataset, plan: Plan, sim: bool) -> None:
     """Refuse to resume a dataset recorded from another plan (or on another kind of rig), with the reason."""
     if dataset.plan_sha256 != plan.sha256:
-        raise ConfigError("resume", str(dataset.root),
-                          f"recorded with a different plan (plan_sha256 {dataset.plan_sha256[:12]}…, "
-                          f"{plan.path} has {plan.sha256[:12]}…)")
+        raise ConfigError(
+            "resume",
+            str(dataset.root),
+            f"recorded with a different plan (plan_sha256 {dataset.plan_sha256[:12]}…, "
+            f"{plan.path} has {plan.sha256[:12]}…)",
+        )
     if bool(dataset.metadata.get("sim")) != sim:
         was = "the simulated rig" if dataset.metadata.get("sim") else "hardware"
         raise ConfigError("resume", str(dataset.root), f"recorded on {was}; resume it the same way")

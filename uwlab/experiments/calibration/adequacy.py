@@ -20,6 +20,7 @@ veiling light reaching `BACKSCATTER_NAMED` of a configuration's signal names ``b
 placement, beam profile and the board's size changing the ratio of the two chains across configurations by
 `GEOMETRY_NAMED` or more names ``light and board geometry``.
 """
+
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
@@ -59,36 +60,70 @@ def checks(result: FitResult, ppc: pd.DataFrame, cross: CrossValidation) -> list
     unconverged = [f"fold {i + 1}" for i, f in enumerate(cross.folds) if not f["converged"]]
     if not result.converged:
         unconverged.insert(0, "the full fit")
-    out.append(Check("convergence", not unconverged,
-                     "every fit reached 50 autocorrelation times" if not unconverged
-                     else f"not converged: {', '.join(unconverged)}"))
+    out.append(
+        Check(
+            "convergence",
+            not unconverged,
+            "every fit reached 50 autocorrelation times"
+            if not unconverged
+            else f"not converged: {', '.join(unconverged)}",
+        )
+    )
     table = cross.table
     if len(table):
         bound = FAMILY_ALPHA / len(table)
         off = table[table["level_p"] < bound]
-        out.append(Check("held-out levels", off.empty,
-                         f"every held-out configuration within its prediction (p ≥ {bound:.2g})" if off.empty else
-                         "held-out configuration(s) off their prediction: " + ", ".join(
-                             f"{r.sweep_id} by {r.level_offset_percent:+.1f} % (p = {r.level_p:.2g})"
-                             for r in off.itertuples())))
+        out.append(
+            Check(
+                "held-out levels",
+                off.empty,
+                f"every held-out configuration within its prediction (p ≥ {bound:.2g})"
+                if off.empty
+                else "held-out configuration(s) off their prediction: "
+                + ", ".join(
+                    f"{r.sweep_id} by {r.level_offset_percent:+.1f} % (p = {r.level_p:.2g})" for r in off.itertuples()
+                ),
+            )
+        )
         inside = cross.inside_95
-        out.append(Check("held-out coverage", inside >= MIN_HELD_OUT_INSIDE,
-                         f"{100 * inside:.0f} % of the held-out points inside their 95 % bands"))
+        out.append(
+            Check(
+                "held-out coverage",
+                inside >= MIN_HELD_OUT_INSIDE,
+                f"{100 * inside:.0f} % of the held-out points inside their 95 % bands",
+            )
+        )
     if len(ppc):
         bound = FAMILY_ALPHA / len(ppc)
         off = ppc[ppc["ppc_p"] < bound]
-        out.append(Check("within-configuration fit", off.empty,
-                         "every configuration's points scatter as the model allows" if off.empty else
-                         "points scatter about the model more than it allows in " + ", ".join(
-                             f"{r.sweep_id} (p = {r.ppc_p:.2g})" for r in off.itertuples())))
+        out.append(
+            Check(
+                "within-configuration fit",
+                off.empty,
+                "every configuration's points scatter as the model allows"
+                if off.empty
+                else "points scatter about the model more than it allows in "
+                + ", ".join(f"{r.sweep_id} (p = {r.ppc_p:.2g})" for r in off.itertuples()),
+            )
+        )
     tau = _median(result, "config_discrepancy")
     if tau is not None:
-        out.append(Check("between-configuration discrepancy", tau <= MAX_CONFIG_DISCREPANCY,
-                         f"configurations differ from the model by {100 * tau:.1f} % (typical, median of τ)"))
+        out.append(
+            Check(
+                "between-configuration discrepancy",
+                tau <= MAX_CONFIG_DISCREPANCY,
+                f"configurations differ from the model by {100 * tau:.1f} % (typical, median of τ)",
+            )
+        )
     delta = _median(result, "discrepancy")
     if delta is not None:
-        out.append(Check("point discrepancy", delta <= MAX_POINT_DISCREPANCY,
-                         f"points within a configuration differ from the model by {100 * delta:.1f} %"))
+        out.append(
+            Check(
+                "point discrepancy",
+                delta <= MAX_POINT_DISCREPANCY,
+                f"points within a configuration differ from the model by {100 * delta:.1f} %",
+            )
+        )
     return out
 
 
@@ -108,8 +143,13 @@ def neglected_effects(result: FitResult) -> pd.DataFrame:
         except ConfigError:
             return pd.DataFrame(columns=["sweep_id", "veil_percent", "extended_over_paper"])
         paper = model.nominal_rate_e_per_s[k] * float(model.transmission(np.array([scale]))[0, k])
-        rows.append({"sweep_id": str(model.points.loc[np.flatnonzero(sel)[0], "sweep_id"]),
-                     "veil_percent": 100 * veil / (direct + veil), "extended_over_paper": direct / paper})
+        rows.append(
+            {
+                "sweep_id": str(model.points.loc[np.flatnonzero(sel)[0], "sweep_id"]),
+                "veil_percent": 100 * veil / (direct + veil),
+                "extended_over_paper": direct / paper,
+            }
+        )
     return pd.DataFrame(rows)
 
 
@@ -120,17 +160,26 @@ def likely_causes(neglected: pd.DataFrame) -> list[str]:
         return causes
     worst = neglected.loc[neglected["veil_percent"].idxmax()]
     if worst["veil_percent"] >= 100 * BACKSCATTER_NAMED:
-        causes.append((worst["veil_percent"] / 100,
-                       f"backscatter: veiling light scattered by the water is {worst['veil_percent']:.1f} % of the "
-                       f"signal in {worst['sweep_id']} ({neglected['veil_percent'].min():.1f} % at least); the paper "
-                       "model leaves it out — fit with the extended model (--model extended)"))
+        causes.append(
+            (
+                worst["veil_percent"] / 100,
+                f"backscatter: veiling light scattered by the water is {worst['veil_percent']:.1f} % of the "
+                f"signal in {worst['sweep_id']} ({neglected['veil_percent'].min():.1f} % at least); the paper "
+                "model leaves it out — fit with the extended model (--model extended)",
+            )
+        )
     ratio = neglected["extended_over_paper"]
     spread = float(ratio.max() / ratio.min() - 1)
     if spread >= GEOMETRY_NAMED:
         low = neglected.loc[ratio.idxmin(), "sweep_id"]
-        causes.append((spread, f"light and board geometry: the lights' placement, beam profile and the board's size "
-                               f"change the response by {100 * spread:.0f} % between configurations (least in {low}); "
-                               "the paper model assumes a uniform beam and a board filling the view"))
+        causes.append(
+            (
+                spread,
+                f"light and board geometry: the lights' placement, beam profile and the board's size "
+                f"change the response by {100 * spread:.0f} % between configurations (least in {low}); "
+                "the paper model assumes a uniform beam and a board filling the view",
+            )
+        )
     return [text for _, text in sorted(causes, key=lambda c: -c[0])]
 
 
@@ -146,8 +195,11 @@ class Verdict:
         return failing + (["likely cause — " + cause for cause in self.causes] if failing else [])
 
     def to_dict(self) -> dict:
-        return {"model_adequate": self.adequate, "checks": [asdict(c) for c in self.checks],
-                "likely_causes": self.causes}
+        return {
+            "model_adequate": self.adequate,
+            "checks": [asdict(c) for c in self.checks],
+            "likely_causes": self.causes,
+        }
 
 
 def verdict(result: FitResult, ppc: pd.DataFrame, cross: CrossValidation) -> Verdict:

@@ -6,6 +6,7 @@ those truths, and the fit's central 95 % intervals are checked against them. Whe
 the sampler agree, each interval contains its truth with probability 0.95. The model discrepancy is not counted:
 the simulation has none, a truth on its prior's boundary.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -38,16 +39,22 @@ class Coverage:
         return self.hits / self.total
 
 
-def interval_coverage(seeds: int, priors: dict[str, Prior] = COVERAGE_PRIORS, lenses=COVERAGE_LENSES,
-                      sensors=("imx250m",), points_per_sweep: int = 8,
-                      progress: Callable[[int], None] | None = None) -> Coverage:
+def interval_coverage(
+    seeds: int,
+    priors: dict[str, Prior] = COVERAGE_PRIORS,
+    lenses=COVERAGE_LENSES,
+    sensors=("imx250m",),
+    points_per_sweep: int = 8,
+    progress: Callable[[int], None] | None = None,
+) -> Coverage:
     """Fraction of 95 % intervals containing the truth, over `seeds` simulated campaigns (truths ~ priors)."""
     result = Coverage()
     for seed in range(seeds):
         rng = np.random.default_rng(100 + seed)
         truth = {name: prior.sample(rng) for name, prior in priors.items() if name != "discrepancy"}
-        points, rigs = simulate_campaign(truth, sensors=sensors, lenses=lenses, points_per_sweep=points_per_sweep,
-                                         seed=seed)
+        points, rigs = simulate_campaign(
+            truth, sensors=sensors, lenses=lenses, points_per_sweep=points_per_sweep, seed=seed
+        )
         summary = fit_points(points, rigs, FitConfig(priors=priors, sampler=Sampler(seed=seed))).summary()
         for name, value in truth.items():
             p = summary["parameters"][name]
@@ -55,8 +62,9 @@ def interval_coverage(seeds: int, priors: dict[str, Prior] = COVERAGE_PRIORS, le
             result.hits += inside
             result.total += 1
             if not inside:
-                result.misses.append({"seed": seed, "parameter": name, "truth": float(value),
-                                      "p2_5": p["p2_5"], "p97_5": p["p97_5"]})
+                result.misses.append(
+                    {"seed": seed, "parameter": name, "truth": float(value), "p2_5": p["p2_5"], "p97_5": p["p97_5"]}
+                )
         if progress:
             progress(seed)
     return result

@@ -28,6 +28,7 @@ lemma for the covariance diag(σ²) + τ² μ μᵀ); given θ, δ_k ~ N(m_k, v_
 - Diagnostics: τ per parameter, mean acceptance fraction, split-chain R-hat (Gelman et al., Bayesian Data
   Analysis, 3rd ed., §11.4) over the walkers, posterior correlations (|ρ| > 0.9 flagged as not separable).
 """
+
 from __future__ import annotations
 
 import warnings
@@ -79,9 +80,13 @@ class Holdout(Schema):
     """A fit config's [holdout] section."""
 
     train: list[NonEmptyText] = Field(
-        [], description="sweeps the held-out check fits (it predicts the others); default: `folds` folds")
-    folds: Folds = Field(2, description="folds of the held-out check: the sweeps dealt out in order, each fold "
-                                        "predicted from a fit of the others")
+        [], description="sweeps the held-out check fits (it predicts the others); default: `folds` folds"
+    )
+    folds: Folds = Field(
+        2,
+        description="folds of the held-out check: the sweeps dealt out in order, each fold "
+        "predicted from a fit of the others",
+    )
 
 
 class FitConfig(Schema):
@@ -98,8 +103,9 @@ class FitConfig(Schema):
     def _enough_walkers(self):
         walkers = self.sampler.walkers
         if walkers is not None and (walkers < 2 * len(self.priors) or walkers % 2):
-            raise invalid("sampler.walkers", walkers,
-                          f"must be even and >= {2 * len(self.priors)} (twice the free parameters)")
+            raise invalid(
+                "sampler.walkers", walkers, f"must be even and >= {2 * len(self.priors)} (twice the free parameters)"
+            )
         return self
 
     @property
@@ -193,7 +199,7 @@ class Posterior:
     def to_theta(self, u: np.ndarray) -> np.ndarray:
         """θ for u of any leading shape (whole chains are mapped CHUNK rows at a time)."""
         flat = u.reshape(-1, u.shape[-1])
-        theta = np.concatenate([self._from_u(flat[i:i + self.CHUNK])[0] for i in range(0, flat.shape[0], self.CHUNK)])
+        theta = np.concatenate([self._from_u(flat[i : i + self.CHUNK])[0] for i in range(0, flat.shape[0], self.CHUNK)])
         return theta.reshape(u.shape)
 
     def to_u(self, theta: np.ndarray) -> np.ndarray:
@@ -272,7 +278,7 @@ def laplace_covariance(log_density: Callable[[np.ndarray], np.ndarray], theta: n
     with np.errstate(invalid="ignore", over="ignore"):
         for i in range(n):
             for j in range(n):
-                pp, pm, mp, mm = values[k:k + 4]
+                pp, pm, mp, mm = values[k : k + 4]
                 hess[i, j] = -(pp - pm - mp + mm) / (4 * h[i] * h[j])
                 k += 4
     if not np.all(np.isfinite(hess)):
@@ -306,7 +312,7 @@ def initial_walkers(log_density, mode: np.ndarray, walkers: int, rng: np.random.
 def split_rhat(chain: np.ndarray) -> np.ndarray:
     """Split-chain potential scale reduction R̂ per parameter for a chain of shape (steps, walkers, params)."""
     n = chain.shape[0] // 2
-    halves = np.concatenate([chain[:n], chain[n:2 * n]], axis=1)
+    halves = np.concatenate([chain[:n], chain[n : 2 * n]], axis=1)
     means = halves.mean(axis=0)
     w = halves.var(axis=0, ddof=1).mean(axis=0)
     b = n * means.var(axis=0, ddof=1)
@@ -316,9 +322,9 @@ def split_rhat(chain: np.ndarray) -> np.ndarray:
 @dataclass
 class FitResult:
     names: tuple[str, ...]
-    samples: np.ndarray          # (n_samples, n_params), burn-in discarded and thinned
-    chain: np.ndarray            # (steps, walkers, params), full
-    log_prob: np.ndarray         # (n_samples,)
+    samples: np.ndarray  # (n_samples, n_params), burn-in discarded and thinned
+    chain: np.ndarray  # (steps, walkers, params), full
+    log_prob: np.ndarray  # (n_samples,)
     theta_map: np.ndarray
     tau: np.ndarray
     acceptance: float
@@ -354,15 +360,31 @@ class FitResult:
         """Per-parameter median, 2.5/16/84/97.5 percentiles and τ; diagnostics; unseparable pairs."""
         q = np.percentile(self.samples, [2.5, 16, 50, 84, 97.5], axis=0)
         corr = self.correlations()
-        pairs = [{"a": self.names[i], "b": self.names[j], "rho": float(corr[i, j])}
-                 for i in range(len(self.names)) for j in range(i + 1, len(self.names)) if abs(corr[i, j]) > CORRELATED]
+        pairs = [
+            {"a": self.names[i], "b": self.names[j], "rho": float(corr[i, j])}
+            for i in range(len(self.names))
+            for j in range(i + 1, len(self.names))
+            if abs(corr[i, j]) > CORRELATED
+        ]
         return {
-            "parameters": {name: {"median": float(q[2, i]), "p2_5": float(q[0, i]), "p16": float(q[1, i]),
-                                  "p84": float(q[3, i]), "p97_5": float(q[4, i]), "tau": float(self.tau[i]),
-                                  "rhat": float(self.rhat[i]), "map": float(self.theta_map[i])}
-                           for i, name in enumerate(self.names)},
-            "converged": self.converged, "acceptance_fraction": self.acceptance, "steps": self.steps,
-            "walkers": int(self.chain.shape[1]), "samples": int(self.samples.shape[0]),
+            "parameters": {
+                name: {
+                    "median": float(q[2, i]),
+                    "p2_5": float(q[0, i]),
+                    "p16": float(q[1, i]),
+                    "p84": float(q[3, i]),
+                    "p97_5": float(q[4, i]),
+                    "tau": float(self.tau[i]),
+                    "rhat": float(self.rhat[i]),
+                    "map": float(self.theta_map[i]),
+                }
+                for i, name in enumerate(self.names)
+            },
+            "converged": self.converged,
+            "acceptance_fraction": self.acceptance,
+            "steps": self.steps,
+            "walkers": int(self.chain.shape[1]),
+            "samples": int(self.samples.shape[0]),
             "tau_multiple": float(self.steps / np.max(self.tau)),
             "not_separable": pairs,
             "warnings": self.warnings(q),
@@ -399,15 +421,29 @@ def run_fit(model: ForwardModel, config: FitConfig, progress: Callable[[int, flo
     chain = post.to_theta(sampler.get_chain())
     samples = post.to_theta(sampler.get_chain(discard=burn, thin=thin, flat=True))
     return FitResult(
-        names=model.names, samples=samples, chain=chain, log_prob=post(samples),
-        theta_map=find_map(post, post.to_theta(u_map)), tau=tau,
-        acceptance=float(np.mean(sampler.acceptance_fraction)), rhat=split_rhat(chain[burn:]), converged=converged,
-        steps=sampler.iteration, model=model, priors=config.priors,
+        names=model.names,
+        samples=samples,
+        chain=chain,
+        log_prob=post(samples),
+        theta_map=find_map(post, post.to_theta(u_map)),
+        tau=tau,
+        acceptance=float(np.mean(sampler.acceptance_fraction)),
+        rhat=split_rhat(chain[burn:]),
+        converged=converged,
+        steps=sampler.iteration,
+        model=model,
+        priors=config.priors,
     )
 
 
-def fit_points(points, rigs: dict, config: FitConfig | None = None, base_dir: Path | None = None,
-               progress=None, kind: str | None = None) -> FitResult:
+def fit_points(
+    points,
+    rigs: dict,
+    config: FitConfig | None = None,
+    base_dir: Path | None = None,
+    progress=None,
+    kind: str | None = None,
+) -> FitResult:
     """Fit the unsaturated points of a dataset table; `config` None uses `default_fit_config`; `kind` ("paper" or
     "extended") replaces the rigs' chain."""
     used = points[~points["saturated"].astype(bool)]

@@ -21,6 +21,7 @@ G_k is evaluated once on `S_GRID` (one vectorised evaluation of the chain) and i
 relative output (`relative_flux`). A "no lens" point (f_number null) is a bare sensor: N = 0.5, T = 1, no
 vignetting (`uwlab.model.optics.NO_LENS`); the extended chain integrates its whole field of view.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field
@@ -35,18 +36,47 @@ from uwlab.model.config import design_sections
 from uwlab.errors import ConfigError
 from uwlab.model import extended
 from uwlab.model.config import apply_override
-from uwlab.model.design import (Design, beam_half_angle_rad, broadband_factor, build_design, housing_transmittance,
-                                electron_rate_at_radius, light_distance_m, on_axis_electron_rate, paper_beam_model,
-                                spectral_weights)
+from uwlab.model.design import (
+    Design,
+    beam_half_angle_rad,
+    broadband_factor,
+    build_design,
+    housing_transmittance,
+    electron_rate_at_radius,
+    light_distance_m,
+    on_axis_electron_rate,
+    paper_beam_model,
+    spectral_weights,
+)
 from uwlab.model.optics import NO_LENS, LensSetting
 
-SHARED = ("light_efficiency", "beam_half_angle_deg", "attenuation_scale", "reflectance", "lens_transmittance",
-          "discrepancy", "config_discrepancy")
+SHARED = (
+    "light_efficiency",
+    "beam_half_angle_deg",
+    "attenuation_scale",
+    "reflectance",
+    "lens_transmittance",
+    "discrepancy",
+    "config_discrepancy",
+)
 NOT_EXTENDED = ("beam_half_angle_deg", "reflectance")
 PER_CAMERA = ("K_dn_per_e",)
 MODELS = ("paper", "extended")
-REQUIRED_COLUMNS = ("sweep_id", "exposure_us", "gain_db", "f_number", "focal_length_mm", "bit_depth", "sensor_profile",
-                    "signal_dn", "temporal_var_dn2", "frames", "roi_w", "roi_h", "saturated")
+REQUIRED_COLUMNS = (
+    "sweep_id",
+    "exposure_us",
+    "gain_db",
+    "f_number",
+    "focal_length_mm",
+    "bit_depth",
+    "sensor_profile",
+    "signal_dn",
+    "temporal_var_dn2",
+    "frames",
+    "roi_w",
+    "roi_h",
+    "saturated",
+)
 PARAMETER_LABELS = {
     "light_efficiency": "light efficiency (true / rated flux)",
     "beam_half_angle_deg": "beam half-angle in water [°]",
@@ -92,14 +122,14 @@ class ForwardModel:
     y: np.ndarray
     sigma_meas: np.ndarray
     effective_exposure_s: np.ndarray  # per point: t · relative light output · 10^(g/20) 2^(b − b_profile) [s]
-    config: np.ndarray           # configuration index per point
-    camera: np.ndarray           # camera (sensor profile) index per point
+    config: np.ndarray  # configuration index per point
+    camera: np.ndarray  # camera (sensor profile) index per point
     cameras: tuple[str, ...]
     nominal_rate_e_per_s: np.ndarray  # per configuration: mean rate over the ROI at nominal θ [e⁻/s]
-    has_lens: np.ndarray         # per configuration
+    has_lens: np.ndarray  # per configuration
     omega_cone: bool
-    kind: str                    # "paper" or "extended"
-    transmission: Transmission   # G_k(s)/G_k(s₀) of every configuration
+    kind: str  # "paper" or "extended"
+    transmission: Transmission  # G_k(s)/G_k(s₀) of every configuration
     designs: list[Design] = field(repr=False, default_factory=list)
     points: pd.DataFrame = field(repr=False, default=None)
 
@@ -214,8 +244,9 @@ def _extended_rates(design: Design, lens: bool, roi_w: float, roi_h: float) -> t
     )
 
 
-def _configuration_design(rig: dict, base_dir: Path | None, sensor: str, focal_length_mm, f_number,
-                          kind: str | None) -> tuple[Design, bool]:
+def _configuration_design(
+    rig: dict, base_dir: Path | None, sensor: str, focal_length_mm, f_number, kind: str | None
+) -> tuple[Design, bool]:
     raw = {s: (list(v) if isinstance(v, list) else dict(v)) for s, v in design_sections(rig).items()}
     raw.setdefault("sensor", {})["profile"] = sensor
     has_lens = f_number is not None and np.isfinite(f_number)
@@ -228,8 +259,13 @@ def _configuration_design(rig: dict, base_dir: Path | None, sensor: str, focal_l
     return build_design(raw, base_dir), has_lens
 
 
-def build_forward_model(points: pd.DataFrame, rigs: dict[str, dict], names: tuple[str, ...],
-                        base_dir: Path | None = None, kind: str | None = None) -> ForwardModel:
+def build_forward_model(
+    points: pd.DataFrame,
+    rigs: dict[str, dict],
+    names: tuple[str, ...],
+    base_dir: Path | None = None,
+    kind: str | None = None,
+) -> ForwardModel:
     """Assemble the forward model for the points (contract columns) with the rigs {sweep_id: design config};
     `kind` ("paper" or "extended") replaces the rigs' [model] kind."""
     missing = [c for c in REQUIRED_COLUMNS if c not in points.columns]
@@ -336,10 +372,16 @@ def relative_flux(points: pd.DataFrame) -> np.ndarray:
     if np.all(levels == 1.0) and not readings:
         return np.ones(len(points))
     if not readings:
-        raise ConfigError("light_level", sorted(set(levels)), "points below full light need spectrometer irradiance "
-                          "(irradiance_w_m2) to scale the light's output")
-    position = points["irradiance_position"].astype(str).to_numpy() if "irradiance_position" in points else np.full(
-        len(points), "")
+        raise ConfigError(
+            "light_level",
+            sorted(set(levels)),
+            "points below full light need spectrometer irradiance (irradiance_w_m2) to scale the light's output",
+        )
+    position = (
+        points["irradiance_position"].astype(str).to_numpy()
+        if "irradiance_position" in points
+        else np.full(len(points), "")
+    )
     sweep = points["sweep_id"].astype(str).to_numpy() if "sweep_id" in points else np.full(len(points), "")
     irradiance = pd.Series(points["irradiance_w_m2"].to_numpy(float))
     level_median = irradiance.groupby([sweep, position, levels]).transform("median").to_numpy()

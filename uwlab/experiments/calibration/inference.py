@@ -12,6 +12,7 @@ Layout (ArviZ's InferenceData schema, https://python.arviz.org/en/stable/schema/
 - attributes: the chain fitted (``model``), ``converged``, ``steps``, the largest autocorrelation time ``tau_max``
   and ``inference_library = "emcee"``.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -49,10 +50,16 @@ def inference_data(result: FitResult) -> arviz.InferenceData:
     walkers = int(result.chain.shape[1])
     chains = by_walker(result.samples, walkers)
     posterior = {name: chains[:, :, i] for i, name in enumerate(result.names)}
-    attrs = {"model": result.model.kind, "converged": int(result.converged), "steps": int(result.steps),
-             "tau_max": float(np.max(result.tau)), "inference_library": "emcee"}
-    data: arviz.InferenceData = arviz.from_dict(posterior=posterior,
-                                                sample_stats={"lp": by_walker(result.log_prob, walkers)})
+    attrs = {
+        "model": result.model.kind,
+        "converged": int(result.converged),
+        "steps": int(result.steps),
+        "tau_max": float(np.max(result.tau)),
+        "inference_library": "emcee",
+    }
+    data: arviz.InferenceData = arviz.from_dict(
+        posterior=posterior, sample_stats={"lp": by_walker(result.log_prob, walkers)}
+    )
     data["posterior"].attrs.update(attrs)
     return data
 
@@ -73,13 +80,18 @@ def read_inference_data(fit_dir: str | Path) -> arviz.InferenceData:
     path = fit_dir / POSTERIOR_NAME
     if path.is_file():
         stored: arviz.InferenceData = arviz.from_netcdf(  # type: ignore[no-untyped-call]
-            str(path), engine=NETCDF_ENGINE)
+            str(path), engine=NETCDF_ENGINE
+        )
         return stored
     samples = fit_dir / "samples.parquet"
     if not samples.is_file():
-        raise ConfigError("fit", str(fit_dir), f"neither {POSTERIOR_NAME} nor samples.parquet here (not a `uwlab fit` "
-                                               "output directory)")
+        raise ConfigError(
+            "fit",
+            str(fit_dir),
+            f"neither {POSTERIOR_NAME} nor samples.parquet here (not a `uwlab fit` output directory)",
+        )
     frame = pd.read_parquet(samples)
-    single: arviz.InferenceData = arviz.from_dict(posterior={name: frame[name].to_numpy()[None, :]
-                                                             for name in frame.columns})
+    single: arviz.InferenceData = arviz.from_dict(
+        posterior={name: frame[name].to_numpy()[None, :] for name in frame.columns}
+    )
     return single

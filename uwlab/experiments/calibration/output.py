@@ -7,6 +7,7 @@ parameters that cannot be separated), ``predictions.parquet`` (measured vs predi
 that did not see it), ``corner.png``, ``traces.png``, ``response.png`` (measured vs predicted per configuration,
 saturated points marked, and residuals in per cent with the fitted and held-out 95 % bands).
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -26,8 +27,16 @@ from uwlab.experiments.calibration.validation import dense_sweeps, point_predict
 from uwlab.jsonable import dumps
 from uwlab.outputs import output_dir
 
-OUTPUT_FILES = ("samples.parquet", "summary.json", "predictions.parquet", "dense.parquet", "heldout.parquet",
-                "corner.png", "traces.png", "response.png")
+OUTPUT_FILES = (
+    "samples.parquet",
+    "summary.json",
+    "predictions.parquet",
+    "dense.parquet",
+    "heldout.parquet",
+    "corner.png",
+    "traces.png",
+    "response.png",
+)
 
 
 def check_output_dir(out: Path) -> None:
@@ -41,8 +50,16 @@ def check_output_dir(out: Path) -> None:
 
 def corner_plot(result: FitResult, path: Path, truth: dict | None = None) -> Path:
     truths = [truth.get(n) for n in result.names] if truth else None
-    fig = corner.corner(result.samples, labels=list(result.names), truths=truths, quantiles=[0.16, 0.5, 0.84],
-                        show_titles=True, title_fmt=".3g", title_kwargs={"fontsize": 8}, label_kwargs={"fontsize": 8})
+    fig = corner.corner(
+        result.samples,
+        labels=list(result.names),
+        truths=truths,
+        quantiles=[0.16, 0.5, 0.84],
+        show_titles=True,
+        title_fmt=".3g",
+        title_kwargs={"fontsize": 8},
+        label_kwargs={"fontsize": 8},
+    )
     fig.savefig(path, dpi=80)
     plt.close(fig)
     return path
@@ -104,8 +121,15 @@ def response_plot(
         ax.plot(band["exposure_us"], band["predicted_median"], color=FITTED, linewidth=1.5, label="model (fitted)")
         ax.plot(pts["exposure_us"], pts["measured_dn"], "o", color="k", markersize=4, label="measured")
         if len(clipped):
-            ax.plot(clipped["exposure_us"], clipped["measured_dn"], "x", color=SATURATED, markersize=8, mew=2,
-                    label="saturated (not fitted)")
+            ax.plot(
+                clipped["exposure_us"],
+                clipped["measured_dn"],
+                "x",
+                color=SATURATED,
+                markersize=8,
+                mew=2,
+                label="saturated (not fitted)",
+            )
         ax.set_title(labels.get(sweep_id, sweep_id), fontsize=12)
         ax.set_xscale("log")
         ax.set_yscale("log")
@@ -119,8 +143,9 @@ def response_plot(
         if j == 0:
             handles = [h for a in (ax, res) for h in a.get_legend_handles_labels()[0]]
             names = [n for a in (ax, res) for n in a.get_legend_handles_labels()[1]]
-            fig.legend(handles, names, loc="upper center", ncol=5, fontsize=11, frameon=False,
-                       bbox_to_anchor=(0.5, 1.0))
+            fig.legend(
+                handles, names, loc="upper center", ncol=5, fontsize=11, frameon=False, bbox_to_anchor=(0.5, 1.0)
+            )
     fig.savefig(path, dpi=90, bbox_inches="tight")
     plt.close(fig)
     return path
@@ -138,8 +163,9 @@ def _residuals(ax, pts: pd.DataFrame, held_out: pd.DataFrame | None) -> None:
         h = held_out.set_index("exposure_us").reindex(x)
         h_lo = 100 * (h["observed_p2_5"].to_numpy() / centre - 1)
         h_hi = 100 * (h["observed_p97_5"].to_numpy() / centre - 1)
-        ax.vlines(x, h_lo, h_hi, color=HELD_OUT, linewidth=5, alpha=0.5, label="95 % band, predicted held out",
-                  zorder=1)
+        ax.vlines(
+            x, h_lo, h_hi, color=HELD_OUT, linewidth=5, alpha=0.5, label="95 % band, predicted held out", zorder=1
+        )
         values += [h_lo, h_hi]
     ax.fill_between(x, lo, hi, color=FITTED, alpha=0.35, linewidth=0, label="95 % band, fitted", zorder=2)
     ax.axhline(0, color=FITTED, linewidth=1, zorder=2)
@@ -151,8 +177,9 @@ def _residuals(ax, pts: pd.DataFrame, held_out: pd.DataFrame | None) -> None:
     for xi, ri in zip(x[~inside], residual[~inside], strict=True):
         edge = np.sign(ri) * limit
         ax.plot(xi, edge, "^" if ri > 0 else "v", color="k", markersize=7, zorder=3, clip_on=False)
-        ax.annotate(f"{ri:+.0f} %", (xi, edge), textcoords="offset points", xytext=(4, -12 if ri > 0 else 4),
-                    fontsize=9)
+        ax.annotate(
+            f"{ri:+.0f} %", (xi, edge), textcoords="offset points", xytext=(4, -12 if ri > 0 else 4), fontsize=9
+        )
     threshold = max(1.0, float(np.nanmax(np.abs(np.concatenate([lo, hi])))) if len(lo) else 1.0)
     ax.set_yscale("symlog", linthresh=threshold, linscale=1.0)
     ax.set_ylim(-limit, limit)
@@ -161,8 +188,13 @@ def _residuals(ax, pts: pd.DataFrame, held_out: pd.DataFrame | None) -> None:
     ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:+.3g}" if v else "0"))
 
 
-def write_fit(result: FitResult, out: Path, truth: dict | None = None, extra: dict | None = None,
-              held_out: pd.DataFrame | None = None) -> dict:
+def write_fit(
+    result: FitResult,
+    out: Path,
+    truth: dict | None = None,
+    extra: dict | None = None,
+    held_out: pd.DataFrame | None = None,
+) -> dict:
     """Write every calibration output to `out` (refusing to overwrite); returns the summary. `held_out`: the
     held-out predictions (`uwlab.experiments.calibration.validation.cross_validation`), drawn in response.png and
     written to heldout.parquet."""

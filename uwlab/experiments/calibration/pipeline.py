@@ -10,6 +10,7 @@ configuration), the verdict ``model_adequate`` with its named ``checks`` and, wh
 and likely causes in ``warnings`` (`uwlab.experiments.calibration.adequacy`), the spectra comparison and, per parameter,
 the simulated ground truth.
 """
+
 from __future__ import annotations
 
 import json
@@ -25,8 +26,14 @@ from uwlab.experiments.calibration.inference import write_inference_data
 from uwlab.experiments.calibration.fit import FitConfig, FitResult, default_config_for, fit_points, load_fit_config
 from uwlab.experiments.calibration.forward import MODELS, relative_flux
 from uwlab.experiments.calibration.output import check_output_dir, write_fit
-from uwlab.experiments.calibration.validation import (CrossValidation, compare_spectra, cross_validation, default_folds,
-                                                      posterior_predictive_checks, predicted_spectra)
+from uwlab.experiments.calibration.validation import (
+    CrossValidation,
+    compare_spectra,
+    cross_validation,
+    default_folds,
+    posterior_predictive_checks,
+    predicted_spectra,
+)
 from uwlab.experiments.dataset import Dataset
 from uwlab.model.schema import parse
 
@@ -49,16 +56,22 @@ def truth_from_metadata(metadata: dict, points: pd.DataFrame, names) -> dict:
     return truth
 
 
-def resolve_fit_config(config_path: str | Path | None, points: pd.DataFrame, rigs: dict,
-                       sampler: dict | None = None) -> FitConfig:
+def resolve_fit_config(
+    config_path: str | Path | None, points: pd.DataFrame, rigs: dict, sampler: dict | None = None
+) -> FitConfig:
     """The fit config file at `config_path`, else the default for these points; `sampler` overrides keys of its
     [sampler] section (``walkers``, ``chunk_steps``, ``max_steps``, ``seed``), validated like the file's."""
-    config = load_fit_config(config_path) if config_path is not None else \
-        default_config_for(points[~points["saturated"].astype(bool)], rigs)
+    config = (
+        load_fit_config(config_path)
+        if config_path is not None
+        else default_config_for(points[~points["saturated"].astype(bool)], rigs)
+    )
     if not sampler:
         return config
-    return parse(FitConfig, {"parameters": config.priors, "holdout": config.holdout,
-                             "sampler": {**config.sampler.model_dump(), **sampler}})
+    return parse(
+        FitConfig,
+        {"parameters": config.priors, "holdout": config.holdout, "sampler": {**config.sampler.model_dump(), **sampler}},
+    )
 
 
 def world_of(metadata: dict) -> str | None:
@@ -76,8 +89,11 @@ def held_out_folds(sweeps: list[str], config: FitConfig, train_sweeps: list[str]
     if train:
         unknown = sorted(set(train) - set(sweeps))
         if unknown:
-            raise ConfigError("--train" if train_sweeps else "holdout.train", ", ".join(unknown),
-                              f"not a sweep of this dataset ({', '.join(sweeps)})")
+            raise ConfigError(
+                "--train" if train_sweeps else "holdout.train",
+                ", ".join(unknown),
+                f"not a sweep of this dataset ({', '.join(sweeps)})",
+            )
         return [[s for s in sweeps if s not in train]]
     return default_folds(sweeps, config.holdout.folds)
 
@@ -103,22 +119,27 @@ class Assessment:
         """The assessment's part of summary.json (module docstring)."""
         table = self.cross.table
         per_config = dict(zip(table["sweep_id"], table["inside_95"], strict=True)) if len(table) else {}
-        return {"model": self.result.model.kind,
-                "predictive_coverage": {"held_out_inside_95": self.cross.inside_95, "per_configuration": per_config},
-                **self.verdict.to_dict(),
-                "warnings": self.result.summary()["warnings"] + self.verdict.warnings(),
-                "cross_configuration": self.cross.table.to_dict(orient="records"), "folds": self.cross.folds,
-                "posterior_predictive_checks": self.ppc.to_dict(orient="records")}
+        return {
+            "model": self.result.model.kind,
+            "predictive_coverage": {"held_out_inside_95": self.cross.inside_95, "per_configuration": per_config},
+            **self.verdict.to_dict(),
+            "warnings": self.result.summary()["warnings"] + self.verdict.warnings(),
+            "cross_configuration": self.cross.table.to_dict(orient="records"),
+            "folds": self.cross.folds,
+            "posterior_predictive_checks": self.ppc.to_dict(orient="records"),
+        }
 
 
-def assess(points: pd.DataFrame, rigs: dict, config: FitConfig, folds: list[list[str]], model: str | None = None,
-           progress=None) -> Assessment:
+def assess(
+    points: pd.DataFrame, rigs: dict, config: FitConfig, folds: list[list[str]], model: str | None = None, progress=None
+) -> Assessment:
     """Fit the points with the chain `model`, check every configuration, predict each held-out fold from a fit of
     the others, and judge the model (`uwlab.experiments.calibration.adequacy`)."""
     result = fit_points(points, rigs, config, progress=progress, kind=model)
     ppc = posterior_predictive_checks(result)
-    cross = cross_validation(points, rigs, config, folds, kind=result.model.kind, progress=progress,
-                             seed=config.sampler.seed)
+    cross = cross_validation(
+        points, rigs, config, folds, kind=result.model.kind, progress=progress, seed=config.sampler.seed
+    )
     return Assessment(result, ppc, cross, verdict(result, ppc, cross))
 
 
@@ -155,14 +176,25 @@ def calibrate(
     predicted = predicted_spectra(result)
     measured = dataset.spectra()
     spectra_table = compare_spectra(predicted, measured)
-    extra = {"dataset": str(Path(dataset_dir).resolve()), "plan_sha256": metadata.get("plan_sha256"),
-             "world": world_of(metadata), **assessment.summary(),
-             "spectra": spectra_table.to_dict(orient="records"), "sim": bool(metadata.get("sim"))}
+    extra = {
+        "dataset": str(Path(dataset_dir).resolve()),
+        "plan_sha256": metadata.get("plan_sha256"),
+        "world": world_of(metadata),
+        **assessment.summary(),
+        "spectra": spectra_table.to_dict(orient="records"),
+        "sim": bool(metadata.get("sim")),
+    }
     summary = write_fit(result, out, truth, extra, cross.points)
     write_inference_data(result, out)
-    merged = predicted.merge(measured.groupby(["sweep_id", "position", "wavelength_nm"], as_index=False)[
-        "irradiance_w_m2_nm"].mean(), how="left", on=["sweep_id", "position", "wavelength_nm"]) if not measured.empty \
+    merged = (
+        predicted.merge(
+            measured.groupby(["sweep_id", "position", "wavelength_nm"], as_index=False)["irradiance_w_m2_nm"].mean(),
+            how="left",
+            on=["sweep_id", "position", "wavelength_nm"],
+        )
+        if not measured.empty
         else predicted.assign(irradiance_w_m2_nm=np.nan)
+    )
     merged.to_parquet(out / "spectra.parquet", index=False)
     (out / "cross.json").write_text(json.dumps(cross.table.to_dict(orient="records"), indent=2) + "\n")
     return Calibration(summary, cross.table, spectra_table, out)

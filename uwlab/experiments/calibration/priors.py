@@ -17,6 +17,7 @@ scipy's; log densities are vectorised over walkers.
 >>> round(Normal(mean=0.0, sigma=1.0, lo=0.0).quantile(0.5), 9)   # the half-normal median σ · Φ⁻¹(3/4)
 0.67448975
 """
+
 from __future__ import annotations
 
 import math

@@ -18,6 +18,7 @@
 - Spectra: the spectral irradiance the model predicts at the target (facing the light) and at the camera
   (π L_w), with the posterior median parameters, against what the spectrometer measured.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
@@ -134,7 +135,7 @@ def dense_sweeps(result: FitResult, n: int = 60) -> pd.DataFrame:
             y=np.zeros(n),
             sigma_meas=np.zeros(n),
         )
-        bands = _bands(dense.predict(theta) * (1 + offsets[:, k:k + 1]))
+        bands = _bands(dense.predict(theta) * (1 + offsets[:, k : k + 1]))
         frame = pd.DataFrame(
             {
                 "sweep_id": model.points.loc[first, "sweep_id"],
@@ -171,8 +172,13 @@ def posterior_predictive_checks(result: FitResult, seed: int = 0) -> pd.DataFram
     return pd.DataFrame(rows)
 
 
-def _prior_columns(config: FitConfig, names: tuple[str, ...], samples: np.ndarray, train_names: tuple[str, ...],
-                   rng: np.random.Generator) -> np.ndarray:
+def _prior_columns(
+    config: FitConfig,
+    names: tuple[str, ...],
+    samples: np.ndarray,
+    train_names: tuple[str, ...],
+    rng: np.random.Generator,
+) -> np.ndarray:
     columns = []
     for name in names:
         if name in train_names:
@@ -200,8 +206,15 @@ class CrossValidation:
         return float(self.points["inside_95"].mean()) if len(self.points) else float("nan")
 
 
-def cross_validation(points: pd.DataFrame, rigs: dict, config: FitConfig, held_out: list[list[str]],
-                     kind: str | None = None, progress=None, seed: int = 0) -> CrossValidation:
+def cross_validation(
+    points: pd.DataFrame,
+    rigs: dict,
+    config: FitConfig,
+    held_out: list[list[str]],
+    kind: str | None = None,
+    progress=None,
+    seed: int = 0,
+) -> CrossValidation:
     """For each fold (a list of sweeps held out), fit the other sweeps and predict the held-out ones as new
     configurations (module docstring)."""
     usable = points[~points["saturated"].astype(bool)]
@@ -280,15 +293,18 @@ def predicted_spectra(result: FitResult) -> pd.DataFrame:
         seen.add(sweep_id)
         changes = {"water.attenuation_scale": value("attenuation_scale"), "target.reflectance": value("reflectance")}
         if "beam_half_angle_deg" in result.names:  # a fitted beam is in water
-            changes.update({"light.beam_half_angle_deg": value("beam_half_angle_deg"),
-                            "light.beam_half_angle_in_air_deg": None})
+            changes.update(
+                {"light.beam_half_angle_deg": value("beam_half_angle_deg"), "light.beam_half_angle_in_air_deg": None}
+            )
         fitted = design.with_values(**changes)
         spectra = stage_spectra(fitted)
         rows = model.points["sweep_id"] == sweep_id
         level = float(model.points.loc[rows, "relative_flux"].median()) if "relative_flux" in model.points else 1.0
         eff = value("light_efficiency") * level
-        for position, irradiance in (("target", spectra["facing_light_w_m2_nm"]),
-                                     ("camera", np.pi * spectra["return_radiance_w_m2_sr_nm"])):
+        for position, irradiance in (
+            ("target", spectra["facing_light_w_m2_nm"]),
+            ("camera", np.pi * spectra["return_radiance_w_m2_sr_nm"]),
+        ):
             frames.append(
                 pd.DataFrame(
                     {
@@ -316,6 +332,12 @@ def compare_spectra(predicted: pd.DataFrame, measured: pd.DataFrame) -> pd.DataF
         meas = group["irradiance_w_m2_nm"].to_numpy()
         ratio = np.trapezoid(meas, group["wavelength_nm"]) / np.trapezoid(model, group["wavelength_nm"])
         shape = np.sqrt(np.mean((meas / meas.max() - model / model.max()) ** 2))
-        rows.append({"sweep_id": sweep_id, "position": position, "measured_over_predicted": float(ratio),
-                     "shape_rms_error": float(shape)})
+        rows.append(
+            {
+                "sweep_id": sweep_id,
+                "position": position,
+                "measured_over_predicted": float(ratio),
+                "shape_rms_error": float(shape),
+            }
+        )
     return pd.DataFrame(rows)

@@ -10,6 +10,7 @@ figure's axes (one vectorised call) and returns plain arrays. `plots.py` draws t
 - `quantum_efficiency`: the QE curves of the shipped sensor profiles.
 - The spectra along the chain are `uwlab.model.design.stage_spectra`.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -39,21 +40,31 @@ def dof_curves(design: Design) -> dict[str, np.ndarray]:
     dof = evaluate(design.with_values(**{"lens.f_number": F_NUMBERS[None, :], "operation.altitude_m": focus[:, None]}))
     distance = altitude * DISTANCE_FACTORS
     along = evaluate(design.with_values(**{"operation.altitude_m": distance}))["dof_m"]
-    return {"f_number": F_NUMBERS, "focus_m": focus, "near_m": dof["dof_m"]["near"], "far_m": dof["dof_m"]["far"],
-            "distance_m": distance, "near_at_distance_m": np.broadcast_to(along["near"], distance.shape),
-            "far_at_distance_m": np.broadcast_to(along["far"], distance.shape)}
+    return {
+        "f_number": F_NUMBERS,
+        "focus_m": focus,
+        "near_m": dof["dof_m"]["near"],
+        "far_m": dof["dof_m"]["far"],
+        "distance_m": distance,
+        "near_at_distance_m": np.broadcast_to(along["near"], distance.shape),
+        "far_at_distance_m": np.broadcast_to(along["far"], distance.shape),
+    }
 
 
 def operation_curves(design: Design) -> dict[str, np.ndarray]:
     """Keys: ``speed_m_s`` (axis), ``altitude_m`` (one per curve), ``min_framerate_hz`` and ``max_exposure_s``
     of shape (altitude, speed)."""
     altitudes = float(design["operation.altitude_m"]) * np.asarray(ALTITUDE_FACTORS)
-    out = evaluate(design.with_values(**{"operation.speed_m_s": SPEEDS_M_S[None, :],
-                                         "operation.altitude_m": altitudes[:, None]}))
+    out = evaluate(
+        design.with_values(**{"operation.speed_m_s": SPEEDS_M_S[None, :], "operation.altitude_m": altitudes[:, None]})
+    )
     shape = (altitudes.size, SPEEDS_M_S.size)
-    return {"speed_m_s": SPEEDS_M_S, "altitude_m": altitudes,
-            "min_framerate_hz": np.broadcast_to(out["min_framerate_hz"], shape),
-            "max_exposure_s": np.broadcast_to(out["max_exposure_s"], shape)}
+    return {
+        "speed_m_s": SPEEDS_M_S,
+        "altitude_m": altitudes,
+        "min_framerate_hz": np.broadcast_to(out["min_framerate_hz"], shape),
+        "max_exposure_s": np.broadcast_to(out["max_exposure_s"], shape),
+    }
 
 
 def water_attenuation(grid: WavelengthGrid) -> dict[str, np.ndarray]:

@@ -10,6 +10,7 @@ file system every worker and this machine share (NFS, a cluster file system), an
 same version) and the data files the design names. At most a few chunks per worker thread are in flight, so
 memory stays bounded on both sides whatever the grid size.
 """
+
 from __future__ import annotations
 
 import logging
@@ -30,8 +31,13 @@ def dask_client(address: str):
     from distributed import Client, LocalCluster
 
     if address == "local":
-        cluster = LocalCluster(n_workers=os.cpu_count() or 1, threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=logging.ERROR)
+        cluster = LocalCluster(
+            n_workers=os.cpu_count() or 1,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            silence_logs=logging.ERROR,
+        )
         try:
             with Client(cluster) as client:
                 yield client
@@ -48,8 +54,9 @@ def dask_client(address: str):
         try:
             client.wait_for_workers(1, timeout=WORKER_TIMEOUT_S)
         except TimeoutError:
-            raise UwlabError(f"--dask: no worker joined the scheduler at {address} "
-                             f"within {WORKER_TIMEOUT_S} s") from None
+            raise UwlabError(
+                f"--dask: no worker joined the scheduler at {address} within {WORKER_TIMEOUT_S} s"
+            ) from None
         yield client
 
 

@@ -14,6 +14,7 @@ the same rows in the same files, bit for bit. Parquet output is a directory of p
 (``part-000000.parquet`` ...; `pandas.read_parquet(directory)` reads them in order), written into a staging
 directory beside the target and renamed when complete, so an interrupted run leaves no partial result.
 """
+
 from __future__ import annotations
 
 import itertools
@@ -97,7 +98,7 @@ class DesignGrid:
         """(axis s sliced within a chunk, slice length): later axes whole, earlier ones one value at a time."""
         shape = self.shape
         for s in range(len(shape)):
-            inner = math.prod(shape[s + 1:])
+            inner = math.prod(shape[s + 1 :])
             if inner <= self.chunk_points:
                 return s, max(1, min(shape[s], self.chunk_points // inner))
         return len(shape), 1
@@ -131,7 +132,7 @@ class DesignGrid:
         lead = np.unravel_index(within, shape[:s] + (math.ceil(shape[s] / step),))
         ranges = [(int(i), int(i) + 1) for i in lead[:-1]]
         ranges.append((int(lead[-1]) * step, min(shape[s], (int(lead[-1]) + 1) * step)))
-        ranges += [(0, n) for n in shape[s + 1:]]
+        ranges += [(0, n) for n in shape[s + 1 :]]
         return self.combinations[combination], ranges
 
     def check(self) -> list[str]:
@@ -168,8 +169,9 @@ class DesignGrid:
                 columns[key] = np.broadcast_to(values, shape).ravel()
         for name, dtype in self.output_types.items():
             value = result.get(name)
-            columns[name] = np.full(n, np.nan) if value is None else np.broadcast_to(
-                np.asarray(value, dtype), shape).ravel()
+            columns[name] = (
+                np.full(n, np.nan) if value is None else np.broadcast_to(np.asarray(value, dtype), shape).ravel()
+            )
         return columns
 
     @cached_property
@@ -178,8 +180,9 @@ class DesignGrid:
         to `outputs`) and their dtypes."""
         types: dict[str, type] = {}
         for combination in self.combinations:
-            probe = flatten_outputs(evaluate(build_design(self._config(combination, [(0, 1)] * len(self.shape)),
-                                                          self.base_dir)))
+            probe = flatten_outputs(
+                evaluate(build_design(self._config(combination, [(0, 1)] * len(self.shape)), self.base_dir))
+            )
             for name, value in probe.items():
                 types.setdefault(name, bool if np.asarray(value).dtype == bool else float)
         if self.outputs is None:
@@ -253,9 +256,11 @@ def check_disk_space(grid: DesignGrid, stage: Path, rows_written: int = 0) -> No
     needed = per_point * remaining * DISK_MARGIN
     free = shutil.disk_usage(stage if stage.is_dir() else stage.parent).free
     if needed > free:
-        raise UwlabError(f"--out: the grid needs about {needed / 2**30:.3g} GiB more on disk "
-                         f"({per_point:.0f} bytes per point), {free / 2**30:.3g} GiB free; "
-                         "choose fewer points or fewer --columns")
+        raise UwlabError(
+            f"--out: the grid needs about {needed / 2**30:.3g} GiB more on disk "
+            f"({per_point:.0f} bytes per point), {free / 2**30:.3g} GiB free; "
+            "choose fewer points or fewer --columns"
+        )
 
 
 def write_grid(grid: DesignGrid, out: str | Path, progress=None) -> dict:
@@ -299,8 +304,10 @@ def in_memory_frame(grid: DesignGrid, memory_fraction: float = 0.5) -> pd.DataFr
     needed = 2 * grid.points * grid.row_bytes()
     available = available_memory_bytes()
     if needed > memory_fraction * available:
-        raise UwlabError(f"--grid: {grid.points:,} points need about {needed / 2**30:.3g} GiB in memory "
-                         f"({available / 2**30:.3g} GiB available); stream them to disk with --out FILE.parquet")
+        raise UwlabError(
+            f"--grid: {grid.points:,} points need about {needed / 2**30:.3g} GiB in memory "
+            f"({available / 2**30:.3g} GiB available); stream them to disk with --out FILE.parquet"
+        )
     return pd.concat([grid.chunk(i) for i in range(grid.chunks)], ignore_index=True)
 
 

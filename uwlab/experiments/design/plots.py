@@ -1,5 +1,6 @@
 """The design figures of the paper, as PNG files: depth of field, spectra along the chain, framerate and
 exposure limits, water attenuation, quantum efficiency."""
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -13,8 +14,7 @@ from matplotlib.ticker import ScalarFormatter
 
 from uwlab.errors import ConfigError
 from uwlab.experiments.figures import save_figure
-from uwlab.experiments.design.curves import (dof_curves, operation_curves, quantum_efficiency,
-                                             water_attenuation)
+from uwlab.experiments.design.curves import dof_curves, operation_curves, quantum_efficiency, water_attenuation
 from uwlab.model.design import Design, stage_spectra
 from uwlab.outputs import output_dir
 
@@ -23,10 +23,14 @@ def plot_dof(design: Design, path: Path) -> Path:
     curves = dof_curves(design)
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for s, near, far in zip(curves["focus_m"], curves["near_m"], curves["far_m"], strict=True):
-        line, = ax.plot(curves["f_number"], np.where(np.isfinite(far), far, np.nan), label=f"focus {s:.2f} m")
+        (line,) = ax.plot(curves["f_number"], np.where(np.isfinite(far), far, np.nan), label=f"focus {s:.2f} m")
         ax.plot(curves["f_number"], near, color=line.get_color(), linestyle="--")
-    ax.set(xscale="log", xlabel="f-number N", ylabel="object distance in water [m]",
-           title="Depth of field: far (solid) and near (dashed) limits")
+    ax.set(
+        xscale="log",
+        xlabel="f-number N",
+        ylabel="object distance in water [m]",
+        title="Depth of field: far (solid) and near (dashed) limits",
+    )
     ax.legend()
     return save_figure(fig, path)
 
@@ -35,10 +39,13 @@ def plot_stages(design: Design, path: Path) -> Path:
     spectra = stage_spectra(design)
     nm = spectra["wavelength_nm"]
     fig, axes = plt.subplots(5, 1, figsize=(7, 10), sharex=True)
-    panels = [("source_w_nm", "source Φe [W/nm]"), ("target_irradiance_w_m2_nm", "at target E_t [W/m²/nm]"),
-              ("return_radiance_w_m2_sr_nm", "after return path L_w [W/m²/sr/nm]"),
-              ("sensor_irradiance_w_m2_nm", "after lens E_s [W/m²/nm]"),
-              ("absorbed_w_m2_nm", "absorbed E_s·η [W/m²/nm]")]
+    panels = [
+        ("source_w_nm", "source Φe [W/nm]"),
+        ("target_irradiance_w_m2_nm", "at target E_t [W/m²/nm]"),
+        ("return_radiance_w_m2_sr_nm", "after return path L_w [W/m²/sr/nm]"),
+        ("sensor_irradiance_w_m2_nm", "after lens E_s [W/m²/nm]"),
+        ("absorbed_w_m2_nm", "absorbed E_s·η [W/m²/nm]"),
+    ]
     for ax, (key, label) in zip(axes, panels, strict=True):
         ax.plot(nm, spectra[key])
         ax.set_ylabel(label, fontsize=8)
@@ -50,8 +57,9 @@ def plot_stages(design: Design, path: Path) -> Path:
 def plot_operation(design: Design, path: Path) -> Path:
     curves = operation_curves(design)
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4))
-    for h, framerate, exposure in zip(curves["altitude_m"], curves["min_framerate_hz"], curves["max_exposure_s"],
-                                      strict=True):
+    for h, framerate, exposure in zip(
+        curves["altitude_m"], curves["min_framerate_hz"], curves["max_exposure_s"], strict=True
+    ):
         a1.plot(curves["speed_m_s"], framerate, label=f"altitude {h:.2f} m")
         a2.plot(curves["speed_m_s"], exposure * 1e3, label=f"altitude {h:.2f} m")
     a1.set(xlabel="speed [m/s]", ylabel="minimum framerate [Hz]", title="Framerate for the overlap")
@@ -64,8 +72,12 @@ def plot_water(design: Design, path: Path) -> Path:
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for name, c in water_attenuation(design.grid).items():
         ax.plot(design.grid.nm, c, label=name)
-    ax.set(yscale="log", xlabel="wavelength [nm]", ylabel="beam attenuation c = a + b [1/m]",
-           title="Water attenuation profiles")
+    ax.set(
+        yscale="log",
+        xlabel="wavelength [nm]",
+        ylabel="beam attenuation c = a + b [1/m]",
+        title="Water attenuation profiles",
+    )
     ax.legend(fontsize=7, ncol=2)
     return save_figure(fig, path)
 
@@ -103,24 +115,36 @@ def write_design_plots(design: Design, out_dir: Path) -> list[Path]:
 
 
 def _axis_label(key: str) -> str:
-    """"light.luminous_flux_lm" → "light.luminous_flux [lm]" (the unit from the key's suffix)."""
+    """ "light.luminous_flux_lm" → "light.luminous_flux [lm]" (the unit from the key's suffix)."""
     units = {"lm": "lm", "m": "m", "mm": "mm", "s": "s", "db": "dB", "deg": "°", "hz": "Hz", "m_s": "m/s", "nm": "nm"}
     for suffix in sorted(units, key=len, reverse=True):
         if key.lower().endswith("_" + suffix):
-            return f"{key[:-len(suffix) - 1]} [{units[suffix]}]"
+            return f"{key[: -len(suffix) - 1]} [{units[suffix]}]"
     return key
 
 
-def plot_front(front, x_key: str, y_key: str, senses: tuple[str, str], requirements: list[str], path: Path,
-               log_x: bool, log_y: bool) -> Path:
+def plot_front(
+    front,
+    x_key: str,
+    y_key: str,
+    senses: tuple[str, str],
+    requirements: list[str],
+    path: Path,
+    log_x: bool,
+    log_y: bool,
+) -> Path:
     """The Pareto front of two objectives, points coloured by the requirements that bind there."""
     fig, ax = plt.subplots(figsize=(7.5, 5))
     x, y = front[x_key].to_numpy(), front[y_key].to_numpy()
     ax.plot(x, y, color="0.4", linewidth=1, zorder=1)
     for label, rows in front.groupby(front["active"].where(front["active"] != "", "none"), sort=False):
         ax.scatter(rows[x_key], rows[y_key], s=28, zorder=2, label=f"active: {label}")
-    ax.set(xscale="log" if log_x else "linear", yscale="log" if log_y else "linear",
-           xlabel=f"{_axis_label(x_key)} ({senses[0]})", ylabel=f"{_axis_label(y_key)} ({senses[1]})")
+    ax.set(
+        xscale="log" if log_x else "linear",
+        yscale="log" if log_y else "linear",
+        xlabel=f"{_axis_label(x_key)} ({senses[0]})",
+        ylabel=f"{_axis_label(y_key)} ({senses[1]})",
+    )
     for axis in (ax.xaxis, ax.yaxis):
         axis.set_major_formatter(ScalarFormatter())
         axis.set_minor_formatter(ScalarFormatter())
@@ -128,10 +152,20 @@ def plot_front(front, x_key: str, y_key: str, senses: tuple[str, str], requireme
         axis.get_minor_formatter().set_scientific(False)
     number = lambda v: f"{v:,.0f}" if abs(v) >= 1000 else f"{v:.3g}"  # noqa: E731
     for i, align in ((0, "left"), (len(x) - 1, "right")):
-        ax.annotate(f"({number(x[i])}, {number(y[i])})", (x[i], y[i]), textcoords="offset points",
-                    xytext=(8, -4) if i == 0 else (-8, -4), ha=align, va="top", fontsize=8)
-    ax.set_title("Pareto front: each point is the optimum of the first objective for that value of the second\n"
-                 "requirements: " + ", ".join(requirements), fontsize=8)
+        ax.annotate(
+            f"({number(x[i])}, {number(y[i])})",
+            (x[i], y[i]),
+            textcoords="offset points",
+            xytext=(8, -4) if i == 0 else (-8, -4),
+            ha=align,
+            va="top",
+            fontsize=8,
+        )
+    ax.set_title(
+        "Pareto front: each point is the optimum of the first objective for that value of the second\n"
+        "requirements: " + ", ".join(requirements),
+        fontsize=8,
+    )
     ax.tick_params(which="minor", labelsize=7)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7, loc="upper left")

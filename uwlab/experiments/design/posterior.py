@@ -17,6 +17,7 @@ correction factors, applied per posterior sample θ_s:
 Parameters the fit did not sample keep their design values. Other fitted parameters (beam angle, reflectance,
 lens transmittance) describe the tank's own light, board and lenses and are not carried over.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -61,21 +62,29 @@ class DesignPosterior:
         base = lambda key: lifted.get(key, design[key])  # noqa: E731
         along = lambda values: values.reshape((1,) * ndim + (-1,))  # noqa: E731
         multiplier = self.light_efficiency * np.maximum(1 + self.discrepancy * self.z, 0.0)
-        return design.with_values(**{
-            **lifted,
-            "light.luminous_flux_lm": base("light.luminous_flux_lm") * along(multiplier),
-            "water.attenuation_scale": base("water.attenuation_scale") * along(self.attenuation_scale),
-            "sensor.gain_db": base("sensor.gain_db") + along(20 * np.log10(self.k_factor)),
-        })
+        return design.with_values(
+            **{
+                **lifted,
+                "light.luminous_flux_lm": base("light.luminous_flux_lm") * along(multiplier),
+                "water.attenuation_scale": base("water.attenuation_scale") * along(self.attenuation_scale),
+                "sensor.gain_db": base("sensor.gain_db") + along(20 * np.log10(self.k_factor)),
+            }
+        )
 
 
 def _arrays(design: Design) -> dict[str, np.ndarray]:
-    return {f"{s}.{k}": v for s, body in design.values.items() if isinstance(body, dict) for k, v in body.items()
-            if isinstance(v, np.ndarray)}
+    return {
+        f"{s}.{k}": v
+        for s, body in design.values.items()
+        if isinstance(body, dict)
+        for k, v in body.items()
+        if isinstance(v, np.ndarray)
+    }
 
 
-def load_posterior(fit_dir: str | Path, design: Design, max_samples: int = MAX_SAMPLES,
-                   seed: int = 0) -> DesignPosterior:
+def load_posterior(
+    fit_dir: str | Path, design: Design, max_samples: int = MAX_SAMPLES, seed: int = 0
+) -> DesignPosterior:
     """The posterior of the fit in `fit_dir` (its ``samples.parquet``) as factors for `design`; at most
     `max_samples` samples, evenly thinned from the chain order."""
     fit_dir = Path(fit_dir)
@@ -99,18 +108,28 @@ def load_posterior(fit_dir: str | Path, design: Design, max_samples: int = MAX_S
     k_column = f"K_dn_per_e:{Path(profile).stem.lower()}"
     calibrated = k_column in samples
     k_factor = samples[k_column].to_numpy(float) / design.sensor.K_dn_per_e if calibrated else np.ones(n)
-    carried = tuple(name for name in ("light_efficiency", "attenuation_scale", "discrepancy", "config_discrepancy")
-                    if name in samples)
+    carried = tuple(
+        name
+        for name in ("light_efficiency", "attenuation_scale", "discrepancy", "config_discrepancy")
+        if name in samples
+    )
     carried += (k_column,) if calibrated else ()
     posterior = DesignPosterior(
-        fit_dir=fit_dir, light_efficiency=column("light_efficiency", 1.0),
-        attenuation_scale=column("attenuation_scale", 1.0), k_factor=k_factor,
+        fit_dir=fit_dir,
+        light_efficiency=column("light_efficiency", 1.0),
+        attenuation_scale=column("attenuation_scale", 1.0),
+        k_factor=k_factor,
         discrepancy=np.hypot(column("discrepancy", 0.0), column("config_discrepancy", 0.0)),
         z=np.random.default_rng(seed).standard_normal(n),
-        calibrated_camera=profile if calibrated else None, carried=carried)
-    for name, values, lo in (("light_efficiency", posterior.light_efficiency, 0.0),
-                             ("attenuation_scale", posterior.attenuation_scale, -1e-300),
-                             (k_column, posterior.k_factor, 0.0), ("discrepancy", posterior.discrepancy, -1e-300)):
+        calibrated_camera=profile if calibrated else None,
+        carried=carried,
+    )
+    for name, values, lo in (
+        ("light_efficiency", posterior.light_efficiency, 0.0),
+        ("attenuation_scale", posterior.attenuation_scale, -1e-300),
+        (k_column, posterior.k_factor, 0.0),
+        ("discrepancy", posterior.discrepancy, -1e-300),
+    ):
         if not np.all(np.isfinite(values)) or np.any(values <= lo):
             raise ConfigError("--posterior", str(path), f"{name} samples must be finite and positive")
     return posterior
@@ -125,5 +144,10 @@ def credible_band(design: Design, posterior: DesignPosterior) -> dict:
     for key, value in columns.items():
         q = np.percentile(np.broadcast_to(value, (posterior.size,)), list(PERCENTILES.values()))
         band[key] = dict(zip(PERCENTILES, q.tolist(), strict=True))
-    return {"fit": str(posterior.fit_dir), "samples": posterior.size, "carried": list(posterior.carried),
-            "saturated_fraction": float(np.mean(np.broadcast_to(out["saturated"], (posterior.size,)))), **band}
+    return {
+        "fit": str(posterior.fit_dir),
+        "samples": posterior.size,
+        "carried": list(posterior.carried),
+        "saturated_fraction": float(np.mean(np.broadcast_to(out["saturated"], (posterior.size,)))),
+        **band,
+    }

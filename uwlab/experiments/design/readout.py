@@ -21,6 +21,7 @@ Values are read from the JSON form of the result (`uwlab.jsonable.to_jsonable`: 
 >>> rows({"snr_db": 36.47, "saturated": False})[1].text
 '36.5'
 """
+
 from __future__ import annotations
 
 import math
@@ -72,18 +73,27 @@ OUTPUTS = (
     Output("snr", "SNR", "", "{:.1f}"),
     Output("snr_db", "SNR", "dB", "{:.1f}"),
     Output("veil_electrons", "veiling light (on axis)", "e-", "{:.1f}"),
-    Output("image_average", "image average", "", "{:.1f}",
-           (("mean_electrons", "e-"), ("mean_dn", "DN"), ("snr", "SNR"), ("veil_electrons", "veil e-"))),
+    Output(
+        "image_average",
+        "image average",
+        "",
+        "{:.1f}",
+        (("mean_electrons", "e-"), ("mean_dn", "DN"), ("snr", "SNR"), ("veil_electrons", "veil e-")),
+    ),
 )
 OUTPUT_BY_KEY = {o.key: o for o in OUTPUTS}
 UNNAMED_FORMAT = "{:.4g}"
 # The "what limits me" readout: `light_budget_stops`, stages in chain order (`uwlab.model.design.light_budget`).
 BUDGET_KEY = "light_budget_stops"
 BUDGET_STAGES = {
-    "beam_to_view": "beam → field of view", "water_to_target": "water, light → target",
+    "beam_to_view": "beam → field of view",
+    "water_to_target": "water, light → target",
     "reflectance": "target reflectance",
-    "water_to_camera": "water, target → camera", "port": "port", "aperture": "aperture (pupil / distance)",
-    "lens_transmittance": "lens transmittance", "quantum_efficiency": "quantum efficiency",
+    "water_to_camera": "water, target → camera",
+    "port": "port",
+    "aperture": "aperture (pupil / distance)",
+    "lens_transmittance": "lens transmittance",
+    "quantum_efficiency": "quantum efficiency",
 }
 BUDGET_FORMAT = "{:.2f}"
 
@@ -123,8 +133,9 @@ def rows(result: dict) -> list[Row]:
     light budget has its own readout, `budget_rows`)."""
     keys = [o.key for o in OUTPUTS if o.key in result]
     keys += [k for k in result if k not in OUTPUT_BY_KEY and k != BUDGET_KEY]
-    return [Row(k, _output(k).label_for(result[k]), format_value(result[k], _output(k).fmt), _output(k).unit)
-            for k in keys]
+    return [
+        Row(k, _output(k).label_for(result[k]), format_value(result[k], _output(k).fmt), _output(k).unit) for k in keys
+    ]
 
 
 def output_leaves(result: dict) -> list[dict]:
@@ -137,11 +148,17 @@ def output_leaves(result: dict) -> list[dict]:
             continue
         output = _output(key)
         if key == BUDGET_KEY:
-            leaves += [{"name": f"{key}.{k}", "label": f"light lost: {BUDGET_STAGES.get(k, k)}", "unit": "stops"}
-                       for k, v in value.items() if v is not None]
+            leaves += [
+                {"name": f"{key}.{k}", "label": f"light lost: {BUDGET_STAGES.get(k, k)}", "unit": "stops"}
+                for k, v in value.items()
+                if v is not None
+            ]
         elif isinstance(value, dict):
-            leaves += [{"name": f"{key}.{k}", "label": f"{output.label}: {k}", "unit": output.unit}
-                       for k, v in value.items() if v is not None and not isinstance(v, dict)]
+            leaves += [
+                {"name": f"{key}.{k}", "label": f"{output.label}: {k}", "unit": output.unit}
+                for k, v in value.items()
+                if v is not None and not isinstance(v, dict)
+            ]
         elif not isinstance(value, (list, str)):
             leaves.append({"name": key, "label": output.label, "unit": output.unit})
     return leaves
@@ -151,8 +168,11 @@ def budget_rows(stops: dict) -> tuple[list[Row], str, str]:
     """The "what limits me" readout of a result's ``light_budget_stops``: (a row per stage in chain order, the
     stage that loses the most light, the total as text), stops as text."""
     worst = max(stops, key=lambda k: -math.inf if stops[k] is None else stops[k])
-    stage_rows = [Row(key, BUDGET_STAGES.get(key, key), format_value(stops[key], BUDGET_FORMAT), "stops")
-                  for key in [*BUDGET_STAGES, *(k for k in stops if k not in BUDGET_STAGES)] if key in stops]
+    stage_rows = [
+        Row(key, BUDGET_STAGES.get(key, key), format_value(stops[key], BUDGET_FORMAT), "stops")
+        for key in [*BUDGET_STAGES, *(k for k in stops if k not in BUDGET_STAGES)]
+        if key in stops
+    ]
     total = sum(v for v in stops.values() if v is not None)
     return stage_rows, worst, BUDGET_FORMAT.format(total)
 
@@ -177,24 +197,38 @@ def design_warnings(design: Design, result: dict) -> list[DesignWarning]:
     """The warnings (module docstring) on a scalar design and its JSON-able result."""
     found = []
     if result.get("saturated"):
-        found.append(DesignWarning(
-            "saturated", f"saturated: {_fmt('mean_dn', result['mean_dn'])} on axis is at the sensor's limit",
-            ("mean_dn", "saturated"),
-            ("operation.exposure_s", "sensor.gain_db", "lens.f_number", "light.luminous_flux_lm")))
+        found.append(
+            DesignWarning(
+                "saturated",
+                f"saturated: {_fmt('mean_dn', result['mean_dn'])} on axis is at the sensor's limit",
+                ("mean_dn", "saturated"),
+                ("operation.exposure_s", "sensor.gain_db", "lens.f_number", "light.luminous_flux_lm"),
+            )
+        )
     exposure, limit = result.get("exposure_s"), result.get("max_exposure_s")
     if exposure is not None and limit is not None and exposure > limit * (1 + BLUR_TOLERANCE):
         max_blur = float(design["operation.max_blur_px"])
-        found.append(DesignWarning(
-            "blur", f"motion blur {max_blur * exposure / limit:.3g} px > limit {max_blur:g} px "
-                    f"(exposure above {_fmt('max_exposure_s', limit)})",
-            ("exposure_s",), ("operation.exposure_s", "operation.max_blur_px", "operation.speed_m_s")))
+        found.append(
+            DesignWarning(
+                "blur",
+                f"motion blur {max_blur * exposure / limit:.3g} px > limit {max_blur:g} px "
+                f"(exposure above {_fmt('max_exposure_s', limit)})",
+                ("exposure_s",),
+                ("operation.exposure_s", "operation.max_blur_px", "operation.speed_m_s"),
+            )
+        )
     required, dof = design["operation.min_dof_m"], result.get("dof_m")
     if required is not None and dof is not None and dof["far"] is not None and dof["far"] - dof["near"] < required:
         needed = result.get("min_f_number_for_dof")
         hint = f"; needs f-number ≥ {_fmt('min_f_number_for_dof', needed)}" if needed is not None else ""
-        found.append(DesignWarning(
-            "dof", f"depth of field {dof['far'] - dof['near']:.3f} m < required {float(required):g} m{hint}",
-            ("dof_m",), ("lens.f_number", "operation.min_dof_m", "operation.altitude_m")))
+        found.append(
+            DesignWarning(
+                "dof",
+                f"depth of field {dof['far'] - dof['near']:.3f} m < required {float(required):g} m{hint}",
+                ("dof_m",),
+                ("lens.f_number", "operation.min_dof_m", "operation.altitude_m"),
+            )
+        )
     return found
 
 

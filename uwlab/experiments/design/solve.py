@@ -23,6 +23,7 @@ coordinate, logarithmic when LO > 0. With two objectives the second one is swept
 When nothing is feasible, each requirement is tried alone over the whole box: those that fail even at their best
 are named with the best value reached; if each can be met alone, the pairs that cannot be met together.
 """
+
 from __future__ import annotations
 
 import itertools
@@ -141,8 +142,16 @@ def parse_requirement(text: str) -> Requirement:
 class Problem:
     """A design, its free keys, requirements and objectives; evaluates feasibility of candidate values."""
 
-    def __init__(self, raw: dict, base_dir: Path | None, free: list[FreeKey], requirements: list[Requirement],
-                 objectives: list[Objective], posterior_loader=None, confidence: float = 1.0):
+    def __init__(
+        self,
+        raw: dict,
+        base_dir: Path | None,
+        free: list[FreeKey],
+        requirements: list[Requirement],
+        objectives: list[Objective],
+        posterior_loader=None,
+        confidence: float = 1.0,
+    ):
         keys = [f.key for f in free]
         if len(set(keys)) != len(keys):
             raise ConfigError("--free", ", ".join(keys), "a key is given twice")
@@ -193,12 +202,12 @@ class Problem:
         each = np.empty((n, len(self.requirements)))
         step = max(1, EVALUATIONS_PER_CALL // self.samples)
         for s in range(0, n, step):
-            out = self.outputs(self.values(t[s:s + step]))
+            out = self.outputs(self.values(t[s : s + step]))
             shape = (min(step, n - s),) + ((self.samples,) if self.posterior is not None else ())
             met = np.stack([np.broadcast_to(r.met(out), shape) for r in self.requirements], axis=-1)
             axis = 1 if self.posterior is not None else None
-            joint[s:s + step] = met.all(axis=-1).mean(axis=axis) if axis else met.all(axis=-1)
-            each[s:s + step] = met.mean(axis=axis) if axis else met
+            joint[s : s + step] = met.all(axis=-1).mean(axis=axis) if axis else met.all(axis=-1)
+            each[s : s + step] = met.mean(axis=axis) if axis else met
         return joint, each
 
     def feasible(self, t: np.ndarray) -> np.ndarray:
@@ -294,9 +303,11 @@ class Solver:
         rows = u.shape[0]
         slot_t = None if secondary_t is None else np.repeat(secondary_t, n_u)
         c_grid = np.tile(costs, rows)
-        feasible = self.p.feasible(self._assemble(
-            c_grid, None if slot_t is None else np.repeat(slot_t, costs.size),
-            np.repeat(u, costs.size, axis=0))).reshape(rows, costs.size)
+        feasible = self.p.feasible(
+            self._assemble(
+                c_grid, None if slot_t is None else np.repeat(slot_t, costs.size), np.repeat(u, costs.size, axis=0)
+            )
+        ).reshape(rows, costs.size)
         any_feasible = feasible.any(axis=1)
         first = np.argmax(feasible, axis=1)
         result = np.where(any_feasible, costs[first], np.inf)
@@ -399,8 +410,9 @@ def _moved(problem: Problem, t: np.ndarray, index: int, factor: float) -> np.nda
 
 def _active(problem: Problem, t: np.ndarray) -> list[str]:
     """Requirements that a 1 % change (either way) of one free key breaks (below the confidence)."""
-    moved = [m for i in range(len(problem.free)) for f in (1 - STEP, 1 + STEP)
-             if (m := _moved(problem, t, i, f)) is not None]
+    moved = [
+        m for i in range(len(problem.free)) for f in (1 - STEP, 1 + STEP) if (m := _moved(problem, t, i, f)) is not None
+    ]
     if not moved:
         return []
     _, each = problem.probabilities(np.array(moved))
@@ -419,7 +431,7 @@ def _improvement_infeasible(problem: Problem, solver: Solver, t: np.ndarray, ind
     grid = _unit_grid(min(n, 65), k)
     candidates = np.repeat(moved[None, :], grid.shape[0] + 1, axis=0)
     if k:
-        candidates[1:, len(problem.objectives):] = grid
+        candidates[1:, len(problem.objectives) :] = grid
     return not problem.feasible(candidates).any()
 
 
@@ -442,7 +454,7 @@ def _diagnose(problem: Problem) -> SolveResult:
         else:
             best = int(np.argmax(each[:, j]))
             entry = {"requirement": str(requirement), "best_probability": float(each[best, j])}
-        entry["at"] = {key: float(v[0]) for key, v in problem.values(t[best:best + 1]).items()}
+        entry["at"] = {key: float(v[0]) for key, v in problem.values(t[best : best + 1]).items()}
         unmet.append(entry)
     conflicting = []
     if not unmet:
@@ -458,8 +470,13 @@ def _diagnose(problem: Problem) -> SolveResult:
 def solution_dict(solution: Solution, problem: Problem) -> dict:
     """One solution as JSON-able data: the free keys' values, the design's outputs (the keys of `uwlab design
     --json`), the active requirements, the checks and, with a posterior, the probability reached."""
-    entry = {"solution": solution.values, "outputs": to_jsonable(solution.outputs), "active": solution.active,
-             "minimal": solution.minimal, "at_bounds": solution.at_bounds}
+    entry = {
+        "solution": solution.values,
+        "outputs": to_jsonable(solution.outputs),
+        "active": solution.active,
+        "minimal": solution.minimal,
+        "at_bounds": solution.at_bounds,
+    }
     if solution.pareto is not None:
         entry["pareto"] = solution.pareto
     if problem.posterior is not None:
@@ -469,13 +486,18 @@ def solution_dict(solution: Solution, problem: Problem) -> dict:
 
 def result_dict(result: SolveResult, problem: Problem) -> dict:
     """The answer of `uwlab design solve --json` (see docs/design.md)."""
-    head = {"feasible": result.feasible,
-            "objectives": [{"key": o.key, "sense": o.sense} for o in problem.objectives],
-            "requirements": [str(r) for r in problem.requirements]}
+    head = {
+        "feasible": result.feasible,
+        "objectives": [{"key": o.key, "sense": o.sense} for o in problem.objectives],
+        "requirements": [str(r) for r in problem.requirements],
+    }
     if problem.posterior is not None:
         head["confidence"] = problem.confidence
-        head["posterior"] = {"fit": str(problem.posterior.fit_dir), "samples": problem.posterior.size,
-                             "carried": list(problem.posterior.carried)}
+        head["posterior"] = {
+            "fit": str(problem.posterior.fit_dir),
+            "samples": problem.posterior.size,
+            "carried": list(problem.posterior.carried),
+        }
     if not result.feasible:
         return {**head, "unmet": result.unmet, "conflicting": result.conflicting}
     if len(problem.objectives) == 1:

@@ -9,6 +9,7 @@ implementation (github.com/EMVA1288/emva1288) was read for the descriptor format
 taken from it, and it differs where it still follows Release 3.1 (e.g. the sensitivity threshold, the linearity
 error, the 5×5 highpass).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -46,9 +47,10 @@ def characterize(pt: PhotonTransfer, model: str = "linear") -> EmvaResult:
     images = None
     stack = pt.stack
     if stack is not None and stack.bright.mean_image is not None and stack.dark.mean_image is not None:
-        images = analyse_images(stack.bright.mean_image, stack.dark.mean_image, stack.bright.frames,
-                                stack.dark.frames)
+        images = analyse_images(stack.bright.mean_image, stack.dark.mean_image, stack.bright.frames, stack.dark.frames)
     elif stack is None:
-        values["notes"].append("no nonuniformity stacks: spectrograms, profiles and defect-pixel histograms need L "
-                               "averaged bright and dark frames (Release 4.0 §8)")
+        values["notes"].append(
+            "no nonuniformity stacks: spectrograms, profiles and defect-pixel histograms need L "
+            "averaged bright and dark frames (Release 4.0 §8)"
+        )
     return EmvaResult(values, curves, images)

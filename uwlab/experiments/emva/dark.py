@@ -8,6 +8,7 @@
 * Temperature dependence (§7.2): the dark current at each recorded temperature (dark measurements grouped to
   `TEMPERATURE_STEP_C`), presented as data (Release 4 assumes no model, §3.2).
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -75,8 +76,15 @@ def dark_current(series: DarkSeries) -> DarkCurrent | None:
     mean = fit_line(series.exposure_s, series.mean_dn)
     var = fit_line(series.exposure_s, series.var_dn2)
     temps = series.temperature_c[np.isfinite(series.temperature_c)]
-    return DarkCurrent(mean.slope, mean.slope_std, var.slope, var.slope_std, mean.intercept, exposures,
-                       float(np.median(temps)) if temps.size else None)
+    return DarkCurrent(
+        mean.slope,
+        mean.slope_std,
+        var.slope,
+        var.slope_std,
+        mean.intercept,
+        exposures,
+        float(np.median(temps)) if temps.size else None,
+    )
 
 
 def dark_current_by_temperature(series: DarkSeries) -> list[DarkCurrent]:

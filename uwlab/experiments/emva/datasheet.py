@@ -8,6 +8,7 @@ quantity of Table 2 in the table's units (the general model's version of Table 2
 in photons); then the verdicts and notes; then the detailed results (every other figure); and the provenance. No
 EMVA logo: a licence is needed to claim compliance (Preface), and this page says what it is instead.
 """
+
 from __future__ import annotations
 
 import base64
@@ -73,42 +74,97 @@ def summary_rows(values: dict) -> list[tuple[str, list[tuple[str, str, str]]]]:
     limit = "< " if v.get("dark_noise_upper_limit") else ""
     eta = v.get("quantum_efficiency")
     rows = [
-        ("Quantum efficiency", [("η", f"{100 * eta:.1f}" if eta is not None else "N/A (cannot be measured)",
-                                 "%" if eta is not None else "")]),
-        ("Overall system gain", [("K", _number(v.get("K_dn_per_e"), ".4g") if linear else "N/A", "DN/e-"),
-                                 ("1/K", _number(v.get("inverse_K_e_per_dn"), ".4g") if linear else "N/A", "e-/DN")]),
-        ("Temporal dark noise", [("σ_d", limit + _number(v.get(dark_key), ".3g"), q),
-                                 ("σ_y.dark", _number(v.get("dark_noise_dn"), ".3g"), "DN")]),
-        ("Signal-to-noise ratio", [("SNR_max" if linear else "SNR_p.max", _number(v.get("snr_max"), ".4g"), ""),
-                                   ("", _number(v.get("snr_max_db"), ".1f"), "dB"),
-                                   ("1/SNR_max", _number(v.get("inverse_snr_max_percent"), ".3g"), "%")]),
+        (
+            "Quantum efficiency",
+            [
+                (
+                    "η",
+                    f"{100 * eta:.1f}" if eta is not None else "N/A (cannot be measured)",
+                    "%" if eta is not None else "",
+                )
+            ],
+        ),
+        (
+            "Overall system gain",
+            [
+                ("K", _number(v.get("K_dn_per_e"), ".4g") if linear else "N/A", "DN/e-"),
+                ("1/K", _number(v.get("inverse_K_e_per_dn"), ".4g") if linear else "N/A", "e-/DN"),
+            ],
+        ),
+        (
+            "Temporal dark noise",
+            [
+                ("σ_d", limit + _number(v.get(dark_key), ".3g"), q),
+                ("σ_y.dark", _number(v.get("dark_noise_dn"), ".3g"), "DN"),
+            ],
+        ),
+        (
+            "Signal-to-noise ratio",
+            [
+                ("SNR_max" if linear else "SNR_p.max", _number(v.get("snr_max"), ".4g"), ""),
+                ("", _number(v.get("snr_max_db"), ".1f"), "dB"),
+                ("1/SNR_max", _number(v.get("inverse_snr_max_percent"), ".3g"), "%"),
+            ],
+        ),
     ]
     if linear:
         rows += [
-            ("Absolute sensitivity threshold", [("μ_e.min", _number(v["sensitivity_threshold_e"], ".3g"), "e-"),
-                                                ("μ_e.min.area", _number(v.get("sensitivity_threshold_e_per_um2"),
-                                                                         ".3g"), "e-/µm²")]),
-            ("Saturation capacity", [("μ_e.sat", _number(v["saturation_e"], ".5g"), "e-"),
-                                     ("μ_e.sat.area", _number(v.get("saturation_e_per_um2"), ".4g"), "e-/µm²")]),
+            (
+                "Absolute sensitivity threshold",
+                [
+                    ("μ_e.min", _number(v["sensitivity_threshold_e"], ".3g"), "e-"),
+                    ("μ_e.min.area", _number(v.get("sensitivity_threshold_e_per_um2"), ".3g"), "e-/µm²"),
+                ],
+            ),
+            (
+                "Saturation capacity",
+                [
+                    ("μ_e.sat", _number(v["saturation_e"], ".5g"), "e-"),
+                    ("μ_e.sat.area", _number(v.get("saturation_e_per_um2"), ".4g"), "e-/µm²"),
+                ],
+            ),
         ]
     else:
         rows += [
-            ("Absolute sensitivity threshold", [("μ_p.min", _number(v["sensitivity_threshold_photons"], ".3g"), "p"),
-                                                ("μ_p.min.area", _number(v.get("sensitivity_threshold_photons_per_um2"),
-                                                                         ".3g"), "p/µm²")]),
-            ("Saturation capacity", [("μ_p.sat", _number(v["saturation_photons"], ".5g"), "p"),
-                                     ("μ_p.sat.area", _number(v.get("saturation_photons_per_um2"), ".4g"), "p/µm²")]),
+            (
+                "Absolute sensitivity threshold",
+                [
+                    ("μ_p.min", _number(v["sensitivity_threshold_photons"], ".3g"), "p"),
+                    ("μ_p.min.area", _number(v.get("sensitivity_threshold_photons_per_um2"), ".3g"), "p/µm²"),
+                ],
+            ),
+            (
+                "Saturation capacity",
+                [
+                    ("μ_p.sat", _number(v["saturation_photons"], ".5g"), "p"),
+                    ("μ_p.sat.area", _number(v.get("saturation_photons_per_um2"), ".4g"), "p/µm²"),
+                ],
+            ),
         ]
     rows += [
-        ("Dynamic range", [("DR", _number(v.get("dynamic_range"), ".4g"), ""),
-                           ("", _number(v.get("dynamic_range_db"), ".1f"), "dB")]),
-        ("Spatial nonuniformities", [(f"DSNU1288{s}", _number(v.get(f"dsnu{k}_{q[0]}"), ".3g"), q)
-                                     for s, k in (("", ""), (".col", "_col"), (".row", "_row"), (".pix", "_pixel"))]
-         + [(f"PRNU1288{s}", _number(v.get(f"prnu{k}_percent"), ".3g"), "%")
-            for s, k in (("", ""), (".col", "_col"), (".row", "_row"), (".pix", "_pixel"))]),
+        (
+            "Dynamic range",
+            [("DR", _number(v.get("dynamic_range"), ".4g"), ""), ("", _number(v.get("dynamic_range_db"), ".1f"), "dB")],
+        ),
+        (
+            "Spatial nonuniformities",
+            [
+                (f"DSNU1288{s}", _number(v.get(f"dsnu{k}_{q[0]}"), ".3g"), q)
+                for s, k in (("", ""), (".col", "_col"), (".row", "_row"), (".pix", "_pixel"))
+            ]
+            + [
+                (f"PRNU1288{s}", _number(v.get(f"prnu{k}_percent"), ".3g"), "%")
+                for s, k in (("", ""), (".col", "_col"), (".row", "_row"), (".pix", "_pixel"))
+            ],
+        ),
         ("Linearity error", [("LE", _number(v.get("linearity_error_percent"), ".3g"), "%")]),
-        ("Dark current", [("μ_I.mean", _with_std(v, f"dark_current_{q[0]}_per_s", ".3g"), f"{q}/s"),
-                          ("μ_I.var", _with_std(v, f"dark_current_var_{q[0]}_per_s", ".3g"), f"{q}/s")]),
+        (
+            "Dark current",
+            [
+                ("μ_I.mean", _with_std(v, f"dark_current_{q[0]}_per_s", ".3g"), f"{q}/s"),
+                ("μ_I.var", _with_std(v, f"dark_current_var_{q[0]}_per_s", ".3g"), f"{q}/s"),
+            ],
+        ),
     ]
     return rows
 
@@ -123,17 +179,32 @@ def verdicts(values: dict) -> list[tuple[str, str]]:
         if deviation is None:
             out.append(("warn", "Linear model not checked (eq. 51): too few points up to saturation."))
         elif linear_model_holds(deviation, noise, le):
-            out.append(("ok", f"Linear model holds: photon transfer slope deviation {100 * deviation:.2g} % "
-                              f"({100 * noise:.2g} % from noise alone; limit 3 %, eq. 51), linearity error "
-                              f"{le:.2g} %."))
+            out.append(
+                (
+                    "ok",
+                    f"Linear model holds: photon transfer slope deviation {100 * deviation:.2g} % "
+                    f"({100 * noise:.2g} % from noise alone; limit 3 %, eq. 51), linearity error "
+                    f"{le:.2g} %.",
+                )
+            )
         else:
-            out.append(("bad", f"Linear model does not hold: photon transfer slope deviation {100 * deviation:.2g} % "
-                               f"({100 * noise:.2g} % from noise; eq. 51), linearity error {le:.2g} % — use the "
-                               "general model (--model general)."))
+            out.append(
+                (
+                    "bad",
+                    f"Linear model does not hold: photon transfer slope deviation {100 * deviation:.2g} % "
+                    f"({100 * noise:.2g} % from noise; eq. 51), linearity error {le:.2g} % — use the "
+                    "general model (--model general).",
+                )
+            )
     else:
         out.append(("ok", "General model (Release 4.0 General): K and η are not measured; quantities in photons."))
-    out.append(("info", f"Saturation at point {v['saturation_index']} by the {v['saturation_rule']}; the variance "
-                        f"maximum is at point {v['variance_max_index']}."))
+    out.append(
+        (
+            "info",
+            f"Saturation at point {v['saturation_index']} by the {v['saturation_rule']}; the variance "
+            f"maximum is at point {v['variance_max_index']}.",
+        )
+    )
     return out
 
 
@@ -173,16 +244,25 @@ def datasheet_html(result: EmvaResult, figures: list[Path], info: SheetInfo) -> 
     """The datasheet page of ``result`` with the PNG ``figures`` (written by `uwlab.experiments.emva.plots`)."""
     from jinja2 import Environment, PackageLoader, select_autoescape
 
-    env = Environment(loader=PackageLoader("uwlab.experiments.emva", "templates"),
-                      autoescape=select_autoescape(["html", "j2"]))
+    env = Environment(
+        loader=PackageLoader("uwlab.experiments.emva", "templates"), autoescape=select_autoescape(["html", "j2"])
+    )
     v = result.values
     by_name = {p.name: p for p in figures}
     summary = [(CAPTIONS[n], _data_uri(by_name[n])) for n in SUMMARY_FIGURES[v["model"]] if n in by_name]
-    details = [(CAPTIONS.get(p.name, p.stem), _data_uri(p)) for p in figures
-               if p.name not in SUMMARY_FIGURES[v["model"]]]
+    details = [
+        (CAPTIONS.get(p.name, p.stem), _data_uri(p)) for p in figures if p.name not in SUMMARY_FIGURES[v["model"]]
+    ]
     return env.get_template(TEMPLATE).render(
-        v=v, info=info, rows=summary_rows(v), verdicts=verdicts(v), notes=v.get("notes", []),
-        operation=operation_point(v, result.curves), summary=summary, details=details, version=__version__,
+        v=v,
+        info=info,
+        rows=summary_rows(v),
+        verdicts=verdicts(v),
+        notes=v.get("notes", []),
+        operation=operation_point(v, result.curves),
+        summary=summary,
+        details=details,
+        version=__version__,
         generated=datetime.now(UTC).isoformat(timespec="seconds"),
     )
 

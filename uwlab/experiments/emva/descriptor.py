@@ -27,6 +27,7 @@ Images are read one at a time (OpenCV, tifffile for TIFFs OpenCV cannot read) in
 statistics. The clip level (`uwlab.experiments.saturation.clip_level`) is found once, from the first image of the
 brightest bright block (a pile-up at the top code), else it is the ADC maximum 2^BITS − 1.
 """
+
 from __future__ import annotations
 
 import math
@@ -122,13 +123,15 @@ def parse_descriptor(path: str | Path) -> Descriptor:
         elif tag == "n" and len(rest) in (3, 4):
             if fmt is not None:
                 raise ConfigError(where, line, "only one 'n bits width height' line is allowed")
-            fmt = (_integer(rest[0], where, "bits", SUPPORTED_BITS), _integer(rest[1], where, "width"),
-                   _integer(rest[2], where, "height"))
+            fmt = (
+                _integer(rest[0], where, "bits", SUPPORTED_BITS),
+                _integer(rest[1], where, "width"),
+                _integer(rest[2], where, "height"),
+            )
             if len(rest) == 4:
                 _number(rest[3], where, "offset", positive=False)
         elif tag == "b" and len(rest) == 2:
-            current = [False, _number(rest[0], where, "exposure [ns]"), _number(rest[1], where, "photons"), [],
-                       lineno]
+            current = [False, _number(rest[0], where, "exposure [ns]"), _number(rest[1], where, "photons"), [], lineno]
         elif tag == "d" and len(rest) == 1:
             current = [True, _number(rest[0], where, "exposure [ns]"), 0.0, [], lineno]
         elif tag == "l" and rest:
@@ -158,8 +161,11 @@ def _check_blocks(blocks: list[Block], name: str) -> None:
     for block in (b for b in temporal if b.dark):
         if block.exposure_ns in seen_dark:
             first = seen_dark[block.exposure_ns].line
-            raise ConfigError(f"{name}:{block.line}", f"d {block.exposure_ns:g}",
-                              f"a second dark block at this exposure (first at line {first})")
+            raise ConfigError(
+                f"{name}:{block.line}",
+                f"d {block.exposure_ns:g}",
+                f"a second dark block at this exposure (first at line {first})",
+            )
         seen_dark[block.exposure_ns] = block
     bright = [b for b in temporal if not b.dark]
     exposures = {b.exposure_ns for b in bright}
@@ -169,14 +175,20 @@ def _check_blocks(blocks: list[Block], name: str) -> None:
         where = f"{name}:{block.line}"
         key = (block.exposure_ns, block.photons)
         if key in seen_bright:
-            raise ConfigError(where, f"b {block.exposure_ns:g} {block.photons:g}",
-                              f"the same bright measurement again (first at line {seen_bright[key].line})")
+            raise ConfigError(
+                where,
+                f"b {block.exposure_ns:g} {block.photons:g}",
+                f"the same bright measurement again (first at line {seen_bright[key].line})",
+            )
         seen_bright[key] = block
         if block.exposure_ns in by_exposure and len(exposures) > 1:
             first = by_exposure[block.exposure_ns].line
-            raise ConfigError(where, f"b {block.exposure_ns:g}",
-                              f"a second bright block at this exposure (first at line {first}): a descriptor varies "
-                              "either the exposure (one b block per exposure) or the photons at one exposure")
+            raise ConfigError(
+                where,
+                f"b {block.exposure_ns:g}",
+                f"a second bright block at this exposure (first at line {first}): a descriptor varies "
+                "either the exposure (one b block per exposure) or the photons at one exposure",
+            )
         by_exposure.setdefault(block.exposure_ns, block)
         if block.exposure_ns not in seen_dark:
             raise ConfigError(where, f"b {block.exposure_ns:g}", "no dark (d) block with two images at this exposure")
@@ -184,11 +196,17 @@ def _check_blocks(blocks: list[Block], name: str) -> None:
     for dark in (True, False):
         kind = [b for b in spatial if b.dark == dark]
         if len(kind) > 1:
-            raise ConfigError(f"{name}:{kind[1].line}", len(kind[1].images),
-                              f"a second spatial {'dark' if dark else 'bright'} block (first at line {kind[0].line})")
+            raise ConfigError(
+                f"{name}:{kind[1].line}",
+                len(kind[1].images),
+                f"a second spatial {'dark' if dark else 'bright'} block (first at line {kind[0].line})",
+            )
     if len(spatial) == 1 or (len(spatial) == 2 and spatial[0].exposure_ns != spatial[1].exposure_ns):
-        raise ConfigError(f"{name}:{spatial[-1].line}", len(spatial[-1].images),
-                          "a spatial block needs a bright and a dark stack at the same exposure")
+        raise ConfigError(
+            f"{name}:{spatial[-1].line}",
+            len(spatial[-1].images),
+            "a spatial block needs a bright and a dark stack at the same exposure",
+        )
 
 
 def format_descriptor(desc: Descriptor, comments: tuple[str, ...] = ()) -> str:
@@ -227,11 +245,16 @@ class ImageReader:
         if image is None:
             raise ConfigError("image", str(path), "unreadable image")
         if image.ndim != 2 or image.dtype.kind not in "ui":
-            raise ConfigError("image", str(path),
-                              f"expected a monochrome integer image, got {image.dtype}{image.shape}")
+            raise ConfigError(
+                "image", str(path), f"expected a monochrome integer image, got {image.dtype}{image.shape}"
+            )
         if image.shape != self.shape:
-            raise ConfigError("image", str(path), f"size {image.shape[1]}x{image.shape[0]} differs from the "
-                                                  f"descriptor's n line ({self.shape[1]}x{self.shape[0]})")
+            raise ConfigError(
+                "image",
+                str(path),
+                f"size {image.shape[1]}x{image.shape[0]} differs from the "
+                f"descriptor's n line ({self.shape[1]}x{self.shape[0]})",
+            )
         if image.min() < 0 or image.max() > self.full:
             raise ConfigError("image", str(path), f"values outside 0..{self.full} (the descriptor's bit depth)")
         return image if image.dtype.itemsize <= 2 else image.astype(np.uint16 if self.full > 255 else np.uint8)
@@ -266,17 +289,31 @@ def photon_transfer_from_descriptor(path: str | Path, pixel_size_um: float | Non
     arr = lambda seq, name: np.array([getattr(s, name) for s in seq], float)  # noqa: E731
     dark_t = np.array(sorted(darks))
     return PhotonTransfer(
-        photons=np.array([b.photons for b in bright]), exposure_s=np.array([b.exposure_ns for b in bright]) * 1e-9,
-        mean_dn=arr(stats, "mean_dn"), temporal_var_dn2=arr(stats, "temporal_var_dn2"), frames=arr(stats, "frames"),
-        dark_mean_dn=arr(dark_at, "mean_dn"), dark_temporal_var_dn2=arr(dark_at, "temporal_var_dn2"),
-        dark_frames=arr(dark_at, "frames"), spatial=SpatialSplit.of(stats), dark_spatial=SpatialSplit.of(dark_at),
-        dark=DarkSeries(dark_t * 1e-9, [darks[t].mean_dn for t in dark_t], [darks[t].temporal_var_dn2 for t in dark_t],
-                        np.full(len(dark_t), np.nan)),
-        bit_depth=desc.bits, saturated_fraction=arr(stats, "saturated_fraction"),
+        photons=np.array([b.photons for b in bright]),
+        exposure_s=np.array([b.exposure_ns for b in bright]) * 1e-9,
+        mean_dn=arr(stats, "mean_dn"),
+        temporal_var_dn2=arr(stats, "temporal_var_dn2"),
+        frames=arr(stats, "frames"),
+        dark_mean_dn=arr(dark_at, "mean_dn"),
+        dark_temporal_var_dn2=arr(dark_at, "temporal_var_dn2"),
+        dark_frames=arr(dark_at, "frames"),
+        spatial=SpatialSplit.of(stats),
+        dark_spatial=SpatialSplit.of(dark_at),
+        dark=DarkSeries(
+            dark_t * 1e-9,
+            [darks[t].mean_dn for t in dark_t],
+            [darks[t].temporal_var_dn2 for t in dark_t],
+            np.full(len(dark_t), np.nan),
+        ),
+        bit_depth=desc.bits,
+        saturated_fraction=arr(stats, "saturated_fraction"),
         mean_diff_dn=arr(stats, "mean_diff_dn"),
-        stack=_stack(desc, reader, clip), width_px=desc.width, height_px=desc.height,
+        stack=_stack(desc, reader, clip),
+        width_px=desc.width,
+        height_px=desc.height,
         pixel_area_m2=(pixel_size_um * 1e-6) ** 2 if pixel_size_um else None,
-        source=f"descriptor {path}", notes=(f"clip level {clip.dn:g} DN ({clip.source})",),
+        source=f"descriptor {path}",
+        notes=(f"clip level {clip.dn:g} DN ({clip.source})",),
     )
 
 
@@ -289,9 +326,13 @@ def _stack(desc: Descriptor, reader: ImageReader, clip: ClipLevel) -> Nonuniform
     return NonuniformityStack(stats[False], stats[True], bright.photons, bright.exposure_ns * 1e-9)
 
 
-SHEET_VARIABLES = {"vendor": ("vendor", "vendorname"), "model": ("model", "modelname", "cameramodel"),
-                   "serial": ("serial", "serialnumber"), "interface": ("interface", "interfacetype"),
-                   "measured": ("date", "measurementdate")}
+SHEET_VARIABLES = {
+    "vendor": ("vendor", "vendorname"),
+    "model": ("model", "modelname", "cameramodel"),
+    "serial": ("serial", "serialnumber"),
+    "interface": ("interface", "interfacetype"),
+    "measured": ("date", "measurementdate"),
+}
 
 
 def sheet_info(desc: Descriptor) -> SheetInfo:

@@ -9,6 +9,7 @@ Without recorded frames the images are synthetic: generated from each point's st
 with quantisation, and the highpassed spatial variance split into a dark and a photo-response fixed pattern shared by
 all images), at a chosen size; the descriptor's comments say so.
 """
+
 from __future__ import annotations
 
 from collections.abc import Iterator
@@ -33,8 +34,16 @@ class Pattern:
     photo: np.ndarray
 
 
-def synthetic_frames(mean_dn: float, temporal_var_dn2: float, spatial_var_dn2: float, dark_spatial_var_dn2: float,
-                     count: int, pattern: Pattern, rng: np.random.Generator, bits: int) -> Iterator[np.ndarray]:
+def synthetic_frames(
+    mean_dn: float,
+    temporal_var_dn2: float,
+    spatial_var_dn2: float,
+    dark_spatial_var_dn2: float,
+    count: int,
+    pattern: Pattern,
+    rng: np.random.Generator,
+    bits: int,
+) -> Iterator[np.ndarray]:
     """Frames whose mean, temporal variance (quantisation included) and spatial variance (split into the dark part
     and the photo-response part) reproduce the given statistics."""
     dark_sd = np.sqrt(max(dark_spatial_var_dn2, 0.0))
@@ -51,8 +60,9 @@ def _finite(value: float) -> float:
     return float(value) if np.isfinite(value) else 0.0
 
 
-def write_descriptor(pt: PhotonTransfer, out_dir: str | Path, *, shape: tuple[int, int] = (256, 256),
-                     seed: int = 0, source: str = "") -> Path:
+def write_descriptor(
+    pt: PhotonTransfer, out_dir: str | Path, *, shape: tuple[int, int] = (256, 256), seed: int = 0, source: str = ""
+) -> Path:
     """Export a photon transfer as a descriptor dataset with synthetic TIFF images (see `synthetic_frames`): two
     bright and two dark images per point, plus nonuniformity stacks (`SPATIAL_FRAMES` images) at the point nearest
     50 % saturation. Refuses to write into an existing descriptor."""
@@ -77,10 +87,19 @@ def write_descriptor(pt: PhotonTransfer, out_dir: str | Path, *, shape: tuple[in
     def frames_of(i: int, dark: bool, count: int):
         s2_dark = _finite(pt.dark_spatial.total[i])
         if dark:
-            return synthetic_frames(pt.dark_mean_dn[i], pt.dark_temporal_var_dn2[i], s2_dark, s2_dark, count, pattern,
-                                    rng, pt.bit_depth)
-        return synthetic_frames(pt.mean_dn[i], pt.temporal_var_dn2[i], _finite(pt.spatial.total[i]), s2_dark, count,
-                                pattern, rng, pt.bit_depth)
+            return synthetic_frames(
+                pt.dark_mean_dn[i], pt.dark_temporal_var_dn2[i], s2_dark, s2_dark, count, pattern, rng, pt.bit_depth
+            )
+        return synthetic_frames(
+            pt.mean_dn[i],
+            pt.temporal_var_dn2[i],
+            _finite(pt.spatial.total[i]),
+            s2_dark,
+            count,
+            pattern,
+            rng,
+            pt.bit_depth,
+        )
 
     dark_done = set()
     for i in range(len(pt.photons)):
@@ -125,8 +144,9 @@ def _target(out_dir: str | Path) -> Path:
     return target
 
 
-def write_descriptor_from_frames(dataset, pt: PhotonTransfer, out_dir: str | Path, *, dark_points=(),
-                                 source: str = "") -> Path:
+def write_descriptor_from_frames(
+    dataset, pt: PhotonTransfer, out_dir: str | Path, *, dark_points=(), source: str = ""
+) -> Path:
     """Export the recorded frames of ``pt``'s points (and of ``dark_points``: (sweep_id, point_index, exposure [s])
     of dark sweeps) as a descriptor dataset (module docstring). Refuses to write into an existing descriptor."""
     import tifffile
@@ -159,8 +179,9 @@ def write_descriptor_from_frames(dataset, pt: PhotonTransfer, out_dir: str | Pat
     dark_exposures = set()
     for i, found in enumerate(frames):
         if len(found.bright) < 2 or len(found.dark) < 2:
-            raise ConfigError("point", f"{pt.sweep_id}#{int(pt.point_index[i])}",
-                              "needs two recorded bright and two dark frames")
+            raise ConfigError(
+                "point", f"{pt.sweep_id}#{int(pt.point_index[i])}", "needs two recorded bright and two dark frames"
+            )
         copy(found.bright[:2], False, pt.exposure_s[i], pt.photons[i])
         key = round(pt.exposure_s[i] * 1e9, 3)
         if key not in dark_exposures:

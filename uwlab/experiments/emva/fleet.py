@@ -5,6 +5,7 @@ A camera whose data are refused (a one-line `UwlabError`) gets a row with the re
 output directory each camera's files (`uwlab.experiments.emva.output`) go to a sub-directory of its own, and the
 table to ``fleet.csv`` and ``fleet.json``.
 """
+
 from __future__ import annotations
 
 from collections.abc import Callable
@@ -16,12 +17,20 @@ from uwlab.jsonable import dumps
 from uwlab.outputs import output_dir
 
 DESCRIPTOR_GLOB = "EMVA1288*.txt"
-COLUMNS = (("K_dn_per_e", "K [DN/e-]", ".4g"), ("quantum_efficiency", "η", ".3f"), ("dark_noise_e", "σ_d [e-]", ".3g"),
-           ("dark_noise_p", "σ_d [p]", ".3g"), ("saturation_e", "μ_e.sat [e-]", ".5g"),
-           ("saturation_photons", "μ_p.sat [p]", ".5g"), ("dynamic_range_db", "DR [dB]", ".1f"),
-           ("snr_max_db", "SNR_max [dB]", ".1f"), ("linearity_error_percent", "LE [%]", ".3g"),
-           ("dsnu_e", "DSNU [e-]", ".3g"), ("prnu_percent", "PRNU [%]", ".3g"),
-           ("dark_current_e_per_s", "I_dark [e-/s]", ".3g"))
+COLUMNS = (
+    ("K_dn_per_e", "K [DN/e-]", ".4g"),
+    ("quantum_efficiency", "η", ".3f"),
+    ("dark_noise_e", "σ_d [e-]", ".3g"),
+    ("dark_noise_p", "σ_d [p]", ".3g"),
+    ("saturation_e", "μ_e.sat [e-]", ".5g"),
+    ("saturation_photons", "μ_p.sat [p]", ".5g"),
+    ("dynamic_range_db", "DR [dB]", ".1f"),
+    ("snr_max_db", "SNR_max [dB]", ".1f"),
+    ("linearity_error_percent", "LE [%]", ".3g"),
+    ("dsnu_e", "DSNU [e-]", ".3g"),
+    ("prnu_percent", "PRNU [%]", ".3g"),
+    ("dark_current_e_per_s", "I_dark [e-/s]", ".3g"),
+)
 
 
 @dataclass(frozen=True)
@@ -44,8 +53,9 @@ def find_inputs(folder: str | Path) -> list[FleetInput]:
     found = [FleetInput(p.parent, "dataset") for p in folder.rglob("metadata.json")]
     found += [FleetInput(p, "descriptor") for p in folder.rglob("*") if p.is_file() and p.match(DESCRIPTOR_GLOB)]
     if not found:
-        raise ConfigError("folder", str(folder),
-                          f"no datasets (metadata.json) or descriptors ({DESCRIPTOR_GLOB}) in it")
+        raise ConfigError(
+            "folder", str(folder), f"no datasets (metadata.json) or descriptors ({DESCRIPTOR_GLOB}) in it"
+        )
     return sorted(found, key=lambda f: str(f.path))
 
 
@@ -59,8 +69,12 @@ class FleetRow:
     error: str | None = None
 
     def document(self) -> dict:
-        row = {"camera": self.camera, "source": self.source, "status": "ok" if self.error is None else "refused",
-               "error": self.error}
+        row = {
+            "camera": self.camera,
+            "source": self.source,
+            "status": "ok" if self.error is None else "refused",
+            "error": self.error,
+        }
         values = self.values or {}
         row |= {key: values.get(key) for key, _, _ in COLUMNS}
         row |= {"model": values.get("model"), "notes": values.get("notes", [])}
@@ -92,8 +106,14 @@ def characterize_input(item: FleetInput, *, model: str, pixel_size_um: float | N
     return FleetRow(camera, str(item.path), document)
 
 
-def characterize_fleet(inputs: list[FleetInput], *, model: str = "linear", pixel_size_um: float | None = None,
-                       out: Path | None = None, progress: Callable[[FleetRow], None] | None = None) -> list[FleetRow]:
+def characterize_fleet(
+    inputs: list[FleetInput],
+    *,
+    model: str = "linear",
+    pixel_size_um: float | None = None,
+    out: Path | None = None,
+    progress: Callable[[FleetRow], None] | None = None,
+) -> list[FleetRow]:
     """One `FleetRow` per input; ``progress`` is called after each camera."""
     from uwlab.experiments.emva.output import profile_name
 

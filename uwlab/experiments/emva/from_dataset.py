@@ -19,6 +19,7 @@ saturated fraction, μ[0] − μ[1] and the temperature are taken when recorded.
 the dark current, with its temperatures) is every dark measurement of the camera at the sweep's gain: the sweep's
 own dark frames and the rows of ``dark`` sweeps.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -36,8 +37,21 @@ from uwlab.model.photometry import photon_flux, photons_per_joule
 from uwlab.model.sensor import SensorProfile, load_sensor_profile
 
 SWEEP_KINDS = ("exposure", "light-level")
-REQUIRED_COLUMNS = ("sweep_id", "point_index", "kind", "exposure_us", "light_on", "frames", "bit_depth",
-                    "mean_dn", "temporal_var_dn2", "dark_mean_dn", "dark_temporal_var_dn2", "dark_frames", "gain_db")
+REQUIRED_COLUMNS = (
+    "sweep_id",
+    "point_index",
+    "kind",
+    "exposure_us",
+    "light_on",
+    "frames",
+    "bit_depth",
+    "mean_dn",
+    "temporal_var_dn2",
+    "dark_mean_dn",
+    "dark_temporal_var_dn2",
+    "dark_frames",
+    "gain_db",
+)
 SENSOR_PLANE = "sensor"
 
 
@@ -91,8 +105,13 @@ def select_sweep(points: pd.DataFrame, sweep_id: str | None) -> str:
             raise ConfigError("--sweep", sweep_id, f"not an exposure/light-level sweep; have {candidates or 'none'}")
         return sweep_id
     if len(candidates) != 1:
-        raise ConfigError("--sweep", None, f"choose one photon-transfer sweep of {candidates}" if candidates
-                          else "the dataset has no exposure or light-level sweep")
+        raise ConfigError(
+            "--sweep",
+            None,
+            f"choose one photon-transfer sweep of {candidates}"
+            if candidates
+            else "the dataset has no exposure or light-level sweep",
+        )
     return candidates[0]
 
 
@@ -117,10 +136,13 @@ def named_profile(points: pd.DataFrame) -> SensorProfile | None:
 
 
 def _refuse_position(where: str, position) -> None:
-    raise ConfigError(f"{where}: irradiance_position", position,
-                      "EMVA 1288 needs the irradiance at the sensor plane (Release 4.0 §6.4): read the spectrometer "
-                      "at the 'sensor' position (e.g. the bench rig configs/rigs/sim-emva-bench.toml) or pass "
-                      "--irradiance")
+    raise ConfigError(
+        f"{where}: irradiance_position",
+        position,
+        "EMVA 1288 needs the irradiance at the sensor plane (Release 4.0 §6.4): read the spectrometer "
+        "at the 'sensor' position (e.g. the bench rig configs/rigs/sim-emva-bench.toml) or pass "
+        "--irradiance",
+    )
 
 
 def _row_photon_irradiance(row, spectra: pd.DataFrame, wavelength_nm: float | None) -> tuple[float, float | None]:
@@ -128,8 +150,10 @@ def _row_photon_irradiance(row, spectra: pd.DataFrame, wavelength_nm: float | No
     spec = spectra[(spectra["sweep_id"] == row.sweep_id) & (spectra["point_index"] == row.point_index)]
     at_sensor = spec[spec["position"] == SENSOR_PLANE]
     if len(at_sensor) >= 2:
-        return (float(photon_flux(at_sensor["wavelength_nm"], at_sensor["irradiance_w_m2_nm"])),
-                photon_weighted_wavelength(at_sensor["wavelength_nm"], at_sensor["irradiance_w_m2_nm"]))
+        return (
+            float(photon_flux(at_sensor["wavelength_nm"], at_sensor["irradiance_w_m2_nm"])),
+            photon_weighted_wavelength(at_sensor["wavelength_nm"], at_sensor["irradiance_w_m2_nm"]),
+        )
     position = getattr(row, "irradiance_position", None)
     if len(spec):
         _refuse_position(where, str(spec["position"].iloc[0]))
@@ -143,8 +167,9 @@ def _row_photon_irradiance(row, spectra: pd.DataFrame, wavelength_nm: float | No
     return float(irradiance * photons_per_joule(wavelength_nm)), wavelength_nm
 
 
-def _photon_irradiances(rows: pd.DataFrame, spectra: pd.DataFrame, override: IrradianceOverride | None,
-                        wavelength_nm: float | None) -> tuple[np.ndarray, float | None]:
+def _photon_irradiances(
+    rows: pd.DataFrame, spectra: pd.DataFrame, override: IrradianceOverride | None, wavelength_nm: float | None
+) -> tuple[np.ndarray, float | None]:
     if override is not None:
         base = override.photon_irradiance()
         scale = np.where(rows["kind"] == "light-level", rows["light_level"].astype(float), 1.0)
@@ -178,19 +203,42 @@ def _dark_series(points: pd.DataFrame, rows: pd.DataFrame) -> DarkSeries:
     """Every distinct dark measurement of the sweep's camera at its gain: the sweep's own dark frames and the rows
     of dark sweeps (exposure [s], mean [DN], temporal variance [DN²], temperature [°C])."""
     columns = ["exposure_us", "m", "v", "temperature_c"]
-    own = pd.DataFrame({"exposure_us": _column(rows, "exposure_us"), "m": _column(rows, "dark_mean_dn"),
-                        "v": _column(rows, "dark_temporal_var_dn2"), "temperature_c": _column(rows, "temperature_c")})
+    own = pd.DataFrame(
+        {
+            "exposure_us": _column(rows, "exposure_us"),
+            "m": _column(rows, "dark_mean_dn"),
+            "v": _column(rows, "dark_temporal_var_dn2"),
+            "temperature_c": _column(rows, "temperature_c"),
+        }
+    )
     dark = dark_rows(points, rows)
-    other = pd.DataFrame({"exposure_us": _column(dark, "exposure_us"), "m": _column(dark, "mean_dn"),
-                          "v": _column(dark, "temporal_var_dn2"), "temperature_c": _column(dark, "temperature_c")})
+    other = pd.DataFrame(
+        {
+            "exposure_us": _column(dark, "exposure_us"),
+            "m": _column(dark, "mean_dn"),
+            "v": _column(dark, "temporal_var_dn2"),
+            "temperature_c": _column(dark, "temperature_c"),
+        }
+    )
     series = pd.concat([own, other])[columns].dropna(subset=columns[:3]).drop_duplicates()
-    return DarkSeries(series["exposure_us"].to_numpy() * 1e-6, series["m"].to_numpy(), series["v"].to_numpy(),
-                      series["temperature_c"].to_numpy(float))
+    return DarkSeries(
+        series["exposure_us"].to_numpy() * 1e-6,
+        series["m"].to_numpy(),
+        series["v"].to_numpy(),
+        series["temperature_c"].to_numpy(float),
+    )
 
 
-def photon_transfer_from_points(points: pd.DataFrame, spectra: pd.DataFrame, *, sweep_id: str | None = None,
-                                pixel_size_um: float | None = None, override: IrradianceOverride | None = None,
-                                wavelength_nm: float | None = None, source: str = "") -> PhotonTransfer:
+def photon_transfer_from_points(
+    points: pd.DataFrame,
+    spectra: pd.DataFrame,
+    *,
+    sweep_id: str | None = None,
+    pixel_size_um: float | None = None,
+    override: IrradianceOverride | None = None,
+    wavelength_nm: float | None = None,
+    source: str = "",
+) -> PhotonTransfer:
     """The `PhotonTransfer` of one sweep of a dataset's points/spectra tables (see the module docstring)."""
     check_columns(points, source or "dataset")
     sweep = select_sweep(points, sweep_id)
@@ -200,8 +248,11 @@ def photon_transfer_from_points(points: pd.DataFrame, spectra: pd.DataFrame, *, 
     no_dark = rows["dark_mean_dn"].isna() | rows["dark_temporal_var_dn2"].isna()
     if no_dark.any():
         first = rows[no_dark].iloc[0]
-        raise ConfigError(f"sweep {sweep} point {first.point_index}: dark_mean_dn", None,
-                          "no dark frames: EMVA 1288 needs dark statistics at every point")
+        raise ConfigError(
+            f"sweep {sweep} point {first.point_index}: dark_mean_dn",
+            None,
+            "no dark frames: EMVA 1288 needs dark statistics at every point",
+        )
     if rows["gain_db"].nunique(dropna=False) > 1:
         raise ConfigError(f"sweep {sweep}: gain_db", sorted(rows["gain_db"].unique()), "must be constant")
     e_p, lam = _photon_irradiances(rows, spectra, override, wavelength_nm)
@@ -212,16 +263,30 @@ def photon_transfer_from_points(points: pd.DataFrame, spectra: pd.DataFrame, *, 
     col = lambda name: rows[name].to_numpy(float)  # noqa: E731
     notes = () if override is None else ("irradiance from --irradiance (taken to be at the sensor plane)",)
     return PhotonTransfer(
-        photons=photons_per_pixel(e_p, exposure_s, area), exposure_s=exposure_s,
-        mean_dn=col("mean_dn"), temporal_var_dn2=col("temporal_var_dn2"), frames=col("frames"),
-        dark_mean_dn=col("dark_mean_dn"), dark_temporal_var_dn2=col("dark_temporal_var_dn2"),
-        dark_frames=col("dark_frames"), spatial=_split(rows, ""), dark_spatial=_split(rows, "dark_"),
-        dark=_dark_series(points, rows), bit_depth=int(rows["bit_depth"].iloc[0]),
-        saturated_fraction=_column(rows, "saturated_fraction"), mean_diff_dn=_column(rows, "mean_diff_dn"),
-        temperature_c=_column(rows, "temperature_c"), point_index=_column(rows, "point_index"), sweep_id=sweep,
-        width_px=int(width.iloc[0]) if len(width) else 0, height_px=int(height.iloc[0]) if len(height) else 0,
-        pixel_area_m2=area, wavelength_nm=lam, gain_db=float(rows["gain_db"].iloc[0]),
-        source=f"{source} sweep {sweep}".strip(), notes=notes,
+        photons=photons_per_pixel(e_p, exposure_s, area),
+        exposure_s=exposure_s,
+        mean_dn=col("mean_dn"),
+        temporal_var_dn2=col("temporal_var_dn2"),
+        frames=col("frames"),
+        dark_mean_dn=col("dark_mean_dn"),
+        dark_temporal_var_dn2=col("dark_temporal_var_dn2"),
+        dark_frames=col("dark_frames"),
+        spatial=_split(rows, ""),
+        dark_spatial=_split(rows, "dark_"),
+        dark=_dark_series(points, rows),
+        bit_depth=int(rows["bit_depth"].iloc[0]),
+        saturated_fraction=_column(rows, "saturated_fraction"),
+        mean_diff_dn=_column(rows, "mean_diff_dn"),
+        temperature_c=_column(rows, "temperature_c"),
+        point_index=_column(rows, "point_index"),
+        sweep_id=sweep,
+        width_px=int(width.iloc[0]) if len(width) else 0,
+        height_px=int(height.iloc[0]) if len(height) else 0,
+        pixel_area_m2=area,
+        wavelength_nm=lam,
+        gain_db=float(rows["gain_db"].iloc[0]),
+        source=f"{source} sweep {sweep}".strip(),
+        notes=notes,
     )
 
 
@@ -236,20 +301,37 @@ class DatasetInput:
     info: SheetInfo
 
 
-def load_dataset_input(root, *, sweep_id: str | None = None, pixel_size_um: float | None = None,
-                       override: IrradianceOverride | None = None, wavelength_nm: float | None = None) -> DatasetInput:
+def load_dataset_input(
+    root,
+    *,
+    sweep_id: str | None = None,
+    pixel_size_um: float | None = None,
+    override: IrradianceOverride | None = None,
+    wavelength_nm: float | None = None,
+) -> DatasetInput:
     """Open the dataset at ``root`` and build its `PhotonTransfer` (`photon_transfer_from_points`)."""
     from uwlab.experiments.dataset import Dataset
 
     dataset = Dataset.open(root)
     points = dataset.points()
-    pt = photon_transfer_from_points(points, dataset.spectra(), sweep_id=sweep_id, pixel_size_um=pixel_size_um,
-                                     override=override, wavelength_nm=wavelength_nm, source=f"dataset {root}")
+    pt = photon_transfer_from_points(
+        points,
+        dataset.spectra(),
+        sweep_id=sweep_id,
+        pixel_size_um=pixel_size_um,
+        override=override,
+        wavelength_nm=wavelength_nm,
+        source=f"dataset {root}",
+    )
     camera = points["camera_model"].dropna() if "camera_model" in points else []
     name = str(camera.iloc[0]) if len(camera) else "camera"
     device = (dataset.metadata.get("devices") or {}).get(pt.sweep_id, {}).get("camera") or {}
-    info = SheetInfo(vendor=device.get("vendor") or "—", model=device.get("model") or name,
-                     serial=device.get("serial") or "—", measured=dataset.metadata.get("started_utc") or "—",
-                     interface=device.get("backend") or "—",
-                     type_of_data="Single (simulated camera)" if dataset.metadata.get("sim") else "Single")
+    info = SheetInfo(
+        vendor=device.get("vendor") or "—",
+        model=device.get("model") or name,
+        serial=device.get("serial") or "—",
+        measured=dataset.metadata.get("started_utc") or "—",
+        interface=device.get("backend") or "—",
+        type_of_data="Single (simulated camera)" if dataset.metadata.get("sim") else "Single",
+    )
     return DatasetInput(pt, named_profile(points), name, info)

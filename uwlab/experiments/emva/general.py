@@ -29,6 +29,7 @@ the input, in photons.
 * Non-linearity: the linearity error of Release 4.0 Linear (eq. 58–63) is reported as a number describing the
   deviation from a line (Table 2: "if linear in %, otherwise describe type of nonlinearity").
 """
+
 from __future__ import annotations
 
 import math
@@ -91,8 +92,10 @@ def characterize_general(pt: PhotonTransfer) -> tuple[dict, dict]:
     inverse = bspline_regression(np.r_[0.0, snr_p], x, intervals, (0.0, float(snr_p.max())), relative)
     mu_p_min = float(inverse(1.0))
     if snr_p.min() > MAX_SNR_P_AT_LOWEST_POINT or not 0 < mu_p_min < mu_p_sat:
-        notes.append(f"μ_p.min and the dynamic range not computed: the darkest point has SNR_p = {snr_p.min():.2g}, "
-                     "General D.1 asks for exposure steps down to SNR_p ≈ 1")
+        notes.append(
+            f"μ_p.min and the dynamic range not computed: the darkest point has SNR_p = {snr_p.min():.2g}, "
+            "General D.1 asks for exposure steps down to SNR_p ≈ 1"
+        )
         mu_p_min = None
     snr_max = float(snr_p.max())
     dr = mu_p_sat / mu_p_min if mu_p_min else None
@@ -100,8 +103,9 @@ def characterize_general(pt: PhotonTransfer) -> tuple[dict, dict]:
     dark_var, upper_limit = dark_variance_general(pt)
     sigma_d = math.sqrt(dark_var - QUANTISATION_VAR_DN2) / r_d
     if upper_limit:
-        notes.append(f"σ²_y.dark below 0.24 DN²: σ_y.dark set to 0.49 DN and σ_d = {sigma_d:.3g} p is an upper "
-                     "limit (eq. 51)")
+        notes.append(
+            f"σ²_y.dark below 0.24 DN²: σ_y.dark set to 0.49 DN and σ_d = {sigma_d:.3g} p is an upper limit (eq. 51)"
+        )
     lin_idx = points_between(signal, sat.index, *LINEARITY_RANGE)
     le = None
     if len(lin_idx) >= 3:
@@ -110,18 +114,33 @@ def characterize_general(pt: PhotonTransfer) -> tuple[dict, dict]:
         le = float(np.mean(np.abs(100.0 * (signal[lin_idx] - fit) / fit)))
 
     values = {
-        "model": "general", "standard": "EMVA 1288 Release 4.0 General",
-        "K_dn_per_e": None, "quantum_efficiency": None, "inverse_K_e_per_dn": None,
-        "responsivity_dark_dn_per_photon": r_d, "characteristic_intervals": intervals,
-        "dark_var_dn2": dark_var, "dark_noise_dn": math.sqrt(dark_var), "dark_noise_p": sigma_d,
+        "model": "general",
+        "standard": "EMVA 1288 Release 4.0 General",
+        "K_dn_per_e": None,
+        "quantum_efficiency": None,
+        "inverse_K_e_per_dn": None,
+        "responsivity_dark_dn_per_photon": r_d,
+        "characteristic_intervals": intervals,
+        "dark_var_dn2": dark_var,
+        "dark_noise_dn": math.sqrt(dark_var),
+        "dark_noise_p": sigma_d,
         "dark_noise_upper_limit": upper_limit,
-        "saturation_index": sat.index, "saturation_rule": sat.rule, "variance_max_index": sat.variance_max_index,
-        "saturation_photons": mu_p_sat, "saturation_dn": float(signal[sat.index]),
-        "snr_max": snr_max, "snr_max_db": 20.0 * math.log10(snr_max), "snr_max_bits": math.log2(snr_max),
+        "saturation_index": sat.index,
+        "saturation_rule": sat.rule,
+        "variance_max_index": sat.variance_max_index,
+        "saturation_photons": mu_p_sat,
+        "saturation_dn": float(signal[sat.index]),
+        "snr_max": snr_max,
+        "snr_max_db": 20.0 * math.log10(snr_max),
+        "snr_max_bits": math.log2(snr_max),
         "inverse_snr_max_percent": 100.0 / snr_max,
-        "sensitivity_threshold_photons": mu_p_min, "dynamic_range": dr,
-        "dynamic_range_db": 20.0 * math.log10(dr) if dr else None, "dynamic_range_bits": math.log2(dr) if dr else None,
-        "linearity_error_percent": le, "points": int(len(signal)), "characteristic_fit_points": int(len(idx)),
+        "sensitivity_threshold_photons": mu_p_min,
+        "dynamic_range": dr,
+        "dynamic_range_db": 20.0 * math.log10(dr) if dr else None,
+        "dynamic_range_bits": math.log2(dr) if dr else None,
+        "linearity_error_percent": le,
+        "points": int(len(signal)),
+        "characteristic_fit_points": int(len(idx)),
     }
     values.update(area_values(values, pt.pixel_area_m2, ("saturation_photons", "sensitivity_threshold_photons")))
     dark_values, dark_fit = dark_current_values(pt, r_d, "p", notes)
@@ -134,19 +153,32 @@ def characterize_general(pt: PhotonTransfer) -> tuple[dict, dict]:
     values.update(spatial_values)
     values.update(condition_values(pt, notes))
     curves = {
-        "photons": pt.photons, "signal_dn": signal, "sat": sat.index, "variance_max": sat.variance_max_index,
-        "fit_idx": idx, "characteristic_fit_dn": curve(np.clip(pt.photons, 0.0, mu_p_sat)),
-        "characteristic_slope": all_slopes, "snr_p": snr_p_all,
-        "snr_y": snr_y_all, "snr_p_total": snr_total, "inverse_snr": inverse,
-        "temporal_std_dn": np.sqrt(pt.temporal_var_dn2), "mean_diff_dn": pt.mean_diff_dn, "exposure_s": pt.exposure_s,
-        "dark": pt.dark, "dark_current_fit": dark_fit, "spatial_split": pt.spatial,
-        "dark_spatial_split": pt.dark_spatial, "signal_var_dn2": pt.signal_var_dn2,
+        "photons": pt.photons,
+        "signal_dn": signal,
+        "sat": sat.index,
+        "variance_max": sat.variance_max_index,
+        "fit_idx": idx,
+        "characteristic_fit_dn": curve(np.clip(pt.photons, 0.0, mu_p_sat)),
+        "characteristic_slope": all_slopes,
+        "snr_p": snr_p_all,
+        "snr_y": snr_y_all,
+        "snr_p_total": snr_total,
+        "inverse_snr": inverse,
+        "temporal_std_dn": np.sqrt(pt.temporal_var_dn2),
+        "mean_diff_dn": pt.mean_diff_dn,
+        "exposure_s": pt.exposure_s,
+        "dark": pt.dark,
+        "dark_current_fit": dark_fit,
+        "spatial_split": pt.spatial,
+        "dark_spatial_split": pt.dark_spatial,
+        "signal_var_dn2": pt.signal_var_dn2,
     }
     return values, curves
 
 
-def _nonuniformity(pt: PhotonTransfer, sat: int, r_d: float, slope, all_slopes: np.ndarray,
-                   notes: list[str]) -> tuple[dict, np.ndarray]:
+def _nonuniformity(
+    pt: PhotonTransfer, sat: int, r_d: float, slope, all_slopes: np.ndarray, notes: list[str]
+) -> tuple[dict, np.ndarray]:
     """DSNU [p] (eq. 58), PRNU [%] (eq. 59) of every part, and the measured total SNR_p (eq. 60)."""
     values = {f"dsnu{part_suffix(p)}_p": None for p in PARTS} | {f"prnu{part_suffix(p)}_percent": None for p in PARTS}
     values |= {"dsnu_dn": None, "nonuniformity_source": None, "spatial_variances": None}

@@ -33,6 +33,7 @@ EMVA Standard 1288, Release 4.0 Linear, March 2021).
 
 Uncertainties (``_std``) are one-sigma errors of the regressions, propagated to first order.
 """
+
 from __future__ import annotations
 
 import math
@@ -65,8 +66,9 @@ def linear_model_holds(slope_deviation: float | None, slope_noise: float | None,
 
 def require_fit_points(idx: np.ndarray, what: str, total: int) -> None:
     if len(idx) < MIN_FIT_POINTS:
-        raise ConfigError(what, len(idx), f"too few points in the fit range (need >= {MIN_FIT_POINTS}, "
-                                          f"sweep has {total} points)")
+        raise ConfigError(
+            what, len(idx), f"too few points in the fit range (need >= {MIN_FIT_POINTS}, sweep has {total} points)"
+        )
 
 
 def dark_noise(pt: PhotonTransfer) -> tuple[float, float, bool]:
@@ -92,15 +94,17 @@ def linearity_fit(photons: np.ndarray, signal: np.ndarray, idx: np.ndarray) -> t
     return float(a0), float(a1)
 
 
-def photon_transfer_slope_deviation(signal: np.ndarray, var: np.ndarray, var_std: np.ndarray, evaluate: np.ndarray,
-                                    k: float) -> tuple[float, float]:
+def photon_transfer_slope_deviation(
+    signal: np.ndarray, var: np.ndarray, var_std: np.ndarray, evaluate: np.ndarray, k: float
+) -> tuple[float, float]:
     """(deviation, noise): (1/n) Σ |K_i − K| / K of eq. 51, K_i the slopes at the n points ``evaluate`` of the cubic
     B-spline regression of the photon transfer curve (all the given points, up to saturation, so that the 70 % point
     is not at the spline's free end, where its slope is least determined); and the value the same statistic takes
     for a straight curve from the noise of the variances alone, √(2/π) × the mean standard deviation of K_i propagated
     from ``var_std`` through the regression (zero when ``var_std`` is unknown)."""
-    spline = bspline_regression(signal, var, intervals_for(len(signal)),
-                                (min(0.0, float(signal.min())), float(signal.max())))
+    spline = bspline_regression(
+        signal, var, intervals_for(len(signal)), (min(0.0, float(signal.min())), float(signal.max()))
+    )
     deviation = float(np.mean(np.abs(spline.slope(signal[evaluate]) - k)) / k)
     slopes = spline.slope_basis(signal[evaluate]) @ np.linalg.pinv(spline.basis(signal))
     slope_std = np.sqrt(np.einsum("ij,j,ij->i", slopes, np.nan_to_num(var_std) ** 2, slopes))
@@ -139,16 +143,21 @@ def characterize_linear(pt: PhotonTransfer) -> tuple[dict, dict]:
     upto = upto[pt.photons[upto] > 0]
     if len(upto) >= MIN_POINTS_SLOPE_CHECK:
         slope_deviation, slope_noise = photon_transfer_slope_deviation(
-            signal[upto], var[upto], variance_std(pt)[upto], np.searchsorted(upto, fit_idx), k)
+            signal[upto], var[upto], variance_std(pt)[upto], np.searchsorted(upto, fit_idx), k
+        )
     else:
-        notes.append(f"photon transfer linearity (eq. 51) not checked: {len(upto)} points up to saturation, the "
-                     f"B-spline check needs {MIN_POINTS_SLOPE_CHECK}")
+        notes.append(
+            f"photon transfer linearity (eq. 51) not checked: {len(upto)} points up to saturation, the "
+            f"B-spline check needs {MIN_POINTS_SLOPE_CHECK}"
+        )
 
     dark_var, dark_t, upper_limit = dark_noise(pt)
     sigma_d = math.sqrt(dark_var - QUANTISATION_VAR_DN2) / k
     if upper_limit:
-        notes.append(f"σ²_y.dark below 0.24 DN² at {dark_t * 1e6:g} µs: σ_y.dark set to 0.49 DN and σ_d = "
-                     f"{sigma_d:.3g} e- is an upper limit (eq. 54)")
+        notes.append(
+            f"σ²_y.dark below 0.24 DN² at {dark_t * 1e6:g} µs: σ_y.dark set to 0.49 DN and σ_d = "
+            f"{sigma_d:.3g} e- is an upper limit (eq. 54)"
+        )
     mu_p_min = (math.sqrt(dark_var / k**2 + 0.25) + 0.5) / eta
     mu_p_sat = float(pt.photons[sat.index])
     mu_e_sat = eta * mu_p_sat
@@ -163,48 +172,88 @@ def characterize_linear(pt: PhotonTransfer) -> tuple[dict, dict]:
     le = float(np.mean(np.abs(deviation[lin_idx])))
     if not linear_model_holds(slope_deviation, slope_noise, le):
         shown = "n/a" if slope_deviation is None else f"{100 * slope_deviation:.1f} %"
-        notes.append(f"the linear model does not describe this camera (photon transfer slope deviation {shown}, eq. "
-                     f"51; linearity error {le:.1f} %; limit 3 %): characterise it with --model general")
+        notes.append(
+            f"the linear model does not describe this camera (photon transfer slope deviation {shown}, eq. "
+            f"51; linearity error {le:.1f} %; limit 3 %): characterise it with --model general"
+        )
 
     values = {
-        "model": "linear", "standard": "EMVA 1288 Release 4.0 Linear",
-        "K_dn_per_e": k, "K_dn_per_e_std": k_fit.slope_std, "inverse_K_e_per_dn": 1.0 / k,
-        "photon_transfer_offset_dn2": k_fit.intercept, "photon_transfer_slope_deviation": slope_deviation,
+        "model": "linear",
+        "standard": "EMVA 1288 Release 4.0 Linear",
+        "K_dn_per_e": k,
+        "K_dn_per_e_std": k_fit.slope_std,
+        "inverse_K_e_per_dn": 1.0 / k,
+        "photon_transfer_offset_dn2": k_fit.intercept,
+        "photon_transfer_slope_deviation": slope_deviation,
         "photon_transfer_slope_noise": slope_noise,
-        "responsivity_dn_per_photon": r, "responsivity_dn_per_photon_std": r_fit.slope_std,
-        "quantum_efficiency": eta, "quantum_efficiency_std": eta_std,
-        "dark_var_dn2": dark_var, "dark_noise_dn": math.sqrt(dark_var), "dark_noise_e": sigma_d,
-        "dark_noise_e_std": sigma_d * k_fit.slope_std / k, "dark_noise_upper_limit": upper_limit,
+        "responsivity_dn_per_photon": r,
+        "responsivity_dn_per_photon_std": r_fit.slope_std,
+        "quantum_efficiency": eta,
+        "quantum_efficiency_std": eta_std,
+        "dark_var_dn2": dark_var,
+        "dark_noise_dn": math.sqrt(dark_var),
+        "dark_noise_e": sigma_d,
+        "dark_noise_e_std": sigma_d * k_fit.slope_std / k,
+        "dark_noise_upper_limit": upper_limit,
         "dark_noise_exposure_s": dark_t,
-        "saturation_index": sat.index, "saturation_rule": sat.rule, "variance_max_index": sat.variance_max_index,
-        "saturation_photons": mu_p_sat, "saturation_e": mu_e_sat, "saturation_e_std": mu_e_sat * eta_std / eta,
+        "saturation_index": sat.index,
+        "saturation_rule": sat.rule,
+        "variance_max_index": sat.variance_max_index,
+        "saturation_photons": mu_p_sat,
+        "saturation_e": mu_e_sat,
+        "saturation_e_std": mu_e_sat * eta_std / eta,
         "saturation_dn": float(signal[sat.index]),
-        "snr_max": snr_max, "snr_max_db": 20.0 * math.log10(snr_max), "snr_max_bits": math.log2(snr_max),
+        "snr_max": snr_max,
+        "snr_max_db": 20.0 * math.log10(snr_max),
+        "snr_max_bits": math.log2(snr_max),
         "inverse_snr_max_percent": 100.0 / snr_max,
-        "sensitivity_threshold_photons": mu_p_min, "sensitivity_threshold_e": eta * mu_p_min,
-        "dynamic_range": dr, "dynamic_range_db": 20.0 * math.log10(dr), "dynamic_range_bits": math.log2(dr),
-        "linearity_error_percent": le, "linearity_deviation_min_percent": float(deviation[lin_idx].min()),
+        "sensitivity_threshold_photons": mu_p_min,
+        "sensitivity_threshold_e": eta * mu_p_min,
+        "dynamic_range": dr,
+        "dynamic_range_db": 20.0 * math.log10(dr),
+        "dynamic_range_bits": math.log2(dr),
+        "linearity_error_percent": le,
+        "linearity_deviation_min_percent": float(deviation[lin_idx].min()),
         "linearity_deviation_max_percent": float(deviation[lin_idx].max()),
-        "linearity_offset_dn": a0, "linearity_slope_dn_per_photon": a1,
-        "points": int(len(signal)), "sensitivity_fit_points": int(len(fit_idx)),
-        "sensitivity_index_min": int(fit_idx[0]), "sensitivity_index_max": int(fit_idx[-1]),
-        "linearity_fit_points": int(len(lin_idx)), "linearity_index_min": int(lin_idx[0]),
+        "linearity_offset_dn": a0,
+        "linearity_slope_dn_per_photon": a1,
+        "points": int(len(signal)),
+        "sensitivity_fit_points": int(len(fit_idx)),
+        "sensitivity_index_min": int(fit_idx[0]),
+        "sensitivity_index_max": int(fit_idx[-1]),
+        "linearity_fit_points": int(len(lin_idx)),
+        "linearity_index_min": int(lin_idx[0]),
         "linearity_index_max": int(lin_idx[-1]),
     }
-    values.update(area_values(values, pt.pixel_area_m2, ("saturation_photons", "saturation_e",
-                                                      "sensitivity_threshold_photons", "sensitivity_threshold_e")))
+    values.update(
+        area_values(
+            values,
+            pt.pixel_area_m2,
+            ("saturation_photons", "saturation_e", "sensitivity_threshold_photons", "sensitivity_threshold_e"),
+        )
+    )
     dark_values, dark_fit = dark_current_values(pt, k, "e", notes, k_fit.slope_std)
     values.update(dark_values)
     spatial_values, spatial_curves = _nonuniformity(pt, sat, k, notes)
     values.update(spatial_values)
     values.update(condition_values(pt, notes))
     curves = {
-        "photons": pt.photons, "signal_dn": signal, "signal_var_dn2": var, "fit_idx": fit_idx, "sat": sat.index,
-        "variance_max": sat.variance_max_index, "lin_idx": lin_idx, "linearity_fit_dn": lin_fit,
-        "linearity_dev_percent": deviation, "temporal_std_dn": np.sqrt(pt.temporal_var_dn2),
-        "mean_diff_dn": pt.mean_diff_dn, "snr": signal / np.sqrt(np.maximum(pt.temporal_var_dn2, 1e-30)),
-        "exposure_s": pt.exposure_s, "dark": pt.dark,
-        "photon_transfer_line": (k, k_fit.intercept), "dark_current_fit": dark_fit,
+        "photons": pt.photons,
+        "signal_dn": signal,
+        "signal_var_dn2": var,
+        "fit_idx": fit_idx,
+        "sat": sat.index,
+        "variance_max": sat.variance_max_index,
+        "lin_idx": lin_idx,
+        "linearity_fit_dn": lin_fit,
+        "linearity_dev_percent": deviation,
+        "temporal_std_dn": np.sqrt(pt.temporal_var_dn2),
+        "mean_diff_dn": pt.mean_diff_dn,
+        "snr": signal / np.sqrt(np.maximum(pt.temporal_var_dn2, 1e-30)),
+        "exposure_s": pt.exposure_s,
+        "dark": pt.dark,
+        "photon_transfer_line": (k, k_fit.intercept),
+        "dark_current_fit": dark_fit,
         **spatial_curves,
     }
     return values, curves
@@ -216,8 +265,9 @@ def area_values(values: dict, pixel_area_m2: float | None, keys: tuple[str, ...]
     return {f"{key}_per_um2": values[key] / area_um2 if area_um2 and values[key] is not None else None for key in keys}
 
 
-def dark_current_values(pt: PhotonTransfer, scale: float, unit: str, notes: list[str],
-                        scale_std: float = 0.0) -> tuple[dict, object]:
+def dark_current_values(
+    pt: PhotonTransfer, scale: float, unit: str, notes: list[str], scale_std: float = 0.0
+) -> tuple[dict, object]:
     """§7.1 at the sweep's temperature and §7.2 at every recorded temperature, divided by ``scale`` (K: ``unit``
     "e"; R_d: "p") and ``scale``² for the variance, the standard deviations including ``scale_std``; also the dark
     offset μ_y.dark at the shortest exposure or the regression's t_exp → 0 value. Returns (values, the `DarkCurrent`
@@ -226,29 +276,49 @@ def dark_current_values(pt: PhotonTransfer, scale: float, unit: str, notes: list
     current = dark_current(series)
     key = f"dark_current_{unit}_per_s"
     var_key = f"dark_current_var_{unit}_per_s"
-    by_temperature = [{"temperature_c": d.temperature_c, key: d.mean_dn_per_s / scale,
-                       f"{key}_std": d.mean_dn_per_s_std / scale, var_key: d.var_dn2_per_s / scale**2,
-                       f"{var_key}_std": d.var_dn2_per_s_std / scale**2, "exposures": d.exposures}
-                      for d in dark_current_by_temperature(pt.dark)]
+    by_temperature = [
+        {
+            "temperature_c": d.temperature_c,
+            key: d.mean_dn_per_s / scale,
+            f"{key}_std": d.mean_dn_per_s_std / scale,
+            var_key: d.var_dn2_per_s / scale**2,
+            f"{var_key}_std": d.var_dn2_per_s_std / scale**2,
+            "exposures": d.exposures,
+        }
+        for d in dark_current_by_temperature(pt.dark)
+    ]
     exposures = len(np.unique(series.exposure_s))
-    values = {key: None, f"{key}_std": None, var_key: None, f"{var_key}_std": None, "dark_current_dn_per_s": None,
-              "dark_current_var_dn2_per_s": None, "dark_current_exposures": exposures,
-              "dark_offset_dn": float(series.mean_dn[series.exposure_s == series.exposure_s.min()].mean()),
-              "dark_current_by_temperature": by_temperature}
+    values = {
+        key: None,
+        f"{key}_std": None,
+        var_key: None,
+        f"{var_key}_std": None,
+        "dark_current_dn_per_s": None,
+        "dark_current_var_dn2_per_s": None,
+        "dark_current_exposures": exposures,
+        "dark_offset_dn": float(series.mean_dn[series.exposure_s == series.exposure_s.min()].mean()),
+        "dark_current_by_temperature": by_temperature,
+    }
     if current is None:
-        notes.append(f"dark current not computed: dark frames at {exposures} exposure times, Release 4.0 §7.1 "
-                     "needs at least 6")
+        notes.append(
+            f"dark current not computed: dark frames at {exposures} exposure times, Release 4.0 §7.1 needs at least 6"
+        )
         return values, None
     if current.mean_dn_per_s + current.mean_dn_per_s_std <= 0:
-        notes.append("dark current below its one-sigma error: the exposure times are too short to measure it "
-                     "(§7.1: reported with its error)")
+        notes.append(
+            "dark current below its one-sigma error: the exposure times are too short to measure it "
+            "(§7.1: reported with its error)"
+        )
     rel = scale_std / scale
-    values |= {key: current.mean_dn_per_s / scale,
-               f"{key}_std": math.hypot(current.mean_dn_per_s_std, current.mean_dn_per_s * rel) / scale,
-               var_key: current.var_dn2_per_s / scale**2,
-               f"{var_key}_std": math.hypot(current.var_dn2_per_s_std, 2 * current.var_dn2_per_s * rel) / scale**2,
-               "dark_current_dn_per_s": current.mean_dn_per_s, "dark_current_var_dn2_per_s": current.var_dn2_per_s,
-               "dark_offset_dn": current.offset_dn}
+    values |= {
+        key: current.mean_dn_per_s / scale,
+        f"{key}_std": math.hypot(current.mean_dn_per_s_std, current.mean_dn_per_s * rel) / scale,
+        var_key: current.var_dn2_per_s / scale**2,
+        f"{var_key}_std": math.hypot(current.var_dn2_per_s_std, 2 * current.var_dn2_per_s * rel) / scale**2,
+        "dark_current_dn_per_s": current.mean_dn_per_s,
+        "dark_current_var_dn2_per_s": current.var_dn2_per_s,
+        "dark_offset_dn": current.offset_dn,
+    }
     return values, current
 
 
@@ -262,8 +332,10 @@ def _nonuniformity(pt: PhotonTransfer, sat: Saturation, k: float, notes: list[st
         snr_total = pt.signal_dn / np.sqrt(pt.temporal_var_dn2 + pt.spatial.total)
     curves = {"snr_total": snr_total, "spatial_split": pt.spatial, "dark_spatial_split": pt.dark_spatial}
     if point is None:
-        notes.append("DSNU and PRNU not computed: no highpassed spatial variances (a ROI larger than 19 px a side "
-                     "and statistics recorded by this version of uwlab are needed)")
+        notes.append(
+            "DSNU and PRNU not computed: no highpassed spatial variances (a ROI larger than 19 px a side "
+            "and statistics recorded by this version of uwlab are needed)"
+        )
         return values, curves
     for p in PARTS:
         values[f"dsnu{part_suffix(p)}_e"] = dsnu_e(point.dark[p], k)
@@ -272,13 +344,16 @@ def _nonuniformity(pt: PhotonTransfer, sat: Saturation, k: float, notes: list[st
     values["nonuniformity_source"] = point.source
     values["spatial_variances"] = {"bright": point.bright, "dark": point.dark, "frames": point.frames}
     if pt.stack is not None:
-        values["spatial_variances"] |= {"bright_measured": pt.stack.bright.spatial.measured,
-                                        "dark_measured": pt.stack.dark.spatial.measured,
-                                        "bright_cav": pt.stack.bright.spatial.cav,
-                                        "bright_rav": pt.stack.bright.spatial.rav,
-                                        "dark_cav": pt.stack.dark.spatial.cav, "dark_rav": pt.stack.dark.spatial.rav,
-                                        "bright_stack_var": pt.stack.bright.stack_var_dn2,
-                                        "dark_stack_var": pt.stack.dark.stack_var_dn2}
+        values["spatial_variances"] |= {
+            "bright_measured": pt.stack.bright.spatial.measured,
+            "dark_measured": pt.stack.dark.spatial.measured,
+            "bright_cav": pt.stack.bright.spatial.cav,
+            "bright_rav": pt.stack.bright.spatial.rav,
+            "dark_cav": pt.stack.dark.spatial.cav,
+            "dark_rav": pt.stack.dark.spatial.rav,
+            "bright_stack_var": pt.stack.bright.stack_var_dn2,
+            "dark_stack_var": pt.stack.dark.stack_var_dn2,
+        }
     return values, curves
 
 
@@ -295,6 +370,14 @@ def part_suffix(part: str) -> str:
 
 def condition_values(pt: PhotonTransfer, notes: list[str]) -> dict:
     """Operating point and provenance entries shared by both models."""
-    return {"bit_depth": int(pt.bit_depth), "gain_db": float(pt.gain_db), "wavelength_nm": pt.wavelength_nm,
-            "pixel_area_m2": pt.pixel_area_m2, "temperature_c": pt.operating_temperature_c,
-            "width_px": int(pt.width_px), "height_px": int(pt.height_px), "source": pt.source, "notes": notes}
+    return {
+        "bit_depth": int(pt.bit_depth),
+        "gain_db": float(pt.gain_db),
+        "wavelength_nm": pt.wavelength_nm,
+        "pixel_area_m2": pt.pixel_area_m2,
+        "temperature_c": pt.operating_temperature_c,
+        "width_px": int(pt.width_px),
+        "height_px": int(pt.height_px),
+        "source": pt.source,
+        "notes": notes,
+    }

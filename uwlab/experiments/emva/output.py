@@ -6,6 +6,7 @@ figures of `uwlab.experiments.emva.plots`, and — for the linear model when the
 profile ``<name>.toml`` with its flat QE curve ``<name>_qe.csv`` (`uwlab.experiments.emva.profile`) that
 `uwlab design` reads. Nothing existing is overwritten: every target is checked before anything is written.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -59,9 +60,13 @@ def output_paths(out: Path, result: EmvaResult, name: str, with_profile: bool) -
 
     out = output_dir(out, "--out")
     with_profile = with_profile and result.model == "linear"
-    paths = OutputPaths(out / RESULT_NAME, out / DATASHEET_NAME, out / XML_NAME,
-                        tuple(out / n for n in plot_names(result)),
-                        (out / f"{name}.toml", out / f"{name}_qe.csv") if with_profile else None)
+    paths = OutputPaths(
+        out / RESULT_NAME,
+        out / DATASHEET_NAME,
+        out / XML_NAME,
+        tuple(out / n for n in plot_names(result)),
+        (out / f"{name}.toml", out / f"{name}_qe.csv") if with_profile else None,
+    )
     for path in paths.all():
         if path.exists():
             raise ConfigError("--out", str(path), "exists; refusing to overwrite")
@@ -73,8 +78,16 @@ def result_document(result: EmvaResult) -> dict:
     return to_jsonable(result.values)
 
 
-def write_characterization(result: EmvaResult, pt: PhotonTransfer, paths: OutputPaths, *, name: str,
-                           base: SensorProfile | None, pixel_size_um: float | None, info=None) -> dict:
+def write_characterization(
+    result: EmvaResult,
+    pt: PhotonTransfer,
+    paths: OutputPaths,
+    *,
+    name: str,
+    base: SensorProfile | None,
+    pixel_size_um: float | None,
+    info=None,
+) -> dict:
     """Write the figures, datasheet, XML, the profile (when its paths are given) and ``emva.json``; returns the
     document written."""
     from uwlab.experiments.emva.datasheet import SheetInfo, write_datasheet
@@ -85,8 +98,11 @@ def write_characterization(result: EmvaResult, pt: PhotonTransfer, paths: Output
     document = result_document(result)
     document["files"] = [str(p) for p in paths.all()]
     if paths.profile is None:
-        why = "the general model measures no K or η" if result.model == "general" else "pixel size unknown " \
-                                                                                       "(--pixel-size-um)"
+        why = (
+            "the general model measures no K or η"
+            if result.model == "general"
+            else "pixel size unknown (--pixel-size-um)"
+        )
         document["notes"] = [*document["notes"], f"no sensor profile written: {why}"]
     out = paths.result.parent
     try:
@@ -96,9 +112,15 @@ def write_characterization(result: EmvaResult, pt: PhotonTransfer, paths: Output
         write_results_xml(result, paths.xml)
         if paths.profile is not None:
             exposure_us = (float(np.min(pt.exposure_s) * 1e6), float(np.max(pt.exposure_s) * 1e6))
-            toml_text, csv_text = profile_documents(result.values, name=name, width_px=pt.width_px,
-                                                    height_px=pt.height_px, exposure_range_us=exposure_us,
-                                                    pixel_size_um=pixel_size_um, base=base)
+            toml_text, csv_text = profile_documents(
+                result.values,
+                name=name,
+                width_px=pt.width_px,
+                height_px=pt.height_px,
+                exposure_range_us=exposure_us,
+                pixel_size_um=pixel_size_um,
+                base=base,
+            )
             paths.profile[0].write_text(toml_text)
             paths.profile[1].write_text(csv_text)
         paths.result.write_text(dumps(document, indent=2) + "\n")

@@ -7,6 +7,7 @@ spectrograms of the DSNU and PRNU images (Figs. 12–13), their profiles (Fig. 1
 histograms (Figs. 15–16). `write_plots` returns the files it wrote, in that order; a figure whose data are missing
 (no stacks, one temperature) is not drawn.
 """
+
 from __future__ import annotations
 
 from pathlib import Path
@@ -39,8 +40,11 @@ def plot_photon_transfer(result: EmvaResult, path: Path) -> Path:
     rel = 100 * v["K_dn_per_e_std"] / k
     ax.plot(x, k * x + offset, "-", color="tab:blue", label=f"K = {k:.4g} DN/e- ± {rel:.2g} %")
     ax.axvline(c["signal_dn"][sat], **SAT_STYLE, label="saturation")
-    ax.set(xlabel="mean − dark value μ_y − μ_y.dark [DN]", ylabel="variance − dark σ²_y − σ²_y.dark [DN²]",
-           title=f"Photon transfer: σ²_y.dark = {v['dark_var_dn2']:.3g} DN², K = {k:.4g} DN/e-")
+    ax.set(
+        xlabel="mean − dark value μ_y − μ_y.dark [DN]",
+        ylabel="variance − dark σ²_y − σ²_y.dark [DN²]",
+        title=f"Photon transfer: σ²_y.dark = {v['dark_var_dn2']:.3g} DN², K = {k:.4g} DN/e-",
+    )
     ax.set_ylim(bottom=min(0.0, float(np.nanmin(c["signal_var_dn2"]))))
     ax.legend(fontsize=8)
     return save_figure(fig, path)
@@ -52,11 +56,19 @@ def plot_characteristic(result: EmvaResult, path: Path) -> Path:
     fig, ax = plt.subplots(figsize=FIGSIZE)
     ax.plot(c["photons"], c["signal_dn"], "o", ms=3, color="0.6", label="measured")
     upto = c["photons"] <= v["saturation_photons"]
-    ax.plot(c["photons"][upto], c["characteristic_fit_dn"][upto], "-", color="tab:blue",
-            label=f"cubic B-spline, {v['characteristic_intervals']} intervals")
+    ax.plot(
+        c["photons"][upto],
+        c["characteristic_fit_dn"][upto],
+        "-",
+        color="tab:blue",
+        label=f"cubic B-spline, {v['characteristic_intervals']} intervals",
+    )
     ax.axvline(v["saturation_photons"], **SAT_STYLE, label="saturation")
-    ax.set(xlabel="irradiation μ_p [photons/pixel]", ylabel="mean − dark value μ_y − μ_y.dark [DN]",
-           title=f"Characteristic curve: R_d = {v['responsivity_dark_dn_per_photon']:.4g} DN/p")
+    ax.set(
+        xlabel="irradiation μ_p [photons/pixel]",
+        ylabel="mean − dark value μ_y − μ_y.dark [DN]",
+        title=f"Characteristic curve: R_d = {v['responsivity_dark_dn_per_photon']:.4g} DN/p",
+    )
     ax.legend(fontsize=8)
     return save_figure(fig, path)
 
@@ -74,10 +86,20 @@ def plot_snr(result: EmvaResult, path: Path) -> Path:
         eta, sigma_d, k = v["quantum_efficiency"], v["dark_noise_e"], v["K_dn_per_e"]
         ax.loglog(p, c["snr"][ok], "o", ms=3, color="tab:blue", label="measured SNR")
         ax.loglog(p, c["snr_total"][ok], "s", ms=2.5, color="tab:orange", label="measured SNR total")
-        ax.loglog(grid, snr(eta * grid, sigma_d, k), "-", color="tab:blue",
-                  label=f"model eq. 21 (η = {eta:.3f}, σ_d = {sigma_d:.3g} e-)")
-        ax.loglog(grid, total_snr_model(eta * grid, sigma_d, k, v["dsnu_e"], v["prnu_percent"]), "-",
-                  color="tab:orange", label="model total eq. 69")
+        ax.loglog(
+            grid,
+            snr(eta * grid, sigma_d, k),
+            "-",
+            color="tab:blue",
+            label=f"model eq. 21 (η = {eta:.3f}, σ_d = {sigma_d:.3g} e-)",
+        )
+        ax.loglog(
+            grid,
+            total_snr_model(eta * grid, sigma_d, k, v["dsnu_e"], v["prnu_percent"]),
+            "-",
+            color="tab:orange",
+            label="model total eq. 69",
+        )
         ylabel = "SNR"
     else:
         ax.loglog(p, c["snr_p"][ok], "o", ms=3, color="tab:blue", label="measured input SNR_p")
@@ -88,8 +110,11 @@ def plot_snr(result: EmvaResult, path: Path) -> Path:
         ax.axvline(threshold, ls="--", color="tab:red", lw=1, label=f"threshold SNR = 1: {threshold:.3g} p/pixel")
     ax.axvline(v["saturation_photons"], **SAT_STYLE, label=f"saturation: {v['saturation_photons']:.0f} p/pixel")
     ax.axhline(1.0, color="0.7", lw=0.8)
-    ax.set(xlabel="irradiation μ_p [photons/pixel]", ylabel=ylabel,
-           title=f"SNR: SNR_max = {v['snr_max_db']:.1f} dB, DR = {_fmt(v['dynamic_range_db'], '.1f')} dB")
+    ax.set(
+        xlabel="irradiation μ_p [photons/pixel]",
+        ylabel=ylabel,
+        title=f"SNR: SNR_max = {v['snr_max_db']:.1f} dB, DR = {_fmt(v['dynamic_range_db'], '.1f')} dB",
+    )
     ax.legend(fontsize=7)
     return save_figure(fig, path)
 
@@ -135,11 +160,16 @@ def plot_dark_current(result: EmvaResult, path: Path) -> Path:
     bx.plot(dark.exposure_s, dark.var_dn2, "o", ms=3, label="measured")
     if fit is not None:
         t = np.linspace(0, dark.exposure_s.max(), 20)
-        ax.plot(t, fit.offset_dn + fit.mean_dn_per_s * t, "-",
-                label=f"fit: {_fmt(v[key])} ± {_fmt(v[key + '_std'], '.2g')} {unit}")
+        ax.plot(
+            t,
+            fit.offset_dn + fit.mean_dn_per_s * t,
+            "-",
+            label=f"fit: {_fmt(v[key])} ± {_fmt(v[key + '_std'], '.2g')} {unit}",
+        )
         var_fit = np.polyfit(dark.exposure_s, dark.var_dn2, 1)
-        bx.plot(t, np.polyval(var_fit, t), "-",
-                label=f"fit: {_fmt(v[var_key])} ± {_fmt(v[var_key + '_std'], '.2g')} {unit}")
+        bx.plot(
+            t, np.polyval(var_fit, t), "-", label=f"fit: {_fmt(v[var_key])} ± {_fmt(v[var_key + '_std'], '.2g')} {unit}"
+        )
     ax.set(xlabel="exposure time [s]", ylabel="mean dark signal [DN]", title="Dark current from mean")
     bx.set(xlabel="exposure time [s]", ylabel="variance dark signal [DN²]", title="Dark current from variance")
     ax.legend(fontsize=8)
@@ -160,8 +190,11 @@ def plot_dark_temperature(result: EmvaResult, path: Path) -> Path:
     var = np.array([r[f"dark_current_var_{unit}_per_s"] for r in rows])
     ax.plot(t, var, "s--", ms=3, label="from variance")
     ax.set_yscale("log")
-    ax.set(xlabel="temperature [°C]", ylabel=f"dark current [{unit}-/s]" if unit == "e" else "dark current [p/s]",
-           title="Dark current against temperature")
+    ax.set(
+        xlabel="temperature [°C]",
+        ylabel=f"dark current [{unit}-/s]" if unit == "e" else "dark current [p/s]",
+        title="Dark current against temperature",
+    )
     ax.legend(fontsize=8)
     return save_figure(fig, path)
 
@@ -177,8 +210,11 @@ def plot_spatial_variances(result: EmvaResult, path: Path) -> Path:
             ax.semilogy(x, np.sqrt(c["spatial_split"].part(name)), "o-", ms=2.5, color=color, label=f"s_y.{name}")
             ax.semilogy(x, np.sqrt(c["dark_spatial_split"].part(name)), ":", color=color, label=f"s_y.{name}.dark")
     ax.axvline(x[c["sat"]], **SAT_STYLE, label="saturation")
-    ax.set(xlabel="mean − dark value μ_y − μ_y.dark [DN]", ylabel="spatial standard deviation [DN]",
-           title="Spatial nonuniformity at every step (highpassed, eq. 44)")
+    ax.set(
+        xlabel="mean − dark value μ_y − μ_y.dark [DN]",
+        ylabel="spatial standard deviation [DN]",
+        title="Spatial nonuniformity at every step (highpassed, eq. 44)",
+    )
     ax.legend(fontsize=7, ncol=2)
     return save_figure(fig, path)
 
@@ -194,8 +230,11 @@ def _spectrogram(spectrograms: dict, level_lines: list[tuple[float, str]], unit:
                 ax.axhline(level, ls="--", lw=1, color="tab:red" if "1288" in label else "0.4", label=label)
                 top = max(top, level)
         ax.set_ylim(0, 1.15 * top)
-        ax.set(xlabel="spatial frequency [cycles/pixel]", ylabel=f"standard deviation [{unit}]",
-               title=f"{title}: {name} spectrogram")
+        ax.set(
+            xlabel="spatial frequency [cycles/pixel]",
+            ylabel=f"standard deviation [{unit}]",
+            title=f"{title}: {name} spectrogram",
+        )
         ax.legend(fontsize=7)
     return save_figure(fig, path)
 
@@ -204,11 +243,21 @@ def plot_dsnu_spectrogram(result: EmvaResult, path: Path) -> Path:
     """Fig. 12: horizontal and vertical spectrograms of the highpassed DSNU image, with DSNU₁₂₈₈ and the temporal
     noise σ_y.stack.dark of a single image as lines [DN]."""
     v, stack = result.values, result.images
-    sigma = np.sqrt(v["spatial_variances"]["dark_stack_var"]) if "dark_stack_var" in (v["spatial_variances"] or {}) \
+    sigma = (
+        np.sqrt(v["spatial_variances"]["dark_stack_var"])
+        if "dark_stack_var" in (v["spatial_variances"] or {})
         else None
-    return _spectrogram(stack.dsnu_spectrograms, [(v["dsnu_dn"], f"DSNU1288 {_fmt(v['dsnu_dn'], '.3g')} DN"),
-                                                  (sigma, f"σ_y.stack.dark {_fmt(sigma, '.3g')} DN")],
-                        "DN", "DSNU", path)
+    )
+    return _spectrogram(
+        stack.dsnu_spectrograms,
+        [
+            (v["dsnu_dn"], f"DSNU1288 {_fmt(v['dsnu_dn'], '.3g')} DN"),
+            (sigma, f"σ_y.stack.dark {_fmt(sigma, '.3g')} DN"),
+        ],
+        "DN",
+        "DSNU",
+        path,
+    )
 
 
 def plot_prnu_spectrogram(result: EmvaResult, path: Path) -> Path:
@@ -217,8 +266,16 @@ def plot_prnu_spectrogram(result: EmvaResult, path: Path) -> Path:
     sigma = None
     if v["spatial_variances"] and "bright_stack_var" in v["spatial_variances"]:
         sigma = 100 * np.sqrt(v["spatial_variances"]["bright_stack_var"]) / stack.signal_dn
-    return _spectrogram(stack.prnu_spectrograms, [(v["prnu_percent"], f"PRNU1288 {_fmt(v['prnu_percent'], '.3g')} %"),
-                                                  (sigma, f"σ_y.stack {_fmt(sigma, '.3g')} %")], "%", "PRNU", path)
+    return _spectrogram(
+        stack.prnu_spectrograms,
+        [
+            (v["prnu_percent"], f"PRNU1288 {_fmt(v['prnu_percent'], '.3g')} %"),
+            (sigma, f"σ_y.stack {_fmt(sigma, '.3g')} %"),
+        ],
+        "%",
+        "PRNU",
+        path,
+    )
 
 
 def _profiles(profiles: dict, title: str, lower_upper, path: Path) -> Path:
@@ -236,14 +293,22 @@ def _profiles(profiles: dict, title: str, lower_upper, path: Path) -> Path:
 def plot_dsnu_profiles(result: EmvaResult, path: Path) -> Path:
     """Fig. 14 for ⟨y_dark⟩ (unfiltered): range 0.9 × mean of the minimum line … 1.1 × mean of the maximum line
     (§8.7)."""
-    return _profiles(result.images.dsnu_profiles, "DSNU",
-                     lambda p: (0.9 * float(np.mean(p["min"])), 1.1 * float(np.mean(p["max"]))), path)
+    return _profiles(
+        result.images.dsnu_profiles,
+        "DSNU",
+        lambda p: (0.9 * float(np.mean(p["min"])), 1.1 * float(np.mean(p["max"]))),
+        path,
+    )
 
 
 def plot_prnu_profiles(result: EmvaResult, path: Path) -> Path:
     """Fig. 14 for ⟨y_50⟩ − ⟨y_dark⟩ (unfiltered): range 0.9 … 1.1 × the mean (§8.7)."""
-    return _profiles(result.images.prnu_profiles, "PRNU",
-                     lambda p: (0.9 * float(np.mean(p["mean"])), 1.1 * float(np.mean(p["mean"]))), path)
+    return _profiles(
+        result.images.prnu_profiles,
+        "PRNU",
+        lambda p: (0.9 * float(np.mean(p["mean"])), 1.1 * float(np.mean(p["mean"]))),
+        path,
+    )
 
 
 def _histograms(histograms: dict, title: str, spread: str, path: Path) -> Path:
@@ -257,8 +322,11 @@ def _histograms(histograms: dict, title: str, spread: str, path: Path) -> Path:
     acc = histograms["accumulated"]
     bx.semilogy(acc.centres_dn, np.maximum(acc.counts, 1e-4), "-", drawstyle="steps-mid")
     bx.set_ylim(bottom=100.0 / max(1, 10 * acc.counts.size) / 10)
-    bx.set(xlabel="absolute deviation from the mean [DN]", ylabel="pixels deviating at least this much [%]",
-           title=f"Accumulated logarithmic histogram {title}")
+    bx.set(
+        xlabel="absolute deviation from the mean [DN]",
+        ylabel="pixels deviating at least this much [%]",
+        title=f"Accumulated logarithmic histogram {title}",
+    )
     return save_figure(fig, path)
 
 
@@ -278,8 +346,10 @@ def figure_makers(result: EmvaResult) -> list[tuple[str, object]]:
     """(file name, maker) of every figure the result has data for."""
     v = result.values
     linear = v["model"] == "linear"
-    makers = [("photon_transfer.png", plot_photon_transfer) if linear else ("characteristic.png", plot_characteristic),
-              ("snr.png", plot_snr)]
+    makers = [
+        ("photon_transfer.png", plot_photon_transfer) if linear else ("characteristic.png", plot_characteristic),
+        ("snr.png", plot_snr),
+    ]
     if linear:
         makers.append(("linearity.png", plot_linearity))
     makers += [("stability.png", plot_stability), ("dark_current.png", plot_dark_current)]
@@ -288,9 +358,14 @@ def figure_makers(result: EmvaResult) -> list[tuple[str, object]]:
     if np.isfinite(result.curves["spatial_split"].total).any():
         makers.append(("spatial_variances.png", plot_spatial_variances))
     if result.images is not None:
-        makers += [("dsnu_spectrogram.png", plot_dsnu_spectrogram), ("prnu_spectrogram.png", plot_prnu_spectrogram),
-                   ("dsnu_profiles.png", plot_dsnu_profiles), ("prnu_profiles.png", plot_prnu_profiles),
-                   ("dsnu_histograms.png", plot_dsnu_histograms), ("prnu_histograms.png", plot_prnu_histograms)]
+        makers += [
+            ("dsnu_spectrogram.png", plot_dsnu_spectrogram),
+            ("prnu_spectrogram.png", plot_prnu_spectrogram),
+            ("dsnu_profiles.png", plot_dsnu_profiles),
+            ("prnu_profiles.png", plot_prnu_profiles),
+            ("dsnu_histograms.png", plot_dsnu_histograms),
+            ("prnu_histograms.png", plot_prnu_histograms),
+        ]
     return makers
 
 

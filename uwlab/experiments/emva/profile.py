@@ -8,6 +8,7 @@ wavelength only, so the flat curve is an assumption flagged in ``[flags]`` and e
 Geometry and limits come from the dataset's named sensor profile when there is one, else from the sweep
 (ROI size, exposure and gain used), also flagged as assumed.
 """
+
 from __future__ import annotations
 
 import json
@@ -35,8 +36,16 @@ def _rounded(x: float, digits: int = 5) -> float:
     return float(f"{x:.{digits}g}")
 
 
-def profile_documents(values: dict, *, name: str, width_px: int, height_px: int, exposure_range_us: tuple,
-                      pixel_size_um: float | None, base: SensorProfile | None = None) -> tuple[str, str]:
+def profile_documents(
+    values: dict,
+    *,
+    name: str,
+    width_px: int,
+    height_px: int,
+    exposure_range_us: tuple,
+    pixel_size_um: float | None,
+    base: SensorProfile | None = None,
+) -> tuple[str, str]:
     """(profile TOML text, QE CSV text) for the characterisation ``values`` (`EmvaResult.values`); the CSV is
     to be written as ``<name>_qe.csv`` beside the TOML."""
     size_um = pixel_size_um or (base.pixel_size_um if base else None)
@@ -48,7 +57,9 @@ def profile_documents(values: dict, *, name: str, width_px: int, height_px: int,
     at = f"at {lam:.1f} nm (photon-weighted mean wavelength of the light)" if lam else "at the light used"
     measured = f"EMVA 1288 Release 4.0 (linear) characterisation by uwlab of {values['source']}"
     keys = {
-        "name": name, "description": f"measured: {measured}", "color": False,
+        "name": name,
+        "description": f"measured: {measured}",
+        "color": False,
         "pixel_size_um": float(size_um),
         "resolution_px": list(base.resolution_px) if base else [int(width_px), int(height_px)],
         "bit_depth": int(values["bit_depth"]),
@@ -74,22 +85,29 @@ def profile_documents(values: dict, *, name: str, width_px: int, height_px: int,
         "qe_csv": f"FLAT at the measured quantum efficiency {eta:.4f} {at}; the spectral shape is not measured",
         "pixel_size_um": "--pixel-size-um" if pixel_size_um else f"sensor profile {base.name if base else ''}",
         "resolution_px": f"from {limits}",
-        "exposure_min_us": f"from {limits}", "exposure_max_us": f"from {limits}",
-        "gain_min_db": f"from {limits}", "gain_max_db": f"from {limits}",
+        "exposure_min_us": f"from {limits}",
+        "exposure_max_us": f"from {limits}",
+        "gain_min_db": f"from {limits}",
+        "gain_max_db": f"from {limits}",
     }
     for key in ("dark_current_e_per_s", "dsnu_e", "prnu_percent"):
         if key in keys:
             provenance[key] = measured
-    assumed = ["qe_csv"] + ([] if base else ["resolution_px", "exposure_min_us", "exposure_max_us",
-                                             "gain_min_db", "gain_max_db"])
-    lines = [f"# Sensor profile measured by uwlab: {measured}.",
-             "# Values at 0 dB gain; the QE curve is flat at the measured eta (see [provenance], [flags]).", ""]
+    assumed = ["qe_csv"] + (
+        [] if base else ["resolution_px", "exposure_min_us", "exposure_max_us", "gain_min_db", "gain_max_db"]
+    )
+    lines = [
+        f"# Sensor profile measured by uwlab: {measured}.",
+        "# Values at 0 dB gain; the QE curve is flat at the measured eta (see [provenance], [flags]).",
+        "",
+    ]
     lines += [f"{k} = {_toml_value(v)}" for k, v in keys.items()]
     lines += ["", "[provenance]"] + [f"{k} = {_toml_value(v)}" for k, v in provenance.items()]
     measured_keys = [k for k, text in provenance.items() if text.startswith(measured)]
-    lines += ["", "[flags]", f"measured = {_toml_value(measured_keys)}",
-              f"assumed = {_toml_value(assumed)}", ""]
-    csv = (f"# Quantum efficiency of {name} [fraction]: FLAT at the value measured {at} by {measured}.\n"
-           "# Assumption: the spectral shape is unknown; only the value at the measurement wavelength is measured.\n"
-           f"wavelength_nm,qe\n{QE_RANGE_NM[0]:g},{eta:.6f}\n{QE_RANGE_NM[1]:g},{eta:.6f}\n")
+    lines += ["", "[flags]", f"measured = {_toml_value(measured_keys)}", f"assumed = {_toml_value(assumed)}", ""]
+    csv = (
+        f"# Quantum efficiency of {name} [fraction]: FLAT at the value measured {at} by {measured}.\n"
+        "# Assumption: the spectral shape is unknown; only the value at the measurement wavelength is measured.\n"
+        f"wavelength_nm,qe\n{QE_RANGE_NM[0]:g},{eta:.6f}\n{QE_RANGE_NM[1]:g},{eta:.6f}\n"
+    )
     return "\n".join(lines), csv

@@ -11,6 +11,7 @@ problem in the P + 3 coefficients a_p (eq. 46–47, solved by `numpy.linalg.lsts
 eq. 49 (eq. 48). Written out from the standard's equations rather than taken from scipy.interpolate, whose import
 alone costs more CPU time than the whole characterisation of a 100-image dataset.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -95,8 +96,7 @@ class BSplineFit:
         return (self.slope_basis(np.atleast_1d(x)) @ self.coefficients).reshape(x.shape)
 
 
-def bspline_regression(x, y, intervals: int, x_range: tuple[float, float] | None = None,
-                       weights=None) -> BSplineFit:
+def bspline_regression(x, y, intervals: int, x_range: tuple[float, float] | None = None, weights=None) -> BSplineFit:
     """The least-squares cubic B-spline of eq. 44–47 over ``x_range`` (default: the data's range) with
     ``intervals`` intervals (``weights`` multiply the residuals; default 1, eq. 47); `ConfigError` when the points
     cannot determine the P + 3 coefficients."""

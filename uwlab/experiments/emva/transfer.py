@@ -17,6 +17,7 @@ points with at least half the largest signal and a positive dark-corrected varia
 low-signal frame pair nor the flat, noisy tail past saturation (where the dark-corrected variance is negative) can
 be taken for it.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
@@ -78,9 +79,20 @@ class NonuniformityStack:
     exposure_s: float
 
 
-PER_POINT = ("photons", "exposure_s", "mean_dn", "temporal_var_dn2", "frames", "dark_mean_dn",
-             "dark_temporal_var_dn2", "dark_frames", "saturated_fraction", "mean_diff_dn", "temperature_c",
-             "point_index")
+PER_POINT = (
+    "photons",
+    "exposure_s",
+    "mean_dn",
+    "temporal_var_dn2",
+    "frames",
+    "dark_mean_dn",
+    "dark_temporal_var_dn2",
+    "dark_frames",
+    "saturated_fraction",
+    "mean_diff_dn",
+    "temperature_c",
+    "point_index",
+)
 
 
 @dataclass(frozen=True)
@@ -174,8 +186,11 @@ def variance_maximum_index(pt: PhotonTransfer) -> int:
     signal, var = pt.signal_dn, pt.temporal_var_dn2
     candidates = np.flatnonzero((signal >= 0.5 * np.nanmax(signal)) & (pt.signal_var_dn2 > 0))
     if candidates.size == 0:
-        raise ConfigError("saturation", None, "no point of the upper half of the sweep has a dark-corrected temporal "
-                                              "variance above zero")
+        raise ConfigError(
+            "saturation",
+            None,
+            "no point of the upper half of the sweep has a dark-corrected temporal variance above zero",
+        )
     return int(candidates[np.argmax(var[candidates])])
 
 
@@ -187,9 +202,11 @@ def saturation(pt: PhotonTransfer) -> Saturation:
         saturated = np.flatnonzero([point_saturated(f, POINT_SATURATED_FRACTION) for f in fractions])
         if saturated.size:
             if saturated[0] == 0:
-                raise ConfigError("saturation", f"{100 * fractions[0]:.2g} %",
-                                  "the darkest point of the sweep already has more than 0.2 % of its pixels at the "
-                                  "clip level")
+                raise ConfigError(
+                    "saturation",
+                    f"{100 * fractions[0]:.2g} %",
+                    "the darkest point of the sweep already has more than 0.2 % of its pixels at the clip level",
+                )
             return Saturation(int(saturated[0]) - 1, RULE_CLIP, variance_max)
     return Saturation(variance_max, RULE_VARIANCE, variance_max)
 
@@ -226,15 +243,25 @@ def spatial_point(pt: PhotonTransfer, sat: int) -> SpatialPoint | None:
     saturation (§4.2: two frames suffice for the variances); None when neither has them."""
     if pt.stack is not None and pt.stack.bright.spatial is not None and pt.stack.dark.spatial is not None:
         s = pt.stack
-        return SpatialPoint(s.bright.spatial.parts, s.dark.spatial.parts, s.bright.mean_dn - s.dark.mean_dn,
-                            s.photons, min(s.bright.frames, s.dark.frames),
-                            f"stacks of {s.bright.frames} bright and {s.dark.frames} dark frames")
+        return SpatialPoint(
+            s.bright.spatial.parts,
+            s.dark.spatial.parts,
+            s.bright.mean_dn - s.dark.mean_dn,
+            s.photons,
+            min(s.bright.frames, s.dark.frames),
+            f"stacks of {s.bright.frames} bright and {s.dark.frames} dark frames",
+        )
     i = half_saturation_index(pt, sat)
     parts = ("total", "row", "col", "pixel")
     bright = {p: float(pt.spatial.part(p)[i]) for p in parts}
     dark = {p: float(pt.dark_spatial.part(p)[i]) for p in parts}
     if not all(np.isfinite([*bright.values(), *dark.values()])):
         return None
-    return SpatialPoint(bright, dark, float(pt.signal_dn[i]), float(pt.photons[i]), int(pt.frames[i]),
-                        f"sweep point {i} ({pt.frames[i]:.0f} frames, {100 * pt.signal_dn[i] / pt.signal_dn[sat]:.0f} "
-                        "% of saturation)")
+    return SpatialPoint(
+        bright,
+        dark,
+        float(pt.signal_dn[i]),
+        float(pt.photons[i]),
+        int(pt.frames[i]),
+        f"sweep point {i} ({pt.frames[i]:.0f} frames, {100 * pt.signal_dn[i] / pt.signal_dn[sat]:.0f} % of saturation)",
+    )

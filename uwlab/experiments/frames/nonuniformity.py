@@ -25,6 +25,7 @@ has M rows (index m) and N columns (index n); ⟨y⟩ is the mean of L frames (e
   own standard deviation s_nw as the model (the standard's "non-white" s_nw, taken here as the standard deviation
   of the histogrammed image); accumulated histogram of |y − μ_y| (eq. 77–81), in percent of the pixels.
 """
+
 from __future__ import annotations
 
 import math
@@ -40,8 +41,7 @@ HISTOGRAM_MAX_BINS = 256
 
 def smoothing_kernel() -> np.ndarray:
     """The 19-tap 1-D kernel of the §8.1 smoothing: box 7 ∗ box 11 ∗ binomial [1, 2, 1]/4 (sums to 1)."""
-    kernel = np.convolve(np.ones(HIGHPASS_BOXES[0]) / HIGHPASS_BOXES[0],
-                         np.ones(HIGHPASS_BOXES[1]) / HIGHPASS_BOXES[1])
+    kernel = np.convolve(np.ones(HIGHPASS_BOXES[0]) / HIGHPASS_BOXES[0], np.ones(HIGHPASS_BOXES[1]) / HIGHPASS_BOXES[1])
     return np.convolve(kernel, HIGHPASS_BINOMIAL)
 
 
@@ -162,8 +162,12 @@ def profiles(image: np.ndarray, vertical: bool = False) -> dict[str, np.ndarray]
     y = np.asarray(image)
     if vertical:
         y = y.T
-    return {"middle": y[y.shape[0] // 2].astype(np.float64), "mean": y.mean(axis=0, dtype=np.float64),
-            "max": y.max(axis=0).astype(np.float64), "min": y.min(axis=0).astype(np.float64)}
+    return {
+        "middle": y[y.shape[0] // 2].astype(np.float64),
+        "mean": y.mean(axis=0, dtype=np.float64),
+        "max": y.max(axis=0).astype(np.float64),
+        "min": y.min(axis=0).astype(np.float64),
+    }
 
 
 @dataclass(frozen=True)
@@ -207,7 +211,7 @@ def log_histogram(image: np.ndarray, frames: int) -> Histogram:
     s_nw = math.sqrt(sum(float(np.sum((b.astype(np.float64) - mu) ** 2)) for b in _row_blocks(y)) / y.size)
     model = np.zeros(count)
     if s_nw > 0:
-        model = (interval / frames) * y.size / (math.sqrt(2 * math.pi) * s_nw) * np.exp(-centres**2 / (2 * s_nw**2))
+        model = (interval / frames) * y.size / (math.sqrt(2 * math.pi) * s_nw) * np.exp(-(centres**2) / (2 * s_nw**2))
     return Histogram(centres, counts, model, interval / frames, s_nw)
 
 
@@ -240,8 +244,9 @@ class ImageAnalysis:
     signal_dn: float
 
 
-def analyse_images(mean_bright: np.ndarray, mean_dark: np.ndarray, frames_bright: int,
-                   frames_dark: int) -> ImageAnalysis:
+def analyse_images(
+    mean_bright: np.ndarray, mean_dark: np.ndarray, frames_bright: int, frames_dark: int
+) -> ImageAnalysis:
     """`ImageAnalysis` of the mean images of a bright stack near 50 % of saturation and a dark stack."""
     dark = np.asarray(mean_dark, np.float32)
     prnu = np.asarray(mean_bright, np.float32) - dark
@@ -251,12 +256,15 @@ def analyse_images(mean_bright: np.ndarray, mean_dark: np.ndarray, frames_bright
     directions = {"horizontal": False, "vertical": True}
     return ImageAnalysis(
         dsnu_spectrograms={name: spectrogram(dark_hp, v) for name, v in directions.items()},
-        prnu_spectrograms={name: (f, 100.0 * p / signal) for name, v in directions.items()
-                           for f, p in [spectrogram(prnu_hp, v)]},
+        prnu_spectrograms={
+            name: (f, 100.0 * p / signal) for name, v in directions.items() for f, p in [spectrogram(prnu_hp, v)]
+        },
         dsnu_profiles={name: profiles(dark, v) for name, v in directions.items()},
         prnu_profiles={name: profiles(prnu, v) for name, v in directions.items()},
-        dsnu_histograms={"log": log_histogram(dark_hp, frames_dark),
-                         "accumulated": accumulated_histogram(dark_hp, frames_dark)},
+        dsnu_histograms={
+            "log": log_histogram(dark_hp, frames_dark),
+            "accumulated": accumulated_histogram(dark_hp, frames_dark),
+        },
         prnu_histograms={"log": log_histogram(prnu_hp, frames), "accumulated": accumulated_histogram(prnu_hp, frames)},
         signal_dn=signal,
     )

@@ -21,6 +21,7 @@ deviations from an integer centre are accumulated exactly (integers, over row ch
 temporaries stay small and no precision is lost to cancellation. The highpass at the end works on a float32 copy
 of ⟨y⟩ − μ_y.
 """
+
 from __future__ import annotations
 
 from collections.abc import Iterable
@@ -110,8 +111,13 @@ class StackAccumulator:
         if min(deviation.shape) > 2 * HIGHPASS_MARGIN + 1:
             spatial = spatial_variances(highpass(deviation), stack_var if frames > 2 else temporal, frames)
         return StackStatistics(
-            frames=frames, mean_dn=mean, temporal_var_dn2=temporal, stack_var_dn2=stack_var,
-            spatial_var_dn2=measured, spatial=spatial, mean_diff_dn=self._mean_diff,
+            frames=frames,
+            mean_dn=mean,
+            temporal_var_dn2=temporal,
+            stack_var_dn2=stack_var,
+            spatial_var_dn2=measured,
+            spatial=spatial,
+            mean_diff_dn=self._mean_diff,
             saturated_fraction=float(np.count_nonzero(self._saturated)) / n,
             mean_image=np.add(deviation, np.float32(mean), out=deviation) if self.keep_mean_image else None,
         )

@@ -6,6 +6,7 @@ rows, z into the board; lengths in metres. Chessboard (inner) corner k sits at `
 ChArUco id k. Texture pixel (i, j) covers board coordinates [j, j + 1) × [i, i + 1) texels from the texture's
 origin (the outer corner of its white margin), so pixel centres are at (j + ½, i + ½) texels.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -22,8 +23,8 @@ from uwlab.model.schema import NonEmptyText, Schema, invalid, parse, quantity
 from uwlab.outputs import output_file
 
 DEFAULT_BOARD = "boards/charuco-7x5-40mm.toml"
-BLACK_REFLECTANCE = 0.04     # matte black print (assumed)
-WHITE_REFLECTANCE = 0.80     # matte white paper (assumed)
+BLACK_REFLECTANCE = 0.04  # matte black print (assumed)
+WHITE_REFLECTANCE = 0.80  # matte white paper (assumed)
 REFINE_MAX_HALF_WINDOW = 5
 # Squares per side of a printable board; square and marker sides (a size in metres or µm is outside).
 SquareCount = quantity(3, 100, "squares", hint="", integer=True)
@@ -73,13 +74,19 @@ class CharucoBoard:
     def from_dict(cls, raw: dict) -> CharucoBoard:
         """A board from its TOML form (`BoardConfig`, millimetres)."""
         config = parse(BoardConfig, raw, "board")
-        return cls(config.squares, config.square_mm * 1e-3, config.marker_mm * 1e-3, config.dictionary,
-                   config.margin_mm * 1e-3)
+        return cls(
+            config.squares, config.square_mm * 1e-3, config.marker_mm * 1e-3, config.dictionary, config.margin_mm * 1e-3
+        )
 
     def to_dict(self) -> dict:
         """The TOML form (millimetres)."""
-        return {"squares": list(self.squares), "square_mm": self.square_m * 1e3, "marker_mm": self.marker_m * 1e3,
-                "dictionary": self.dictionary, "margin_mm": self.margin_m * 1e3}
+        return {
+            "squares": list(self.squares),
+            "square_mm": self.square_m * 1e3,
+            "marker_mm": self.marker_m * 1e3,
+            "dictionary": self.dictionary,
+            "margin_mm": self.margin_m * 1e3,
+        }
 
     @property
     def size_m(self) -> tuple[float, float]:
@@ -166,8 +173,9 @@ def write_printable(board: CharucoBoard, path: str | Path, dpi: int) -> Path:
     out = output_file(path, "--out")
     per_square = max(int(round(board.square_m * dpi / 0.0254)), 20)
     try:
-        plt.imsave(out, board.binary_image(per_square), cmap="gray", vmin=0, vmax=255,
-                   dpi=per_square / board.square_m * 0.0254)
+        plt.imsave(
+            out, board.binary_image(per_square), cmap="gray", vmin=0, vmax=255, dpi=per_square / board.square_m * 0.0254
+        )
     except OSError as exc:
         raise ConfigError("--out", str(out), f"cannot write ({exc.strerror})") from None
     return out

@@ -25,6 +25,7 @@
 
 The RMS reprojection error is per corner, √(mean of dx² + dy²) (as OpenCV reports it).
 """
+
 from __future__ import annotations
 
 import math
@@ -48,8 +49,10 @@ MIN_AIR_VIEWS = 3
 MIN_WATER_VIEWS = 2
 OUTLIER_SIGMA = 5.0
 DEFAULT_MAX_DISTORTION_PX = 0.5
-PORT_PARAMETERS = {"dome": ("decenter_x_mm", "decenter_y_mm", "decenter_z_mm"),
-                   "flat": ("port_distance_mm", "tilt_x_deg", "tilt_y_deg")}
+PORT_PARAMETERS = {
+    "dome": ("decenter_x_mm", "decenter_y_mm", "decenter_z_mm"),
+    "flat": ("port_distance_mm", "tilt_x_deg", "tilt_y_deg"),
+}
 
 
 def to_8bit(image: np.ndarray) -> np.ndarray:
@@ -87,8 +90,10 @@ def read_views(board: CharucoBoard, folder: str | Path, option: str) -> tuple[li
 
 def _require(views, total, needed, option, folder):
     if len(views) < needed:
-        raise UwlabError(f"{option} {folder}: only {len(views)} of {total} images show at least {MIN_CORNERS} "
-                         f"ChArUco corners of the board; need {needed} (check the board file, focus and lighting)")
+        raise UwlabError(
+            f"{option} {folder}: only {len(views)} of {total} images show at least {MIN_CORNERS} "
+            f"ChArUco corners of the board; need {needed} (check the board file, focus and lighting)"
+        )
 
 
 @dataclass(frozen=True)
@@ -130,10 +135,20 @@ class PortFit:
 
 def _make_port(kind: str, nominal: Port, p) -> Port:
     if kind == "dome":
-        return DomePort(nominal.outer_radius_m, nominal.thickness_m, nominal.glass_index, nominal.water_index,
-                        tuple(float(v) * 1e-3 for v in p))
-    return FlatPort(nominal.thickness_m, float(p[0]) * 1e-3, nominal.glass_index, nominal.water_index,
-                    (math.radians(p[1]), math.radians(p[2])))
+        return DomePort(
+            nominal.outer_radius_m,
+            nominal.thickness_m,
+            nominal.glass_index,
+            nominal.water_index,
+            tuple(float(v) * 1e-3 for v in p),
+        )
+    return FlatPort(
+        nominal.thickness_m,
+        float(p[0]) * 1e-3,
+        nominal.glass_index,
+        nominal.water_index,
+        (math.radians(p[1]), math.radians(p[2])),
+    )
 
 
 def _initial_port(kind: str, nominal: Port) -> np.ndarray:
@@ -174,9 +189,9 @@ class _Problem:
 
     def split(self, x):
         lens = _lens_from(x[:N_LENS])
-        port = _make_port(self.kind, self.nominal, x[N_LENS: N_LENS + self.n_port])
+        port = _make_port(self.kind, self.nominal, x[N_LENS : N_LENS + self.n_port])
         s = math.exp(x[self.n_global - 1]) if self.free_scale else 1.0
-        return lens, port, s, x[self.n_global:].reshape(self.n_views, 6)
+        return lens, port, s, x[self.n_global :].reshape(self.n_views, 6)
 
     def residuals(self, x, mask):
         lens, port, s, poses = self.split(x)
@@ -203,7 +218,7 @@ class _Problem:
         for group in columns:
             dx = np.zeros(n)
             dx[group] = steps[group]
-            diff = (self.residuals(x + dx, mask) - self.residuals(x - dx, mask))
+            diff = self.residuals(x + dx, mask) - self.residuals(x - dx, mask)
             if group.size == 1:
                 jac[:, group[0]] = diff / (2 * steps[group[0]])
             else:
@@ -224,12 +239,24 @@ def _initial_poses(board, views, lens: BrownLens, ratio: float) -> np.ndarray:
     return np.concatenate(poses)
 
 
-def fit_port(kind: str, nominal: Port, air: BrownLens, board: CharucoBoard, air_views: list[Detection],
-             water_views: list[Detection], free_scale: bool = False) -> PortFit:
+def fit_port(
+    kind: str,
+    nominal: Port,
+    air: BrownLens,
+    board: CharucoBoard,
+    air_views: list[Detection],
+    water_views: list[Detection],
+    free_scale: bool = False,
+) -> PortFit:
     """Refine lens, port, focal scale (when `free_scale`) and poses jointly on all views (module docstring)."""
     problem = _Problem(kind, nominal, board, air_views, water_views, free_scale)
-    x0 = np.r_[_lens_vector(air), _initial_port(kind, nominal), 0.0, _initial_poses(board, air_views, air, 1.0),
-               _initial_poses(board, water_views, air, focal_ratio(nominal))]
+    x0 = np.r_[
+        _lens_vector(air),
+        _initial_port(kind, nominal),
+        0.0,
+        _initial_poses(board, air_views, air, 1.0),
+        _initial_poses(board, water_views, air, focal_ratio(nominal)),
+    ]
     mask = np.ones(problem.observed.shape[0], bool)
     result, errors = _solve(problem, x0, mask)
     outliers = errors > OUTLIER_SIGMA * _rms(errors)
@@ -247,16 +274,37 @@ def fit_port(kind: str, nominal: Port, air: BrownLens, board: CharucoBoard, air_
     grad = _ratio_gradient(kind, nominal, result.x[block])
     water = problem.in_water[mask]
     return PortFit(
-        kind, lens, result.x[N_LENS: N_LENS + problem.n_port], np.sqrt(np.diag(cov)[N_LENS: N_LENS + problem.n_port]),
-        s, s * math.sqrt(cov[problem.n_global - 1, problem.n_global - 1]), s * focal_ratio(port),
-        float(math.sqrt(max(grad @ cov[block, block] @ grad, 0.0))), _rms(errors[water]), _rms(errors[~water]),
-        int(water.sum()), int((~mask).sum()), port, result.fun.reshape(-1, 2))
+        kind,
+        lens,
+        result.x[N_LENS : N_LENS + problem.n_port],
+        np.sqrt(np.diag(cov)[N_LENS : N_LENS + problem.n_port]),
+        s,
+        s * math.sqrt(cov[problem.n_global - 1, problem.n_global - 1]),
+        s * focal_ratio(port),
+        float(math.sqrt(max(grad @ cov[block, block] @ grad, 0.0))),
+        _rms(errors[water]),
+        _rms(errors[~water]),
+        int(water.sum()),
+        int((~mask).sum()),
+        port,
+        result.fun.reshape(-1, 2),
+    )
 
 
 def _solve(problem: _Problem, x0, mask):
     """Levenberg–Marquardt on the corners in `mask`; (result, per-corner error [px])."""
-    result = least_squares(problem.residuals, x0, jac=problem.jacobian, method="lm", x_scale="jac",
-                           ftol=1e-12, xtol=1e-12, gtol=1e-12, max_nfev=200, args=(mask,))
+    result = least_squares(
+        problem.residuals,
+        x0,
+        jac=problem.jacobian,
+        method="lm",
+        x_scale="jac",
+        ftol=1e-12,
+        xtol=1e-12,
+        gtol=1e-12,
+        max_nfev=200,
+        args=(mask,),
+    )
     if not np.all(np.isfinite(result.fun)):
         raise UwlabError("the port fit left the valid region (rays missing the port); check --port and the config")
     return result, np.linalg.norm(result.fun.reshape(-1, 2), axis=1)
@@ -268,6 +316,7 @@ def _rms(errors) -> float:
 
 def _ratio_gradient(kind, nominal, p, step=1e-4):
     """∂(s · focal_ratio(port)) / ∂(port parameters, log s) by central differences."""
+
     def ratio(q):
         return math.exp(q[-1]) * focal_ratio(_make_port(kind, nominal, q[:-1]))
 
@@ -288,8 +337,15 @@ def induced_distortion_px(port: Port, lens: BrownLens, size: tuple[int, int]) ->
     return float(np.max(np.abs(shift)) * lens.fx)
 
 
-def calibrate_port(board: CharucoBoard, air_dir, water_dir, kind: str, nominal: Port, refocused: bool = False,
-                   max_distortion_px: float = DEFAULT_MAX_DISTORTION_PX) -> dict:
+def calibrate_port(
+    board: CharucoBoard,
+    air_dir,
+    water_dir,
+    kind: str,
+    nominal: Port,
+    refocused: bool = False,
+    max_distortion_px: float = DEFAULT_MAX_DISTORTION_PX,
+) -> dict:
     """The whole procedure (module docstring); returns the result record (the keys of `uwlab port calibrate`)."""
     if kind not in PORT_PARAMETERS:
         raise ConfigError("--port", kind, "must be flat or dome")
@@ -300,8 +356,11 @@ def calibrate_port(board: CharucoBoard, air_dir, water_dir, kind: str, nominal: 
     water_views, water_size, water_total = read_views(board, water_dir, "DIR_WATER")
     _require(water_views, water_total, MIN_WATER_VIEWS, "DIR_WATER", water_dir)
     if water_size != air_size:
-        raise ConfigError("DIR_WATER", str(water_dir), f"images are {water_size[0]}x{water_size[1]} px, those in air "
-                                                       f"{air_size[0]}x{air_size[1]}")
+        raise ConfigError(
+            "DIR_WATER",
+            str(water_dir),
+            f"images are {water_size[0]}x{water_size[1]} px, those in air {air_size[0]}x{air_size[1]}",
+        )
     air = calibrate_air(board, air_views, air_size)
     fit = fit_port(kind, nominal, air.lens, board, air_views, water_views, free_scale=refocused)
     record = {"port": kind}
@@ -319,13 +378,28 @@ def calibrate_port(board: CharucoBoard, air_dir, water_dir, kind: str, nominal: 
         record["centred_enough"] = bool(distortion <= max_distortion_px)
         record["induced_distortion_px"] = distortion
         record["max_distortion_px"] = max_distortion_px
-    record.update({
-        "focus": "refocused" if refocused else "locked",
-        "focal_scale": fit.scale, "focal_scale_std": fit.scale_std if refocused else None,
-        "water": {"images": water_total, "views": len(water_views), "corners": fit.corners, "outliers": fit.outliers},
-        "air": {"images": air_total, "views": air.views, "corners": air.corners, "rms_px": fit.air_rms_px,
-                "opencv_rms_px": air.rms_px, "focal_length_px": [fit.lens.fx, fit.lens.fy],
-                "principal_point_px": [fit.lens.cx, fit.lens.cy], "distortion": list(fit.lens.distortion)},
-        "image_size_px": list(air_size),
-    })
+    record.update(
+        {
+            "focus": "refocused" if refocused else "locked",
+            "focal_scale": fit.scale,
+            "focal_scale_std": fit.scale_std if refocused else None,
+            "water": {
+                "images": water_total,
+                "views": len(water_views),
+                "corners": fit.corners,
+                "outliers": fit.outliers,
+            },
+            "air": {
+                "images": air_total,
+                "views": air.views,
+                "corners": air.corners,
+                "rms_px": fit.air_rms_px,
+                "opencv_rms_px": air.rms_px,
+                "focal_length_px": [fit.lens.fx, fit.lens.fy],
+                "principal_point_px": [fit.lens.cx, fit.lens.cy],
+                "distortion": list(fit.lens.distortion),
+            },
+            "image_size_px": list(air_size),
+        }
+    )
     return record

@@ -13,6 +13,7 @@ is that of `uwlab.sim.devices.camera.SimSensor` (shot, dark, quantisation, fixed
 Writes `pose-NNN.png` (8-bit) and `charuco.json`: the board, the camera, the port as rendered, the medium and
 each image's true pose (rvec [rad, Rodrigues], tvec [m]; OpenCV's convention X_cam = R X_board + t).
 """
+
 from __future__ import annotations
 
 import json
@@ -77,8 +78,13 @@ def sample_poses(board: CharucoBoard, lens: BrownLens, resolution, port: Port, c
         rotation = Rotation.from_euler("xyz", [rng.uniform(-t, t) for t in TILT_DEG], degrees=True).as_matrix()
         t = distance * np.array([u, v, 1.0]) - rotation @ centre_board
         pixels = lens.pixels(port.project(corners @ rotation.T + t))
-        inside = np.all(np.isfinite(pixels), axis=1) & (pixels[:, 0] > 8) & (pixels[:, 0] < width - 9) \
-            & (pixels[:, 1] > 8) & (pixels[:, 1] < height - 9)
+        inside = (
+            np.all(np.isfinite(pixels), axis=1)
+            & (pixels[:, 0] > 8)
+            & (pixels[:, 0] < width - 9)
+            & (pixels[:, 1] > 8)
+            & (pixels[:, 1] < height - 9)
+        )
         if inside.mean() >= MIN_VISIBLE:
             poses.append((rotation, t))
     if len(poses) < count:
@@ -96,16 +102,36 @@ def _texture(board: CharucoBoard, lens: BrownLens, distance_m: float, supersampl
 
 def _port_record(port: Port) -> dict:
     if isinstance(port, DomePort):
-        return {"port": "dome", "outer_radius_mm": port.outer_radius_m * 1e3, "thickness_mm": port.thickness_m * 1e3,
-                "glass_index": port.glass_index, "outside_index": port.water_index,
-                "decenter_mm": [v * 1e3 for v in port.decenter_m]}
-    return {"port": "flat", "thickness_mm": port.thickness_m * 1e3, "air_gap_mm": port.air_gap_m * 1e3,
-            "glass_index": port.glass_index, "outside_index": port.water_index,
-            "tilt_deg": [math.degrees(v) for v in port.tilt_rad]}
+        return {
+            "port": "dome",
+            "outer_radius_mm": port.outer_radius_m * 1e3,
+            "thickness_mm": port.thickness_m * 1e3,
+            "glass_index": port.glass_index,
+            "outside_index": port.water_index,
+            "decenter_mm": [v * 1e3 for v in port.decenter_m],
+        }
+    return {
+        "port": "flat",
+        "thickness_mm": port.thickness_m * 1e3,
+        "air_gap_mm": port.air_gap_m * 1e3,
+        "glass_index": port.glass_index,
+        "outside_index": port.water_index,
+        "tilt_deg": [math.degrees(v) for v in port.tilt_rad],
+    }
 
 
-def simulate_charuco(design, board: CharucoBoard, medium: str, count: int, out: str | Path, seed: int = 0,
-                     downsample: int = 4, k1: float = 0.0, white_fraction: float = 0.6, supersample: int = 4) -> dict:
+def simulate_charuco(
+    design,
+    board: CharucoBoard,
+    medium: str,
+    count: int,
+    out: str | Path,
+    seed: int = 0,
+    downsample: int = 4,
+    k1: float = 0.0,
+    white_fraction: float = 0.6,
+    supersample: int = 4,
+) -> dict:
     """Render `count` images of `board` seen through the design's port in `medium` into the new folder `out`;
     returns the sidecar record (also written as charuco.json)."""
     if count < 1:
@@ -122,8 +148,9 @@ def simulate_charuco(design, board: CharucoBoard, medium: str, count: int, out: 
     reflectance, texel, origin = _texture(board, lens, closest, supersample)
     target = PlanarTarget(reflectance, texel, origin, background=0.1)
     view = TargetView(lens, resolution, port, supersample)
-    truth = SimTruth.from_sensor_profile(design.sensor, resolution_px=resolution,
-                                         pixel_size_um=design.sensor.pixel_size_um * downsample)
+    truth = SimTruth.from_sensor_profile(
+        design.sensor, resolution_px=resolution, pixel_size_um=design.sensor.pixel_size_um * downsample
+    )
     sensor = SimSensor(truth, lambda shape: np.zeros(shape, np.float32), seed=seed)
     config = SensorConfig(EXPOSURE_US, truth.gain_min_db, 0.0, "Mono8", 0, 0, *resolution)
     electrons_white = white_fraction * truth.saturation_e
@@ -140,10 +167,16 @@ def simulate_charuco(design, board: CharucoBoard, medium: str, count: int, out: 
         "medium": medium,
         "seed": seed,
         "board": board.to_dict(),
-        "camera": {"resolution_px": list(resolution), "pixel_size_um": pixel * 1e6,
-                   "focal_length_mm": float(design["lens.focal_length_mm"]), "focal_length_px": lens.fx,
-                   "principal_point_px": [lens.cx, lens.cy], "distortion": list(lens.distortion),
-                   "downsample": downsample, "sensor": design.sensor.name},
+        "camera": {
+            "resolution_px": list(resolution),
+            "pixel_size_um": pixel * 1e6,
+            "focal_length_mm": float(design["lens.focal_length_mm"]),
+            "focal_length_px": lens.fx,
+            "principal_point_px": [lens.cx, lens.cy],
+            "distortion": list(lens.distortion),
+            "downsample": downsample,
+            "sensor": design.sensor.name,
+        },
         "port": _port_record(port),
         "poses": records,
     }

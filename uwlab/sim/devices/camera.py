@@ -34,6 +34,7 @@ spatial and temporal means/variances are those of the model (consecutive frames 
 shift of the same bank: do not use cross-frame spatial correlations). ``shot_noise="poisson"``
 draws exact Poisson electrons (slow; for small ROIs and low-signal tests).
 """
+
 from __future__ import annotations
 
 import time
@@ -91,10 +92,14 @@ class SimTruth:
     def at_temperature(self, temperature_c: float) -> SimTruth:
         """The sensor at another temperature: µ_I = µ_I.ref 2^((T − T_ref)/T_d) (EMVA 1288 Release 4.0 Linear
         eq. 31) with T_d = ``dark_current_doubling_c``; unchanged dark current without a doubling temperature."""
-        factor = 1.0 if self.dark_current_doubling_c is None else \
-            2.0 ** ((temperature_c - self.temperature_c) / self.dark_current_doubling_c)
-        return replace(self, temperature_c=float(temperature_c),
-                       dark_current_e_per_s=self.dark_current_e_per_s * factor)
+        factor = (
+            1.0
+            if self.dark_current_doubling_c is None
+            else 2.0 ** ((temperature_c - self.temperature_c) / self.dark_current_doubling_c)
+        )
+        return replace(
+            self, temperature_c=float(temperature_c), dark_current_e_per_s=self.dark_current_e_per_s * factor
+        )
 
     def compressed_e(self, electrons):
         """The signal after the test non-linearity: e − β e² / saturation_e (identity for β = 0)."""
@@ -148,13 +153,14 @@ class SimSensor:
         self.shot_noise = shot_noise
         width, height = truth.resolution_px
         rng = np.random.default_rng(seed)
-        self.dsnu_map_e = (rng.standard_normal((height, width), np.float32) * np.float32(truth.dsnu_e))
+        self.dsnu_map_e = rng.standard_normal((height, width), np.float32) * np.float32(truth.dsnu_e)
         self.prnu_map = 1.0 + rng.standard_normal((height, width), np.float32) * np.float32(truth.prnu_percent / 100.0)
         self.dark_current_map = None
         if truth.hot_pixel_fraction > 0:
             hot = np.random.default_rng(seed + 2).random((height, width)) < truth.hot_pixel_fraction
-            self.dark_current_map = np.where(hot, truth.hot_pixel_dark_current_e_per_s,
-                                             truth.dark_current_e_per_s).astype(np.float32)
+            self.dark_current_map = np.where(
+                hot, truth.hot_pixel_dark_current_e_per_s, truth.dark_current_e_per_s
+            ).astype(np.float32)
         self._rng = np.random.default_rng(seed + 1)
         self._bank = np.empty(0, np.float32)
         self._work = np.empty((0, 0), np.float32)
@@ -381,8 +387,10 @@ class SimNodeMap:
     def _fit_roi(self) -> None:
         """After a binning change, shrink the ROI to the binned sensor (as SFNC devices do)."""
         width, height = self.truth.resolution_px
-        for size, offset, full, binning in (("Width", "OffsetX", width, "BinningHorizontal"),
-                                            ("Height", "OffsetY", height, "BinningVertical")):
+        for size, offset, full, binning in (
+            ("Width", "OffsetX", width, "BinningHorizontal"),
+            ("Height", "OffsetY", height, "BinningVertical"),
+        ):
             limit = full // self.value(binning)
             self.nodes[size].value = min(self.value(size), limit)
             self.nodes[offset].value = min(self.value(offset), limit - self.value(size))
@@ -405,8 +413,18 @@ class SimNodeMap:
 
     def sensor_config(self) -> SensorConfig:
         v = self.value
-        return SensorConfig(v("ExposureTime"), v("Gain"), v("BlackLevel"), v("PixelFormat"), v("OffsetX"), v("OffsetY"),
-                            v("Width"), v("Height"), v("BinningHorizontal"), v("BinningVertical"))
+        return SensorConfig(
+            v("ExposureTime"),
+            v("Gain"),
+            v("BlackLevel"),
+            v("PixelFormat"),
+            v("OffsetX"),
+            v("OffsetY"),
+            v("Width"),
+            v("Height"),
+            v("BinningHorizontal"),
+            v("BinningVertical"),
+        )
 
     def frame_period_s(self) -> float:
         """Free-run frame period: the exposure, or the frame rate's period when enabled."""
@@ -429,8 +447,13 @@ class SimTransport:
 
     backend = "sim"
 
-    def __init__(self, sensor: SimSensor, device_id: str = "sim0", faults: SimFaults | None = None,
-                 clock_ns: Callable[[], int] = time.monotonic_ns):
+    def __init__(
+        self,
+        sensor: SimSensor,
+        device_id: str = "sim0",
+        faults: SimFaults | None = None,
+        clock_ns: Callable[[], int] = time.monotonic_ns,
+    ):
         self.sensor = sensor
         self.device_id = device_id
         self.faults = faults or SimFaults()
@@ -481,8 +504,15 @@ class SimTransport:
 
     def set(self, name: str, value: Any) -> None:
         self._alive()
-        if self._streaming and name in ("Width", "Height", "OffsetX", "OffsetY", "PixelFormat",
-                                        "BinningHorizontal", "BinningVertical"):
+        if self._streaming and name in (
+            "Width",
+            "Height",
+            "OffsetX",
+            "OffsetY",
+            "PixelFormat",
+            "BinningHorizontal",
+            "BinningVertical",
+        ):
             raise ConfigError(name, value, "locked while acquiring (TLParamsLocked)")
         self.nodes.set(name, value)
 
@@ -559,8 +589,9 @@ class SimTransport:
         self._closed = True
 
 
-def sensor_from_rig(config: str | None = None, seed: int = 0, shot_noise: str = "gaussian",
-                    rig_state: str | None = None) -> SimSensor:
+def sensor_from_rig(
+    config: str | None = None, seed: int = 0, shot_noise: str = "gaussian", rig_state: str | None = None
+) -> SimSensor:
     """The simulated sensor of a rig description (default rig when ``config`` is None): sensor
     profile, irradiance map and light state all come from `uwlab.sim.scene`;
     ``rig_state`` is the light-state file shared with the simulated light (`RigState`)."""
@@ -569,8 +600,9 @@ def sensor_from_rig(config: str | None = None, seed: int = 0, shot_noise: str = 
 
     scene = RigScene.from_toml(config, RigState(rig_state) if rig_state else None)
     truth = SimTruth.from_sensor_profile(scene.sensor, **scene.sensor_realism())
-    return SimSensor(truth, lambda shape: scene.electron_rate_map(shape, 1.0), scene.flux_fraction, seed=seed,
-                     shot_noise=shot_noise)
+    return SimSensor(
+        truth, lambda shape: scene.electron_rate_map(shape, 1.0), scene.flux_fraction, seed=seed, shot_noise=shot_noise
+    )
 
 
 SIM_DEVICE_IDS = ("sim0",)
@@ -586,9 +618,16 @@ def discover(config: str | None = None, sensor: SimSensor | None = None, **_: An
     ]
 
 
-def open_transport(device_id: str | None = None, config: str | None = None, seed: int = 0,
-                   faults: SimFaults | None = None, sensor: SimSensor | None = None,
-                   shot_noise: str = "gaussian", rig_state: str | None = None, **_: Any) -> SimTransport:
+def open_transport(
+    device_id: str | None = None,
+    config: str | None = None,
+    seed: int = 0,
+    faults: SimFaults | None = None,
+    sensor: SimSensor | None = None,
+    shot_noise: str = "gaussian",
+    rig_state: str | None = None,
+    **_: Any,
+) -> SimTransport:
     """Open the simulated camera ``device_id`` (default ``sim0``); ``sensor`` injects a
     ready-made `SimSensor` (ground truth, rate map, light), else the rig ``config`` is used."""
     device_id = device_id or SIM_DEVICE_IDS[0]

@@ -18,6 +18,7 @@ sockets share their port, binding cannot tell that an address is taken: each ser
 address with an abstract Unix socket named after it (freed by the kernel when the process ends),
 and a second server on the same address is refused, naming the process that holds it.
 """
+
 from __future__ import annotations
 
 import select
@@ -51,7 +52,12 @@ CMD_DISCOVERY, CMD_PACKETRESEND, CMD_READREG, CMD_WRITEREG, CMD_READMEM, CMD_WRI
     0x86,
 )
 STATUS_OK, STATUS_NOT_IMPLEMENTED, STATUS_INVALID_PARAMETER, STATUS_INVALID_ADDRESS, STATUS_WRITE_PROTECT = (
-    0x0000, 0x8001, 0x8002, 0x8003, 0x8004)
+    0x0000,
+    0x8001,
+    0x8002,
+    0x8003,
+    0x8004,
+)
 STATUS_ACCESS_DENIED = 0x8006
 REG_CCP, REG_HEARTBEAT, REG_SCP, REG_SCDA = 0x0A00, 0x0938, 0x0D00, 0x0D18
 GVSP_LEADER, GVSP_TRAILER, GVSP_PAYLOAD = 1, 2, 3
@@ -74,8 +80,9 @@ def _mac(address: str) -> bytes:
 class GigeCameraServer:
     """Serve a simulated camera on ``address`` (a loopback IPv4 address) until `close`."""
 
-    def __init__(self, sensor: SimSensor, address: str = "127.0.0.1", serial: str | None = None,
-                 faults: GigeFaults | None = None):
+    def __init__(
+        self, sensor: SimSensor, address: str = "127.0.0.1", serial: str | None = None, faults: GigeFaults | None = None
+    ):
         self.sensor = sensor
         self.address = address
         self.faults = faults or GigeFaults()
@@ -98,8 +105,10 @@ class GigeCameraServer:
         self._gvsp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self._gvsp.bind((address, 0))
         self._gvsp.setsockopt(socket.SOL_SOCKET, socket.SO_SNDBUF, 8 << 20)
-        self._threads = [threading.Thread(target=self._serve_control, daemon=True),
-                         threading.Thread(target=self._serve_stream, daemon=True)]
+        self._threads = [
+            threading.Thread(target=self._serve_control, daemon=True),
+            threading.Thread(target=self._serve_stream, daemon=True),
+        ]
 
     @property
     def device_id(self) -> str:
@@ -130,8 +139,9 @@ class GigeCameraServer:
                 holder = f"process {pid}"
             except OSError:
                 pass
-        raise ConfigError("address", address, f"in use: a simulated camera of {holder} serves it; choose another "
-                                              "127.x.y.z address")
+        raise ConfigError(
+            "address", address, f"in use: a simulated camera of {holder} serves it; choose another 127.x.y.z address"
+        )
 
     @staticmethod
     def _bind(address: str) -> socket.socket:
@@ -178,10 +188,23 @@ class GigeCameraServer:
     # -- bootstrap and registers ------------------------------------------------------------
     def _make_bootstrap(self) -> bytearray:
         boot = bytearray(0x1000)
-        words = {0x0000: 0x00020000, 0x0004: 0x80000001, 0x0010: 0x00000006, 0x0014: 0x00000006,
-                 0x0024: struct.unpack(">I", socket.inet_aton(self.address))[0], 0x0034: 0xFF000000,
-                 0x0600: 1, 0x0900: 0, 0x0904: 1, 0x0934: 0x00000004 | 0x00000002, REG_HEARTBEAT: 3000,
-                 0x093C: 0, 0x0940: 1_000_000_000, SCPS_ADDRESS: 8192, 0x0D08: 0}
+        words = {
+            0x0000: 0x00020000,
+            0x0004: 0x80000001,
+            0x0010: 0x00000006,
+            0x0014: 0x00000006,
+            0x0024: struct.unpack(">I", socket.inet_aton(self.address))[0],
+            0x0034: 0xFF000000,
+            0x0600: 1,
+            0x0900: 0,
+            0x0904: 1,
+            0x0934: 0x00000004 | 0x00000002,
+            REG_HEARTBEAT: 3000,
+            0x093C: 0,
+            0x0940: 1_000_000_000,
+            SCPS_ADDRESS: 8192,
+            0x0D08: 0,
+        }
         for addr, value in words.items():
             struct.pack_into(">I", boot, addr, value)
         boot[0x0008:0x0010] = b"\x00\x00" + _mac(self.address)
@@ -248,8 +271,15 @@ class GigeCameraServer:
         self._set(reg.feature, struct.unpack(">d", data)[0])
 
     def _set(self, name: str, value) -> None:
-        if self._stream.running and name in ("Width", "Height", "OffsetX", "OffsetY", "PixelFormat",
-                                             "BinningHorizontal", "BinningVertical"):
+        if self._stream.running and name in (
+            "Width",
+            "Height",
+            "OffsetX",
+            "OffsetY",
+            "PixelFormat",
+            "BinningHorizontal",
+            "BinningVertical",
+        ):
             raise PermissionError(name)
         with self._lock:
             self.nodes.set(name, value)
@@ -397,11 +427,26 @@ class GigeCameraServer:
         size = (struct.unpack_from(">I", self._bootstrap, SCPS_ADDRESS)[0] & 0xFFFF) - GVSP_OVERHEAD
         chunk = max(size - size % 4, 64)
         ts = time.monotonic_ns()
-        leader = struct.pack(">HHIIIIIIIHH", 0, 0x0001, ts >> 32, ts & 0xFFFFFFFF, code, cfg.width, cfg.height,
-                             cfg.offset_x, cfg.offset_y, 0, 0)
+        leader = struct.pack(
+            ">HHIIIIIIIHH",
+            0,
+            0x0001,
+            ts >> 32,
+            ts & 0xFFFFFFFF,
+            code,
+            cfg.width,
+            cfg.height,
+            cfg.offset_x,
+            cfg.offset_y,
+            0,
+            0,
+        )
         bodies = [payload[i : i + chunk] for i in range(0, len(payload), chunk)]
-        parts = [(GVSP_LEADER, leader), *((GVSP_PAYLOAD, b) for b in bodies),
-                 (GVSP_TRAILER, struct.pack(">HHI", 0, 0x0001, cfg.height))]
+        parts = [
+            (GVSP_LEADER, leader),
+            *((GVSP_PAYLOAD, b) for b in bodies),
+            (GVSP_TRAILER, struct.pack(">HHI", 0, 0x0001, cfg.height)),
+        ]
         return [
             struct.pack(">HHI", 0, block_id, (fmt_id << 24) | pid) + body for pid, (fmt_id, body) in enumerate(parts)
         ]
@@ -449,4 +494,3 @@ class _StreamState:
     def start(self) -> None:
         self.triggers = 0
         self.running = True
-

@@ -7,6 +7,7 @@ table 28). Integer bounds that depend on other features (ROI) are read-only regi
 server computes live (``<pMin>``/``<pMax>``). The XML is served from ``XML_ADDRESS`` and
 announced by the bootstrap "first URL" register as ``Local:<file>;<address>;<length>``.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -35,9 +36,22 @@ ENUM_VALUES = {
     "TriggerMode": {"Off": 0, "On": 1},
     "TriggerSource": {"Software": 0},
 }
-INT_FEATURES = ("SensorWidth", "SensorHeight", "Width", "Height", "OffsetX", "OffsetY", "BinningHorizontal",
-                "BinningVertical", "PayloadSize", "AcquisitionFrameRateEnable", "AcquisitionStart", "AcquisitionStop",
-                "TriggerSoftware", *ENUM_VALUES)
+INT_FEATURES = (
+    "SensorWidth",
+    "SensorHeight",
+    "Width",
+    "Height",
+    "OffsetX",
+    "OffsetY",
+    "BinningHorizontal",
+    "BinningVertical",
+    "PayloadSize",
+    "AcquisitionFrameRateEnable",
+    "AcquisitionStart",
+    "AcquisitionStop",
+    "TriggerSoftware",
+    *ENUM_VALUES,
+)
 DYNAMIC_BOUNDS = ("Width", "Height", "OffsetX", "OffsetY", "BinningHorizontal", "BinningVertical")
 FLOAT_FEATURES = ("ExposureTime", "Gain", "BlackLevel", "AcquisitionFrameRate", "DeviceTemperature")
 SCPS_ADDRESS = 0x0D04
@@ -72,9 +86,11 @@ def _addresses() -> dict[tuple[str, str], int]:
 
 
 def _int_reg(name: str, address: int, access: str) -> str:
-    return (f'<IntReg Name="{name}Reg"><Address>0x{address:X}</Address><Length>4</Length>'
-            f"<AccessMode>{access}</AccessMode><pPort>Device</pPort><Sign>Unsigned</Sign>"
-            "<Endianess>BigEndian</Endianess></IntReg>")
+    return (
+        f'<IntReg Name="{name}Reg"><Address>0x{address:X}</Address><Length>4</Length>'
+        f"<AccessMode>{access}</AccessMode><pPort>Device</pPort><Sign>Unsigned</Sign>"
+        "<Endianess>BigEndian</Endianess></IntReg>"
+    )
 
 
 def _feature_xml(name: str, nodes: object, addr: dict[tuple[str, str], int]) -> list[str]:
@@ -82,8 +98,10 @@ def _feature_xml(name: str, nodes: object, addr: dict[tuple[str, str], int]) -> 
     access = "RW" if node.writable else "RO"
     if name in ENUM_VALUES:
         entries = "".join(f'<EnumEntry Name="{e}"><Value>{v}</Value></EnumEntry>' for e, v in ENUM_VALUES[name].items())
-        return [f'<Enumeration Name="{name}" NameSpace="Standard">{entries}<pValue>{name}Reg</pValue></Enumeration>',
-                _int_reg(name, addr[(name, "value")], "RW")]
+        return [
+            f'<Enumeration Name="{name}" NameSpace="Standard">{entries}<pValue>{name}Reg</pValue></Enumeration>',
+            _int_reg(name, addr[(name, "value")], "RW"),
+        ]
     if node.kind == "cmd":
         return [
             f'<Command Name="{name}" NameSpace="Standard"><pValue>{name}Reg</pValue>'
@@ -91,8 +109,11 @@ def _feature_xml(name: str, nodes: object, addr: dict[tuple[str, str], int]) -> 
             _int_reg(name, addr[(name, "value")], "WO"),
         ]
     if node.kind == "bool":
-        return [f'<Boolean Name="{name}" NameSpace="Standard"><pValue>{name}Reg</pValue><OnValue>1</OnValue>'
-                f"<OffValue>0</OffValue></Boolean>", _int_reg(name, addr[(name, "value")], "RW")]
+        return [
+            f'<Boolean Name="{name}" NameSpace="Standard"><pValue>{name}Reg</pValue><OnValue>1</OnValue>'
+            f"<OffValue>0</OffValue></Boolean>",
+            _int_reg(name, addr[(name, "value")], "RW"),
+        ]
     if node.kind == "int":
         if name in DYNAMIC_BOUNDS:
             limits = f"<pMin>{name}MinReg</pMin><pMax>{name}MaxReg</pMax>"
@@ -102,8 +123,11 @@ def _feature_xml(name: str, nodes: object, addr: dict[tuple[str, str], int]) -> 
             ]
         else:
             limits, extra = "", []
-        return [f'<Integer Name="{name}" NameSpace="Standard"><pValue>{name}Reg</pValue>{limits}<Inc>1</Inc></Integer>',
-                _int_reg(name, addr[(name, "value")], access), *extra]
+        return [
+            f'<Integer Name="{name}" NameSpace="Standard"><pValue>{name}Reg</pValue>{limits}<Inc>1</Inc></Integer>',
+            _int_reg(name, addr[(name, "value")], access),
+            *extra,
+        ]
     if node.kind == "float":
         lo, hi = node.bounds() if node.bounds else (-1e300, 1e300)
         return [
@@ -113,8 +137,10 @@ def _feature_xml(name: str, nodes: object, addr: dict[tuple[str, str], int]) -> 
             f"<AccessMode>{access}</AccessMode><pPort>Device</pPort><Endianess>BigEndian</Endianess></FloatReg>",
         ]
     address, length = STRING_REGISTERS[name]
-    return [f'<StringReg Name="{name}" NameSpace="Standard"><Address>0x{address:X}</Address><Length>{length}</Length>'
-            f"<AccessMode>RO</AccessMode><pPort>Device</pPort></StringReg>"]
+    return [
+        f'<StringReg Name="{name}" NameSpace="Standard"><Address>0x{address:X}</Address><Length>{length}</Length>'
+        f"<AccessMode>RO</AccessMode><pPort>Device</pPort></StringReg>"
+    ]
 
 
 def genicam_xml(nodes: object) -> bytes:

@@ -19,6 +19,7 @@ count model per pixel and frame (e.g. Janesick, *Photon Transfer*, SPIE 2007):
 reference, which is off by ``dark_error`` (a relative error), and divides by ``k·t``. Integration time
 1–10000 ms, averaging 1–100; an acquisition takes integration × averaging of real time.
 """
+
 from __future__ import annotations
 
 import re
@@ -131,14 +132,19 @@ class SimInstrument:
         raise CommandError(ERR_UNKNOWN_COMMAND, f"{ERROR_CODES[ERR_UNKNOWN_COMMAND]} {_quoted(header)}")
 
 
-
 class SimLight(SimInstrument):
     """Gamma-law dimmable light writing its state to the rig state."""
 
     model = "SIM-LIGHT"
 
-    def __init__(self, rig_state: RigState, gamma: float = 2.2, serial_number: str = "0001",
-                 state_log: StateLog | None = None, drift: WarmUp | None = None):
+    def __init__(
+        self,
+        rig_state: RigState,
+        gamma: float = 2.2,
+        serial_number: str = "0001",
+        state_log: StateLog | None = None,
+        drift: WarmUp | None = None,
+    ):
         self.rig_state = rig_state
         self.gamma = gamma
         self.drift = drift or WarmUp()
@@ -210,9 +216,7 @@ class DetectorModel:
         signal = gain * np.maximum(irradiance, 0)
         dark = self.dark_counts(integration_s)
         shot = np.sqrt(signal + self.dark_rate_counts_s * integration_s)
-        frames = dark + signal + rng.standard_normal((averaging, signal.size)) * np.hypot(
-            shot, self.read_noise_counts
-        )
+        frames = dark + signal + rng.standard_normal((averaging, signal.size)) * np.hypot(shot, self.read_noise_counts)
         saturated = bool(np.any(frames >= self.full_scale_counts))
         counts = np.clip(frames, 0, self.full_scale_counts).mean(axis=0)
         return (counts - dark * (1 - self.dark_error)) / gain, saturated

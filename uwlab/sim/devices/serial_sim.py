@@ -27,6 +27,7 @@ every instrument logs its true state (`uwlab.sim.state_log`) to ``<dir>/<name>.s
 `SerialRig.kill` / `SerialRig.restart` cut an instrument's power and bring it back (fault campaigns);
 `SerialRig.revive` restarts any simulator that died.
 """
+
 from __future__ import annotations
 
 import fcntl
@@ -124,7 +125,7 @@ class PtyPort:
     def write(self, data: bytes) -> None:
         """Queue ``data`` and send what the pty accepts now; beyond the bounded buffer, data is dropped."""
         room = MAX_PENDING_OUTPUT_BYTES - len(self._pending)
-        self._pending += data[:max(room, 0)]
+        self._pending += data[: max(room, 0)]
         self.dropped_bytes += max(len(data) - max(room, 0), 0)
         self._flush()
 
@@ -140,8 +141,9 @@ class PtyPort:
 class SerialServer:
     """Read command lines from a `PtyPort`, answer with an instrument, inject the queued faults."""
 
-    def __init__(self, instrument: SimInstrument, port: PtyPort, command_log: Path | None = None,
-                 vanish_s: float = 0.5):
+    def __init__(
+        self, instrument: SimInstrument, port: PtyPort, command_log: Path | None = None, vanish_s: float = 0.5
+    ):
         self.instrument = instrument
         self.port = port
         self.command_log = command_log
@@ -278,8 +280,14 @@ def _ctrl_c_deferred():
 class SimulatorProcess:
     """One simulated instrument in a spawned process; ``link`` is its port path once started."""
 
-    def __init__(self, factory: Callable[[], SimInstrument], link: Path, *, command_log: Path | None = None,
-                 vanish_s: float = 0.5):
+    def __init__(
+        self,
+        factory: Callable[[], SimInstrument],
+        link: Path,
+        *,
+        command_log: Path | None = None,
+        vanish_s: float = 0.5,
+    ):
         context = multiprocessing.get_context("spawn")
         self.link = Path(link)
         self._options = (factory, command_log, vanish_s)
@@ -364,11 +372,13 @@ class SerialSimSettings:
     def from_config(cls, path: str | os.PathLike | None, spectrometer_position: str = "target") -> SerialSimSettings:
         """Load and check the rig config (None: the default rig) and take its ``[sim] light_gamma``."""
         if spectrometer_position not in SPECTROMETER_POSITIONS:
-            raise ConfigError("spectrometer_position", spectrometer_position,
-                              f"must be one of {', '.join(SPECTROMETER_POSITIONS)}")
+            raise ConfigError(
+                "spectrometer_position", spectrometer_position, f"must be one of {', '.join(SPECTROMETER_POSITIONS)}"
+            )
         scene = load_scene(path)
-        return cls(Path(path) if path is not None else None, scene.sim.light_gamma, spectrometer_position,
-                   scene.warm_up())
+        return cls(
+            Path(path) if path is not None else None, scene.sim.light_gamma, spectrometer_position, scene.warm_up()
+        )
 
 
 class SceneSpectrum:
@@ -389,8 +399,9 @@ def _make_light(rig_state_path: Path, gamma: float, state_log: Path, warm_up: Wa
     return SimLight(RigState(rig_state_path), gamma, state_log=StateLog(state_log), drift=warm_up)
 
 
-def _make_spectrometer(rig_state_path: Path, spectrum: SpectrumSource, position: str, seed: int | None,
-                       state_log: Path):
+def _make_spectrometer(
+    rig_state_path: Path, spectrum: SpectrumSource, position: str, seed: int | None, state_log: Path
+):
     return SimSpectrometer(RigState(rig_state_path), spectrum, position, seed=seed, state_log=StateLog(state_log))
 
 
@@ -403,24 +414,38 @@ class SerialRig:
     With ``command_log``, each simulator appends received lines to ``<directory>/<name>.log``.
     """
 
-    def __init__(self, directory: str | os.PathLike, settings: SerialSimSettings = SerialSimSettings(), *,
-                 spectrum: SpectrumSource | None = None, seed: int | None = None, command_log: bool = False,
-                 vanish_s: float = 0.5):
+    def __init__(
+        self,
+        directory: str | os.PathLike,
+        settings: SerialSimSettings = SerialSimSettings(),
+        *,
+        spectrum: SpectrumSource | None = None,
+        seed: int | None = None,
+        command_log: bool = False,
+        vanish_s: float = 0.5,
+    ):
         self.directory = Path(directory)
         self.rig_state_path = self.directory / "rig-state.json"
         spectrum = spectrum if spectrum is not None else SceneSpectrum(settings.config_path)
         factories = {
-            "light": partial(_make_light, self.rig_state_path, settings.light_gamma, self.state_log("light").path,
-                             settings.warm_up),
+            "light": partial(
+                _make_light, self.rig_state_path, settings.light_gamma, self.state_log("light").path, settings.warm_up
+            ),
             "spectrometer": partial(
-                _make_spectrometer, self.rig_state_path, spectrum, settings.spectrometer_position, seed,
+                _make_spectrometer,
+                self.rig_state_path,
+                spectrum,
+                settings.spectrometer_position,
+                seed,
                 self.state_log("spectrometer").path,
             ),
         }
         self.simulators = {
             name: SimulatorProcess(
-                factory, self.directory / name,
-                command_log=self.log_path(name) if command_log else None, vanish_s=vanish_s,
+                factory,
+                self.directory / name,
+                command_log=self.log_path(name) if command_log else None,
+                vanish_s=vanish_s,
             )
             for name, factory in factories.items()
         }
