@@ -5,6 +5,9 @@ RUNS times; the figures are the median and the fastest wall-clock time in second
 the process imported (``-X importtime`` lines) for the median-free count.
 
 Targets (issue 10): ``uwlab --help`` ≤ 0.3 s; ``uwlab design CONFIG --json`` for one design ≤ 1.0 s.
+``import_uwlab`` (issue 23): ``import uwlab`` in a fresh interpreter ≤ 0.3 s — the median over RUNS fresh processes
+of the import alone (``import_s``, timed inside the process) and of the whole process (``median_s``, the
+interpreter's start included); the Python API's names load on first use.
 Usage: ``python benchmarks/bench_startup.py [RUNS]`` (default 7).
 """
 
@@ -41,6 +44,16 @@ def run(argv: list[str], env: dict) -> float:
     return time.perf_counter() - start
 
 
+IMPORT_PROBE = "import time; t = time.perf_counter(); import uwlab; print(time.perf_counter() - t)"
+
+
+def import_uwlab(env: dict) -> tuple[float, float]:
+    """(wall-clock seconds of a fresh ``python -c 'import uwlab'``, seconds of the import itself)."""
+    start = time.perf_counter()
+    out = subprocess.run([sys.executable, "-c", IMPORT_PROBE], env=env, check=True, capture_output=True, text=True)
+    return time.perf_counter() - start, float(out.stdout)
+
+
 def modules_imported(argv: list[str], env: dict) -> int:
     out = subprocess.run(
         [sys.executable, "-X", "importtime", "-m", "uwlab.cli.main", *argv],
@@ -69,6 +82,14 @@ def main() -> None:
             entry["target_s"] = TARGETS_S[name]
             entry["meets_target"] = entry["median_s"] <= TARGETS_S[name]
         result[name] = entry
+    import_uwlab(env)  # warm
+    walls, imports = zip(*(import_uwlab(env) for _ in range(runs)), strict=True)
+    result["import_uwlab"] = {
+        "median_s": round(statistics.median(walls), 3),
+        "import_s": round(statistics.median(imports), 4),
+        "target_s": 0.3,
+        "meets_target": statistics.median(imports) <= 0.3,
+    }
     print(json.dumps(result, indent=2))
 
 

@@ -12,7 +12,9 @@ sweep or fit never fails at its end and nothing is left half-written. The rules,
 - an existing file is not overwritten unless the command's replace option says so; an existing directory is
   written into only where the command says (and must then accept new files);
 - nothing is written inside a uwlab dataset (a folder holding `METADATA_FILE` and `MANIFEST_FILE`): its files
-  are the dataset's own, checked and repaired as a whole.
+  are the dataset's own, checked and repaired as a whole. The exceptions are the documented default outputs
+  directly under it, `DERIVED_OUTPUTS`: ``uwlab fit DATASET``'s `FIT_FOLDER` and ``uwlab report DATASET``'s
+  `REPORT_FILE` (names no dataset file ever has).
 
 >>> output_file("/nonexistent/report.html", "--out")
 Traceback (most recent call last):
@@ -33,6 +35,9 @@ NAME_MAX_BYTES = 255
 # The two files that make a folder a uwlab dataset (`uwlab.experiments.dataset`, `uwlab.experiments.dataset_store`).
 METADATA_FILE = "metadata.json"
 MANIFEST_FILE = "manifest.json"
+FIT_FOLDER = "fit"  # uwlab fit DATASET writes to DATASET/fit by default
+REPORT_FILE = "report.html"  # uwlab report DIR writes DIR/report.html by default
+DERIVED_OUTPUTS = (FIT_FOLDER, REPORT_FILE)
 
 
 def _name_max(path: Path) -> int:
@@ -78,7 +83,7 @@ def dataset_holding(path: Path) -> Path | None:
 
 def _outside_datasets(path: Path, key: str) -> None:
     dataset = dataset_holding(path)
-    if dataset is not None:
+    if dataset is not None and path.absolute().resolve().relative_to(dataset).parts[0] not in DERIVED_OUTPUTS:
         raise ConfigError(key, str(path), f"is inside the dataset {dataset}; choose a place outside it")
 
 

@@ -46,4 +46,4 @@ def test_arviz_summary_of_the_netcdf_matches_the_fits_table(fit_dir):
         np.testing.assert_allclose(table.loc[name, "median"], ours["median"], rtol=5e-5)
         np.testing.assert_allclose(table.loc[name, "eti_2.5%"], ours["p2_5"], rtol=5e-5)
         np.testing.assert_allclose(table.loc[name, "eti_97.5%"], ours["p97_5"], rtol=5e-5)
-    assert data.attrs["converged"] == int(result.converged)
+    assert data.posterior.attrs["converged"] == int(result.converged)

@@ -7,9 +7,7 @@ import sys
 import time
 from pathlib import Path
 
-from tqdm import tqdm
-
-from uwlab.cli.fit import progress_bar
+from uwlab.progress import bar, tau_bar
 
 
 def register(subparsers) -> None:
@@ -48,21 +46,16 @@ def run(args) -> int:
     if args.out is None:
         Path("out").mkdir(exist_ok=True)
     out = Path(args.out) if args.out else Path("out") / time.strftime("demo-%Y%m%d-%H%M%S")
-    bars: list = []
+    sweep_bar = bar(desc="sweeps", unit="point")  # drawn at the first point: nothing for refused input
+    fit_bar, fit_progress = tau_bar("calibration")
 
-    def sweep_progress(event) -> None:  # the bar opens at the first point: nothing is drawn for refused input
-        if not bars:
-            bars.append(tqdm(desc="sweeps", total=event.total, unit="point", file=sys.stderr, leave=False))
-        bars[0].set_postfix_str(event.sweep_id)
-        bars[0].update(1)
+    def sweep_progress(event) -> None:
+        sweep_bar.total = event.total
+        sweep_bar.update(1)
+        sweep_bar.set_postfix_str(event.sweep_id)
 
-    close_fit_bar, fit_progress = progress_bar("calibration")
-    try:
+    with sweep_bar, fit_bar:
         summary = run_demo(out, sweep_progress, fit_progress, seed=args.seed, world=args.world, model=args.model)
-    finally:
-        for bar in bars:
-            bar.close()
-        close_fit_bar()
     if args.json:
         json.dump(summary, sys.stdout, indent=2)
         sys.stdout.write("\n")

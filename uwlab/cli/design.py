@@ -136,16 +136,9 @@ def _grid_axes(items: list[str]) -> dict[str, list]:
 
 
 def _progress(total: int, enabled: bool):
-    from tqdm import tqdm
+    from uwlab.progress import bar
 
-    return tqdm(
-        total=total,
-        unit="point",
-        unit_scale=True,
-        file=sys.stderr,
-        leave=False,
-        disable=not (enabled and sys.stderr.isatty()),
-    )
+    return bar(total=total, desc="grid", unit="point", enabled=enabled)
 
 
 def _print_grid_summary(summary: dict, as_json: bool) -> None:

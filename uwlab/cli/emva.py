@@ -211,8 +211,6 @@ def _summary(doc: dict) -> str:
 
 
 def run_fleet(args) -> int:
-    from tqdm import tqdm
-
     from uwlab.experiments.emva.fleet import characterize_fleet, find_inputs
     from uwlab.model.schema import PixelSizeUm, check
 
@@ -220,11 +218,13 @@ def run_fleet(args) -> int:
         check(PixelSizeUm, args.pixel_size_um, "--pixel-size-um")
     _check_out(args.out)
     inputs = find_inputs(args.folder)
-    with tqdm(total=len(inputs), desc="EMVA 1288", unit="camera", file=sys.stderr, disable=None) as bar:
+    from uwlab.progress import bar
+
+    with bar(total=len(inputs), desc="EMVA 1288", unit="camera") as shown:
 
         def progress(row) -> None:
-            bar.set_postfix_str(row.camera[:30])
-            bar.update(1)
+            shown.update(1)
+            shown.set_postfix_str(row.camera[:30])
 
         rows = characterize_fleet(
             inputs,

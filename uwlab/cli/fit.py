@@ -6,7 +6,8 @@ import json
 import sys
 from pathlib import Path
 
-from tqdm import tqdm
+from uwlab.outputs import FIT_FOLDER
+from uwlab.progress import tau_bar
 
 
 def register(subparsers) -> None:
@@ -34,43 +35,13 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def progress_bar(description: str):
-    """A tqdm bar on stderr over chain length in autocorrelation times (the run stops at 50 τ), opened at the
-    first report so that nothing is drawn when the run fails before sampling. Returns (close, update)."""
-    bars: list[tqdm] = []
-
-    def update(steps: int, tau_multiple: float) -> None:
-        if not bars:
-            bars.append(
-                tqdm(
-                    total=50,
-                    desc=description,
-                    unit="τ",
-                    file=sys.stderr,
-                    leave=False,
-                    bar_format="{desc}: {n:.0f}/{total} τ |{bar}| {elapsed} {postfix}",
-                )
-            )
-        bars[0].n = min(50.0, tau_multiple)
-        bars[0].set_postfix_str(f"{steps} steps")
-        bars[0].refresh()
-
-    def close() -> None:
-        for bar in bars:
-            bar.close()
-
-    return close, update
-
-
 def run(args) -> int:
     from uwlab.experiments.calibration.pipeline import calibrate
 
-    out = Path(args.out) if args.out else Path(args.dataset) / "fit"
-    close_bar, update = progress_bar("sampling")
-    try:
+    out = Path(args.out) if args.out else Path(args.dataset) / FIT_FOLDER
+    bar, update = tau_bar("sampling")
+    with bar:
         calibration = calibrate(args.dataset, args.config, out, args.train, progress=update, model=args.model)
-    finally:
-        close_bar()
     summary = calibration.summary
     if args.json:
         json.dump(summary, sys.stdout, indent=2)

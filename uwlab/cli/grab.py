@@ -3,13 +3,9 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 
-from uwlab.drivers.camera import BACKENDS, Camera, Frame, Policy, open_camera
+from uwlab.drivers.camera import BACKENDS
 from uwlab.drivers.camera.pixels import BAYER_LAYOUTS, MONO_FORMATS
-from uwlab.errors import ConfigError
-from uwlab.experiments.frames.frame import frame_statistics
-from uwlab.model.sensor import load_sensor_profile
 from uwlab.outputs import output_dir
 
 
@@ -61,86 +57,34 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
-def parse_roi(text: str) -> tuple[int, int, int, int]:
-    try:
-        x, y, w, h = (int(v) for v in text.split(","))
-    except ValueError:
-        raise ConfigError("roi", text, "expected four integers x,y,w,h") from None
-    if min(x, y) < 0 or min(w, h) < 1:
-        raise ConfigError("roi", text, "offsets must be >= 0 and sizes >= 1")
-    return x, y, w, h
-
-
-def apply_settings(cam: Camera, args) -> None:
-    if args.pixel_format:
-        cam.pixel_format = args.pixel_format
-    if args.roi:
-        cam.set_roi(*parse_roi(args.roi))
-    if args.exposure_us is not None:
-        cam.exposure_us = args.exposure_us
-    if args.gain_db is not None:
-        cam.gain_db = args.gain_db
-    if args.bayer is not None:
-        cam.check_bayer(args.bayer)
-
-
-def unique_path(directory: Path, stem: str) -> Path:
-    """A new file name in ``directory``: existing files are never overwritten."""
-    candidate, n = directory / f"{stem}.tiff", 1
-    while candidate.exists():
-        candidate, n = directory / f"{stem}-{n}.tiff", n + 1
-    return candidate
-
-
-def save_tiff(directory: Path, frame: Frame, device: dict) -> Path:
-    import tifffile
-
-    metadata = {
-        "device": device,
-        "frame_id": frame.frame_id,
-        "timestamp_ns": frame.timestamp_ns,
-        "pixel_format": frame.pixel_format,
-        "settings": frame.settings.to_dict(),
-    }
-    while True:
-        path = unique_path(directory, f"frame-{frame.frame_id:06d}")
-        try:
-            with open(path, "xb") as fh:
-                tifffile.imwrite(fh, frame.image, metadata=metadata)
-            return path
-        except FileExistsError:
-            continue
-
-
 def run(args) -> int:
-    from uwlab.model.schema import ExposureUs, GainDb, check
+    from uwlab.experiments.acquisition.grab import Settings, grab_frames, parse_roi
 
-    if args.frames < 1:
-        raise ConfigError("frames", args.frames, "must be >= 1")
-    if args.exposure_us is not None:
-        check(ExposureUs, args.exposure_us, "--exposure-us")
-    if args.gain_db is not None:
-        check(GainDb, args.gain_db, "--gain-db")
     save_dir = output_dir(args.save, "--save") if args.save else None
-    options = {"cti": args.cti, "fake": args.fake} if args.backend == "harvesters" else {"fake": args.fake}
-    sensor = load_sensor_profile(args.sensor) if args.sensor else None
-    if args.backend == "sim":
-        options["config"] = args.config
-        if sensor is None:
-            from uwlab.sim.scene import RigScene
-
-            sensor = RigScene.from_toml(args.config).sensor
-    with open_camera(args.backend, args.device, policy=Policy(timeout_s=args.timeout_s), **options) as cam:
-        apply_settings(cam, args)
-        device = {k: v for k, v in vars(cam.info).items()}
-        if save_dir is not None:
-            save_dir.mkdir(exist_ok=True)
-        rows = []
-        for frame in cam.stream(args.frames):
-            rows.append(frame_statistics(frame, sensor))
-            if save_dir is not None:
-                save_tiff(save_dir, frame, device)
-        device["discarded_frames"] = cam.stats.discarded
+    settings = Settings(
+        exposure_us=args.exposure_us,
+        gain_db=args.gain_db,
+        pixel_format=args.pixel_format,
+        roi=parse_roi(args.roi) if args.roi else None,
+        bayer=args.bayer,
+    )
+    settings.check()
+    if save_dir is not None:
+        save_dir.mkdir(exist_ok=True)
+    grabbed = grab_frames(
+        args.backend,
+        args.device,
+        frames=args.frames,
+        settings=settings,
+        sensor=args.sensor,
+        config=args.config,
+        cti=args.cti,
+        fake=args.fake,
+        timeout_s=args.timeout_s,
+        keep_frames=False,
+        save_dir=save_dir,
+    )
+    device, rows = grabbed.device, grabbed.rows
     if args.json:
         print(json.dumps({"device": device, "frames": rows}))
         return 0

@@ -3,10 +3,9 @@
 from __future__ import annotations
 
 import json
-import sys
 from datetime import datetime, UTC
 
-from tqdm import tqdm
+from uwlab.progress import bar
 
 from uwlab.drivers.serial import PROTOCOLS, open_light, open_spectrometer
 from uwlab.drivers.serial.base import check_level
@@ -71,14 +70,14 @@ def run_calibrate(args) -> int:
     with (
         open_light(args.light, args.protocol) as light,
         open_spectrometer(args.spectrometer, args.protocol) as spectrometer,
-        tqdm(total=len(levels), desc="light levels", unit="level", file=sys.stderr, disable=None) as bar,
+        bar(total=len(levels), desc="light levels", unit="level") as shown,
     ):
         comments = [
             f"uwlab light calibration, {datetime.now(UTC).isoformat(timespec='seconds')}",
             f"light: {args.light} ({light.identity()})",
             f"spectrometer: {args.spectrometer} ({spectrometer.identity()})",
         ]
-        calibration = calibrate_light(light, spectrometer, levels, lambda done, total: bar.update(1))
+        calibration = calibrate_light(light, spectrometer, levels, lambda done, total: shown.update(1))
     save_light_calibration(out, calibration, comments)
     result = {
         "out": str(out),

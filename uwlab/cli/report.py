@@ -6,6 +6,8 @@ import json
 import sys
 from pathlib import Path
 
+from uwlab.outputs import REPORT_FILE
+
 
 def register(subparsers) -> None:
     p = subparsers.add_parser(
@@ -23,7 +25,7 @@ def register(subparsers) -> None:
 def run(args) -> int:
     from uwlab.experiments.report import write_report
 
-    out = args.out if args.out else Path(args.dir) / "report.html"
+    out = args.out if args.out else Path(args.dir) / REPORT_FILE
     path = write_report(args.dir, out, replace=args.force)
     if args.json:
         json.dump({"report": str(path)}, sys.stdout)

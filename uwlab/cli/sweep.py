@@ -3,18 +3,12 @@
 from __future__ import annotations
 
 import json
-import sys
-
-from tqdm import tqdm
 
 from uwlab.errors import ConfigError
-from uwlab.experiments.acquisition.plan import load_plan
-from uwlab.experiments.acquisition.rigs import HardwareRig
-from uwlab.experiments.acquisition.sim_rig import SimRig
-from uwlab.experiments.acquisition.sweep import Progress, SweepRunner, open_for_resume
-from uwlab.experiments.dataset import Dataset
 from uwlab.experiments.acquisition.dataset_check import summarize
-from uwlab.outputs import output_dir
+from uwlab.experiments.acquisition.plan import load_plan
+from uwlab.experiments.acquisition.sweep import Progress
+from uwlab.experiments.dataset import Dataset
 
 
 def register(subparsers) -> None:
@@ -48,38 +42,27 @@ def _confirm(message: str) -> None:
         raise ConfigError("operator", reply.strip(), "stopped at the prompt")
 
 
-def _dataset(args, plan) -> Dataset:
-    """The dataset to write, its lock held: checked before any device is opened."""
-    if args.resume:
-        output_dir(args.resume, "--resume")
-        return open_for_resume(args.resume, plan, args.sim, purpose="uwlab sweep --resume")
-    out = output_dir(args.out or f"{plan.path.stem}-dataset", "--out")
-    return Dataset.create(out, plan.raw, plan_sha256=plan.sha256, sim=args.sim, force=args.force, purpose="uwlab sweep")
-
-
 def run(args) -> int:
+    from uwlab.experiments.acquisition.session import progress_text, run_session
+    from uwlab.progress import bar
+
     plan = load_plan(args.plan)
-    with _dataset(args, plan) as dataset:
-        rig = SimRig(plan.rig_path) if args.sim else HardwareRig(plan, None if args.non_interactive else _confirm)
-        done = len(dataset.completed())
-        with (
-            rig,
-            tqdm(
-                total=plan.total_points(), initial=done, desc="sweep", unit="point", file=sys.stderr, disable=None
-            ) as bar,
-        ):
+    with bar(desc="sweep", unit="point") as shown:
 
-            def progress(event: Progress) -> None:
-                latest = event.latest
-                signal = "n/a" if latest["signal_dn"] is None else f"{latest['signal_dn']:.1f}"
-                bar.set_postfix_str(
-                    f"{event.sweep_id}#{event.point_index} t={latest['exposure_us']:g}us "
-                    f"signal={signal}DN{' SAT' if latest['saturated'] else ''}"
-                )
-                bar.update(1)
+        def progress(event: Progress) -> None:
+            shown.total = event.total
+            shown.set_position(event.done, progress_text(event))
 
-            SweepRunner(plan, dataset, rig, progress).run()
-    summary = summarize(Dataset.open(dataset.root))
+        root = run_session(
+            plan,
+            args.resume or args.out,
+            resume=bool(args.resume),
+            sim=args.sim,
+            force=args.force,
+            confirm=None if args.non_interactive else _confirm,
+            progress=progress,
+        )
+    summary = summarize(Dataset.open(root))
     if args.json:
         print(json.dumps(summary))
     else:

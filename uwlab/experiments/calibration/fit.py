@@ -346,7 +346,8 @@ class FitResult:
     def inference_data(self):
         """The posterior as an `arviz.InferenceData`: ``posterior`` with one variable per parameter over (chain =
         emcee walker, draw = kept step), the very samples of `samples`; ``sample_stats.lp``, the log posterior
-        density of each; attributes: the convergence figures. arviz is imported here (it loads xarray)."""
+        density of each; the posterior group's attributes: the chain fitted and the convergence figures. arviz is
+        imported here (it loads xarray)."""
         import arviz
 
         # (draws, walkers, params): `samples` unflattened, as emcee's get_chain(discard=burn, thin=thin) slices
@@ -356,6 +357,7 @@ class FitResult:
         posterior = {name: kept[:, :, i].T for i, name in enumerate(self.names)}
         attrs = {
             "inference_library": "emcee",
+            "model": self.model.kind,
             "converged": int(self.converged),
             "steps": self.steps,
             "burn": self.burn,
@@ -363,7 +365,9 @@ class FitResult:
             "acceptance": self.acceptance,
             "max_autocorrelation_steps": float(np.max(self.tau)),
         }
-        return arviz.from_dict(posterior=posterior, sample_stats={"lp": lp}, attrs=attrs)
+        data = arviz.from_dict(posterior=posterior, sample_stats={"lp": lp})
+        data.posterior.attrs.update(attrs)  # where ArviZ's own converters put inference_library
+        return data
 
     def correlations(self) -> np.ndarray:
         return np.corrcoef(self.samples.T) if len(self.names) > 1 else np.ones((1, 1))

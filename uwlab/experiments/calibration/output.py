@@ -22,13 +22,14 @@ from matplotlib.ticker import FuncFormatter, NullFormatter
 
 from uwlab.errors import UwlabError
 from uwlab.experiments.calibration.fit import FitResult
+from uwlab.experiments.calibration.inference import POSTERIOR_NAME, write_inference_data
 from uwlab.experiments.calibration.validation import dense_sweeps, point_predictions
 from uwlab.jsonable import dumps
 from uwlab.outputs import output_dir
 
 OUTPUT_FILES = (
     "samples.parquet",
-    "posterior.nc",
+    POSTERIOR_NAME,
     "summary.json",
     "predictions.parquet",
     "dense.parquet",
@@ -207,7 +208,7 @@ def write_fit(
             entry["truth"] = truth.get(name)
     summary.update(extra or {})
     pd.DataFrame(result.samples, columns=list(result.names)).to_parquet(out / "samples.parquet", index=False)
-    result.inference_data().to_netcdf(str(out / "posterior.nc"))
+    write_inference_data(result, out)
     predictions = point_predictions(result)
     dense = dense_sweeps(result)
     predictions.to_parquet(out / "predictions.parquet", index=False)

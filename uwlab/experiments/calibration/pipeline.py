@@ -1,13 +1,14 @@
 """Calibrating the model against a dataset: fit, validate, judge, write — what `uwlab fit` and `uwlab demo` run.
 
-Outputs in the calibration directory: those of `uwlab.experiments.calibration.output`, plus ``cross.json`` (the
-held-out table), ``heldout.parquet`` (held-out predictions with their bands) and ``spectra.parquet`` (predicted and
-measured spectra). ``summary.json`` also records which dataset (path, plan hash), the world that rendered a
-simulated dataset (``world``), the chain fitted (``model``: paper or extended), the held-out folds and table, the
-posterior predictive checks per configuration, ``predictive_coverage`` (the fraction of all held-out points inside
-their 95 % bands and per configuration), the verdict ``model_adequate`` with its named ``checks`` and, when the
-model fails, the failing checks and likely causes in ``warnings`` (`uwlab.experiments.calibration.adequacy`),
-the spectra comparison and, per parameter, the simulated ground truth.
+Outputs in the calibration directory: those of `uwlab.experiments.calibration.output`, plus ``cross.json`` (the held-out
+table), ``heldout.parquet`` (held-out predictions with their bands), ``spectra.parquet`` (predicted and measured
+spectra) and ``posterior.nc`` (the posterior as ArviZ InferenceData, `uwlab.experiments.calibration.inference`).
+``summary.json`` also records which dataset (path, plan hash), the world that rendered a simulated dataset (``world``),
+the chain fitted (``model``: paper or extended), the held-out folds and table, the posterior predictive checks per
+configuration, ``predictive_coverage`` (the fraction of all held-out points inside their 95 % bands and per
+configuration), the verdict ``model_adequate`` with its named ``checks`` and, when the model fails, the failing checks
+and likely causes in ``warnings`` (`uwlab.experiments.calibration.adequacy`), the spectra comparison and, per parameter,
+the simulated ground truth.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from uwlab.experiments.calibration.validation import (
     predicted_spectra,
 )
 from uwlab.experiments.dataset import Dataset
+from uwlab.model.schema import parse
 
 
 def truth_from_metadata(metadata: dict, points: pd.DataFrame, names) -> dict:
@@ -53,10 +55,22 @@ def truth_from_metadata(metadata: dict, points: pd.DataFrame, names) -> dict:
     return truth
 
 
-def resolve_fit_config(config_path: str | Path | None, points: pd.DataFrame, rigs: dict) -> FitConfig:
-    if config_path is not None:
-        return load_fit_config(config_path)
-    return default_config_for(points[~points["saturated"].astype(bool)], rigs)
+def resolve_fit_config(
+    config_path: str | Path | None, points: pd.DataFrame, rigs: dict, sampler: dict | None = None
+) -> FitConfig:
+    """The fit config file at `config_path`, else the default for these points; `sampler` overrides keys of its
+    [sampler] section (``walkers``, ``chunk_steps``, ``max_steps``, ``seed``), validated like the file's."""
+    config = (
+        load_fit_config(config_path)
+        if config_path is not None
+        else default_config_for(points[~points["saturated"].astype(bool)], rigs)
+    )
+    if not sampler:
+        return config
+    return parse(
+        FitConfig,
+        {"parameters": config.priors, "holdout": config.holdout, "sampler": {**config.sampler.model_dump(), **sampler}},
+    )
 
 
 def world_of(metadata: dict) -> str | None:
@@ -135,11 +149,13 @@ def calibrate(
     train_sweeps: list[str] | None = None,
     progress=None,
     model: str | None = None,
+    sampler: dict | None = None,
 ) -> Calibration:
     """Fit the whole dataset with the chain `model` ("paper", "extended"; None: the rigs' [model] kind), check it
     per configuration, predict every configuration from a fit that did not see it (`held_out_folds`), judge the
-    model (`uwlab.experiments.calibration.adequacy`), compare the spectra; write everything to `out`. Every input
-    is checked before sampling starts."""
+    model (`uwlab.experiments.calibration.adequacy`), compare the spectra; write everything to `out`. `sampler`
+    overrides the fit config's [sampler] keys (`resolve_fit_config`). Every input is checked before sampling
+    starts."""
     if model is not None and model not in MODELS:
         raise ConfigError("--model", model, f"must be one of {', '.join(MODELS)}")
     dataset = Dataset.open(dataset_dir)
@@ -150,7 +166,7 @@ def calibrate(
         raise ConfigError("dataset", str(dataset_dir), "has no points to fit; run (or --resume) its sweep first")
     points = points.assign(relative_flux=relative_flux(points))
     rigs = metadata.get("rigs") or {}
-    config = resolve_fit_config(config_path, points, rigs)
+    config = resolve_fit_config(config_path, points, rigs, sampler)
     sweeps = list(dict.fromkeys(points.loc[~points["saturated"].astype(bool), "sweep_id"]))
     folds = held_out_folds(sweeps, config, train_sweeps)
     assessment = assess(points, rigs, config, folds, model, progress)

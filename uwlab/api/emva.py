@@ -1,0 +1,228 @@
+"""EMVA 1288 from Python: `characterize` and its `EmvaResult` — ``uwlab emva characterize``.
+
+The figures are those of EMVA Standard 1288 Release 4.0 (Linear, or General for non-linear cameras), computed by
+`uwlab.experiments.emva` (docs/emva.md gives the method and equation of each).
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from uwlab.errors import ConfigError
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from uwlab.api.campaign import Dataset
+    from uwlab.experiments.emva.analysis import EmvaResult as Analysis
+    from uwlab.experiments.emva.datasheet import SheetInfo
+    from uwlab.experiments.emva.transfer import PhotonTransfer
+    from uwlab.model.sensor import SensorProfile
+
+
+class EmvaResult:
+    """An EMVA 1288 characterisation: the figures as attributes (``K_dn_per_e``, ``quantum_efficiency``,
+    ``dark_noise_e``, ``saturation_e``, ``snr_max_db``, ``dynamic_range_db``, ``linearity_error_percent``,
+    ``dark_current_e_per_s``, ``dsnu_e``, ``prnu_percent``, ... — every key of ``emva.json``; None where the model
+    or the data give none), `to_xml` (the reference implementation's XML), `datasheet` (the HTML datasheet),
+    `sensor_profile` (a profile `uwlab.load_design` can use) and `write` (everything ``--out`` writes).
+
+    Examples
+    --------
+    >>> import tempfile, uwlab
+    >>> from uwlab.experiments.emva.simulate import simulate_photon_transfer
+    >>> from uwlab.model.sensor import load_sensor_profile
+    >>> from uwlab.sim.devices.camera import SimTruth
+    >>> truth = SimTruth.from_sensor_profile(load_sensor_profile("imx250m"), resolution_px=(32, 32))
+    >>> root = tempfile.mkdtemp() + "/pt"
+    >>> _ = simulate_photon_transfer(root, truth, rate_e_per_s=2e6, quantum_efficiency=0.6,
+    ...                              exposures_us=[50 * i for i in range(1, 25)], dark_exposures_us=[1e5, 3e5])
+    >>> result = uwlab.characterize(root)
+    >>> abs(result.K_dn_per_e / truth.K_dn_per_e - 1) < 0.05, result.model
+    (True, 'linear')
+    >>> result.to_xml().startswith("<?xml")
+    True
+    """
+
+    def __init__(
+        self,
+        analysis: Analysis,
+        transfer: PhotonTransfer,
+        *,
+        camera: str = "camera",
+        base: SensorProfile | None = None,
+        info: SheetInfo | None = None,
+        pixel_size_um: float | None = None,
+    ) -> None:
+        self.analysis = analysis
+        self.transfer = transfer
+        self.camera = camera
+        self.base = base
+        self.info = info
+        self.pixel_size_um = pixel_size_um
+
+    @property
+    def values(self) -> dict[str, Any]:
+        """Every figure, note and curve summary as JSON-able values (the document of ``emva.json``)."""
+        from uwlab.experiments.emva.output import result_document
+
+        document: dict[str, Any] = result_document(self.analysis)
+        return document
+
+    @property
+    def model(self) -> str:
+        """``"linear"`` or ``"general"``."""
+        return str(self.analysis.model)
+
+    def __getattr__(self, name: str) -> Any:
+        if name.startswith("_") or name in ("analysis", "transfer"):
+            raise AttributeError(name)
+        values = self.analysis.values
+        if name in values:
+            return values[name]
+        raise AttributeError(f"EmvaResult has no figure {name!r}")
+
+    def __dir__(self) -> list[str]:
+        return sorted({*super().__dir__(), *self.analysis.values})
+
+    def to_pandas(self) -> pd.Series:
+        """The scalar figures as a Series (index: the ``emva.json`` keys)."""
+        import pandas as pd
+
+        scalars = {k: v for k, v in self.values.items() if isinstance(v, (int, float)) or v is None}
+        return pd.Series(scalars, dtype=object)
+
+    def to_xml(self) -> str:
+        """The characterisation as the EMVA 1288 reference implementation's XML
+        (`uwlab.experiments.emva.results_xml`)."""
+        from uwlab.experiments.emva.results_xml import results_xml
+
+        return str(results_xml(self.analysis))
+
+    def datasheet(self, path: str | os.PathLike[str]) -> Path:
+        """Write the self-contained HTML datasheet (figures embedded) to `path`; returns it."""
+        from uwlab.experiments.emva.datasheet import SheetInfo, write_datasheet
+        from uwlab.experiments.emva.plots import write_plots
+        from uwlab.outputs import output_file
+
+        target = output_file(path, "datasheet")
+        with tempfile.TemporaryDirectory(prefix="uwlab-datasheet-") as tmp:
+            figures = write_plots(self.analysis, Path(tmp))
+            return write_datasheet(self.analysis, figures, target, self.info or SheetInfo())
+
+    def sensor_profile(self, name: str | None = None, directory: str | os.PathLike[str] | None = None) -> SensorProfile:
+        """The measured sensor profile (linear model only: K, η, dark noise, saturation; the rest from the
+        dataset's named profile), written as ``<name>.toml`` and ``<name>_qe.csv`` into `directory` (default a
+        temporary one) and loaded, ready for a design's ``sensor.profile``."""
+        import numpy as np
+
+        from uwlab.experiments.emva.output import profile_name
+        from uwlab.experiments.emva.profile import profile_documents
+        from uwlab.model.sensor import load_sensor_profile
+
+        if self.model != "linear":
+            raise ConfigError("model", self.model, "the general model measures no K or η: no sensor profile")
+        stem = profile_name(name or f"measured-{self.camera}")
+        pt = self.transfer
+        exposure_us = (float(np.min(pt.exposure_s) * 1e6), float(np.max(pt.exposure_s) * 1e6))
+        toml_text, csv_text = profile_documents(
+            self.analysis.values,
+            name=stem,
+            width_px=pt.width_px,
+            height_px=pt.height_px,
+            exposure_range_us=exposure_us,
+            pixel_size_um=self.pixel_size_um,
+            base=self.base,
+        )
+        folder = Path(directory) if directory is not None else Path(tempfile.mkdtemp(prefix="uwlab-profile-"))
+        (folder / f"{stem}.toml").write_text(toml_text)
+        (folder / f"{stem}_qe.csv").write_text(csv_text)
+        return load_sensor_profile(str(folder / f"{stem}.toml"))
+
+    def write(self, out: str | os.PathLike[str], name: str | None = None) -> dict[str, Any]:
+        """Write everything ``uwlab emva characterize --out`` writes (emva.json, datasheet, XML, figures, the
+        profile) into the new or empty directory `out`; returns the ``emva.json`` document."""
+        from uwlab.experiments.emva.output import output_paths, profile_name, write_characterization
+
+        stem = profile_name(name or f"measured-{self.camera}")
+        paths = output_paths(Path(out), self.analysis, stem, bool(self.pixel_size_um or self.base))
+        document: dict[str, Any] = write_characterization(
+            self.analysis,
+            self.transfer,
+            paths,
+            name=stem,
+            base=self.base,
+            pixel_size_um=self.pixel_size_um,
+            info=self.info,
+        )
+        return document
+
+    def __repr__(self) -> str:
+        k, eta = self.analysis.values.get("K_dn_per_e"), self.analysis.values.get("quantum_efficiency")
+        return f"EmvaResult({self.camera!r}, model={self.model!r}, K_dn_per_e={k!r}, quantum_efficiency={eta!r})"
+
+
+def characterize(
+    source: Dataset | PhotonTransfer | str | os.PathLike[str],
+    *,
+    model: str = "linear",
+    sweep: str | None = None,
+    pixel_size_um: float | None = None,
+) -> EmvaResult:
+    """EMVA 1288 Release 4.0 characterisation of a camera (``uwlab emva characterize``).
+
+    Parameters
+    ----------
+    source
+        A sweep dataset (a `Dataset` or its directory), an EMVA 1288 descriptor file (``EMVA1288*.txt``), or the
+        measurement arrays as a `uwlab.experiments.emva.transfer.PhotonTransfer`.
+    model
+        ``"linear"`` (Release 4.0 Linear) or ``"general"`` (non-linear cameras).
+    sweep
+        The dataset's photon-transfer sweep (default: the only one).
+    pixel_size_um
+        The pixel pitch (default: the dataset's sensor profile; needed for a descriptor's sensor profile).
+
+    Returns
+    -------
+    EmvaResult
+
+    Examples
+    --------
+    See `EmvaResult`.
+    """
+    from uwlab.experiments.emva.analysis import characterize as run
+    from uwlab.experiments.emva.transfer import PhotonTransfer
+
+    if pixel_size_um is not None:
+        from uwlab.model.schema import PixelSizeUm, check
+
+        check(PixelSizeUm, pixel_size_um, "pixel_size_um")
+    if isinstance(source, PhotonTransfer):
+        return EmvaResult(run(source, model), source, pixel_size_um=pixel_size_um)
+    from uwlab.api.campaign import dataset_path
+
+    path = dataset_path(source)
+    if path.is_file():
+        from uwlab.experiments.emva.descriptor import parse_descriptor, photon_transfer_from_descriptor, sheet_info
+
+        pt = photon_transfer_from_descriptor(path, pixel_size_um)
+        info = sheet_info(parse_descriptor(path))
+        camera = info.model if info.model != "—" else "descriptor"
+        return EmvaResult(run(pt, model), pt, camera=camera, info=info, pixel_size_um=pixel_size_um)
+    if not path.is_dir():
+        raise ConfigError("source", str(path), "neither a dataset directory nor a descriptor file")
+    from uwlab.experiments.emva.from_dataset import load_dataset_input
+
+    loaded = load_dataset_input(path, sweep_id=sweep, pixel_size_um=pixel_size_um)
+    return EmvaResult(
+        run(loaded.transfer, model),
+        loaded.transfer,
+        camera=loaded.camera,
+        base=loaded.profile,
+        info=loaded.info,
+        pixel_size_um=pixel_size_um,
+    )

@@ -1,0 +1,128 @@
+"""Instruments from Python: `open_camera`, `open_light`, `open_spectrometer` (the drivers' own) and `grab` —
+``uwlab devices``, ``uwlab grab``, ``uwlab light``, ``uwlab spectrum``.
+
+Every device is a context manager: ``with uwlab.open_camera("sim") as cam: ...`` closes it (and a light goes to its
+safe state) on any exit. Limits are checked before anything is sent; every setting is read back.
+
+>>> import uwlab
+>>> with uwlab.open_camera("sim") as cam:
+...     cam.exposure_us = 1000.0
+...     frame = next(cam.stream(1))
+>>> frame.settings.exposure_us, frame.image.ndim
+(1000.0, 2)
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+from uwlab.experiments.acquisition.grab import Grabbed as Grab
+
+if TYPE_CHECKING:
+    from uwlab.drivers.camera import Camera, Policy
+    from uwlab.drivers.serial import Light, Spectrometer
+
+
+def open_camera(
+    backend: str = "sim", device_id: str | None = None, policy: Policy | None = None, **options: Any
+) -> Camera:
+    """Open a camera (`uwlab.drivers.camera.open_camera`): `backend` ``"sim"``, ``"harvesters"`` (GenTL;
+    ``cti=[...]``) or ``"aravis"``; `device_id` the first found when None; ``config=RIG.toml`` for the simulated
+    camera's rig. Returns the `uwlab.drivers.camera.Camera` (a context manager).
+
+    Examples
+    --------
+    See the module docstring.
+    """
+    from uwlab.drivers.camera import open_camera as open_device
+
+    return open_device(backend, device_id, policy, **options)
+
+
+def open_light(port: str, protocol: str | None = None, **options: Any) -> Light:
+    """Open the light controller on a serial `port` (`uwlab.drivers.serial.open_light`; `protocol` default the
+    drivers' first). Returns the `Light` (a context manager: output off on exit).
+
+    Examples
+    --------
+    >>> import uwlab
+    >>> with uwlab.open_light("/dev/ttyUSB0") as light:  # doctest: +SKIP
+    ...     light.set_level(0.5)
+    """
+    from uwlab.drivers import serial
+
+    return serial.open_light(port, protocol, **options) if protocol else serial.open_light(port, **options)
+
+
+def open_spectrometer(port: str, protocol: str | None = None, **options: Any) -> Spectrometer:
+    """Open the spectrometer on a serial `port` (`uwlab.drivers.serial.open_spectrometer`). Returns the
+    `Spectrometer` (a context manager).
+
+    Examples
+    --------
+    >>> import uwlab
+    >>> with uwlab.open_spectrometer("/dev/ttyUSB1") as spectrometer:  # doctest: +SKIP
+    ...     wavelength_nm, irradiance_w_m2_nm = spectrometer.read_spectrum()
+    """
+    from uwlab.drivers import serial
+
+    if protocol:
+        return serial.open_spectrometer(port, protocol, **options)
+    return serial.open_spectrometer(port, **options)
+
+
+def grab(
+    backend: str = "sim",
+    device_id: str | None = None,
+    *,
+    frames: int = 1,
+    exposure_us: float | None = None,
+    gain_db: float | None = None,
+    pixel_format: str | None = None,
+    roi: tuple[int, int, int, int] | None = None,
+    bayer: str | None = None,
+    config: str | None = None,
+    sensor: str | None = None,
+    cti: list[str] | None = None,
+    fake: bool = False,
+    timeout_s: float = 5.0,
+) -> Grab:
+    """Acquire `frames` frames with read-back settings and their statistics (``uwlab grab``).
+
+    Parameters
+    ----------
+    backend, device_id, cti, config, fake
+        The camera (`open_camera`; `fake`: the backend's test camera, e.g. Aravis's ``Fake_1``).
+    exposure_us, gain_db, pixel_format, roi
+        Settings applied first (checked against plausibility limits, read back); None leaves the camera's.
+    bayer
+        The colour filter layout (``"RG"``, ``"GR"``, ``"GB"``, ``"BG"``) the camera must deliver; the statistics
+        then have a row per colour channel (``channels``).
+    sensor
+        The sensor profile (name or TOML) giving the saturation clip level (default for ``"sim"``: its rig's;
+        else detected from the frames).
+
+    Returns
+    -------
+    Grab
+
+    Examples
+    --------
+    >>> import uwlab
+    >>> shots = uwlab.grab("sim", frames=2, exposure_us=2000, roi=(0, 0, 64, 48))
+    >>> len(shots.images), shots.images[0].shape, shots.stats["exposure_us"].tolist()
+    (2, (48, 64), [2000.0, 2000.0])
+    """
+    from uwlab.experiments.acquisition.grab import Settings, grab_frames
+
+    return grab_frames(
+        backend,
+        device_id,
+        frames=frames,
+        sensor=sensor,
+        config=config,
+        cti=cti,
+        fake=fake,
+        timeout_s=timeout_s,
+        settings=Settings(exposure_us=exposure_us, gain_db=gain_db, pixel_format=pixel_format, roi=roi, bayer=bayer),
+    )
