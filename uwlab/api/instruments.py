@@ -18,6 +18,8 @@ from typing import TYPE_CHECKING, Any
 
 from uwlab.experiments.acquisition.grab import Grabbed as Grab
 
+__all__ = ["Grab", "grab", "open_camera", "open_light", "open_spectrometer"]
+
 if TYPE_CHECKING:
     from uwlab.drivers.camera import Camera, Policy
     from uwlab.drivers.serial import Light, Spectrometer
