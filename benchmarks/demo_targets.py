@@ -21,7 +21,11 @@ from uwlab.experiments.demo import run_demo, target_tally
 
 DEFAULT_RUNS = ("tank:extended", "turbid:paper", "ideal:paper")
 TARGETS = {
-    "tank:extended": {"held_out_inside_95": ">= 0.90", "truth_inside_95": ">= 0.90", "adequate": "all runs"},
+    "tank:extended": {
+        "held_out_inside_95": ">= 0.90",
+        "truth_inside_95": ">= 0.90",
+        "adequate": "apart from the trend check (unmodelled sensor non-linearity)",
+    },
     "turbid:paper": {"adequate": "no run", "backscatter_named": "all runs"},
     "ideal:paper": {"adequate": "all runs"},
 }

@@ -18,9 +18,15 @@ def demo(tmp_path_factory):
 
 def test_demo_recovers_the_simulated_truth(demo):
     summary = json.loads((demo / "summary.json").read_text())
-    assert summary["converged"] and summary["model_adequate"] and not summary["warnings"]
+    assert summary["converged"]
     assert (summary["world"], summary["model"]) == ("tank", "extended")
-    assert all(check["passed"] for check in summary["checks"])
+    # the tank world's sensors compress charge near full well (1 %), which the fitted chain does not model: the
+    # trend check names it, and it is the only check that fails
+    failed = [check for check in summary["checks"] if not check["passed"]]
+    assert [check["name"] for check in failed] == ["within-configuration trend"] and not summary["model_adequate"]
+    assert failed[0]["detail"].startswith("unmodelled response non-linearity: the residuals drift with exposure")
+    for row in summary["posterior_predictive_checks"]:  # charge compression: residuals fall with exposure
+        assert row["trend_end_percent"] < row["trend_start_percent"]
     coverage = summary["predictive_coverage"]
     assert coverage["held_out_inside_95"] >= 0.9 and set(coverage["per_configuration"]) == {
         "imx250-no-lens",

@@ -1,6 +1,7 @@
 """The demo's targets on a reduced campaign (in process, `uwlab.experiments.demo.quick_demo`; the full demo over
 ten seeds is benchmarks/demo_targets.py): the extended model in the tank world predicts held-out configurations
-inside their bands and covers the simulated truths; the paper model in the turbid world is judged inadequate with
+inside their bands and covers the simulated truths (only the trend check may name the tank world's unmodelled
+sensor non-linearity); the paper model in the turbid world is judged inadequate with
 backscatter named; the paper model in the ideal world (the model against itself) is adequate."""
 
 import pytest
@@ -10,10 +11,14 @@ from uwlab.experiments.demo import quick_demo, target_tally
 
 @pytest.mark.slow
 def test_extended_model_in_the_tank_world_meets_the_targets():
-    tally = target_tally([quick_demo("tank", "extended", seed) for seed in range(3)])
+    summaries = [quick_demo("tank", "extended", seed) for seed in range(3)]
+    tally = target_tally(summaries)
     assert tally["held_out_inside_95"] >= 0.90, tally
     assert tally["truth_inside_95"] >= 0.90, tally
-    assert tally["adequate"] == 3, tally
+    # every check passes but, where it fires, the trend check: the tank world's sensor non-linearity, unmodelled
+    for summary in summaries:
+        failed = {check["name"] for check in summary["checks"] if not check["passed"]}
+        assert failed <= {"within-configuration trend"}, summary["checks"]
 
 
 @pytest.mark.slow

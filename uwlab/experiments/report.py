@@ -26,6 +26,7 @@ from uwlab.errors import UwlabError
 from uwlab.experiments.dataset import read_metadata
 from uwlab.experiments.figures import number_text, png_data_uri
 from uwlab.outputs import MANIFEST_FILE, METADATA_FILE, output_file
+from uwlab.experiments.calibration.adequacy import SWEPT_LABELS
 from uwlab.experiments.calibration.forward import PERCENT_PARAMETERS, parameter_label
 from uwlab.experiments.calibration.output import configuration_label
 from uwlab.model.bench import is_bench
@@ -70,6 +71,17 @@ def _percent(value, digits: int = 1) -> str:
 
 def _value(name: str, value) -> str:
     return _percent(value, 2) if name in PERCENT_PARAMETERS else _number(value)
+
+
+def _trend(row: dict) -> str:
+    """A configuration's residual trend, "+0.6 → −0.6 % (exposure 20–462 µs)", or "—" for a fit written before
+    the trend check (or a sweep with fewer than 4 values)."""
+    start, end, variable = row.get("trend_start_percent"), row.get("trend_end_percent"), row.get("trend_variable")
+    if start is None or end is None or variable is None:
+        return "—"
+    name, unit = SWEPT_LABELS.get(variable, (variable, ""))
+    span = f"{row['trend_low']:.3g}–{row['trend_high']:.3g}{' ' + unit if unit else ''}"
+    return f"{start:+.2f} → {end:+.2f} % ({name} {span})"
 
 
 def _is_bare(lens: dict) -> bool:
@@ -292,6 +304,8 @@ def _calibration(path: Path) -> dict:
             "inside": _percent(r["inside_95"], 0),
             "offset": f"{r['offset_percent']:+.2f} %",
             "p": _number(r["ppc_p"], 2),
+            "trend": _trend(r),
+            "trend_p": _number(r.get("trend_p"), 2),
         }
         for r in summary.get("posterior_predictive_checks", [])
     ]

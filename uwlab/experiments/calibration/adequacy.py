@@ -10,6 +10,10 @@ The model is adequate when every check passes:
   points of one configuration share its discrepancy, so the fraction scatters widely about 95 % even for a good
   model; the bound catches bands that are plainly too narrow.
 - ``within-configuration fit``: the χ² posterior predictive p of every fitted configuration ≥ 0.01 / n.
+- ``within-configuration trend``: no configuration's residuals drift with its swept variable
+  (`uwlab.experiments.calibration.validation.residual_trend`) by `MAX_TREND_PERCENT` or more over the sweep with
+  a slope p < 0.01 / n: a drift needs both, significance and a size that matters for a design. A drift against
+  exposure, light level or gain is named what it is in a camera: an unmodelled response non-linearity.
 - ``between-configuration discrepancy``: the median of τ at most `MAX_CONFIG_DISCREPANCY` (beyond it a new
   configuration is predicted no better than ±2τ).
 - ``point discrepancy``: the median within-configuration discrepancy at most `MAX_POINT_DISCREPANCY`.
@@ -37,6 +41,14 @@ FAMILY_ALPHA = 0.01
 MIN_HELD_OUT_INSIDE = 0.75
 MAX_CONFIG_DISCREPANCY = 0.10
 MAX_POINT_DISCREPANCY = 0.05
+MAX_TREND_PERCENT = 0.5  # end-to-end residual change over one sweep [%]
+SIGNAL_VARIABLES = ("exposure_us", "light_level", "gain_db")  # sweeps along which the signal itself grows
+SWEPT_LABELS = {
+    "exposure_us": ("exposure", "µs"),
+    "f_number": ("f-number", ""),
+    "gain_db": ("gain", "dB"),
+    "light_level": ("light level", ""),
+}
 BACKSCATTER_NAMED = 0.02
 GEOMETRY_NAMED = 0.05
 
@@ -102,6 +114,8 @@ def checks(result: FitResult, ppc: pd.DataFrame, cross: CrossValidation) -> list
                 + ", ".join(f"{r.sweep_id} (p = {r.ppc_p:.2g})" for r in off.itertuples()),
             )
         )
+    if len(ppc) and "trend_p" in ppc:
+        out.append(trend_check(ppc))
     tau = result.median("config_discrepancy")
     if tau is not None:
         out.append(
@@ -121,6 +135,35 @@ def checks(result: FitResult, ppc: pd.DataFrame, cross: CrossValidation) -> list
             )
         )
     return out
+
+
+def trend_check(ppc: pd.DataFrame) -> Check:
+    """``within-configuration trend`` (module docstring) from the ``trend_*`` columns of the posterior predictive
+    checks."""
+    trends = ppc[ppc["trend_p"].notna()]
+    if trends.empty:
+        return Check("within-configuration trend", True, "no sweep has 4 or more values of its variable")
+    bound = FAMILY_ALPHA / len(trends)
+    change = trends["trend_end_percent"] - trends["trend_start_percent"]
+    off = trends[(trends["trend_p"] < bound) & (change.abs() >= MAX_TREND_PERCENT)]
+    if off.empty:
+        worst = trends.loc[change.abs().idxmax()]
+        return Check(
+            "within-configuration trend",
+            True,
+            f"no residual drift of {MAX_TREND_PERCENT:g} % or more along any sweep (largest "
+            f"{worst.trend_start_percent:+.2f} → {worst.trend_end_percent:+.2f} % in {worst.sweep_id})",
+        )
+    worst = off.loc[(off["trend_end_percent"] - off["trend_start_percent"]).abs().idxmax()]
+    name, unit = SWEPT_LABELS.get(worst.trend_variable, (worst.trend_variable, ""))
+    what = "unmodelled response non-linearity" if worst.trend_variable in SIGNAL_VARIABLES else "residual trend"
+    return Check(
+        "within-configuration trend",
+        False,
+        f"{what}: the residuals drift with {name} in {len(off)} of {len(trends)} configurations, most in "
+        f"{worst.sweep_id} ({worst.trend_start_percent:+.1f} → {worst.trend_end_percent:+.1f} % over "
+        f"{worst.trend_low:.3g}–{worst.trend_high:.3g}{' ' + unit if unit else ''}, p = {worst.trend_p:.2g})",
+    )
 
 
 def neglected_effects(result: FitResult) -> pd.DataFrame:

@@ -9,6 +9,11 @@
 - Posterior predictive check per configuration (Gelman, Meng & Stern, Statistica Sinica 6, 733–807, 1996):
   T = Σ (y − μ(1 + δ_k))² / σ² of the measured points against the same statistic of replicated data, p = P(T_rep ≥
   T_obs); a small p says the configuration's points scatter about the model more than its noise allows.
+- Residual trend per configuration (`residual_trend`): the residuals r = y / μ̂ − 1 [%] against the swept variable
+  (`SWEPT`: exposure, f-number or light level on a log axis, gain in dB) by ordinary least squares; the trend is
+  the fitted line's values at the sweep's two ends ("+0.6 → −0.7 %") and p the two-sided t-test of its slope
+  (n − 2 degrees of freedom, the scatter about the line estimated from the points themselves, so the test holds
+  whatever the noise model). A χ² check misses such a drift when the points are few or the discrepancy absorbs it.
 - Held-out configurations (`cross_validation`): the configurations are split into folds (by default two,
   alternating in sweep order, or the [holdout] train list); each fold is fitted on the others and predicts its own
   configurations as new ones: δ_new ~ N(0, τ²) with the posterior's between-configuration scale τ, and parameters
@@ -148,9 +153,54 @@ def dense_sweeps(result: FitResult, n: int = 60) -> pd.DataFrame:
     return pd.concat(rows, ignore_index=True)
 
 
+SWEPT = {"exposure": "exposure_us", "aperture": "f_number", "gain": "gain_db", "light-level": "light_level"}
+LOG_SWEPT = ("exposure_us", "f_number", "light_level")
+
+
+@dataclass(frozen=True)
+class Trend:
+    """A configuration's residual trend against its swept variable (module docstring)."""
+
+    variable: str
+    low: float  # the swept variable's range
+    high: float
+    start_percent: float  # the fitted residual line at `low` and at `high`
+    end_percent: float
+    p: float
+
+    @property
+    def change_percent(self) -> float:
+        return self.end_percent - self.start_percent
+
+
+def residual_trend(kind: str, swept: pd.DataFrame, residual_percent: np.ndarray) -> Trend | None:
+    """The trend of `residual_percent` against the variable `kind` sweeps (a column of `swept`); None when the
+    sweep has fewer than 4 distinct values of it or is not a sweep of one (dark).
+
+    >>> rows = pd.DataFrame({"exposure_us": [10.0, 100.0, 1000.0, 10000.0, 100000.0]})
+    >>> trend = residual_trend("exposure", rows, np.array([0.6, 0.3, 0.0, -0.3, -0.6]) + [0, 1e-3, -1e-3, 0, 0])
+    >>> round(trend.start_percent, 2), round(trend.end_percent, 2), trend.p < 1e-4
+    (0.6, -0.6, True)
+    """
+    from scipy import stats
+
+    variable = SWEPT.get(kind)
+    if variable is None or variable not in swept:
+        return None
+    values = swept[variable].to_numpy(float)
+    if np.unique(values).size < 4:
+        return None
+    x = np.log(values) if variable in LOG_SWEPT else values
+    fit = stats.linregress(x, residual_percent)
+    ends = fit.intercept + fit.slope * np.array([x.min(), x.max()])
+    p = float(fit.pvalue) if np.isfinite(fit.pvalue) else (0.0 if fit.slope else 1.0)
+    return Trend(variable, float(values.min()), float(values.max()), float(ends[0]), float(ends[1]), p)
+
+
 def posterior_predictive_checks(result: FitResult, seed: int = 0) -> pd.DataFrame:
-    """Per fitted configuration: points, fraction inside the 95 % band, the median discrepancy δ_k [%] and the
-    posterior predictive p-value of its χ² (module docstring)."""
+    """Per fitted configuration: points, fraction inside the 95 % band, the median discrepancy δ_k [%], the
+    posterior predictive p-value of its χ² and its residual trend against the swept variable (module docstring;
+    ``trend_*`` columns NaN where there is none)."""
     model = result.model
     draws = predictive_draws(model, _thinned(result.samples), seen=True, seed=seed)
     replicated = draws.mean + draws.sigma * np.random.default_rng(seed + 1).standard_normal(draws.mean.shape)
@@ -160,13 +210,22 @@ def posterior_predictive_checks(result: FitResult, seed: int = 0) -> pd.DataFram
     rows = []
     for k in range(model.n_config):
         sel = model.config == k
+        first = np.flatnonzero(sel)[0]
+        kind = str(model.points.loc[first, "kind"])
+        trend = residual_trend(kind, model.points.loc[sel], frame.loc[sel, "residual_percent"].to_numpy(float))
         rows.append(
             {
-                "sweep_id": str(model.points.loc[np.flatnonzero(sel)[0], "sweep_id"]),
+                "sweep_id": str(model.points.loc[first, "sweep_id"]),
                 "points": int(sel.sum()),
                 "inside_95": float(frame.loc[sel, "inside_95"].mean()),
                 "offset_percent": float(100 * np.median(draws.offsets[:, k])),
                 "ppc_p": float((np.sum(replicated_chi[:, k] >= observed_chi[:, k]) + 1) / (draws.theta.shape[0] + 1)),
+                "trend_variable": None if trend is None else trend.variable,
+                "trend_low": np.nan if trend is None else trend.low,
+                "trend_high": np.nan if trend is None else trend.high,
+                "trend_start_percent": np.nan if trend is None else trend.start_percent,
+                "trend_end_percent": np.nan if trend is None else trend.end_percent,
+                "trend_p": np.nan if trend is None else trend.p,
             }
         )
     return pd.DataFrame(rows)
