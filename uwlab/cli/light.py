@@ -17,8 +17,19 @@ DEFAULT_CALIBRATION = "light-calibration.csv"
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("light", description="Set and read back the light controller (uwlab-ascii over serial).")
+    p = subparsers.add_parser(
+        "light",
+        description="Set and read back the light: a uwlab-ascii controller on a serial port (--port), or any "
+        "instrument with a definition in configs/instruments/ on a VISA resource (--instrument, --resource).",
+    )
     p.add_argument("--port", help="serial port of the light (e.g. /dev/ttyUSB0)")
+    p.add_argument("--instrument", metavar="NAME|FILE", help="instrument definition (configs/instruments/NAME.toml)")
+    p.add_argument("--resource", metavar="RESOURCE", help="VISA resource of --instrument (e.g. USB0::...::INSTR)")
+    p.add_argument(
+        "--visa-library",
+        metavar="LIB",
+        help="PyVISA library: @py (default, pure Python), PATH.yaml@sim (pyvisa-sim), or a vendor VISA's path",
+    )
     p.add_argument("--protocol", choices=PROTOCOLS, default=PROTOCOLS[0], help="instrument protocol")
     output = p.add_mutually_exclusive_group()
     output.add_argument("--on", dest="output", action="store_const", const=True, help="switch the output on")
@@ -47,8 +58,12 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
+    if args.instrument is not None:
+        return run_instrument(args)
+    if args.resource is not None or args.visa_library is not None:
+        raise ConfigError("resource", args.resource or args.visa_library, "needs --instrument")
     if args.port is None:
-        raise ConfigError("port", None, "--port is required (or use 'uwlab light calibrate')")
+        raise ConfigError("port", None, "--port or --instrument is required (or use 'uwlab light calibrate')")
     if args.level is not None:
         check_level(args.level)
     with open_light(args.port, args.protocol) as light:
@@ -61,6 +76,35 @@ def run(args) -> int:
         print(json.dumps(state))
     else:
         print(f"{state['identity']} on {args.port}: output {'on' if state['on'] else 'off'}, level {state['level']:g}")
+    return 0
+
+
+def run_instrument(args) -> int:
+    """``--instrument NAME --resource RESOURCE``: set, then print the read-back (on, level, drive, measured)."""
+    from uwlab.drivers.instruments import open_visa_light
+
+    if args.port is not None:
+        raise ConfigError("port", args.port, "give either --port or --instrument")
+    if args.resource is None:
+        raise ConfigError("resource", None, "--instrument needs --resource (uwlab devices lists them)")
+    if args.level is not None:
+        check_level(args.level)
+    with open_visa_light(args.instrument, args.resource, args.visa_library) as light:
+        if args.level is not None:
+            light.set_level(args.level)
+        if args.output is not None:
+            light.set_output(args.output)
+        state = {
+            "instrument": args.instrument,
+            "resource": args.resource,
+            "identity": light.identity(),
+            **light.state(),
+        }
+        light.keep_output = True
+    if args.json:
+        print(json.dumps(state))
+    else:
+        print(f"{state['identity']} on {args.resource}: " + ", ".join(f"{k} {v}" for k, v in list(state.items())[3:]))
     return 0
 
 
