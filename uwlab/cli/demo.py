@@ -36,6 +36,13 @@ def register(subparsers) -> None:
         default=0,
         help="seed of all the simulated noise: camera, spectrometer (default 0; equal seeds give equal numbers)",
     )
+    p.add_argument(
+        "--sensor",
+        choices=("emva", "profile"),
+        default="emva",
+        help="fit with each camera as characterised first on the simulated EMVA bench (emva, default: its measured "
+        "response curve) or with its hand-written sensor profile (profile: a linear response)",
+    )
     p.add_argument("--json", action="store_true", help="print summary.json")
     p.set_defaults(func=run)
 
@@ -55,7 +62,15 @@ def run(args) -> int:
         sweep_bar.set_postfix_str(event.sweep_id)
 
     with sweep_bar, fit_bar:
-        summary = run_demo(out, sweep_progress, fit_progress, seed=args.seed, world=args.world, model=args.model)
+        summary = run_demo(
+            out,
+            sweep_progress,
+            fit_progress,
+            seed=args.seed,
+            world=args.world,
+            model=args.model,
+            sensors=args.sensor,
+        )
     if args.json:
         json.dump(summary, sys.stdout, indent=2)
         sys.stdout.write("\n")

@@ -31,6 +31,13 @@ def register(subparsers) -> None:
         choices=("paper", "extended"),
         help="the chain to fit: the paper's or the extended one (default: the dataset's rigs' [model] kind)",
     )
+    p.add_argument(
+        "--sensor",
+        action="append",
+        metavar="[CAMERA=]FROM",
+        help="use the camera as characterised by `uwlab emva characterize` (FROM: its profile TOML or output "
+        "folder): its measured response curve, with its uncertainty, enters the model (repeat per camera)",
+    )
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(func=run)
 
@@ -41,7 +48,9 @@ def run(args) -> int:
     out = Path(args.out) if args.out else Path(args.dataset) / FIT_FOLDER
     bar, update = tau_bar("sampling")
     with bar:
-        calibration = calibrate(args.dataset, args.config, out, args.train, progress=update, model=args.model)
+        calibration = calibrate(
+            args.dataset, args.config, out, args.train, progress=update, model=args.model, sensors=args.sensor
+        )
     summary = calibration.summary
     if args.json:
         json.dump(summary, sys.stdout, indent=2)

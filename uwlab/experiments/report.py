@@ -332,6 +332,7 @@ def _calibration(path: Path) -> dict:
         "posterior": posterior,
         "notes": notes,
         "ppc": ppc,
+        "sensors": [f"{camera}: {description}" for camera, description in sorted(summary.get("sensors", {}).items())],
         "sampler": (
             f"{summary['steps']} steps × {summary['walkers']} walkers, {summary['tau_multiple']:.0f} "
             f"autocorrelation times, acceptance {summary['acceptance_fraction']:.2f}; "

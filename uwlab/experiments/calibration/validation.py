@@ -139,6 +139,9 @@ def dense_sweeps(result: FitResult, n: int = 60) -> pd.DataFrame:
             camera=np.full(n, model.camera[first]),
             y=np.zeros(n),
             sigma_meas=np.zeros(n),
+            well_fraction_per_dn=None
+            if model.well_fraction_per_dn is None
+            else np.full(n, model.well_fraction_per_dn[first]),
         )
         bands = _bands(dense.predict(theta) * (1 + offsets[:, k : k + 1]))
         frame = pd.DataFrame(
