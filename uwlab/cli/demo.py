@@ -82,8 +82,12 @@ def run(args) -> int:
         truth = "—" if p["truth"] is None else f"{p['truth']:.4g}"
         print(f"{name:<24}{truth:>10}{p['median']:>10.4g}   [{p['p2_5']:.4g}, {p['p97_5']:.4g}]")
     print(f"converged: {summary['converged']}")
-    coverage = summary["predictive_coverage"]["held_out_inside_95"]
-    print(f"held-out points inside their 95 % bands: {100 * coverage:.0f} %")
+    coverage = summary["predictive_coverage"]
+    print(
+        f"held-out points inside their 95 % bands: {100 * coverage['held_out_inside_95']:.0f} % "
+        f"(median half-width ±{coverage['held_out_half_width_percent']:.2g} % for median errors of "
+        f"{coverage['held_out_error_percent']:.2g} %)"
+    )
     for row in summary["cross_configuration"]:
         print(
             f"  {row['sweep_id']:<18} held out: median error {100 * row['median_abs_rel_error']:.2f} %, "

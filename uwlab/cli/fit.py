@@ -57,9 +57,12 @@ def run(args) -> int:
         sys.stdout.write("\n")
         return 0
     print(f"calibration written to {out}")
+    coverage = summary["predictive_coverage"]
     print(
         f"{summary['model']} model: {'adequate' if summary['model_adequate'] else 'NOT adequate'}; "
-        f"{100 * summary['predictive_coverage']['held_out_inside_95']:.0f} % of held-out points inside their 95 % bands"
+        f"{100 * coverage['held_out_inside_95']:.0f} % of held-out points inside their 95 % bands "
+        f"(median half-width ±{coverage['held_out_half_width_percent']:.2g} % for median errors of "
+        f"{coverage['held_out_error_percent']:.2g} %)"
     )
     print(
         f"converged: {summary['converged']} ({summary['steps']} steps, {summary['tau_multiple']:.0f} τ, "

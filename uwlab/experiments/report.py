@@ -238,6 +238,16 @@ def _world_name(summary: dict) -> str:
     }.get(world, f"the {world} world")
 
 
+def _sharpness(coverage: dict) -> str:
+    """ "±12.9 % for 0.7 % errors (18×); interval score 26 %", or "—" for a fit written before it was measured."""
+    half, error = coverage.get("held_out_half_width_percent"), coverage.get("held_out_error_percent")
+    if half is None or error is None:
+        return "—"
+    ratio = coverage.get("held_out_width_over_error")
+    score = coverage.get("held_out_interval_score_percent")
+    return f"±{half:.2g} % for {error:.2g} % errors ({_number(ratio, 2)}×); interval score {_number(score, 2)} %"
+
+
 def _headline(summary: dict) -> str:
     coverage = summary["predictive_coverage"]["held_out_inside_95"]
     tau = summary["parameters"].get("config_discrepancy", {}).get("median")
@@ -323,6 +333,7 @@ def _calibration(path: Path) -> dict:
         "reasons": failing,
         "causes": summary.get("likely_causes", []) if failing else [],
         "coverage": _percent(summary["predictive_coverage"]["held_out_inside_95"], 0),
+        "sharpness": _sharpness(summary["predictive_coverage"]),
         "tau": _percent(tau),
         "delta": _percent(delta, 2),
         "converged": "converged" if summary["converged"] else "NOT converged",

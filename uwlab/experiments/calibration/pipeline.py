@@ -6,9 +6,10 @@ spectra) and ``posterior.nc`` (the posterior as ArviZ InferenceData, `uwlab.expe
 ``summary.json`` also records which dataset (path, plan hash), the world that rendered a simulated dataset (``world``),
 the chain fitted (``model``: paper or extended), the held-out folds and table, the posterior predictive checks per
 configuration, ``predictive_coverage`` (the fraction of all held-out points inside their 95 % bands and per
-configuration), the verdict ``model_adequate`` with its named ``checks`` and, when the model fails, the failing checks
-and likely causes in ``warnings`` (`uwlab.experiments.calibration.adequacy`), the spectra comparison and, per parameter,
-the simulated ground truth.
+configuration, and the bands' sharpness: median half-width, median realised error, their ratio and the interval
+score, `uwlab.experiments.calibration.validation.band_sharpness`), the verdict ``model_adequate`` with its named
+``checks`` and, when the model fails, the failing checks and likely causes in ``warnings``
+(`uwlab.experiments.calibration.adequacy`), the spectra comparison and, per parameter, the simulated ground truth.
 """
 
 from __future__ import annotations
@@ -120,7 +121,11 @@ class Assessment:
         per_config = dict(zip(table["sweep_id"], table["inside_95"], strict=True)) if len(table) else {}
         return {
             "model": self.result.model.kind,
-            "predictive_coverage": {"held_out_inside_95": self.cross.inside_95, "per_configuration": per_config},
+            "predictive_coverage": {
+                "held_out_inside_95": self.cross.inside_95,
+                "per_configuration": per_config,
+                **{f"held_out_{key}": value for key, value in self.cross.sharpness.items()},
+            },
             **self.verdict.to_dict(),
             "warnings": self.result.summary()["warnings"] + self.verdict.warnings(),
             "cross_configuration": self.cross.table.to_dict(orient="records"),
