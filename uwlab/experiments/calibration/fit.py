@@ -36,7 +36,7 @@ from typing import Annotated
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 
 import emcee
 import numpy as np
@@ -174,7 +174,7 @@ class Posterior:
 
     CHUNK = 2000  # rows per shape evaluation when mapping whole chains: (CHUNK, n_config, n_λ) floats
 
-    def __init__(self, model: ForwardModel, priors: dict[str, Prior]):
+    def __init__(self, model: ForwardModel, priors: Mapping[str, Prior]):
         self.model = model
         self.priors = [priors[name] for name in model.names]
         self.logged = np.array([name not in LINEAR for name in model.names])
@@ -184,7 +184,7 @@ class Posterior:
 
     def log_prior(self, theta: np.ndarray) -> np.ndarray:
         theta = np.atleast_2d(theta)
-        return sum(prior.logpdf(theta[:, j]) for j, prior in enumerate(self.priors))
+        return np.sum([prior.logpdf(theta[:, j]) for j, prior in enumerate(self.priors)], axis=0)
 
     def log_likelihood(self, theta: np.ndarray, shape: np.ndarray | None = None) -> np.ndarray:
         """ln L(θ) with the configurations' discrepancies integrated out (module docstring)."""

@@ -35,6 +35,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -269,15 +270,17 @@ def extended_roi_rates(design: Design, lens: bool, roi_w: float, roi_h: float) -
 def _extended_rates(design: Design, lens: bool, roi_w: float, roi_h: float) -> tuple[float, np.ndarray]:
     """(nominal ROI rate, rate(S_GRID)) of the extended chain: target and veiling light (`extended_roi_rates`)."""
     scaled = design.with_values(**{"water.attenuation_scale": S_GRID})
-    return float(sum(extended_roi_rates(design, lens, roi_w, roi_h))), sum(
-        extended_roi_rates(scaled, lens, roi_w, roi_h)
-    )
+    target, veil = extended_roi_rates(design, lens, roi_w, roi_h)
+    target_s, veil_s = extended_roi_rates(scaled, lens, roi_w, roi_h)
+    return float(target + veil), target_s + veil_s
 
 
 def _configuration_design(
     rig: dict, base_dir: Path | None, sensor: str, focal_length_mm, f_number, kind: str | None
 ) -> tuple[Design, bool]:
-    raw = {s: (list(v) if isinstance(v, list) else dict(v)) for s, v in rate_design_sections(rig).items()}
+    raw: dict[str, Any] = {
+        s: (list(v) if isinstance(v, list) else dict(v)) for s, v in rate_design_sections(rig).items()
+    }
     raw.setdefault("sensor", {})["profile"] = sensor
     raw["sensor"].pop("characterised", None)  # the response curve is the forward model's (`characterised_sensor`)
     has_lens = f_number is not None and np.isfinite(f_number)
@@ -316,7 +319,10 @@ def build_forward_model(
     key_tuples = [tuple(row) for row in keys.itertuples(index=False)]
     unique = list(dict.fromkeys(key_tuples))
     config = np.array([unique.index(k) for k in key_tuples])
-    designs, has_lens, rate0, transmission = [], [], [], []
+    designs: list[Design] = []
+    has_lens: list[bool] = []
+    rate0: list[float] = []
+    transmission: list[np.ndarray] = []
     for sweep_id, sensor, focal, f_number in unique:
         if sweep_id not in rigs:
             raise ConfigError("dataset", sweep_id, "no rig recorded for this sweep in metadata.json")
@@ -349,7 +355,7 @@ def build_forward_model(
         "config_discrepancy": 0.0,
     }
     camera = np.array([cameras.index(s) for s in points["sensor_profile"].astype(str)])
-    profile_of = {}
+    profile_of: dict[str, SensorProfile] = {}
     for idx, design in enumerate(designs):
         profile_of.setdefault(unique[idx][1], design.sensor)
     for cam in cameras:
