@@ -123,3 +123,43 @@ def test_fit_with_a_config_file_and_bad_configs(demo, tmp_path, capsys):
     assert err.count("\n") == 1 and "parameters.light_efficency" in err
     assert main(["demo", "--out", str(demo)]) == 2
     assert "not empty" in capsys.readouterr().err
+
+
+def test_the_report_and_the_datasheet_at_1400_px_keep_every_figure_inside_and_legible(demo, tmp_path):
+    # the rules of uwlab.experiments.figures: text of p points in a figure saved at d dpi is p·d/72 px, so it stays
+    # ≥ 11 px when the figure is shown at ≥ 11·72/(p·d) of its pixel size: the report's figures (90 dpi, ≥ 11 pt)
+    # at ≥ 0.8, the datasheet's (110 dpi, ≥ 9.5 pt) at ≥ 0.758; nothing may stick out of the page
+    from selenium import webdriver
+    from selenium.webdriver.chrome.options import Options
+    from selenium.webdriver.chrome.service import Service
+    from selenium.webdriver.common.by import By
+
+    options = Options()
+    for argument in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage"):
+        options.add_argument(argument)
+    options.binary_location = "/usr/bin/chromium"
+    browser = webdriver.Chrome(service=Service("/usr/bin/chromedriver"), options=options)
+    try:
+        browser.set_window_size(1400, 1000)
+        pages = {
+            demo / "report.html": 11 * 72 / (11 * 90),
+            demo / "emva" / "imx250m" / "datasheet.html": 11 * 72 / (9.5 * 110),
+        }
+        for page, least in pages.items():
+            browser.get(page.as_uri())
+            assert browser.execute_script("return document.documentElement.scrollWidth <= window.innerWidth"), page
+            images = browser.find_elements(By.TAG_NAME, "img")
+            assert images
+            for img in images:
+                box = browser.execute_script(
+                    "const r = arguments[0].getBoundingClientRect();"
+                    "return [r.left, r.right, arguments[0].naturalWidth, window.innerWidth];",
+                    img,
+                )
+                left, right, natural, width = box
+                assert left >= 0 and right <= width, (page.name, box)
+                if natural > 600 and img.is_displayed():  # the figures, not icons or folded <details>
+                    assert (right - left) / natural >= least, (page.name, box)
+            browser.save_screenshot(str(tmp_path / f"{page.stem}.png"))
+    finally:
+        browser.quit()

@@ -24,7 +24,7 @@ from jinja2 import Environment, PackageLoader, StrictUndefined
 
 from uwlab.errors import UwlabError
 from uwlab.experiments.dataset import read_metadata
-from uwlab.experiments.figures import number_text, png_data_uri
+from uwlab.experiments.figures import LABEL_PT, PALETTE, TICK_PT, number_text, png_data_uri
 from uwlab.outputs import MANIFEST_FILE, METADATA_FILE, output_file
 from uwlab.experiments.calibration.adequacy import SWEPT_LABELS
 from uwlab.experiments.calibration.forward import PERCENT_PARAMETERS, parameter_label
@@ -364,25 +364,54 @@ def _calibration(path: Path) -> dict:
     }
 
 
+SPECTRA_COLUMNS = 3  # ≤ 3 panels across keeps the text ≥ 11 px on the report's 1260 px column
+
+
 def _spectra_figure(path: Path, label) -> str:
+    """Predicted (line, on top) and measured (dots) spectra per configuration, at the target and at the camera,
+    three configurations across (`uwlab.experiments.figures` rules)."""
     frame = pd.read_parquet(path)
-    sweeps = list(dict.fromkeys(frame["sweep_id"]))[:6]
-    fig = Figure(figsize=(3.4 * len(sweeps), 6))
-    axes = fig.subplots(2, len(sweeps), squeeze=False, sharex=True)
+    sweeps = list(dict.fromkeys(frame["sweep_id"]))
+    blocks = -(-len(sweeps) // SPECTRA_COLUMNS)
+    columns = min(SPECTRA_COLUMNS, len(sweeps))
+    fig = Figure(figsize=(4.4 * columns, 3.4 * 2 * blocks))
+    axes = fig.subplots(2 * blocks, columns, squeeze=False, sharex=True)
     for j, sweep_id in enumerate(sweeps):
+        block, column = divmod(j, SPECTRA_COLUMNS)
         for i, position in enumerate(("target", "camera")):
             sel = frame[(frame["sweep_id"] == sweep_id) & (frame["position"] == position)]
-            ax = axes[i, j]
-            ax.plot(sel["wavelength_nm"], sel["predicted_w_m2_nm"], label="predicted", linewidth=1.5)
+            ax = axes[2 * block + i, column]
             if sel["irradiance_w_m2_nm"].notna().any():
-                ax.plot(sel["wavelength_nm"], sel["irradiance_w_m2_nm"], ".", markersize=2.5, label="measured")
-            ax.set_title(f"{label(sweep_id)}\nat the {position}", fontsize=11)
-            ax.tick_params(labelsize=10)
-            if i == 1:
-                ax.set_xlabel("wavelength [nm]", fontsize=11)
-    axes[0, 0].legend(fontsize=10)
-    axes[0, 0].set_ylabel("irradiance at the target\n[W/m²/nm]", fontsize=11)
-    axes[1, 0].set_ylabel("π × radiance at the camera\n[W/m²/nm]", fontsize=11)
+                ax.plot(
+                    sel["wavelength_nm"],
+                    sel["irradiance_w_m2_nm"],
+                    "o",
+                    markersize=2.5,
+                    color=PALETTE["orange"],
+                    label="measured",
+                    zorder=2,
+                )
+            ax.plot(
+                sel["wavelength_nm"],
+                sel["predicted_w_m2_nm"],
+                color=PALETTE["blue"],
+                linewidth=1.6,
+                label="predicted",
+                zorder=3,
+            )
+            ax.set_title(f"{label(sweep_id)}, at the {position}", fontsize=TICK_PT)
+            ax.tick_params(labelsize=TICK_PT)
+            if column == 0:
+                ax.set_ylabel(
+                    "irradiance at the target\n[W/m²/nm]" if i == 0 else "π × radiance at the camera\n[W/m²/nm]",
+                    fontsize=TICK_PT,
+                )
+    for ax in axes[-1]:
+        ax.set_xlabel("wavelength [nm]", fontsize=LABEL_PT)
+    for ax in axes.ravel()[len(sweeps) * 2 :]:
+        if not ax.has_data():
+            ax.set_visible(False)
+    axes[0, 0].legend(fontsize=TICK_PT)
     fig.tight_layout()
     return _fig(fig)
 

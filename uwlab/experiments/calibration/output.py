@@ -18,9 +18,10 @@ import corner
 from matplotlib.figure import Figure
 import numpy as np
 import pandas as pd
-from matplotlib.ticker import FuncFormatter, NullFormatter
+from matplotlib.ticker import FuncFormatter
 
 from uwlab.errors import UwlabError
+from uwlab.experiments.figures import LABEL_PT, PALETTE, TICK_PT, log_ticks
 from uwlab.experiments.calibration.fit import FitResult
 from uwlab.experiments.calibration.inference import POSTERIOR_NAME, write_inference_data
 from uwlab.experiments.calibration.validation import dense_sweeps, point_predictions
@@ -61,8 +62,8 @@ def corner_plot(result: FitResult, path: Path, truth: dict | None = None) -> Pat
         quantiles=[0.16, 0.5, 0.84],
         show_titles=True,
         title_fmt=".3g",
-        title_kwargs={"fontsize": 8},
-        label_kwargs={"fontsize": 8},
+        title_kwargs={"fontsize": TICK_PT},
+        label_kwargs={"fontsize": TICK_PT},
     )
     fig.savefig(path, dpi=80)
     return path
@@ -75,7 +76,8 @@ def trace_plot(result: FitResult, path: Path) -> Path:
     axes = np.atleast_1d(axes)
     for i, ax in enumerate(axes):
         ax.plot(result.chain[:, :, i], color="k", alpha=0.15, linewidth=0.5)
-        ax.set_ylabel(result.names[i], fontsize=7)
+        ax.set_ylabel(result.names[i], fontsize=TICK_PT)
+        ax.tick_params(labelsize=TICK_PT)
     axes[-1].set_xlabel("step")
     fig.suptitle(f"walker traces (τ max {np.max(result.tau):.0f} steps, {result.steps} steps)")
     fig.tight_layout()
@@ -97,8 +99,8 @@ def configuration_labels(frame: pd.DataFrame) -> dict[str, str]:
     return {r.sweep_id: configuration_label(r.sensor_profile, r.focal_length_mm, r.f_number) for r in rows.itertuples()}
 
 
-FITTED, HELD_OUT, SATURATED = "#1f77b4", "#e07b00", "#c0392b"
-RESIDUAL_LIMIT_PERCENT = 400.0
+FITTED, HELD_OUT, SATURATED = PALETTE["blue"], PALETTE["orange"], PALETTE["vermillion"]
+MIN_RESIDUAL_RANGE_PERCENT = 0.5
 
 
 def response_plot(
@@ -106,8 +108,9 @@ def response_plot(
 ) -> Path:
     """Per configuration: the measured response against exposure with the fitted model (saturated points marked),
     and below it the residuals in per cent of the model with its 95 % band of a new measurement, fitted and, where
-    given, predicted for the configuration held out of the fit. The residual axis is linear within ±1 % (or the
-    fitted band) and logarithmic beyond, so that bands of 0.1 % and errors of 100 % both show."""
+    given, predicted for the configuration held out of the fit. Axes follow `uwlab.experiments.figures`' rules: log
+    axes ticked at 1, 2, 5 per decade; the residual axis linear, sized to the fitted band and the residuals
+    (`_residuals`), anything beyond it drawn at its edge and labelled with its value; the model over the dots."""
     sweeps = list(dict.fromkeys(predictions["sweep_id"]))
     labels = configuration_labels(predictions)
     columns = min(3, len(sweeps))
@@ -121,8 +124,10 @@ def response_plot(
         band = dense[dense["sweep_id"] == sweep_id]
         here = predictions[predictions["sweep_id"] == sweep_id]
         pts, clipped = here[~here["saturated"].astype(bool)], here[here["saturated"].astype(bool)]
-        ax.plot(band["exposure_us"], band["predicted_median"], color=FITTED, linewidth=1.5, label="model (fitted)")
-        ax.plot(pts["exposure_us"], pts["measured_dn"], "o", color="k", markersize=4, label="measured")
+        ax.plot(pts["exposure_us"], pts["measured_dn"], "o", color="k", markersize=4, label="measured", zorder=2)
+        ax.plot(
+            band["exposure_us"], band["predicted_median"], color=FITTED, linewidth=1.5, label="model (fitted)", zorder=3
+        )
         if len(clipped):
             ax.plot(
                 clipped["exposure_us"],
@@ -133,60 +138,93 @@ def response_plot(
                 mew=2,
                 label="saturated (not fitted)",
             )
-        ax.set_title(labels.get(sweep_id, sweep_id), fontsize=12)
+        ax.set_title(labels.get(sweep_id, sweep_id), fontsize=LABEL_PT + 1)
         ax.set_xscale("log")
         ax.set_yscale("log")
-        ax.yaxis.set_minor_formatter(NullFormatter())
-        ax.tick_params(labelbottom=False, labelsize=10)
+        log_ticks(ax.yaxis)
+        ax.tick_params(labelbottom=False, labelsize=TICK_PT)
         _residuals(res, pts, held_out[held_out["sweep_id"] == sweep_id] if held_out is not None else None)
-        res.set_xlabel("exposure [µs]", fontsize=11)
+        log_ticks(res.xaxis)
+        res.set_xlabel("exposure [µs]", fontsize=LABEL_PT)
         if j % columns == 0:
-            ax.set_ylabel("signal − dark [DN]", fontsize=11)
-            res.set_ylabel("residual [%]", fontsize=11)
+            ax.set_ylabel("signal − dark [DN]", fontsize=LABEL_PT)
+            res.set_ylabel("residual [%]", fontsize=LABEL_PT)
         if j == 0:
             handles = [h for a in (ax, res) for h in a.get_legend_handles_labels()[0]]
             names = [n for a in (ax, res) for n in a.get_legend_handles_labels()[1]]
             fig.legend(
-                handles, names, loc="upper center", ncol=5, fontsize=11, frameon=False, bbox_to_anchor=(0.5, 1.0)
+                handles, names, loc="upper center", ncol=5, fontsize=LABEL_PT, frameon=False, bbox_to_anchor=(0.5, 1.0)
             )
     fig.savefig(path, dpi=90, bbox_inches="tight")
     return path
 
 
 def _residuals(ax, pts: pd.DataFrame, held_out: pd.DataFrame | None) -> None:
-    """Residuals [%] of the measured points with the fitted band (shaded) and the held-out band (bars); values
-    beyond ±RESIDUAL_LIMIT_PERCENT drawn at the edge as triangles labelled with their value."""
+    """Residuals [%] of the measured points with the fitted band (shaded) and the held-out band (bars) on a linear
+    axis of ±1.4 × the larger of the fitted band and the 75th percentile of |residuals| (at least
+    ±`MIN_RESIDUAL_RANGE_PERCENT`): a residual beyond it is drawn at the edge as a triangle labelled with its value,
+    a held-out band beyond it is cut at the edge (a triangle where all of it lies beyond), with the held-out
+    prediction's offset and its band's extent written in the panel."""
     x = pts["exposure_us"].to_numpy()
     centre = pts["predicted_median"].to_numpy()
     lo = 100 * (pts["observed_p2_5"].to_numpy() / centre - 1)
     hi = 100 * (pts["observed_p97_5"].to_numpy() / centre - 1)
-    values = [lo, hi, pts["residual_percent"].to_numpy()]
+    residual = pts["residual_percent"].to_numpy()
+    band = np.abs(np.concatenate([lo, hi]))
+    band = band[np.isfinite(band)]
+    spread = np.abs(residual[np.isfinite(residual)])
+    scale = max(
+        float(band.max()) if band.size else 0.0,
+        float(np.percentile(spread, 75)) if spread.size else 0.0,
+        MIN_RESIDUAL_RANGE_PERCENT / 1.4,
+    )
+    limit = 1.4 * scale
     if held_out is not None and len(held_out):
         h = held_out.set_index("exposure_us").reindex(x)
         h_lo = 100 * (h["observed_p2_5"].to_numpy() / centre - 1)
         h_hi = 100 * (h["observed_p97_5"].to_numpy() / centre - 1)
         ax.vlines(
-            x, h_lo, h_hi, color=HELD_OUT, linewidth=5, alpha=0.5, label="95 % band, predicted held out", zorder=1
+            x,
+            np.clip(h_lo, -limit, limit),
+            np.clip(h_hi, -limit, limit),
+            color=HELD_OUT,
+            linewidth=5,
+            alpha=0.5,
+            label="95 % band, predicted held out",
+            zorder=1,
         )
-        values += [h_lo, h_hi]
+        h_median = 100 * (h["predicted_median"].to_numpy() / centre - 1)
+        above, below = h_lo > limit, h_hi < -limit  # the whole band beyond the axis: a marker at the edge
+        ax.plot(x[above], np.full(above.sum(), limit), "^", color=HELD_OUT, markersize=8, clip_on=False, zorder=4)
+        ax.plot(x[below], np.full(below.sum(), -limit), "v", color=HELD_OUT, markersize=8, clip_on=False, zorder=4)
+        if np.isfinite(h_lo).any() and max(np.nanmax(h_hi), -np.nanmin(h_lo)) > limit:
+            ax.annotate(
+                f"held out: {np.nanmedian(h_median):+.3g} %\nband {np.nanmin(h_lo):+.3g} to {np.nanmax(h_hi):+.3g} %",
+                (0.02, 0.04),
+                xycoords="axes fraction",
+                va="bottom",
+                bbox={"facecolor": "white", "alpha": 0.8, "edgecolor": "none", "pad": 1.0},
+                fontsize=TICK_PT,
+                color=HELD_OUT,
+            )
     ax.fill_between(x, lo, hi, color=FITTED, alpha=0.35, linewidth=0, label="95 % band, fitted", zorder=2)
     ax.axhline(0, color=FITTED, linewidth=1, zorder=2)
-    finite = np.concatenate([np.abs(v[np.isfinite(v)]) for v in values])
-    limit = min(max(float(finite.max()) if finite.size else 1.0, 1.0) * 1.4, RESIDUAL_LIMIT_PERCENT)
-    residual = pts["residual_percent"].to_numpy()
     inside = np.abs(residual) <= limit
     ax.plot(x[inside], residual[inside], "o", color="k", markersize=4, zorder=3)
     for xi, ri in zip(x[~inside], residual[~inside], strict=True):
         edge = np.sign(ri) * limit
-        ax.plot(xi, edge, "^" if ri > 0 else "v", color="k", markersize=7, zorder=3, clip_on=False)
+        ax.plot(xi, edge, "^" if ri > 0 else "v", color=SATURATED, markersize=8, zorder=4, clip_on=False)
         ax.annotate(
-            f"{ri:+.0f} %", (xi, edge), textcoords="offset points", xytext=(4, -12 if ri > 0 else 4), fontsize=9
+            f"{ri:+.3g} %",
+            (xi, edge),
+            textcoords="offset points",
+            xytext=(5, -13 if ri > 0 else 4),
+            fontsize=TICK_PT,
+            color=SATURATED,
         )
-    threshold = max(1.0, float(np.nanmax(np.abs(np.concatenate([lo, hi])))) if len(lo) else 1.0)
-    ax.set_yscale("symlog", linthresh=threshold, linscale=1.0)
     ax.set_ylim(-limit, limit)
     ax.set_xscale("log")
-    ax.tick_params(labelsize=10)
+    ax.tick_params(labelsize=TICK_PT)
     ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:+.3g}" if v else "0"))
 
 

@@ -59,6 +59,49 @@ def _with_std(values: dict, key: str, spec: str) -> str:
     return text if std is None or values.get(key) is None else f"{text} ± {std:{spec}}"
 
 
+SPATIAL_PARTS = (("", "", "total"), (".col", "_col", "col"), (".row", "_row", "row"), (".pix", "_pixel", "pixel"))
+FRAMES_FOR_PARTS = 16  # frames at 50 % saturation that resolve parts of ~0.1 % PRNU on typical ROIs (§8.2: L ≥ 16)
+
+
+def missing_reason(values: dict, parts: list[str], which: str) -> str:
+    """Why DSNU or PRNU (`which`) of `parts` is not given, and what change to the measurement gives it."""
+    spatial = values.get("spatial_variances")
+    if not spatial:
+        return (
+            "not computed: no highpassed spatial variances; record the sweep with a region of interest larger than "
+            "19 px a side (§8.1's filters)"
+        )
+    estimates = []
+    for part in parts:
+        dark = float(spatial["dark"][part])
+        estimates.append(dark if which == "DSNU" else float(spatial["bright"][part]) - dark)
+    frames = int(spatial.get("frames") or 0)
+    quantity = "s²_y.dark" if which == "DSNU" else "s²_y.50 − s²_y.dark"
+    return (
+        f"the variance estimates {quantity} are below zero ({', '.join(f'{e:.2g}' for e in estimates)} DN²) from "
+        f"{frames} frames: below what this measurement resolves; record at least {FRAMES_FOR_PARTS} bright and "
+        "dark frames at 50 % saturation (frames_per_point in the plan, or a nonuniformity stack in the descriptor)"
+    )
+
+
+def _or_why(values: dict, key: str, spec: str, part: str, which: str) -> str:
+    """The value, or "n/a (below)" when there is none (the reason: `missing_notes`)."""
+    value = values.get(key)
+    return number_text(value, spec) if value is not None else "n/a (see below)"
+
+
+def missing_notes(values: dict) -> list[tuple[str, str]]:
+    """(symbols, why they are not given and what gives them) for the DSNU and the PRNU rows shown as n/a."""
+    q = "e" if values["model"] == "linear" else "p"
+    notes = []
+    for which, template in (("DSNU", "dsnu{k}_" + q), ("PRNU", "prnu{k}_percent")):
+        missing = [(suffix, part) for suffix, k, part in SPATIAL_PARTS if values.get(template.format(k=k)) is None]
+        if missing:
+            symbols = ", ".join(f"{which}1288{suffix}" for suffix, _ in missing)
+            notes.append((symbols, missing_reason(values, [part for _, part in missing], which)))
+    return notes
+
+
 def summary_rows(values: dict) -> list[tuple[str, list[tuple[str, str, str]]]]:
     """The one-column table of Table 2: [(group, [(symbol, value, unit), ...]), ...]."""
     v = values
@@ -145,13 +188,10 @@ def summary_rows(values: dict) -> list[tuple[str, list[tuple[str, str, str]]]]:
         ),
         (
             "Spatial nonuniformities",
-            [
-                (f"DSNU1288{s}", number_text(v.get(f"dsnu{k}_{q[0]}"), ".3g"), q)
-                for s, k in (("", ""), (".col", "_col"), (".row", "_row"), (".pix", "_pixel"))
-            ]
+            [(f"DSNU1288{s}", _or_why(v, f"dsnu{k}_{q[0]}", ".3g", part, "DSNU"), q) for s, k, part in SPATIAL_PARTS]
             + [
-                (f"PRNU1288{s}", number_text(v.get(f"prnu{k}_percent"), ".3g"), "%")
-                for s, k in (("", ""), (".col", "_col"), (".row", "_row"), (".pix", "_pixel"))
+                (f"PRNU1288{s}", _or_why(v, f"prnu{k}_percent", ".3g", part, "PRNU"), "%")
+                for s, k, part in SPATIAL_PARTS
             ],
         ),
         ("Linearity error", [("LE", number_text(v.get("linearity_error_percent"), ".3g"), "%")]),
@@ -254,6 +294,7 @@ def datasheet_html(result: EmvaResult, figures: list[Path], info: SheetInfo) -> 
         v=v,
         info=info,
         rows=summary_rows(v),
+        missing=missing_notes(v),
         verdicts=verdicts(v),
         notes=v.get("notes", []),
         operation=operation_point(v, result.curves),

@@ -16,7 +16,7 @@ import numpy as np
 
 from uwlab.experiments.emva.analysis import EmvaResult
 from uwlab.experiments.emva.linear import total_snr_model
-from uwlab.experiments.figures import Figure, save_figure
+from uwlab.experiments.figures import PALETTE, Figure, log_ticks, save_figure
 from uwlab.model.sensor import snr
 
 FIGSIZE = (6.4, 4.2)
@@ -47,7 +47,7 @@ def plot_photon_transfer(result: EmvaResult, path: Path) -> Path:
         title=f"Photon transfer: σ²_y.dark = {v['dark_var_dn2']:.3g} DN², K = {k:.4g} DN/e-",
     )
     ax.set_ylim(bottom=min(0.0, float(np.nanmin(c["signal_var_dn2"]))))
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=10)
     return save_figure(fig, path)
 
 
@@ -71,7 +71,7 @@ def plot_characteristic(result: EmvaResult, path: Path) -> Path:
         ylabel="mean − dark value μ_y − μ_y.dark [DN]",
         title=f"Characteristic curve: R_d = {v['responsivity_dark_dn_per_photon']:.4g} DN/p",
     )
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=10)
     return save_figure(fig, path)
 
 
@@ -87,30 +87,37 @@ def plot_snr(result: EmvaResult, path: Path) -> Path:
     grid = np.geomspace(max((threshold or p.min()) / 3, 1e-2), v["saturation_photons"], 200)
     if v["model"] == "linear":
         eta, sigma_d, k = v["quantum_efficiency"], v["dark_noise_e"], v["K_dn_per_e"]
-        ax.loglog(p, c["snr"][ok], "o", ms=3, color="tab:blue", label="measured SNR")
-        ax.loglog(p, c["snr_total"][ok], "s", ms=2.5, color="tab:orange", label="measured SNR total")
+        # measured SNR (filled dots) drawn over the total (open squares) and the models (lines) over both
         ax.loglog(
-            grid,
-            snr(eta * grid, sigma_d, k),
-            "-",
-            color="tab:blue",
-            label=f"model eq. 21 (η = {eta:.3f}, σ_d = {sigma_d:.3g} e-)",
+            p, c["snr_total"][ok], "s", ms=5, mfc="none", color=PALETTE["orange"], label="measured SNR total", zorder=2
         )
+        ax.loglog(p, c["snr"][ok], "o", ms=3.5, color=PALETTE["blue"], label="measured SNR", zorder=3)
         ax.loglog(
             grid,
             total_snr_model(eta * grid, sigma_d, k, v["dsnu_e"], v["prnu_percent"]),
             "-",
-            color="tab:orange",
+            color=PALETTE["orange"],
             label="model total eq. 69",
+            zorder=4,
+        )
+        ax.loglog(
+            grid,
+            snr(eta * grid, sigma_d, k),
+            "-",
+            color=PALETTE["blue"],
+            label=f"model eq. 21 (η = {eta:.3f}, σ_d = {sigma_d:.3g} e-)",
+            zorder=5,
         )
         ylabel = "SNR"
     else:
-        ax.loglog(p, c["snr_p"][ok], "o", ms=3, color="tab:blue", label="measured input SNR_p")
-        ax.loglog(p, c["snr_p_total"][ok], "s", ms=2.5, color="tab:orange", label="measured SNR_p total")
+        ax.loglog(p, c["snr_p_total"][ok], "s", ms=5, mfc="none", color=PALETTE["orange"], label="measured SNR_p total")
+        ax.loglog(p, c["snr_p"][ok], "o", ms=3.5, color=PALETTE["blue"], label="measured input SNR_p", zorder=3)
         ylabel = "input SNR_p"
     ax.loglog(grid, np.sqrt(grid), ":", color="0.3", label="ideal sensor √μ_p")
     if threshold is not None:
-        ax.axvline(threshold, ls="--", color="tab:red", lw=1, label=f"threshold SNR = 1: {threshold:.3g} p/pixel")
+        ax.axvline(
+            threshold, ls="--", color=PALETTE["vermillion"], lw=1, label=f"threshold SNR = 1: {threshold:.3g} p/pixel"
+        )
     ax.axvline(v["saturation_photons"], **SAT_STYLE, label=f"saturation: {v['saturation_photons']:.0f} p/pixel")
     ax.axhline(1.0, color="0.7", lw=0.8)
     ax.set(
@@ -118,7 +125,9 @@ def plot_snr(result: EmvaResult, path: Path) -> Path:
         ylabel=ylabel,
         title=f"SNR: SNR_max = {v['snr_max_db']:.1f} dB, DR = {_fmt(v['dynamic_range_db'], '.1f')} dB",
     )
-    ax.legend(fontsize=7)
+    log_ticks(ax.xaxis)
+    log_ticks(ax.yaxis)
+    ax.legend(fontsize=10)
     return save_figure(fig, path)
 
 
@@ -132,7 +141,7 @@ def plot_linearity(result: EmvaResult, path: Path) -> Path:
     ax.plot(c["photons"][idx], c["signal_dn"][idx], "o", ms=3.5, color="tab:green", label="fit range (5-95 %)")
     ax.plot(c["photons"], c["linearity_fit_dn"], "-", color="tab:blue", label="regression (eq. 58-61)")
     ax.set(ylabel="μ_y − μ_y.dark [DN]", title=f"Linearity: LE = {v['linearity_error_percent']:.3g} % (eq. 63)")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=10)
     bx.plot(c["photons"][idx], c["linearity_dev_percent"][idx], "o-", ms=3, color="tab:green")
     bx.axhline(0.0, color="0.5", lw=0.8)
     bx.set(xlabel="irradiation μ_p [photons/pixel]", ylabel="deviation δ [%]")
@@ -149,7 +158,7 @@ def plot_stability(result: EmvaResult, path: Path) -> Path:
         ax.plot(c["signal_dn"], c["mean_diff_dn"], "s-", ms=3, label="difference μ[0] − μ[1]")
     ax.axhline(0.0, color="0.7", lw=0.8)
     ax.set(xlabel="gray value μ_y − μ_y.dark [DN]", ylabel="[DN]", title="Stability check")
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=10)
     return save_figure(fig, path)
 
 
@@ -178,8 +187,8 @@ def plot_dark_current(result: EmvaResult, path: Path) -> Path:
         )
     ax.set(xlabel="exposure time [s]", ylabel="mean dark signal [DN]", title="Dark current from mean")
     bx.set(xlabel="exposure time [s]", ylabel="variance dark signal [DN²]", title="Dark current from variance")
-    ax.legend(fontsize=8)
-    bx.legend(fontsize=8)
+    ax.legend(fontsize=10)
+    bx.legend(fontsize=10)
     return save_figure(fig, path)
 
 
@@ -202,28 +211,29 @@ def plot_dark_temperature(result: EmvaResult, path: Path) -> Path:
         ylabel=f"dark current [{unit}-/s]" if unit == "e" else "dark current [p/s]",
         title="Dark current against temperature",
     )
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=10)
     return save_figure(fig, path)
 
 
 def plot_spatial_variances(result: EmvaResult, path: Path) -> Path:
     """§4.3 at every illumination step: the row, column and pixel parts of the highpassed spatial variance (bright
-    and dark) as standard deviations against μ_y − μ_y.dark (log scale; negative estimates left out)."""
+    and dark) against μ_y − μ_y.dark, signed on a linear axis [DN²]: a part estimated below zero (noise in a
+    difference of variances) is drawn where it is, not left out."""
     c = result.curves
     fig = Figure(figsize=FIGSIZE)
     ax = fig.subplots()
     x = c["signal_dn"]
-    with np.errstate(invalid="ignore"):
-        for name, color in (("pixel", "tab:blue"), ("row", "tab:orange"), ("col", "tab:green")):
-            ax.semilogy(x, np.sqrt(c["spatial_split"].part(name)), "o-", ms=2.5, color=color, label=f"s_y.{name}")
-            ax.semilogy(x, np.sqrt(c["dark_spatial_split"].part(name)), ":", color=color, label=f"s_y.{name}.dark")
+    for name, color in (("pixel", PALETTE["blue"]), ("row", PALETTE["orange"]), ("col", PALETTE["green"])):
+        ax.plot(x, c["spatial_split"].part(name), "o-", ms=2.5, color=color, label=f"s²_y.{name}")
+        ax.plot(x, c["dark_spatial_split"].part(name), ":", color=color, label=f"s²_y.{name}.dark")
+    ax.axhline(0.0, color="0.6", lw=0.8)
     ax.axvline(x[c["sat"]], **SAT_STYLE, label="saturation")
     ax.set(
         xlabel="mean − dark value μ_y − μ_y.dark [DN]",
-        ylabel="spatial standard deviation [DN]",
+        ylabel="spatial variance part [DN²]",
         title="Spatial nonuniformity at every step (highpassed, eq. 44)",
     )
-    ax.legend(fontsize=7, ncol=2)
+    ax.legend(fontsize=9.5, ncol=2)
     return save_figure(fig, path)
 
 
@@ -244,7 +254,7 @@ def _spectrogram(spectrograms: dict, level_lines: list[tuple[float, str]], unit:
             ylabel=f"standard deviation [{unit}]",
             title=f"{title}: {name} spectrogram",
         )
-        ax.legend(fontsize=7)
+        ax.legend(fontsize=9.5)
     return save_figure(fig, path)
 
 
@@ -296,7 +306,7 @@ def _profiles(profiles: dict, title: str, lower_upper, path: Path) -> Path:
             ax.plot(prof[key], lw=0.8, color=color, label=key)
         ax.set_ylim(*lower_upper(prof))
         ax.set(xlabel=axis, ylabel="[DN]", title=f"{title}: {name} profile")
-        ax.legend(fontsize=7, ncol=4)
+        ax.legend(fontsize=9.5, ncol=4)
     return save_figure(fig, path)
 
 
@@ -329,7 +339,7 @@ def _histograms(histograms: dict, title: str, spread: str, path: Path) -> Path:
     ax.semilogy(log.centres_dn, log.model, "--", color="tab:red", label=f"normal, {spread}")
     ax.set_ylim(bottom=0.5)
     ax.set(xlabel="deviation from the mean [DN]", ylabel="pixels per bin", title=f"Logarithmic histogram {title}")
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=9.5)
     acc = histograms["accumulated"]
     bx.semilogy(acc.centres_dn, np.maximum(acc.counts, 1e-4), "-", drawstyle="steps-mid")
     bx.set_ylim(bottom=100.0 / max(1, 10 * acc.counts.size) / 10)
