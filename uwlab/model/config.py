@@ -182,7 +182,9 @@ class LightPlacement(Schema):
 class Water(Schema):
     """The water: its optical type, a scale on its attenuation and suspended particles."""
 
-    type: NonEmptyText = Field(description="water type (pure-fresh, pure-sea, jerlov-I … jerlov-9C) or a CSV file")
+    type: NonEmptyText = Field(
+        description="water type (pure-fresh, jerlov-I … jerlov-9C, jerlov-IB … jerlov-5C-williamson2022) or a CSV file"
+    )
     attenuation_scale: Grid[AttenuationScale] = Field(1.0, description="factor on the beam attenuation c(λ)")
     particle_scattering_per_m: ScatteringPerM = Field(
         0.0,

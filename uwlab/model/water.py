@@ -6,6 +6,8 @@ the path is neglected, as in the paper. `attenuation_scale` multiplies c.
 Sources (see configs/water/README.md for the files and how their gaps were filled):
 - Jerlov types I, II, III, 1C, 3C, 5C, 7C, 9C: Solonenko & Mobley, "Inherent optical properties of Jerlov water
   types", Applied Optics 54(17), 5392–5401 (2015), tabulated 300–700 nm.
+- ``jerlov-<type>-williamson2022`` (IB, II, III, 1C, 3C, 5C): the measured IOPs of Williamson & Hollins, Applied
+  Optics 61, 9951–9961 (2022), 300–800 nm (configs/water/jerlov_williamson2022.csv), the same extension beyond.
 - ``pure-fresh``: absorption of pure water from Pope & Fry, Applied Optics 36, 8710–8723 (1997), 380–727.5 nm,
   continued to the red by configs/water/pure_water_red_extension.csv; scattering of pure fresh water
   b_w(λ) = 0.0022 (λ / 500 nm)^−4.32 1/m (Morel, "Optical properties of pure water and pure sea water", in
@@ -14,8 +16,9 @@ Sources (see configs/water/README.md for the files and how their gaps were fille
 
 Extension outside a table (convention):
 - Tables are interpolated linearly in λ; below the first wavelength the first value is held.
-- Jerlov types above their last wavelength λ_max (700 nm): a(λ) = a_w(λ) + [a(λ_max) − a_w(λ_max)] (the
-  non-water absorption held constant, pure water's steep red rise added), and b(λ) continued by the power law
+- Jerlov types above their last wavelength λ_max (700 nm; Williamson & Hollins 800 nm):
+  a(λ) = a_w(λ) + [a(λ_max) − a_w(λ_max)] (the non-water absorption held constant, pure water's steep red rise
+  added), and b(λ) continued by the power law
   b ∝ λ^−n fitted (log–log least squares) to the type's tabulated b at 550–700 nm.
 - Pure water above its last tabulated wavelength, and CSV water beyond either end: the end value is held.
 """
@@ -33,7 +36,15 @@ from uwlab.model.data import config_dir, read_csv_columns, read_csv_table
 from uwlab.model.grid import WavelengthGrid
 
 JERLOV_TYPES = ("I", "II", "III", "1C", "3C", "5C", "7C", "9C")
-WATER_TYPES = tuple(f"jerlov-{t}" for t in JERLOV_TYPES) + ("pure-fresh",)
+# The measured tables of Williamson & Hollins (2022) (configs/water/jerlov_williamson2022.csv), as an alternative
+WILLIAMSON_TYPES = ("IB", "II", "III", "1C", "3C", "5C")
+WILLIAMSON_SUFFIX = "-williamson2022"
+TABLES = {"": "jerlov.csv", WILLIAMSON_SUFFIX: "jerlov_williamson2022.csv"}
+WATER_TYPES = (
+    tuple(f"jerlov-{t}" for t in JERLOV_TYPES)
+    + tuple(f"jerlov-{t}{WILLIAMSON_SUFFIX}" for t in WILLIAMSON_TYPES)
+    + ("pure-fresh",)
+)
 MOREL_B500_PER_M = 0.0022
 MOREL_EXPONENT = 4.32
 
@@ -90,9 +101,9 @@ def pure_water_absorption(nm: np.ndarray) -> np.ndarray:
 
 
 @lru_cache(maxsize=4)
-def _jerlov_table(root: Path) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """Water type → (wavelength_nm, a_per_m, b_per_m), sorted by wavelength."""
-    table = read_csv_table(root / "water" / "jerlov.csv", "water.type")
+def _jerlov_table(root: Path, name: str = "jerlov.csv") -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Water type → (wavelength_nm, a_per_m, b_per_m) of ``configs/water/<name>``, sorted by wavelength."""
+    table = read_csv_table(root / "water" / name, "water.type")
     types = np.array(table["water_type"])
     columns = [np.array(table[c], dtype=float) for c in ("wavelength_nm", "a_per_m", "b_per_m")]
     out = {}
@@ -109,9 +120,9 @@ def _power_law_exponent(nm: np.ndarray, b: np.ndarray) -> float:
     return -float(slope)
 
 
-def jerlov(water_type: str, grid: WavelengthGrid) -> WaterIOP:
-    """IOPs of a Jerlov type on the grid, extended to the red as the module docstring states."""
-    nm, a, b = _jerlov_table(config_dir())[water_type]
+def jerlov(water_type: str, grid: WavelengthGrid, table: str = "jerlov.csv") -> WaterIOP:
+    """IOPs of a Jerlov type of `table` on the grid, extended to the red as the module docstring states."""
+    nm, a, b = _jerlov_table(config_dir(), table)[water_type]
     out_a = np.interp(grid.nm, nm, a)
     out_b = np.interp(grid.nm, nm, b)
     red = grid.nm > nm[-1]
@@ -133,6 +144,10 @@ def water_iop(spec: str, grid: WavelengthGrid, key: str = "water.type") -> Water
         return pure_fresh(grid)
     if spec.startswith("jerlov-") and spec[len("jerlov-") :] in JERLOV_TYPES:
         return jerlov(spec[len("jerlov-") :], grid)
+    if spec.startswith("jerlov-") and spec.endswith(WILLIAMSON_SUFFIX):
+        name = spec[len("jerlov-") : -len(WILLIAMSON_SUFFIX)]
+        if name in WILLIAMSON_TYPES:
+            return jerlov(name, grid, TABLES[WILLIAMSON_SUFFIX])
     path = Path(spec)
     if path.suffix.lower() != ".csv":
         raise ConfigError(key, spec, f"unknown water type; use one of {', '.join(WATER_TYPES)} or a .csv file")
