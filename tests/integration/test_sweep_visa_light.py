@@ -96,3 +96,17 @@ def test_a_light_that_reads_back_otherwise_records_no_point_and_goes_dark(tmp_pa
     data = Dataset.open(tmp_path / "stuck")
     assert len(data.points()) == 0
     assert data.metadata["lights_safe_state"]["led"]["off"] is True
+
+
+@pytest.mark.parametrize("stop", [KeyboardInterrupt, RuntimeError])
+def test_ctrl_c_or_an_error_mid_sweep_leaves_the_light_dark_and_says_so(tmp_path, stop):
+    plan = load_plan(write_plan(tmp_path / "p.toml", "p", [SWEEP], camera=camera(32, 24), lights=[keysight()]))
+
+    def interrupt(event):
+        raise stop("after the first point")
+
+    with pytest.raises(stop):
+        run_session(plan, tmp_path / "d", sim=True, progress=interrupt)
+    data = Dataset.open(tmp_path / "d")
+    assert len(data.points()) == 1  # the point completed before the interruption is kept
+    assert data.metadata["lights_safe_state"]["led"]["off"] is True
