@@ -5,7 +5,8 @@ A definition names ``adapter = "visa"``, the ``manual`` section its commands fol
 ``current_a``, its ``max_drive`` the instrument accepts and the settle time after a change), the read-back
 tolerance, and ``[commands]``: ``identity``, ``error`` (the error queue, e.g. ``SYST:ERR?``), ``set_output`` /
 ``query_output`` (``{state}`` is replaced by ``on_token`` / ``off_token``), ``set_drive`` / ``query_drive``
-(``{value}`` by the drive in its unit, with ``drive_format``) and, where the instrument measures, ``measure``.
+(``{value}`` by the drive in its unit, with ``drive_format``), where the instrument measures, ``measure``, and
+``setup``: commands sent once after the identity check (a mode such as constant current), each error-checked.
 A light level in [0, 1] is the drive over ``max_drive`` (a constant-current LED supply: level × max current).
 Every definition says in ``[provenance]`` where ``max_drive`` comes from.
 """
@@ -36,6 +37,9 @@ class LightCommands(Schema):
     set_drive: NonEmptyText
     query_drive: NonEmptyText
     measure: NonEmptyText | None = Field(None, description="measured drive (e.g. MEAS:CURR?), where it measures")
+    setup: list[NonEmptyText] = Field(
+        [], description="commands sent once after the identity check (e.g. SOUR1:MODE CC), each error-checked"
+    )
 
     @field_validator("set_output")
     @classmethod

@@ -72,6 +72,8 @@ class VisaLight(Light):
         missing = [word for word in definition.identity_contains if word.lower() not in self._identity.lower()]
         if missing:
             raise ConfigError("instrument", name, f"{port} answers *IDN? {self._identity!r}, not {' '.join(missing)}")
+        for command in definition.commands.setup:
+            self._set(command)
 
     @property
     def recoveries(self) -> int:
