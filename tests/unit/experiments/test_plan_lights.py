@@ -47,6 +47,8 @@ def test_lights_are_named_and_their_simulator_path_is_the_plans(tmp_path):
         ([light(name="x"), light(name="x")], SWEEP, "lights[1].name"),
         ([light()], {**SWEEP, "light": "nope"}, "sweep.a.light"),
         ([light(), light()], SWEEP, None),  # two lights, default names: fine
+        ([{"instrument": "uwlab-ascii", "resource": "/dev/ttyUSB0", "visa_library": "@py"}], SWEEP, "lights[0].visa"),
+        ([{"instrument": "uwlab-ascii", "resource": "/dev/ttyUSB0", "max_current_a": 1.0}], SWEEP, "lights[0].max_"),
     ],
 )
 def test_bad_lights_name_the_key(tmp_path, lights, sweep, key):

@@ -54,7 +54,7 @@ from pydantic_core import PydanticCustomError
 
 from uwlab.drivers.camera import BACKENDS, Policy
 from uwlab.drivers.camera.pixels import PIXEL_FORMATS
-from uwlab.drivers.instruments import load_light_definition
+from uwlab.drivers.instruments import load_any_light_definition
 from uwlab.drivers.ocean_insight.definition import CollectionAreaCm2
 from uwlab.drivers.serial import PROTOCOLS
 from uwlab.drivers.serial.base import Averaging, IntegrationMs
@@ -473,10 +473,12 @@ def _lights(plan: PlanFile, plan_dir: Path) -> tuple[LightSpec, ...]:
 def _check_light_instrument(index: int, table: LightTable) -> None:
     """The light's definition exists and is valid, and the rig's maximum is a current no higher than its own."""
     try:
-        definition = load_light_definition(table.instrument)
+        definition = load_any_light_definition(table.instrument)
     except ConfigError as exc:
         raise ConfigError(f"lights[{index}].{exc.key}", exc.value, exc.reason) from None
     limit = table.max_current_a
+    if table.visa_library is not None and definition.adapter != "visa":
+        raise ConfigError(f"lights[{index}].visa_library", table.visa_library, f"{table.instrument} is not on VISA")
     if limit is not None and definition.drive != "current_a":
         raise ConfigError(f"lights[{index}].max_current_a", limit, f"{table.instrument} drives {definition.drive}")
     if limit is not None and limit > definition.max_drive:

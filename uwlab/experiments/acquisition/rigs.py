@@ -70,12 +70,14 @@ def to_safe_state(lights: dict[str, Light]) -> dict[str, bool]:
 def open_plan_lights(plan: Plan) -> dict[str, Light]:
     """The plan's [[lights]] opened by instrument definition (``max_current_a`` the rig's maximum drive); any that
     fails closes those already open (each goes to its safe state)."""
-    from uwlab.drivers.instruments import open_visa_light
+    from uwlab.drivers.instruments import open_light_instrument
 
     lights: dict[str, Light] = {}
     try:
         for spec in plan.lights:
-            lights[spec.name] = open_visa_light(spec.instrument, spec.resource, spec.visa_library, spec.max_current_a)
+            lights[spec.name] = open_light_instrument(
+                spec.instrument, spec.resource, spec.visa_library, spec.max_current_a
+            )
     except BaseException:
         to_safe_state(lights)
         raise
