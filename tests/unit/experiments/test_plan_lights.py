@@ -94,3 +94,18 @@ def test_a_light_that_does_not_open_leaves_the_others_dark(tmp_path):
     p = plan(tmp_path, light(name="led"), light(name="gone", resource="USB0::0x0::0x0::NOPE::INSTR"))
     with pytest.raises(ConfigError, match="NOPE"), HardwareRig(p):
         pass
+
+
+def test_points_written_before_the_light_current_columns_still_read():
+    import pyarrow as pa
+
+    from uwlab.experiments.dataset import POINT_SCHEMA
+    from uwlab.experiments.dataset_store import conform
+
+    new = ("light_current_a_readback", "light_measured_current_a", "lights_readback")
+    old_schema = pa.schema([f for f in POINT_SCHEMA if f.name not in new])
+    row = {name: None for name in old_schema.names} | {"sweep_id": "a", "point_index": 0, "light_level_readback": 0.5}
+    table = conform(pa.Table.from_pylist([row], schema=old_schema), POINT_SCHEMA)
+    assert table.schema == POINT_SCHEMA
+    assert table.column("light_level_readback").to_pylist() == [0.5]
+    assert all(table.column(name).to_pylist() == [None] for name in new)

@@ -125,7 +125,8 @@ class HardwareRig:
         return self
 
     def __exit__(self, *exc_info) -> None:
-        self.safe_states = to_safe_state(self.lights)
+        if not self.safe_states:  # once: a released serial light would otherwise reopen its port to switch off
+            self.safe_states = to_safe_state(self.lights)
         if self.spectrometer is not None:
             self.spectrometer.close()
 

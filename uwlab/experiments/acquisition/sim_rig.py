@@ -125,7 +125,8 @@ class SimRig:
         return lights
 
     def close(self) -> None:
-        self.safe_states = to_safe_state(self.lights)
+        if not self.safe_states:  # once: a released serial light would otherwise reopen its port to switch off
+            self.safe_states = to_safe_state(self.lights)
         if self.spectrometer is not None:
             self.spectrometer.close()
         self._serial.stop()
