@@ -36,6 +36,13 @@ def register(subparsers) -> None:
         default=0,
         help="seed of all the simulated noise: camera, spectrometer (default 0; equal seeds give equal numbers)",
     )
+    p.add_argument(
+        "--sensor",
+        choices=("emva", "profile"),
+        default="emva",
+        help="fit with each camera as characterised first on the simulated EMVA bench (emva, default: its measured "
+        "response curve) or with its hand-written sensor profile (profile: a linear response)",
+    )
     p.add_argument("--json", action="store_true", help="print summary.json")
     p.set_defaults(func=run)
 
@@ -55,7 +62,15 @@ def run(args) -> int:
         sweep_bar.set_postfix_str(event.sweep_id)
 
     with sweep_bar, fit_bar:
-        summary = run_demo(out, sweep_progress, fit_progress, seed=args.seed, world=args.world, model=args.model)
+        summary = run_demo(
+            out,
+            sweep_progress,
+            fit_progress,
+            seed=args.seed,
+            world=args.world,
+            model=args.model,
+            sensors=args.sensor,
+        )
     if args.json:
         json.dump(summary, sys.stdout, indent=2)
         sys.stdout.write("\n")
@@ -67,8 +82,12 @@ def run(args) -> int:
         truth = "—" if p["truth"] is None else f"{p['truth']:.4g}"
         print(f"{name:<24}{truth:>10}{p['median']:>10.4g}   [{p['p2_5']:.4g}, {p['p97_5']:.4g}]")
     print(f"converged: {summary['converged']}")
-    coverage = summary["predictive_coverage"]["held_out_inside_95"]
-    print(f"held-out points inside their 95 % bands: {100 * coverage:.0f} %")
+    coverage = summary["predictive_coverage"]
+    print(
+        f"held-out points inside their 95 % bands: {100 * coverage['held_out_inside_95']:.0f} % "
+        f"(median half-width ±{coverage['held_out_half_width_percent']:.2g} % for median errors of "
+        f"{coverage['held_out_error_percent']:.2g} %)"
+    )
     for row in summary["cross_configuration"]:
         print(
             f"  {row['sweep_id']:<18} held out: median error {100 * row['median_abs_rel_error']:.2f} %, "

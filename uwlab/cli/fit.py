@@ -31,6 +31,13 @@ def register(subparsers) -> None:
         choices=("paper", "extended"),
         help="the chain to fit: the paper's or the extended one (default: the dataset's rigs' [model] kind)",
     )
+    p.add_argument(
+        "--sensor",
+        action="append",
+        metavar="[CAMERA=]FROM",
+        help="use the camera as characterised by `uwlab emva characterize` (FROM: its profile TOML or output "
+        "folder): its measured response curve, with its uncertainty, enters the model (repeat per camera)",
+    )
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(func=run)
 
@@ -41,16 +48,21 @@ def run(args) -> int:
     out = Path(args.out) if args.out else Path(args.dataset) / FIT_FOLDER
     bar, update = tau_bar("sampling")
     with bar:
-        calibration = calibrate(args.dataset, args.config, out, args.train, progress=update, model=args.model)
+        calibration = calibrate(
+            args.dataset, args.config, out, args.train, progress=update, model=args.model, sensors=args.sensor
+        )
     summary = calibration.summary
     if args.json:
         json.dump(summary, sys.stdout, indent=2)
         sys.stdout.write("\n")
         return 0
     print(f"calibration written to {out}")
+    coverage = summary["predictive_coverage"]
     print(
         f"{summary['model']} model: {'adequate' if summary['model_adequate'] else 'NOT adequate'}; "
-        f"{100 * summary['predictive_coverage']['held_out_inside_95']:.0f} % of held-out points inside their 95 % bands"
+        f"{100 * coverage['held_out_inside_95']:.0f} % of held-out points inside their 95 % bands "
+        f"(median half-width ±{coverage['held_out_half_width_percent']:.2g} % for median errors of "
+        f"{coverage['held_out_error_percent']:.2g} %)"
     )
     print(
         f"converged: {summary['converged']} ({summary['steps']} steps, {summary['tau_multiple']:.0f} τ, "

@@ -131,6 +131,8 @@ class FrameRecorder:
 
     def commit(self) -> None:
         """Rename the staging folder into place (replacing a folder left by an unrecorded attempt), durably."""
+        if self.final is None:
+            raise ValueError("a sweep's dark block is linked into its points (link_darks), not committed")
         fsync_directory(self.staging)
         if self.final.exists():
             shutil.rmtree(self.final)

@@ -9,9 +9,15 @@
    spectrometer as separate processes on pseudo-terminals talking to the real serial drivers — and run the plan:
    IMX250 and ICX285 cameras × no lens / 30 mm F2.0 / 12 mm F4.0, exposure sweeps, spectra at the target and at
    the camera. All simulated noise is seeded from `seed`.
-3. Calibrate the chosen chain (``paper`` or ``extended``) against it, with posterior predictive checks, held-out
-   configurations and the verdict (`uwlab.experiments.calibration.pipeline`).
-4. Write ``report.html`` and ``summary.json`` (the verdict, per parameter truth, median and interval, the held-out
+3. Characterise each camera as a lab would before its tank campaign (`characterise_cameras`, with ``sensors =
+   "emva"``, the default): the same simulated sensor (its profile and the world's sensor realism: the
+   non-linearity near full well, DSNU, PRNU, hot pixels) on the simulated EMVA 1288 bench (flat light of known
+   photon irradiance, `uwlab.experiments.emva.simulate.DirectBench`), characterised by the EMVA 1288 Release 4.0
+   linear model into ``emva/<camera>/`` (datasheet, XML, sensor profile with its measured response curve).
+4. Calibrate the chosen chain (``paper`` or ``extended``) against the tank sweeps, with posterior predictive checks,
+   held-out configurations and the verdict (`uwlab.experiments.calibration.pipeline`); with the characterised
+   sensors (``uwlab fit --sensor``) unless ``sensors = "profile"`` (the hand-written profiles, a linear response).
+5. Write ``report.html`` and ``summary.json`` (the verdict, per parameter truth, median and interval, the held-out
    table and coverage, warnings).
 """
 
@@ -43,6 +49,11 @@ from uwlab.model.sensor import load_sensor_profile
 from uwlab.outputs import output_dir
 
 DEMO_PLAN = "plans/tank-exposure-sweep.toml"
+SENSOR_SOURCES = ("emva", "profile")
+BENCH_PIXELS = (64, 64)  # the bench's region of the sensor: enough pixels for its statistics, quick to render
+BENCH_STEPS = 40  # exposure steps from 1 % to 110 % of the saturation exposure (EMVA 1288 asks for >= 50 ...)
+BENCH_RATE_E_S = 1e5  # the bench light's electron rate per pixel; η of the bench's narrow-band light:
+BENCH_ETA = 0.6
 
 
 def demo_summary(calibration_summary: dict, report: Path) -> dict:
@@ -112,6 +123,46 @@ def quick_demo(
     return {**summary, **assessment.summary(), "world": world}
 
 
+def characterise_cameras(plan, out: Path, seed: int = 0) -> dict[str, Path]:
+    """Characterise every camera of `plan` on the simulated EMVA bench (module docstring, step 3) into
+    ``out/<camera>/``; returns {camera (sensor profile name): its characterised profile TOML}."""
+    import numpy as np
+
+    from uwlab.experiments.emva.analysis import characterize
+    from uwlab.experiments.emva.datasheet import SheetInfo
+    from uwlab.experiments.emva.output import output_paths, write_characterization
+    from uwlab.experiments.emva.simulate import DirectBench
+    from uwlab.sim.devices.camera import SimTruth
+    from uwlab.sim.scene import RigScene
+
+    realism = RigScene.from_toml(plan.rig_path).sensor_realism()
+    profiles = {sweep.sensor_profile: sweep.design.sensor for sweep in plan.sweeps}
+    out.mkdir()
+    found = {}
+    for index, (name, profile) in enumerate(sorted(profiles.items())):
+        truth = SimTruth.from_sensor_profile(profile, resolution_px=BENCH_PIXELS, **realism)
+        bench = DirectBench(truth, BENCH_RATE_E_S, BENCH_ETA, seed=seed * 1000 + index)
+        t_sat_us = truth.saturation_e / BENCH_RATE_E_S * 1e6
+        pt = bench.photon_transfer(
+            np.linspace(0.01, 1.1, BENCH_STEPS) * t_sat_us, dark_exposures_us=np.linspace(0.01, 1.0, 4) * t_sat_us
+        )
+        result = characterize(pt)
+        paths = output_paths(out / name, result, name, with_profile=True)
+        out.joinpath(name).mkdir()
+        write_characterization(
+            result,
+            pt,
+            paths,
+            name=name,
+            base=profile,
+            pixel_size_um=None,
+            info=SheetInfo(vendor="uwlab (simulated)", model=f"sim {profile.name}", measured="simulated EMVA bench"),
+        )
+        assert paths.profile is not None
+        found[name] = paths.profile[0]
+    return found
+
+
 def write_inputs(plan_path: Path, world: str | None, directory: Path) -> Path:
     """The plan and its rig with the `world` preset (None: the rig's own; module docstring) written into
     `directory`; the plan's path."""
@@ -145,10 +196,14 @@ def run_demo(
     seed: int = 0,
     world: str | None = None,
     model: str | None = None,
+    sensors: str = "emva",
 ) -> dict:
     """Run the campaign into `out` (which must not exist or be empty) in `world`, fit `model` (None: the rig's own
-    [world] preset and [model] kind; the demo's rig has the tank world and the extended model), with all simulated
-    noise seeded from `seed` (equal seeds, equal numbers); returns the summary written to summary.json."""
+    [world] preset and [model] kind; the demo's rig has the tank world and the extended model) with the cameras
+    characterised on the EMVA bench (`sensors` "emva") or their profiles ("profile"), with all simulated noise
+    seeded from `seed` (equal seeds, equal numbers); returns the summary written to summary.json."""
+    if sensors not in SENSOR_SOURCES:
+        raise ConfigError("--sensor", sensors, f"must be one of {', '.join(SENSOR_SOURCES)}")
     if world is not None and world not in PRESETS:
         raise ConfigError("--world", world, f"must be one of {', '.join(PRESETS)}")
     if model is not None and model not in MODELS:
@@ -160,7 +215,15 @@ def run_demo(
         SimRig(plan.rig_path, seed=seed) as rig,
     ):
         SweepRunner(plan, dataset, rig, sweep_progress).run()
-    calibration = calibrate(out / "dataset", None, out / "fit", progress=fit_progress, model=model)
+    characterised = characterise_cameras(plan, out / "emva", seed) if sensors == "emva" else {}
+    calibration = calibrate(
+        out / "dataset",
+        None,
+        out / "fit",
+        progress=fit_progress,
+        model=model,
+        sensors=[f"{camera}={path}" for camera, path in characterised.items()],
+    )
     report = write_report(out, out / "report.html")
     summary = demo_summary(calibration.summary, report)
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")

@@ -238,6 +238,16 @@ def _world_name(summary: dict) -> str:
     }.get(world, f"the {world} world")
 
 
+def _sharpness(coverage: dict) -> str:
+    """ "±12.9 % for 0.7 % errors (18×); interval score 26 %", or "—" for a fit written before it was measured."""
+    half, error = coverage.get("held_out_half_width_percent"), coverage.get("held_out_error_percent")
+    if half is None or error is None:
+        return "—"
+    ratio = coverage.get("held_out_width_over_error")
+    score = coverage.get("held_out_interval_score_percent")
+    return f"±{half:.2g} % for {error:.2g} % errors ({_number(ratio, 2)}×); interval score {_number(score, 2)} %"
+
+
 def _headline(summary: dict) -> str:
     coverage = summary["predictive_coverage"]["held_out_inside_95"]
     tau = summary["parameters"].get("config_discrepancy", {}).get("median")
@@ -323,6 +333,7 @@ def _calibration(path: Path) -> dict:
         "reasons": failing,
         "causes": summary.get("likely_causes", []) if failing else [],
         "coverage": _percent(summary["predictive_coverage"]["held_out_inside_95"], 0),
+        "sharpness": _sharpness(summary["predictive_coverage"]),
         "tau": _percent(tau),
         "delta": _percent(delta, 2),
         "converged": "converged" if summary["converged"] else "NOT converged",
@@ -332,6 +343,7 @@ def _calibration(path: Path) -> dict:
         "posterior": posterior,
         "notes": notes,
         "ppc": ppc,
+        "sensors": [f"{camera}: {description}" for camera, description in sorted(summary.get("sensors", {}).items())],
         "sampler": (
             f"{summary['steps']} steps × {summary['walkers']} walkers, {summary['tau_multiple']:.0f} "
             f"autocorrelation times, acceptance {summary['acceptance_fraction']:.2f}; "
@@ -424,6 +436,24 @@ def _provenance(path: Path, metadata: dict) -> dict:
     }
 
 
+def _what_is_here(root: Path) -> str:
+    """What a folder with nothing to report holds, and the command that takes it (one clause)."""
+    files = [p for p in root.rglob("*") if p.is_file()][:10000]
+    suffixes = {p.suffix.lower() for p in files}
+    names = {p.name for p in files}
+    if any(p.suffix.lower() == ".toml" and "[[sweep]]" in p.read_text(errors="replace")[:100000] for p in files):
+        return "it holds a sweep plan: run it with `uwlab sweep PLAN.toml` (add --sim for the simulated rig)"
+    if suffixes & {".tif", ".tiff"}:
+        if any(p.suffix.lower() in (".txt", ".ini") for p in files):
+            return "it holds images and a descriptor: characterise them with `uwlab emva characterize DESCRIPTOR`"
+        return "it holds images: `uwlab emva characterize` takes them with an EMVA descriptor file"
+    if "grid.parquet" in names or "design.json" in names or suffixes == {".png"}:
+        return "it holds design outputs (`uwlab design`), which have no validation report"
+    if ".toml" in suffixes:
+        return "it holds configs: a design (`uwlab design FILE`), a rig or a plan (`uwlab sweep PLAN.toml`)"
+    return "it holds no uwlab output (`uwlab sweep`, `uwlab fit` and `uwlab emva characterize` write them)"
+
+
 def write_report(root: str | Path, out: str | Path, *, replace: bool = False) -> Path:
     """Write the HTML report of everything found under `root` to `out` (an existing file only if `replace`; the
     directory must exist); returns `out`."""
@@ -435,7 +465,7 @@ def write_report(root: str | Path, out: str | Path, *, replace: bool = False) ->
     calibrations = _find(root, "summary.json", "samples.parquet")
     emva = _find(root, "emva.json")
     if not (datasets or calibrations or emva):
-        raise UwlabError(f"{root}: no dataset, calibration or EMVA characterisation found")
+        raise UwlabError(f"{root}: no dataset, calibration or EMVA characterisation found; {_what_is_here(root)}")
     metadata = [(d, read_metadata(d)[0]) for d in datasets]
     environment = Environment(
         loader=PackageLoader("uwlab.experiments", "templates"),

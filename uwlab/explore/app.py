@@ -11,6 +11,7 @@ from __future__ import annotations
 import datetime as _dt
 import json
 from pathlib import Path
+from typing import Any
 
 import plotly
 from starlette.applications import Starlette
@@ -58,7 +59,8 @@ class JSON(Response):
         return dumps(content).encode()
 
 
-def error_response(request: Request, exc: UwlabError) -> JSON:
+def error_response(request: Request, exc: Exception) -> JSON:
+    """A `UwlabError` (the only exception it is registered for) as a 422 JSON body naming the key."""
     body = {"error": str(exc)}
     if isinstance(exc, ConfigError):
         body["key"] = exc.key
@@ -140,7 +142,7 @@ def create_app(served: Served, catalog: Catalog | None = None, access: Access | 
     def _view(body) -> dict:
         design = build(body, served)
         result = design_result(design)
-        view = {
+        view: dict[str, Any] = {
             "result": result,
             "rows": [vars(r) for r in rows(result)],
             "warnings": [vars(w) for w in design_warnings(design, result)],

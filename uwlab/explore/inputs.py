@@ -190,7 +190,7 @@ def field_texts(raw: dict) -> dict[str, str]:
     }
 
 
-def read_toml_text(text: str, name: str = "uploaded file") -> dict:
+def read_toml_text(text: object, name: str = "uploaded file") -> dict:
     """A design config from TOML text (an uploaded file); `ConfigError` naming the file when it does not parse."""
     if not isinstance(text, str):
         raise ConfigError("toml", text, "must be the text of a TOML file")

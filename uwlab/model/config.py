@@ -277,6 +277,11 @@ class Sensor(Schema):
     channel: Literal["combined", "red", "green", "blue"] = Field(
         "combined", description="colour channel of a colour sensor"
     )
+    characterised: NonEmptyText | None = Field(
+        None,
+        description="this camera as characterised by `uwlab emva characterize` (its profile TOML or output "
+        "folder): a fit takes its measured response curve (uwlab fit --sensor)",
+    )
 
 
 class Operation(Schema):

@@ -283,7 +283,7 @@ class Chain:
         return out
 
     # ------------------------------------------------------------------ rays
-    def rays_from_air(self, air):
+    def rays_from_air(self, air) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Rays leaving the camera with unit directions `air` (..., n, 3) in air, traced exactly through the port
         (`uwlab.model.raytrace`, with its air gap, thickness, tilt or decentring): (entry points in water, in the
         chain's frame whose origin is where the optical axis enters the water; unit directions in water; lengths

@@ -41,6 +41,58 @@ ResolutionPx = Annotated[int, limits(1, 100000, "px", hint="", integer=True)]
 DarkOffsetDn = Annotated[float, limits(0.0, 2.0**32, "DN", hint="")]
 DarkCurrent = Annotated[float, limits(0.0, 1e6, "e-/s", hint="")]
 Percent = Annotated[float, limits(0.0, 100.0, "%", hint="a percentage")]
+Coefficient = Annotated[float, limits(-1.0, 1.0, "", hint="a fraction per well fraction")]
+WellFraction = Annotated[float, limits(0.0, 1.5, "", hint="a fraction of the saturation capacity")]
+
+
+class ResponseCurve(Schema):
+    """A sensor's measured response relative to its linear response at zero signal (the ``[response]`` table of a
+    profile characterised by ``uwlab emva characterize``; `uwlab.experiments.emva.response`).
+
+    Convention: the dark-subtracted signal is c(u) × K μ_e with c(u) = 1 + a u + b u² and u = μ_e / μ_e,sat (the
+    linear-equivalent electrons over the profile's saturation capacity); ``covariance`` is that of (a, b), so that a
+    forward model carries the curve's uncertainty, var c(u) = J Σ Jᵀ with J = (u, u²). Valid over
+    ``fraction_range`` (the measured signals); outside it c is held at its end values. EMVA 1288 Release 4.0
+    Linear §6.9 measures the deviation from a line (the linearity error); this is that deviation modelled.
+
+    Examples
+    --------
+    >>> curve = ResponseCurve(a=-0.01, b=0.0, covariance=((1e-8, 0.0), (0.0, 1e-8)), fraction_range=(0.0, 0.9))
+    >>> curve.ratio(np.array([0.0, 0.5, 2.0])).tolist()
+    [1.0, 0.995, 0.991]
+    """
+
+    a: Coefficient
+    b: Coefficient
+    covariance: tuple[tuple[float, float], tuple[float, float]]
+    fraction_range: tuple[WellFraction, WellFraction]
+    source: Text = ""
+
+    def ratio(self, fraction: np.ndarray) -> np.ndarray:
+        """c(u) at well fractions u (held at the ends of `fraction_range`)."""
+        u = np.clip(np.asarray(fraction, float), *self.fraction_range)
+        return 1.0 + self.a * u + self.b * u**2
+
+    def zero_signal_gain(self, k_photon_transfer: float, fit_fraction: float = 0.7) -> float:
+        """The system gain at zero signal (the K of this convention) from the photon-transfer K of EMVA 1288
+        Release 4.0 Linear §6.4, fitted over 0 … `fit_fraction` of saturation on a camera with this curve.
+
+        With shot noise carried through the response, mean y = K μ_e c(u) and σ²_y = K² μ_e (d(μ_e c)/dμ_e)², so
+        the photon-transfer slope dσ²_y/dy is K (c + 5u c′ + 2u² c″) = K (1 + 6a u + 15b u²); averaged over
+        uniformly spaced points up to `fit_fraction`, the fitted K is K₀ (1 + 3a f + 5b f²).
+
+        >>> curve = ResponseCurve(a=-0.01, b=0.0, covariance=((0.0, 0.0), (0.0, 0.0)), fraction_range=(0.0, 0.9))
+        >>> round(curve.zero_signal_gain(0.979), 4)
+        1.0
+        """
+        f = fit_fraction
+        return k_photon_transfer / (1.0 + 3.0 * self.a * f + 5.0 * self.b * f**2)
+
+    def ratio_sd(self, fraction: np.ndarray) -> np.ndarray:
+        """The standard uncertainty of c(u)."""
+        u = np.clip(np.asarray(fraction, float), *self.fraction_range)
+        (caa, cab), (_, cbb) = self.covariance
+        return np.sqrt(np.maximum(caa * u**2 + 2 * cab * u**3 + cbb * u**4, 0.0))
 
 
 class SensorProfile(Schema):
@@ -60,6 +112,7 @@ class SensorProfile(Schema):
     resolution_px: tuple[ResolutionPx, ResolutionPx] = Field(description="active pixels [x, y]")
     bit_depth: BitDepth = Field(description="ADC bit depth the values refer to [bit]")
     K_dn_per_e: SystemGain = Field(description="system gain K at 0 dB [DN/e⁻]")
+    K_dn_per_e_std: SystemGain | None = Field(None, description="standard uncertainty of K where measured [DN/e⁻]")
     dark_offset_dn: DarkOffsetDn = Field(description="mean dark level [DN]")
     dark_noise_e: Electrons = Field(description="temporal dark noise σ_d [e⁻]")
     saturation_e: Electrons = Field(description="saturation capacity μ_e,sat [e⁻]")
@@ -73,6 +126,7 @@ class SensorProfile(Schema):
     prnu_percent: Percent = Field(0.0, description="photo-response nonuniformity PRNU [%]")
     provenance: dict[str, str] = Field({}, description="where each value comes from")
     flags: dict[str, list[str]] = Field({}, description="keys that are corrected, assumed or measured")
+    response: ResponseCurve | None = Field(None, description="measured response curve (EMVA); None: linear")
     _qe_nm: np.ndarray = PrivateAttr()
     _qe: dict = PrivateAttr()
     _source: str = PrivateAttr("")

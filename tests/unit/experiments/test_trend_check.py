@@ -31,8 +31,8 @@ def test_significant_and_large_fails_with_the_worst_named():
     check = trend_check(ppc(("exposure_us", 0.3, -0.3, 1e-3), ("exposure_us", 0.6, -0.6, 1e-7)))
     assert not check.passed
     assert check.detail == (
-        "unmodelled response non-linearity: the residuals drift with exposure in 2 of 2 configurations, most in "
-        "s1 (+0.6 → -0.6 % over 20–460 µs, p = 1e-07)"
+        "unmodelled response non-linearity (or the light drifting during the sweep): the residuals drift with "
+        "exposure in 2 of 2 configurations, most in s1 (+0.6 → -0.6 % over 20–460 µs, p = 1e-07)"
     )
 
 

@@ -499,7 +499,9 @@ class Camera:
 
     @property
     def settings_in_force(self) -> Settings:
-        """The settings read back after the last change (what a reconnect restores)."""
+        """The settings read back after the last change (what a reconnect restores); read on opening."""
+        if self._state.in_force is None:
+            raise DeviceError(f"{self.info.device_id}: settings not read back yet")
         return self._state.in_force
 
     @_survives_outages
@@ -508,7 +510,7 @@ class Camera:
         behind our back (it rebooted without our noticing, e.g. a GigE camera restarted between two reads) is
         treated as lost: reconnected, its settings restored and verified (`stats.reconnects` counts it)."""
         now = self.read_settings()
-        changed = self._state.in_force.disagreements(now)
+        changed = self.settings_in_force.disagreements(now)
         if changed:
             raise DeviceLost(f"{self.info.device_id}: settings changed behind our back ({'; '.join(changed)})")
         return now
@@ -599,7 +601,7 @@ class Camera:
         fmt = pixel_format(raw.pixel_format)
         image = unpack(raw.data, fmt, raw.width, raw.height)
         return Frame(
-            raw.frame_id, raw.timestamp_ns, image, fmt.name, self._state.in_force, self.profile.bayer_layout(fmt.name)
+            raw.frame_id, raw.timestamp_ns, image, fmt.name, self.settings_in_force, self.profile.bayer_layout(fmt.name)
         )
 
     # -- outages ------------------------------------------------------------------------------
@@ -607,7 +609,7 @@ class Camera:
         """Reconnect with back-off within the policy's bounds (counted over the whole ``outage``), restore
         and verify the settings, resume acquisition if it was running; else one `DeviceError`."""
         policy = self.policy
-        wanted, streaming = self._state.in_force, self._state.streaming
+        wanted, streaming = self.settings_in_force, self._state.streaming
         self._state.streaming = False
         last: Exception = lost
         while outage.attempts < policy.reconnect_attempts and time.monotonic() - outage.noticed < policy.outage_limit_s:

@@ -13,7 +13,8 @@ The model is adequate when every check passes:
 - ``within-configuration trend``: no configuration's residuals drift with its swept variable
   (`uwlab.experiments.calibration.validation.residual_trend`) by `MAX_TREND_PERCENT` or more over the sweep with
   a slope p < 0.01 / n: a drift needs both, significance and a size that matters for a design. A drift against
-  exposure, light level or gain is named what it is in a camera: an unmodelled response non-linearity.
+  exposure, light level or gain is named what it usually is: an unmodelled response non-linearity, or the light
+  drifting while the sweep ran (its points are taken in order of the swept variable).
 - ``between-configuration discrepancy``: the median of τ at most `MAX_CONFIG_DISCREPANCY` (beyond it a new
   configuration is predicted no better than ±2τ).
 - ``point discrepancy``: the median within-configuration discrepancy at most `MAX_POINT_DISCREPANCY`.
@@ -156,7 +157,11 @@ def trend_check(ppc: pd.DataFrame) -> Check:
         )
     worst = off.loc[(off["trend_end_percent"] - off["trend_start_percent"]).abs().idxmax()]
     name, unit = SWEPT_LABELS.get(worst.trend_variable, (worst.trend_variable, ""))
-    what = "unmodelled response non-linearity" if worst.trend_variable in SIGNAL_VARIABLES else "residual trend"
+    what = (
+        "unmodelled response non-linearity (or the light drifting during the sweep)"
+        if worst.trend_variable in SIGNAL_VARIABLES
+        else "residual trend"
+    )
     return Check(
         "within-configuration trend",
         False,

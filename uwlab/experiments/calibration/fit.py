@@ -36,7 +36,7 @@ from typing import Annotated
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 
 import emcee
 import numpy as np
@@ -45,7 +45,7 @@ from pydantic import ConfigDict, Field, model_validator
 from scipy import optimize
 
 from uwlab.errors import UwlabError
-from uwlab.experiments.calibration.forward import ForwardModel, build_forward_model
+from uwlab.experiments.calibration.forward import ForwardModel, build_forward_model, characterised_sensor
 from uwlab.experiments.calibration.priors import HalfNormal, LogNormal, Normal, Prior, PriorSpec
 from uwlab.model.data import read_toml
 from uwlab.model.sensor import load_sensor_profile
@@ -119,13 +119,24 @@ class FitConfig(Schema):
         return self.sampler.walkers or max(32, 4 * len(self.priors))
 
 
-def default_fit_config(cameras: tuple[str, ...], nominal_k: dict[str, float]) -> FitConfig:
-    """Light efficiency (broad), attenuation scale, each camera's K (5 % around its profile), the discrepancy
-    within a configuration and the scale of the discrepancy between configurations (both a few per cent)."""
+K_PROFILE_SPREAD = 0.05  # a hand-written profile's K: 5 % (data sheets and unit-to-unit spread)
+K_MEASURED_FLOOR = 0.01  # a characterised K: its EMVA uncertainty, at least 1 % (the bench is not the tank)
+
+
+def default_fit_config(
+    cameras: tuple[str, ...], nominal_k: dict[str, float], k_sigma: dict[str, float] | None = None
+) -> FitConfig:
+    """Light efficiency (broad), attenuation scale, each camera's K (5 % around its profile, or `k_sigma` where
+    it was measured), the discrepancy within a configuration and the scale of the discrepancy between
+    configurations (both a few per cent)."""
+    k_sigma = k_sigma or {}
     priors = {
         "light_efficiency": LogNormal(median=1.0, sigma=0.5),
         "attenuation_scale": LogNormal(median=1.0, sigma=0.3),
-        **{f"K_dn_per_e:{c}": Normal(mean=nominal_k[c], sigma=0.05 * nominal_k[c], lo=0.0) for c in cameras},
+        **{
+            f"K_dn_per_e:{c}": Normal(mean=nominal_k[c], sigma=k_sigma.get(c, K_PROFILE_SPREAD * nominal_k[c]), lo=0.0)
+            for c in cameras
+        },
         "discrepancy": HalfNormal(sigma=0.05),
         "config_discrepancy": HalfNormal(sigma=0.05),
     }
@@ -133,9 +144,22 @@ def default_fit_config(cameras: tuple[str, ...], nominal_k: dict[str, float]) ->
 
 
 def default_config_for(points, rigs: dict, base_dir: Path | None = None) -> FitConfig:
-    """`default_fit_config` for the cameras of these points, K centred on their sensor profiles."""
+    """`default_fit_config` for the cameras of these points, K centred on their sensor profiles, or for a camera
+    characterised on the EMVA bench (its rigs' ``sensor.characterised``) on the measured K, referred to zero
+    signal through the measured response curve (`ResponseCurve.zero_signal_gain`), with its uncertainty (at least
+    `K_MEASURED_FLOOR`)."""
     cameras = tuple(sorted(points["sensor_profile"].astype(str).unique()))
-    return default_fit_config(cameras, {c: load_sensor_profile(c, base_dir).K_dn_per_e for c in cameras})
+    nominal = {c: load_sensor_profile(c, base_dir).K_dn_per_e for c in cameras}
+    sigma: dict[str, float] = {}
+    for sweep_id, rig in rigs.items():
+        source = rig.get("sensor", {}).get("characterised")
+        rows = points.loc[points["sweep_id"] == sweep_id, "sensor_profile"]
+        if source and len(rows):
+            camera, measured = str(rows.iloc[0]), characterised_sensor(source, base_dir)
+            assert measured.response is not None  # characterised_sensor refuses a profile without one
+            nominal[camera] = measured.response.zero_signal_gain(measured.K_dn_per_e)
+            sigma[camera] = max(measured.K_dn_per_e_std or 0.0, K_MEASURED_FLOOR * measured.K_dn_per_e)
+    return default_fit_config(cameras, nominal, sigma)
 
 
 def load_fit_config(path: str | Path) -> FitConfig:
@@ -150,7 +174,7 @@ class Posterior:
 
     CHUNK = 2000  # rows per shape evaluation when mapping whole chains: (CHUNK, n_config, n_λ) floats
 
-    def __init__(self, model: ForwardModel, priors: dict[str, Prior]):
+    def __init__(self, model: ForwardModel, priors: Mapping[str, Prior]):
         self.model = model
         self.priors = [priors[name] for name in model.names]
         self.logged = np.array([name not in LINEAR for name in model.names])
@@ -160,7 +184,7 @@ class Posterior:
 
     def log_prior(self, theta: np.ndarray) -> np.ndarray:
         theta = np.atleast_2d(theta)
-        return sum(prior.logpdf(theta[:, j]) for j, prior in enumerate(self.priors))
+        return np.sum([prior.logpdf(theta[:, j]) for j, prior in enumerate(self.priors)], axis=0)
 
     def log_likelihood(self, theta: np.ndarray, shape: np.ndarray | None = None) -> np.ndarray:
         """ln L(θ) with the configurations' discrepancies integrated out (module docstring)."""

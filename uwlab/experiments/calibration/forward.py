@@ -16,6 +16,14 @@ attenuation scale and K the camera's system gain. G_k(s) is the configuration's 
 - ``extended`` chain (`uwlab.model.extended`): the ROI's mean rate of target and veiling light (the veil grows
   with s too); β and M are not free there (the lights' geometry and the veil do not scale with them).
 
+A camera characterised on the EMVA bench (the rig's ``sensor.characterised``, `uwlab fit --sensor`) brings its
+measured response curve c(u) (`uwlab.model.sensor.ResponseCurve`): the prediction is multiplied by c(u), and the
+curve's standard uncertainty, c_sd(u) × the prediction, adds to the point's noise in quadrature (data with their
+uncertainty, not truths). The well fraction u = μ_e/μ_e,sat of the characterisation is taken in DN, where it does not
+depend on how the fit splits K from the light's efficiency: u = (linear prediction) / (K μ_e,sat of the
+characterised profile × 10^(g/20) 2^(b − its bits)), its linear-equivalent saturation signal at the point's gain
+and bit depth (in `sigma`, u from the prediction itself: a relative error of c − 1, a few per cent of c_sd).
+
 G_k is evaluated once on `S_GRID` (one vectorised evaluation of the chain) and interpolated by a cubic spline in
 (ln s, ln G): within 1e-8 of the chain. Points taken with the light dimmed are scaled by the light's measured
 relative output (`relative_flux`). A "no lens" point (f_number null) is a bare sensor: N = 0.5, T = 1, no
@@ -27,6 +35,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -46,6 +55,7 @@ from uwlab.model.chain import (
     paper_beam_model,
 )
 from uwlab.model.design import Design
+from uwlab.model.sensor import ResponseCurve, SensorProfile, load_sensor_profile
 from uwlab.model.weights import broadband_factor, spectral_weights
 from uwlab.model.optics import NO_LENS, LensSetting
 
@@ -131,6 +141,10 @@ class ForwardModel:
     transmission: Transmission  # G_k(s)/G_k(s₀) of every configuration
     designs: list[Design] = field(repr=False, default_factory=list)
     points: pd.DataFrame = field(repr=False, default=None)
+    # per point: 1 / the characterised linear-equivalent saturation signal [1/DN] (0 for a camera without a
+    # characterisation), and each camera's measured response curve (None: the linear sensor)
+    well_fraction_per_dn: np.ndarray | None = field(repr=False, default=None)
+    responses: tuple[ResponseCurve | None, ...] = ()
 
     @property
     def n_config(self) -> int:
@@ -188,13 +202,31 @@ class ForwardModel:
             * shape
         )
         k = np.stack([self.parameter(theta, f"K_dn_per_e:{cam}") for cam in self.cameras], axis=1)
-        return k[:, self.camera] * self.effective_exposure_s[None, :] * rate[:, self.config]
+        linear = k[:, self.camera] * self.effective_exposure_s[None, :] * rate[:, self.config]
+        if self.well_fraction_per_dn is None:
+            return linear
+        return linear * self._response(linear * self.well_fraction_per_dn[None, :], "ratio", 1.0)
+
+    def _response(self, fraction: np.ndarray, what: str, linear: float) -> np.ndarray:
+        """c(u) ("ratio") or c_sd(u) ("ratio_sd") of each point's camera at well fractions `fraction` (walkers,
+        points); `linear` where a camera has no curve."""
+        out = np.full_like(fraction, linear)
+        for index, curve in enumerate(self.responses):
+            if curve is not None:
+                mine = self.camera == index
+                out[:, mine] = getattr(curve, what)(fraction[:, mine])
+        return out
 
     def sigma(self, theta: np.ndarray, prediction: np.ndarray) -> np.ndarray:
         """Per-point standard deviation: measurement noise of the ROI mean ⊕ fractional within-configuration
-        discrepancy (the between-configuration discrepancy is in `uwlab.experiments.calibration.fit`)."""
+        discrepancy (the between-configuration discrepancy is in `uwlab.experiments.calibration.fit`) ⊕ the
+        uncertainty of a measured response curve (module docstring)."""
         delta = self.parameter(np.atleast_2d(theta), "discrepancy")[:, None]
-        return np.sqrt(self.sigma_meas[None, :] ** 2 + (delta * prediction) ** 2)
+        variance = self.sigma_meas[None, :] ** 2 + (delta * prediction) ** 2
+        if self.well_fraction_per_dn is not None:
+            fraction = prediction * self.well_fraction_per_dn[None, :]
+            variance = variance + (prediction * self._response(fraction, "ratio_sd", 0.0)) ** 2
+        return np.sqrt(variance)
 
 
 def parameter_label(name: str) -> str:
@@ -238,16 +270,19 @@ def extended_roi_rates(design: Design, lens: bool, roi_w: float, roi_h: float) -
 def _extended_rates(design: Design, lens: bool, roi_w: float, roi_h: float) -> tuple[float, np.ndarray]:
     """(nominal ROI rate, rate(S_GRID)) of the extended chain: target and veiling light (`extended_roi_rates`)."""
     scaled = design.with_values(**{"water.attenuation_scale": S_GRID})
-    return float(sum(extended_roi_rates(design, lens, roi_w, roi_h))), sum(
-        extended_roi_rates(scaled, lens, roi_w, roi_h)
-    )
+    target, veil = extended_roi_rates(design, lens, roi_w, roi_h)
+    target_s, veil_s = extended_roi_rates(scaled, lens, roi_w, roi_h)
+    return float(target + veil), target_s + veil_s
 
 
 def _configuration_design(
     rig: dict, base_dir: Path | None, sensor: str, focal_length_mm, f_number, kind: str | None
 ) -> tuple[Design, bool]:
-    raw = {s: (list(v) if isinstance(v, list) else dict(v)) for s, v in rate_design_sections(rig).items()}
+    raw: dict[str, Any] = {
+        s: (list(v) if isinstance(v, list) else dict(v)) for s, v in rate_design_sections(rig).items()
+    }
     raw.setdefault("sensor", {})["profile"] = sensor
+    raw["sensor"].pop("characterised", None)  # the response curve is the forward model's (`characterised_sensor`)
     has_lens = f_number is not None and np.isfinite(f_number)
     lens = LensSetting(float(focal_length_mm), float(f_number)) if has_lens else NO_LENS
     for key, value in lens.overrides().items():
@@ -284,7 +319,10 @@ def build_forward_model(
     key_tuples = [tuple(row) for row in keys.itertuples(index=False)]
     unique = list(dict.fromkeys(key_tuples))
     config = np.array([unique.index(k) for k in key_tuples])
-    designs, has_lens, rate0, transmission = [], [], [], []
+    designs: list[Design] = []
+    has_lens: list[bool] = []
+    rate0: list[float] = []
+    transmission: list[np.ndarray] = []
     for sweep_id, sensor, focal, f_number in unique:
         if sweep_id not in rigs:
             raise ConfigError("dataset", sweep_id, "no rig recorded for this sweep in metadata.json")
@@ -317,18 +355,28 @@ def build_forward_model(
         "config_discrepancy": 0.0,
     }
     camera = np.array([cameras.index(s) for s in points["sensor_profile"].astype(str)])
-    profile_of = {}
+    profile_of: dict[str, SensorProfile] = {}
     for idx, design in enumerate(designs):
         profile_of.setdefault(unique[idx][1], design.sensor)
     for cam in cameras:
         nominal[f"K_dn_per_e:{cam}"] = profile_of[cam].K_dn_per_e
     profile_bits = np.array([profile_of[s].bit_depth for s in points["sensor_profile"].astype(str)])
+    characterised = _characterised_sensors(rigs, unique, cameras, base_dir)
+    flux = points["relative_flux"].to_numpy(float) if "relative_flux" in points else relative_flux(points)
+    well_fraction = None
+    if any(p is not None for p in characterised):
+        well_fraction = np.zeros(len(points))
+        for index, profile in enumerate(characterised):
+            if profile is not None:
+                mine = camera == index
+                gain = points["gain_db"].to_numpy(float)[mine]
+                bits = points["bit_depth"].to_numpy(float)[mine]
+                well_fraction[mine] = 1.0 / (profile.saturation_e * profile.gain_k(gain, bits))
     n_pix = points["roi_w"].to_numpy(float) * points["roi_h"].to_numpy(float)
     var_mean = points["temporal_var_dn2"].to_numpy(float) / (points["frames"].to_numpy(float) * n_pix)
     if "dark_temporal_var_dn2" in points and "dark_frames" in points:
         dark = points["dark_temporal_var_dn2"].to_numpy(float) / (points["dark_frames"].to_numpy(float).clip(1) * n_pix)
         var_mean = var_mean + np.nan_to_num(dark)
-    flux = points["relative_flux"].to_numpy(float) if "relative_flux" in points else relative_flux(points)
     beam_model = {paper_beam_model(d) for d in designs}
     if len(beam_model) > 1:
         raise ConfigError("light.beam_model", sorted(beam_model), "all sweeps of one fit must share a beam model")
@@ -352,7 +400,47 @@ def build_forward_model(
         transmission=Transmission.from_values(np.stack(transmission, axis=1), nominal["attenuation_scale"]),
         designs=designs,
         points=points.reset_index(drop=True),
+        well_fraction_per_dn=well_fraction,
+        responses=tuple(None if p is None else p.response for p in characterised),
     )
+
+
+def characterised_sensor(source: str, base_dir: Path | None = None) -> SensorProfile:
+    """The profile of ``source``: a sensor profile TOML written by `uwlab emva characterize`, or its output folder
+    (the one profile TOML in it); `ConfigError` on ``sensor.characterised`` unless it holds a measured response
+    curve."""
+    path = Path(source)
+    if base_dir is not None and not path.is_absolute():
+        path = base_dir / path
+    if path.is_dir():
+        found = sorted(p for p in path.glob("*.toml"))
+        if len(found) != 1:
+            raise ConfigError("sensor.characterised", source, f"holds {len(found)} profile TOMLs; name the one to use")
+        path = found[0]
+    if not path.is_file():
+        raise ConfigError("sensor.characterised", source, "no such profile or `uwlab emva characterize` folder")
+    profile = load_sensor_profile(str(path))
+    if profile.response is None:
+        raise ConfigError(
+            "sensor.characterised", source, "has no [response] curve (characterise the camera with this uwlab)"
+        )
+    return profile
+
+
+def _characterised_sensors(
+    rigs: dict[str, dict],
+    unique: list[tuple],
+    cameras: tuple[str, ...],
+    base_dir: Path | None,
+) -> list[SensorProfile | None]:
+    """Per camera, the characterised profile its rigs name (``sensor.characterised``), or None; one camera's
+    sweeps must agree."""
+    found: dict[str, str | None] = {}
+    for sweep_id, sensor, *_ in unique:
+        source = rigs[sweep_id].get("sensor", {}).get("characterised")
+        if found.setdefault(sensor, source) != source:
+            raise ConfigError("sensor.characterised", source, f"differs between the sweeps of camera {sensor}")
+    return [None if found.get(c) is None else characterised_sensor(str(found[c]), base_dir) for c in cameras]
 
 
 def relative_flux(points: pd.DataFrame) -> np.ndarray:

@@ -6,9 +6,10 @@ spectra) and ``posterior.nc`` (the posterior as ArviZ InferenceData, `uwlab.expe
 ``summary.json`` also records which dataset (path, plan hash), the world that rendered a simulated dataset (``world``),
 the chain fitted (``model``: paper or extended), the held-out folds and table, the posterior predictive checks per
 configuration, ``predictive_coverage`` (the fraction of all held-out points inside their 95 % bands and per
-configuration), the verdict ``model_adequate`` with its named ``checks`` and, when the model fails, the failing checks
-and likely causes in ``warnings`` (`uwlab.experiments.calibration.adequacy`), the spectra comparison and, per parameter,
-the simulated ground truth.
+configuration, and the bands' sharpness: median half-width, median realised error, their ratio and the interval
+score, `uwlab.experiments.calibration.validation.band_sharpness`), the verdict ``model_adequate`` with its named
+``checks`` and, when the model fails, the failing checks and likely causes in ``warnings``
+(`uwlab.experiments.calibration.adequacy`), the spectra comparison and, per parameter, the simulated ground truth.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ import pandas as pd
 from uwlab.errors import ConfigError
 from uwlab.experiments.calibration.adequacy import Verdict, verdict
 from uwlab.experiments.calibration.fit import FitConfig, FitResult, default_config_for, fit_points, load_fit_config
-from uwlab.experiments.calibration.forward import MODELS, relative_flux
+from uwlab.experiments.calibration.forward import MODELS, characterised_sensor, relative_flux
 from uwlab.experiments.calibration.output import check_output_dir, write_fit
 from uwlab.experiments.calibration.validation import (
     CrossValidation,
@@ -120,7 +121,11 @@ class Assessment:
         per_config = dict(zip(table["sweep_id"], table["inside_95"], strict=True)) if len(table) else {}
         return {
             "model": self.result.model.kind,
-            "predictive_coverage": {"held_out_inside_95": self.cross.inside_95, "per_configuration": per_config},
+            "predictive_coverage": {
+                "held_out_inside_95": self.cross.inside_95,
+                "per_configuration": per_config,
+                **{f"held_out_{key}": value for key, value in self.cross.sharpness.items()},
+            },
             **self.verdict.to_dict(),
             "warnings": self.result.summary()["warnings"] + self.verdict.warnings(),
             "cross_configuration": self.cross.table.to_dict(orient="records"),
@@ -142,6 +147,48 @@ def assess(
     return Assessment(result, ppc, cross, verdict(result, ppc, cross))
 
 
+def with_characterised_sensors(rigs: dict, points: pd.DataFrame, sensors: list[str]) -> dict:
+    """The rigs with ``sensor.characterised`` set from ``--sensor`` values ``CAMERA=FROM`` (CAMERA a sensor profile
+    of the dataset, FROM a `uwlab emva characterize` profile TOML or output folder; a bare FROM when the dataset
+    has one camera); each FROM is loaded now (`characterised_sensor`), so a bad one is refused before sampling."""
+    cameras = sorted(points["sensor_profile"].astype(str).unique())
+    chosen: dict[str, str] = {}
+    for value in sensors:
+        camera, _, source = value.rpartition("=")
+        if not camera:
+            if len(cameras) != 1:
+                raise ConfigError("--sensor", value, f"name the camera: CAMERA=FROM with CAMERA one of {cameras}")
+            camera = cameras[0]
+        if camera not in cameras:
+            raise ConfigError("--sensor", value, f"no camera {camera!r} in this dataset; it has {cameras}")
+        characterised_sensor(source)
+        chosen[camera] = str(Path(source).resolve())
+    if not chosen:
+        return rigs
+    out = {}
+    for sweep_id, rig in rigs.items():
+        rows = points.loc[points["sweep_id"] == sweep_id, "sensor_profile"]
+        characterised = chosen.get(str(rows.iloc[0])) if len(rows) else None
+        if characterised is not None:
+            rig = {**rig, "sensor": {**rig.get("sensor", {}), "characterised": characterised}}
+        out[sweep_id] = rig
+    return out
+
+
+def sensor_descriptions(rigs: dict, points: pd.DataFrame) -> dict[str, str]:
+    """Per camera, the sensor description its configurations used: the profile alone (linear response) or the
+    characterisation whose response curve the fit applied."""
+    out = {}
+    for sweep_id, rig in rigs.items():
+        rows = points.loc[points["sweep_id"] == sweep_id, "sensor_profile"]
+        if len(rows):
+            source = rig.get("sensor", {}).get("characterised")
+            out[str(rows.iloc[0])] = (
+                f"characterised: {source} (measured response curve)" if source else "profile (linear response)"
+            )
+    return out
+
+
 def calibrate(
     dataset_dir: str | Path,
     config_path: str | Path | None,
@@ -150,12 +197,14 @@ def calibrate(
     progress=None,
     model: str | None = None,
     sampler: dict | None = None,
+    sensors: list[str] | None = None,
 ) -> Calibration:
     """Fit the whole dataset with the chain `model` ("paper", "extended"; None: the rigs' [model] kind), check it
     per configuration, predict every configuration from a fit that did not see it (`held_out_folds`), judge the
     model (`uwlab.experiments.calibration.adequacy`), compare the spectra; write everything to `out`. `sampler`
-    overrides the fit config's [sampler] keys (`resolve_fit_config`). Every input is checked before sampling
-    starts."""
+    overrides the fit config's [sampler] keys (`resolve_fit_config`); `sensors` (``uwlab fit --sensor``) name
+    cameras characterised by ``uwlab emva characterize`` (`with_characterised_sensors`). Every input is checked
+    before sampling starts."""
     if model is not None and model not in MODELS:
         raise ConfigError("--model", model, f"must be one of {', '.join(MODELS)}")
     dataset = Dataset.open(dataset_dir)
@@ -165,7 +214,7 @@ def calibrate(
     if points.empty:
         raise ConfigError("dataset", str(dataset_dir), "has no points to fit; run (or --resume) its sweep first")
     points = points.assign(relative_flux=relative_flux(points))
-    rigs = metadata.get("rigs") or {}
+    rigs = with_characterised_sensors(metadata.get("rigs") or {}, points, sensors or [])
     config = resolve_fit_config(config_path, points, rigs, sampler)
     sweeps = list(dict.fromkeys(points.loc[~points["saturated"].astype(bool), "sweep_id"]))
     folds = held_out_folds(sweeps, config, train_sweeps)
@@ -179,6 +228,7 @@ def calibrate(
         "dataset": str(Path(dataset_dir).resolve()),
         "plan_sha256": metadata.get("plan_sha256"),
         "world": world_of(metadata),
+        "sensors": sensor_descriptions(rigs, points),
         **assessment.summary(),
         "spectra": spectra_table.to_dict(orient="records"),
         "sim": bool(metadata.get("sim")),

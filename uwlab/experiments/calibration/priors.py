@@ -21,7 +21,7 @@ scipy's; log densities are vectorised over walkers.
 from __future__ import annotations
 
 import math
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
 import numpy as np
 from pydantic import Field, PrivateAttr, StrictFloat, model_validator
@@ -38,7 +38,7 @@ class Prior(Schema):
 
     lo: StrictFloat = Field(-math.inf, description="lower truncation bound")
     hi: StrictFloat = Field(math.inf, description="upper truncation bound")
-    _dist: object = PrivateAttr()
+    _dist: Any = PrivateAttr()  # a scipy.stats random variable (untyped)
 
     @model_validator(mode="after")
     def _random_variable(self):

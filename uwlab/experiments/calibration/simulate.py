@@ -15,6 +15,7 @@ light's warm-up drift not: there is no clock here).
 from __future__ import annotations
 
 import copy
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -40,6 +41,11 @@ _DESIGN_KEYS = {
 
 
 PAPER_LENSES = (NO_LENS, LensSetting(30.0, 2.0), LensSetting(12.0, 4.0))
+
+
+def _switch(light: dict[str, float]) -> Callable[[], float]:
+    """The light's on/off state as the simulated sensor reads it (a camera's own switch)."""
+    return lambda: light["on"]
 
 
 def _true_scene(raw: dict, base_dir: Path, sensor: str, lens: LensSetting, truth: dict, world: str | None) -> RigScene:
@@ -97,7 +103,7 @@ def simulate_campaign(
             sensor_sim = SimSensor(
                 sim_truth,
                 _window_map(scene, window, (height, width)),
-                lambda state=light: state["on"],
+                _switch(light),
                 seed=int(rng.integers(2**31)),
             )
             t_sat = sim_truth.saturation_e / rate * 1e6

@@ -139,6 +139,9 @@ def dense_sweeps(result: FitResult, n: int = 60) -> pd.DataFrame:
             camera=np.full(n, model.camera[first]),
             y=np.zeros(n),
             sigma_meas=np.zeros(n),
+            well_fraction_per_dn=None
+            if model.well_fraction_per_dn is None
+            else np.full(n, model.well_fraction_per_dn[first]),
         )
         bands = _bands(dense.predict(theta) * (1 + offsets[:, k : k + 1]))
         frame = pd.DataFrame(
@@ -252,6 +255,34 @@ def default_folds(sweeps: list[str], count: int = 2) -> list[list[str]]:
     return [sweeps[i::count] for i in range(min(count, len(sweeps))) if sweeps[i::count]]
 
 
+def band_sharpness(points: pd.DataFrame, alpha: float = 0.05) -> dict[str, float]:
+    """How sharp the held-out 95 % bands are beside how well they cover: medians over the points of the band's
+    half-width and of the realised error, both in % of the predicted median, their ratio, and the interval score
+    of the central (1 − α) band in % (Gneiting & Raftery, JASA 102, 359–378, 2007, eq. 43:
+    IS = (u − l) + (2/α)(l − y)·[y < l] + (2/α)(y − u)·[y > u]; smaller is better: a calibrated band of the
+    sharpest width minimises it).
+
+    >>> frame = pd.DataFrame({"observed_p2_5": [90.0, 95.0], "observed_p97_5": [110.0, 105.0],
+    ...                       "predicted_median": [100.0, 100.0], "measured_dn": [101.0, 106.0]})
+    >>> {key: round(value, 3) for key, value in band_sharpness(frame).items()}
+    {'half_width_percent': 7.5, 'error_percent': 3.5, 'width_over_error': 2.143, 'interval_score_percent': 35.0}
+    """
+    if not len(points):
+        nan = float("nan")
+        return {"half_width_percent": nan, "error_percent": nan, "width_over_error": nan, "interval_score_percent": nan}
+    lo, hi = points["observed_p2_5"].to_numpy(float), points["observed_p97_5"].to_numpy(float)
+    y, median = points["measured_dn"].to_numpy(float), points["predicted_median"].to_numpy(float)
+    score = (hi - lo) + (2 / alpha) * np.clip(lo - y, 0, None) + (2 / alpha) * np.clip(y - hi, 0, None)
+    half = float(np.median(100 * (hi - lo) / 2 / median))
+    error = float(np.median(100 * np.abs(y - median) / median))
+    return {
+        "half_width_percent": half,
+        "error_percent": error,
+        "width_over_error": half / error if error > 0 else float("inf"),
+        "interval_score_percent": float(np.median(100 * score / median)),
+    }
+
+
 @dataclass
 class CrossValidation:
     """Held-out predictions: per configuration (`table`), per point (`points`, with bands) and the folds."""
@@ -263,6 +294,11 @@ class CrossValidation:
     @property
     def inside_95(self) -> float:
         return float(self.points["inside_95"].mean()) if len(self.points) else float("nan")
+
+    @property
+    def sharpness(self) -> dict[str, float]:
+        """`band_sharpness` of the held-out points."""
+        return band_sharpness(self.points)
 
 
 def cross_validation(

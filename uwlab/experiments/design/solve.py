@@ -333,7 +333,7 @@ class Solver:
         u = np.tile(grid, (rows * costs.size, 1))
         s = np.repeat(secondary_t, costs.size * grid.shape[0])
         ok = self.p.feasible(self._assemble(c, s, u))
-        return ok.reshape(rows, -1).any(axis=1)
+        return np.asarray(np.asarray(ok).reshape(rows, -1).any(axis=1))
 
     def bisect_secondary(self, inside: float, outside: float) -> float:
         """The boundary of the feasible range of the second objective between a feasible and an infeasible
@@ -418,7 +418,7 @@ def _active(problem: Problem, t: np.ndarray) -> list[str]:
     if not moved:
         return []
     _, each = problem.probabilities(np.array(moved))
-    broken = (each < problem.confidence * (1 - 1e-12)).any(axis=0)
+    broken = np.asarray(np.asarray(each < problem.confidence * (1 - 1e-12)).any(axis=0))
     return [str(r) for r, b in zip(problem.requirements, broken, strict=True) if b]
 
 
@@ -515,7 +515,7 @@ def front_frame(result: SolveResult, problem: Problem):
 
     rows = []
     for s in result.solutions:
-        row = dict(s.values)
+        row: dict[str, object] = dict(s.values)
         row.update({k: np.asarray(v).item() for k, v in flatten_outputs(s.outputs).items()})
         row.update(active="; ".join(s.active), minimal=s.minimal, pareto=s.pareto)
         if problem.posterior is not None:

@@ -44,6 +44,7 @@ from uwlab.errors import ConfigError
 from uwlab.experiments.emva.dark import dark_current, dark_current_by_temperature
 from uwlab.experiments.frames.nonuniformity import dsnu_e, prnu_percent
 from uwlab.experiments.emva.regression import bspline_regression, fit_line, intervals_for
+from uwlab.experiments.emva.response import response_curve
 from uwlab.experiments.emva.transfer import PhotonTransfer, Saturation, points_between, saturation, spatial_point
 
 QUANTISATION_VAR_DN2 = 1.0 / 12.0
@@ -232,6 +233,8 @@ def characterize_linear(pt: PhotonTransfer) -> tuple[dict, dict]:
             ("saturation_photons", "saturation_e", "sensitivity_threshold_photons", "sensitivity_threshold_e"),
         )
     )
+    curve = response_curve(pt.photons, signal, sat.index, eta, mu_e_sat)
+    values["response"] = None if curve is None else curve.model_dump()
     dark_values, dark_fit = dark_current_values(pt, k, "e", notes, k_fit.slope_std)
     values.update(dark_values)
     spatial_values, spatial_curves = _nonuniformity(pt, sat, k, notes)

@@ -64,6 +64,11 @@ def profile_documents(
         "resolution_px": list(base.resolution_px) if base else [int(width_px), int(height_px)],
         "bit_depth": int(values["bit_depth"]),
         "K_dn_per_e": _rounded(values["K_dn_per_e"] / 10 ** (gain_db / 20.0)),
+        **(
+            {"K_dn_per_e_std": _rounded(values["K_dn_per_e_std"] / 10 ** (gain_db / 20.0))}
+            if values.get("K_dn_per_e_std")
+            else {}
+        ),
         "dark_offset_dn": _rounded(values["dark_offset_dn"]),
         "dark_noise_e": _rounded(values["dark_noise_e"]),
         "saturation_e": _rounded(values["saturation_e"]),
@@ -105,6 +110,9 @@ def profile_documents(
     lines += ["", "[provenance]"] + [f"{k} = {_toml_value(v)}" for k, v in provenance.items()]
     measured_keys = [k for k, text in provenance.items() if text.startswith(measured)]
     lines += ["", "[flags]", f"measured = {_toml_value(measured_keys)}", f"assumed = {_toml_value(assumed)}", ""]
+    response = values.get("response")
+    if response is not None:  # the measured response curve (uwlab.model.sensor.ResponseCurve)
+        lines += ["[response]"] + [f"{k} = {_toml_value(v)}" for k, v in response.items()] + [""]
     csv = (
         f"# Quantum efficiency of {name} [fraction]: FLAT at the value measured {at} by {measured}.\n"
         "# Assumption: the spectral shape is unknown; only the value at the measurement wavelength is measured.\n"

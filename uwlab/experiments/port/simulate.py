@@ -24,14 +24,14 @@ import cv2
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from uwlab.sim.devices.camera import SensorConfig, SimSensor, SimTruth
+from uwlab.sim.devices.camera import RateMap, SensorConfig, SimSensor, SimTruth
 from uwlab.sim.target import PlanarTarget, TargetView
 from uwlab.errors import ConfigError, UwlabError
 from uwlab.experiments.port.board import WHITE_REFLECTANCE, CharucoBoard
 from uwlab.jsonable import to_jsonable
 from uwlab.model.lens import BrownLens
 from uwlab.model.port_field import exact_fov_rad, port_of
-from uwlab.model.raytrace import DomePort, Port
+from uwlab.model.raytrace import DomePort, FlatPort, Port
 from uwlab.outputs import output_dir
 
 MEDIA = ("air", "water")
@@ -69,7 +69,7 @@ def sample_poses(board: CharucoBoard, lens: BrownLens, resolution, port: Port, c
     fill = board.size_m[0] / (2 * math.tan(half["x"]))
     centre_board = np.array([board.size_m[0] / 2, board.size_m[1] / 2, 0.0])
     corners = board.corners_m
-    poses = []
+    poses: list[tuple[np.ndarray, np.ndarray]] = []
     for _ in range(200 * count):
         if len(poses) == count:
             break
@@ -100,6 +100,11 @@ def _texture(board: CharucoBoard, lens: BrownLens, distance_m: float, supersampl
     return board.texture(per_square / board.square_m)
 
 
+def _fixed_map(rate: np.ndarray) -> RateMap:
+    """The electron-rate map of one rendered pose, whatever shape is asked."""
+    return lambda shape: rate
+
+
 def _port_record(port: Port) -> dict:
     if isinstance(port, DomePort):
         return {
@@ -110,6 +115,8 @@ def _port_record(port: Port) -> dict:
             "outside_index": port.water_index,
             "decenter_mm": [v * 1e3 for v in port.decenter_m],
         }
+    if not isinstance(port, FlatPort):
+        raise TypeError(f"unknown port {type(port).__name__}")
     return {
         "port": "flat",
         "thickness_mm": port.thickness_m * 1e3,
@@ -158,7 +165,7 @@ def simulate_charuco(
     for index, (rotation, t) in enumerate(poses):
         image_reflectance = view.reflectance_image(target, rotation, t)
         rate = image_reflectance / WHITE_REFLECTANCE * electrons_white / (EXPOSURE_US * 1e-6)
-        sensor.set_rate_map(lambda shape, rate=rate: rate)
+        sensor.set_rate_map(_fixed_map(rate))
         name = f"pose-{index:03d}.png"
         if not cv2.imwrite(str(folder / name), sensor.render(config)):
             raise UwlabError(f"could not write {folder / name}")
