@@ -41,16 +41,42 @@ def open_camera(
     return open_device(backend, device_id, policy, **options)
 
 
-def open_light(port: str, protocol: str | None = None, **options: Any) -> Light:
-    """Open the light controller on a serial `port` (`uwlab.drivers.serial.open_light`; `protocol` default the
-    drivers' first). Returns the `Light` (a context manager: output off on exit).
+def open_light(
+    port: str,
+    protocol: str | None = None,
+    *,
+    instrument: str | None = None,
+    visa_library: str | None = None,
+    max_current_a: float | None = None,
+    **options: Any,
+) -> Light:
+    """Open a light. With `instrument` (a definition in configs/instruments/ or a file, docs/instruments.md),
+    `port` is its resource (a VISA resource, or a serial port for ``uwlab-ascii``), `visa_library` PyVISA's
+    (``@py`` by default, ``PATH.yaml@sim`` for pyvisa-sim) and `max_current_a` the rig's maximum drive
+    (`uwlab.drivers.instruments.open_light_instrument`): every set is error-checked and read back, the output off on
+    exit. Without it, the ``uwlab-ascii`` controller on a serial `port` (`uwlab.drivers.serial.open_light`;
+    `protocol` default the drivers' first). Returns the `Light` (a context manager).
 
     Examples
     --------
     >>> import uwlab
+    >>> from uwlab.model.data import config_dir
+    >>> sim = config_dir() / "instruments" / "sim" / "keysight-e36100.yaml"
+    >>> resource = "USB0::0x2A8D::0x0702::MY00000001::INSTR"
+    >>> with uwlab.open_light(resource, instrument="keysight-e36100", visa_library=f"{sim}@sim") as light:
+    ...     light.set_output(True)
+    ...     light.set_level(0.25)
+    ...     light.state()["current_a"]  # 0.25 of the E36103A's 2 A
+    0.5
+    >>> light.safe_state_reached
+    True
     >>> with uwlab.open_light("/dev/ttyUSB0") as light:  # doctest: +SKIP
     ...     light.set_level(0.5)
     """
+    if instrument is not None:
+        from uwlab.drivers.instruments import open_light_instrument
+
+        return open_light_instrument(instrument, port, visa_library, max_current_a)
     from uwlab.drivers import serial
 
     return serial.open_light(port, protocol, **options) if protocol else serial.open_light(port, **options)

@@ -81,7 +81,7 @@ def run(args) -> int:
 
 def run_instrument(args) -> int:
     """``--instrument NAME --resource RESOURCE``: set, then print the read-back (on, level, drive, measured)."""
-    from uwlab.drivers.instruments import open_visa_light
+    from uwlab.drivers.instruments import open_light_instrument
 
     if args.port is not None:
         raise ConfigError("port", args.port, "give either --port or --instrument")
@@ -89,7 +89,7 @@ def run_instrument(args) -> int:
         raise ConfigError("resource", None, "--instrument needs --resource (uwlab devices lists them)")
     if args.level is not None:
         check_level(args.level)
-    with open_visa_light(args.instrument, args.resource, args.visa_library) as light:
+    with open_light_instrument(args.instrument, args.resource, args.visa_library) as light:
         if args.level is not None:
             light.set_level(args.level)
         if args.output is not None:

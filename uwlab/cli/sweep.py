@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import sys
 
 from uwlab.errors import ConfigError
 from uwlab.experiments.acquisition.dataset_check import summarize
@@ -47,6 +48,8 @@ def run(args) -> int:
     from uwlab.progress import bar
 
     plan = load_plan(args.plan)
+    for notice in plan.notices:
+        print(f"uwlab sweep: {notice}", file=sys.stderr)
     with bar(desc="sweep", unit="point") as shown:
 
         def progress(event: Progress) -> None:

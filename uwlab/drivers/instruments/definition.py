@@ -5,7 +5,8 @@ A definition names ``adapter = "visa"``, the ``manual`` section its commands fol
 ``current_a``, its ``max_drive`` the instrument accepts and the settle time after a change), the read-back
 tolerance, and ``[commands]``: ``identity``, ``error`` (the error queue, e.g. ``SYST:ERR?``), ``set_output`` /
 ``query_output`` (``{state}`` is replaced by ``on_token`` / ``off_token``), ``set_drive`` / ``query_drive``
-(``{value}`` by the drive in its unit, with ``drive_format``) and, where the instrument measures, ``measure``.
+(``{value}`` by the drive in its unit, with ``drive_format``), where the instrument measures, ``measure``, and
+``setup``: commands sent once after the identity check (a mode such as constant current), each error-checked.
 A light level in [0, 1] is the drive over ``max_drive`` (a constant-current LED supply: level × max current).
 Every definition says in ``[provenance]`` where ``max_drive`` comes from.
 """
@@ -13,7 +14,7 @@ Every definition says in ``[provenance]`` where ``max_drive`` comes from.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Literal
+from typing import Annotated, ClassVar, Literal
 
 from pydantic import Field, field_validator, model_validator
 
@@ -36,6 +37,9 @@ class LightCommands(Schema):
     set_drive: NonEmptyText
     query_drive: NonEmptyText
     measure: NonEmptyText | None = Field(None, description="measured drive (e.g. MEAS:CURR?), where it measures")
+    setup: list[NonEmptyText] = Field(
+        [], description="commands sent once after the identity check (e.g. SOUR1:MODE CC), each error-checked"
+    )
 
     @field_validator("set_output")
     @classmethod
@@ -84,6 +88,52 @@ class LightDefinition(Schema):
         return f"measured_{self.drive}"
 
 
+class SerialLightCommands(Schema):
+    """The command strings of a light on a serial line protocol (``{state}``: ``on_token``/``off_token``;
+    ``{value}``: the level in [0, 1])."""
+
+    identity: NonEmptyText = "*IDN?"
+    set_output: NonEmptyText
+    query_output: NonEmptyText
+    set_drive: NonEmptyText
+    query_drive: NonEmptyText
+    on_token: NonEmptyText = "1"
+    off_token: NonEmptyText = "0"
+
+    @field_validator("set_output")
+    @classmethod
+    def _has_state(cls, text: str) -> str:
+        if not text.endswith(" {state}"):
+            raise ValueError("must be '<header> {state}'")
+        return text
+
+    @field_validator("set_drive")
+    @classmethod
+    def _has_value(cls, text: str) -> str:
+        if not text.endswith(" {value}"):
+            raise ValueError("must be '<header> {value}'")
+        return text
+
+
+class SerialLightDefinition(Schema):
+    """A light on a serial port speaking an acknowledged line protocol (``protocol = "uwlab-ascii"``: every
+    command answered OK or ERR, docs/serial-protocol.md); the level in [0, 1] is the drive."""
+
+    adapter: Literal["serial"]
+    kind: Literal["light"]
+    manual: NonEmptyText
+    protocol: Literal["uwlab-ascii"]
+    identity_contains: list[NonEmptyText] = Field(min_length=1)
+    baudrate: Annotated[int, limits(300, 4_000_000, "Bd", integer=True, hint="")] = 115200
+    timeout_ms: TimeoutMs = 1000.0
+    retries: Annotated[int, limits(0, 100, "attempts", integer=True, hint="")] = 3
+    reopen_s: Annotated[float, limits(0.0, 3600.0, "s")] = 5.0
+    commands: SerialLightCommands
+    provenance: dict[str, NonEmptyText]
+
+    drive: ClassVar[str] = "level"  # the level in [0, 1] is what the instrument is set to
+
+
 def definition_path(name_or_file: str) -> Path:
     """``configs/instruments/<name>.toml`` for a bare name, else the file given."""
     if name_or_file.endswith(".toml") or "/" in name_or_file:
@@ -103,3 +153,14 @@ def load_light_definition(name_or_file: str) -> LightDefinition:
     if data.get("kind") != "light" or data.get("adapter") != "visa":
         raise ConfigError("instrument", name_or_file, "is not a VISA light definition (adapter/kind)")
     return parse(LightDefinition, data, f"{path.name}:")
+
+
+def load_any_light_definition(name_or_file: str) -> LightDefinition | SerialLightDefinition:
+    """The light definition `name_or_file`, over VISA (`LightDefinition`) or a serial line
+    (`SerialLightDefinition`), by its ``adapter``; `ConfigError` naming the instrument or the key otherwise."""
+    path = definition_path(name_or_file)
+    if path.is_file():
+        data = read_toml(path, "instrument")
+        if data.get("kind") == "light" and data.get("adapter") == "serial":
+            return parse(SerialLightDefinition, data, f"{path.name}:")
+    return load_light_definition(name_or_file)

@@ -38,9 +38,15 @@ def _open_resource(resource: str, visa_library: str | None, definition: LightDef
             timeout=definition.timeout_ms,
         )
     except (OSError, ValueError, pyvisa.errors.Error) as exc:
-        manager.close()
+        if not manager.list_opened_resources():
+            manager.close()
         raise ConfigError("resource", resource, f"cannot be opened ({exc})") from None
     return manager, handle
+
+
+def _reason(exc: Exception) -> str:
+    """A PyVISA error in a few words: its VISA abbreviation (e.g. VI_ERROR_TMO), else its message."""
+    return str(getattr(exc, "abbreviation", "") or exc)
 
 
 class VisaLight(Light):
@@ -66,10 +72,17 @@ class VisaLight(Light):
         missing = [word for word in definition.identity_contains if word.lower() not in self._identity.lower()]
         if missing:
             raise ConfigError("instrument", name, f"{port} answers *IDN? {self._identity!r}, not {' '.join(missing)}")
+        for command in definition.commands.setup:
+            self._set(command)
 
     @property
     def recoveries(self) -> int:
         return 0
+
+    @property
+    def level_tolerance(self) -> float:
+        """The level read-back's tolerance: the definition's drive tolerance over the full-scale drive."""
+        return self.definition.readback_tolerance / self.max_drive
 
     def identity(self) -> str:
         return self._identity
@@ -85,16 +98,16 @@ class VisaLight(Light):
             with warnings.catch_warnings():  # an unterminated answer is judged below, not printed
                 warnings.simplefilter("ignore", UserWarning)
                 return str(self._resource.query(command)).strip()
-        except pyvisa.errors.VisaIOError as exc:
-            raise DeviceError(f"{self.name} on {self.port}: no answer to {command!r} ({exc.abbreviation})") from None
+        except pyvisa.errors.Error as exc:
+            raise DeviceError(f"{self.name} on {self.port}: no answer to {command!r} ({_reason(exc)})") from None
 
     def _write(self, command: str) -> None:
         import pyvisa
 
         try:
             self._resource.write(command)
-        except pyvisa.errors.VisaIOError as exc:
-            raise DeviceError(f"{self.name} on {self.port}: cannot send {command!r} ({exc.abbreviation})") from None
+        except pyvisa.errors.Error as exc:
+            raise DeviceError(f"{self.name} on {self.port}: cannot send {command!r} ({_reason(exc)})") from None
 
     def _number(self, command: str) -> float:
         text = self._query(command)
@@ -177,10 +190,15 @@ class VisaLight(Light):
             self.close()
 
     def _release(self) -> None:
+        """Close the resource, and PyVISA's resource manager once nothing else is open through it (PyVISA shares
+        one manager per library: two lights on one library must not close each other's sessions)."""
         if self._resource is not None:
-            self._resource.close()
-            self._manager.close()
-            self._resource = None
+            resource, self._resource = self._resource, None
+            try:
+                resource.close()
+            finally:
+                if not self._manager.list_opened_resources():
+                    self._manager.close()
 
     def close(self) -> None:
         """Switch the output off (the safe state), record whether it read back off, release the resource."""
@@ -208,5 +226,6 @@ def open_visa_light(
         return VisaLight(definition, instrument, handle, manager, resource, max_drive)
     except BaseException:
         handle.close()
-        manager.close()
+        if not manager.list_opened_resources():
+            manager.close()
         raise

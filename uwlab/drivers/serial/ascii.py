@@ -32,7 +32,7 @@ from uwlab.drivers.serial.protocol import (
     parse_int,
     parse_spectrum_lines,
 )
-from uwlab.drivers.serial.transport import LineTransport
+from uwlab.drivers.serial.transport import BAUDRATE, LineTransport
 from uwlab.errors import DeviceError
 
 PROTOCOL = "uwlab-ascii"
@@ -60,11 +60,13 @@ class _Setting:
 class _AsciiInstrument:
     """Transport, remembered settings and the commands every ``uwlab-ascii`` instrument has."""
 
-    def __init__(self, port: str, *, timeout_s: float = 1.0, retries: int = 3, reopen_s: float = 5.0):
+    def __init__(
+        self, port: str, *, timeout_s: float = 1.0, retries: int = 3, reopen_s: float = 5.0, baudrate: int = BAUDRATE
+    ):
         self.port = port
         self._settings: dict[str, _Setting] = {}
         self.transport = LineTransport(
-            port, timeout_s=timeout_s, retries=retries, reopen_s=reopen_s, on_recover=self._restore
+            port, baudrate=baudrate, timeout_s=timeout_s, retries=retries, reopen_s=reopen_s, on_recover=self._restore
         ).open()
         try:
             self.identity_at_open = self.identity()

@@ -8,10 +8,17 @@ Schema (docs/sweeps.md has a commented example). Top level:
   every sweep (``[geometry.light] distance_m = 1.2``);
 - ``[camera]``: ``backend``, ``id``, ``pixel_format``, ``window`` = [x, y, w, h] (device ROI), ``timeout_s``,
   ``reconnect_attempts`` and ``outage_limit_s`` (the reconnect bounds of `uwlab.drivers.camera.Policy`);
-- ``[instruments]``: ``light_port``, ``spectrometer_port``, ``protocol``, ``reopen_s`` (how long a vanished port
-  may take to come back, default 5 s) (real hardware; ``--sim`` replaces them); instead of ``spectrometer_port``,
-  ``[instruments.seabreeze_spectrometer]`` (``instrument``, ``resource``, ``calibration``, ``area_cm2``): a USB
-  spectrometer through python-seabreeze (docs/spectrometers.md);
+- ``[[lights]]``: one table per light, each its own instrument: ``name`` (default ``light<i>``), ``instrument`` (a
+  definition in configs/instruments/ or a file, `uwlab.drivers.instruments`), ``resource`` (its VISA resource),
+  ``visa_library`` (PyVISA's: ``@py`` by default, ``PATH.yaml@sim`` for pyvisa-sim, relative to the plan),
+  ``max_current_a`` (the rig's maximum drive, never above the definition's; a request beyond it is refused before
+  anything is sent) and ``level`` (what it holds while a sweep dims another light, default 1). A sweep's ``light``
+  names the light its level and light-level values apply to (default: the first);
+- ``[instruments]``: ``spectrometer_port``, ``reopen_s`` (how long a vanished port may take to come back, default
+  5 s) (real hardware; ``--sim`` replaces them); ``light_port`` and ``protocol`` (a ``uwlab-ascii`` light on a
+  serial port) still work for one release, with a one-line deprecation notice (`Plan.notices`); instead of
+  ``spectrometer_port``, ``[instruments.seabreeze_spectrometer]`` (``instrument``, ``resource``, ``calibration``,
+  ``area_cm2``): a USB spectrometer through python-seabreeze (docs/spectrometers.md);
 - ``[defaults]``: any sweep key, applied to every sweep unless the sweep sets it.
 
 Each ``[[sweep]]``: ``id`` (unique), ``kind`` (exposure | aperture | gain | light-level | dark), ``values``
@@ -47,6 +54,7 @@ from pydantic_core import PydanticCustomError
 
 from uwlab.drivers.camera import BACKENDS, Policy
 from uwlab.drivers.camera.pixels import PIXEL_FORMATS
+from uwlab.drivers.instruments import load_any_light_definition
 from uwlab.drivers.ocean_insight.definition import CollectionAreaCm2
 from uwlab.drivers.serial import PROTOCOLS
 from uwlab.drivers.serial.base import Averaging, IntegrationMs
@@ -96,6 +104,8 @@ TimeoutS = Annotated[float, limits(0.0, 600.0, "s", lo_open=True)]
 OutageS = Annotated[float, limits(0.0, 86400.0, "s", lo_open=True)]
 Attempts = Annotated[int, limits(0, 1000, "attempts", hint="", integer=True)]
 ReopenS = Annotated[float, limits(0.0, 3600.0, "s")]
+MaxDrive = Annotated[float, limits(0.0, 100.0, "A", lo_open=True, hint="amperes, not mA")]
+LEGACY_LIGHT_KEYS = ("light_port", "protocol")
 DigitalNumber = Annotated[float, limits(0.0, 2.0**32, "DN", hint="")]
 PointCount = Annotated[int, limits(1, MAX_POINTS, "points", hint="", integer=True)]
 
@@ -162,6 +172,17 @@ class InstrumentsSection(Schema):
     @model_validator(mode="after")
     def _one_spectrometer(self):
         return at_most_one(self, "spectrometer_port", "seabreeze_spectrometer")
+
+
+class LightTable(Schema):
+    """A ``[[lights]]`` table: one light, its instrument definition and VISA resource."""
+
+    name: NonEmptyText | None = Field(None, description="the light's name (default light<i>)")
+    instrument: NonEmptyText = Field(description="instrument definition: a name in configs/instruments/ or a file")
+    resource: NonEmptyText = Field(description="VISA resource (uwlab devices lists them)")
+    visa_library: NonEmptyText | None = Field(None, description="PyVISA library: @py (default), PATH.yaml@sim")
+    max_current_a: MaxDrive | None = Field(None, description="the rig's maximum drive [A] (or [V]), refused beyond")
+    level: Fraction = Field(1.0, description="the level it holds while a sweep dims another light")
 
 
 class LensTable(Schema):
@@ -246,6 +267,7 @@ class SweepTable(Schema):
     gain_db: GainDb = Field(0.0, description="fixed gain [dB]")
     black_level_dn: DigitalNumber | None = Field(None, description="camera black level [DN]")
     light_level: Fraction = Field(1.0, description="fixed light level")
+    light: NonEmptyText | None = Field(None, description="the [[lights]] name the level applies to (default: first)")
     save_frames: StrictBool = Field(False, description="write each point's frames as TIFF under frames/")
     geometry: DesignSections = Field({}, description="design sections overriding the rig for this sweep")
 
@@ -278,6 +300,7 @@ class PlanFile(Schema):
     geometry: DesignSections = Field({}, description="design sections overriding the rig for every sweep")
     camera: CameraSpec = Field(CameraSpec(), description=CameraSpec.__doc__)
     instruments: InstrumentsSection = Field(InstrumentsSection(), description=InstrumentsSection.__doc__)
+    lights: list[LightTable] = Field([], description=LightTable.__doc__)
     defaults: dict[str, Any] = Field({}, description="sweep keys applied to every sweep that does not set them")
     sweep: list[dict[str, Any]] = Field(min_length=1, description="the [[sweep]] tables")
 
@@ -333,6 +356,7 @@ class SweepSpec:
     save_frames: bool
     rig_raw: dict
     design: Design | Bench
+    light: str | None = None  # the [[lights]] name the sweep's level applies to (None: the first, or no lights)
 
     def points(self) -> list[Point]:
         """Every point of the sweep, in order."""
@@ -357,6 +381,18 @@ class SweepSpec:
 
 
 @dataclass(frozen=True)
+class LightSpec:
+    """One light of the plan (a ``[[lights]]`` table resolved: its name, ``visa_library`` path made absolute)."""
+
+    name: str
+    instrument: str
+    resource: str
+    visa_library: str | None
+    max_current_a: float | None
+    level: float
+
+
+@dataclass(frozen=True)
 class Plan:
     path: Path
     sha256: str
@@ -365,6 +401,8 @@ class Plan:
     rig_path: Path
     sweeps: tuple[SweepSpec, ...]
     instruments: InstrumentsSection
+    lights: tuple[LightSpec, ...] = ()
+    notices: tuple[str, ...] = ()  # one line each (deprecated keys), for the CLI to print
 
     def total_points(self) -> int:
         return sum(len(s.values) for s in self.sweeps)
@@ -394,6 +432,11 @@ def parse_plan(raw: dict, path: Path, sha256: str) -> Plan:
     duplicated = sorted({i for i in ids if ids.count(i) > 1})
     if duplicated:
         raise ConfigError("sweep.id", duplicated[0], "sweep ids must be unique within the plan")
+    lights = _lights(plan, path.resolve().parent)
+    for sweep in sweeps:
+        if sweep.light is not None and sweep.light not in {light.name for light in lights}:
+            known = ", ".join(light.name for light in lights) or "none: the plan has no [[lights]]"
+            raise ConfigError(f"sweep.{sweep.id}.light", sweep.light, f"no such light; known: {known}")
     return Plan(
         path=path,
         sha256=sha256,
@@ -402,6 +445,60 @@ def parse_plan(raw: dict, path: Path, sha256: str) -> Plan:
         rig_path=rig_path,
         sweeps=tuple(sweeps),
         instruments=plan.instruments,
+        lights=lights,
+        notices=_deprecations(raw),
+    )
+
+
+def _lights(plan: PlanFile, plan_dir: Path) -> tuple[LightSpec, ...]:
+    """The plan's [[lights]], named (``light<i>`` by default, names unique), a relative ``PATH.yaml@sim`` library
+    resolved against the plan's folder; refused beside the deprecated ``instruments.light_port``."""
+    if plan.lights and plan.instruments.light_port is not None:
+        raise ConfigError(
+            "instruments.light_port", plan.instruments.light_port, "give either [[lights]] or light_port, not both"
+        )
+    lights = []
+    for index, table in enumerate(plan.lights):
+        library = table.visa_library
+        if library is not None and library.endswith("@sim") and len(library) > 4:
+            library = f"{resolve_path(library[:-4], plan_dir)}@sim"
+        _check_light_instrument(index, table)
+        name = table.name or f"light{index}"
+        if name in {light.name for light in lights}:
+            raise ConfigError(f"lights[{index}].name", name, "light names must be unique within the plan")
+        lights.append(LightSpec(name, table.instrument, table.resource, library, table.max_current_a, table.level))
+    return tuple(lights)
+
+
+def _check_light_instrument(index: int, table: LightTable) -> None:
+    """The light's definition exists and is valid, and the rig's maximum is a current no higher than its own."""
+    try:
+        definition = load_any_light_definition(table.instrument)
+    except ConfigError as exc:
+        raise ConfigError(f"lights[{index}].{exc.key}", exc.value, exc.reason) from None
+    limit = table.max_current_a
+    if table.visa_library is not None and definition.adapter != "visa":
+        raise ConfigError(f"lights[{index}].visa_library", table.visa_library, f"{table.instrument} is not on VISA")
+    if limit is not None and definition.drive != "current_a":
+        raise ConfigError(f"lights[{index}].max_current_a", limit, f"{table.instrument} drives {definition.drive}")
+    if limit is not None and limit > definition.max_drive:
+        raise ConfigError(
+            f"lights[{index}].max_current_a",
+            limit,
+            f"above {table.instrument}'s own maximum {definition.max_drive:g} A",
+        )
+
+
+def _deprecations(raw: dict) -> tuple[str, ...]:
+    """One line per deprecated key the plan uses (they keep working for one release)."""
+    section = raw.get("instruments", {})
+    used = [key for key in LEGACY_LIGHT_KEYS if isinstance(section, dict) and key in section]
+    if not used:
+        return ()
+    keys = " and ".join(f"instruments.{key}" for key in used)
+    return (
+        f"deprecated: {keys} (a uwlab-ascii light on a serial port) will be removed in the next release; "
+        "use [[lights]] with instrument and resource (docs/instruments.md)",
     )
 
 
@@ -483,6 +580,7 @@ def _sweep(body: dict, number: int, rig_raw: dict, rig_dir: Path, geometry: dict
         save_frames=table.save_frames,
         rig_raw=rig,
         design=design,
+        light=table.light,
     )
     _check_values(spec, sensor)
     _check_dark_mode(spec)

@@ -1,7 +1,8 @@
 """The rigs a sweep runs on: the tank (`HardwareRig`) and what the sweep engine needs of any rig (`Rig`).
 
-`HardwareRig`: a camera by backend and id, the light and spectrometer on serial ports; whatever the rig cannot do
-itself (set a manual aperture, move the spectrometer) is asked of the operator. The simulated rig
+`HardwareRig`: a camera by backend and id, the plan's [[lights]] by instrument definition on their VISA resources
+(or the deprecated ``uwlab-ascii`` light on a serial port), the spectrometer; whatever the rig cannot do itself
+(set a manual aperture, move the spectrometer) is asked of the operator. The simulated rig
 (`uwlab.experiments.acquisition.sim_rig.SimRig`, for ``uwlab sweep --sim``) follows the same `Rig` protocol; this
 module never imports the simulator.
 """
@@ -23,10 +24,15 @@ from uwlab.model.data import resolve_path
 
 
 class Rig(Protocol):
-    """What the engine needs from a rig (`SimRig` or `HardwareRig`)."""
+    """What the engine needs from a rig (`SimRig` or `HardwareRig`). ``lights``: every light by name (``light`` is
+    the first, None without lights); ``hold_levels``: the level each holds while a sweep dims another;
+    ``safe_states``: after the rig closed, whether each light read back in its safe state (output off)."""
 
     sim: bool
     light: Light | None
+    lights: dict[str, Light]
+    hold_levels: dict[str, float]
+    safe_states: dict[str, bool]
     spectrometer: Spectrometer | None
 
     def open_camera(self, sweep: SweepSpec) -> Camera: ...
@@ -37,6 +43,45 @@ class Rig(Protocol):
 
 
 Confirm = Callable[[str], None]
+
+
+def to_safe_state(lights: dict[str, Light]) -> dict[str, bool]:
+    """Switch every light off (its safe state), read each back and release it, whatever fails on the way:
+    ``{name: True}`` where the output read back off. A light whose driver switches itself off on close
+    (`uwlab.drivers.instruments.VisaLight`) reports what it read back then."""
+    reached: dict[str, bool] = {}
+    for name, light in lights.items():
+        try:
+            light.set_output(False)
+            reached[name] = light.output() is False
+        except Exception:
+            reached[name] = False
+        finally:
+            try:
+                light.close()
+            except Exception:
+                reached[name] = False
+        after_close = getattr(light, "safe_state_reached", None)
+        if after_close is not None:
+            reached[name] = reached[name] and bool(after_close)
+    return reached
+
+
+def open_plan_lights(plan: Plan) -> dict[str, Light]:
+    """The plan's [[lights]] opened by instrument definition (``max_current_a`` the rig's maximum drive); any that
+    fails closes those already open (each goes to its safe state)."""
+    from uwlab.drivers.instruments import open_light_instrument
+
+    lights: dict[str, Light] = {}
+    try:
+        for spec in plan.lights:
+            lights[spec.name] = open_light_instrument(
+                spec.instrument, spec.resource, spec.visa_library, spec.max_current_a
+            )
+    except BaseException:
+        to_safe_state(lights)
+        raise
+    return lights
 
 
 class HardwareRig:
@@ -50,6 +95,9 @@ class HardwareRig:
         self.plan = plan
         self.confirm = confirm
         self.light: Light | None = None
+        self.lights: dict[str, Light] = {}
+        self.hold_levels: dict[str, float] = {spec.name: spec.level for spec in plan.lights}
+        self.safe_states: dict[str, bool] = {}
         self.spectrometer: Spectrometer | None = None
         self._position: str | None = None
 
@@ -57,7 +105,10 @@ class HardwareRig:
         ports = self.plan.instruments
         try:
             if ports.light_port is not None:
-                self.light = open_light(ports.light_port, ports.protocol, reopen_s=ports.reopen_s)
+                self.lights = {"light": open_light(ports.light_port, ports.protocol, reopen_s=ports.reopen_s)}
+            else:
+                self.lights = open_plan_lights(self.plan)
+            self.light = next(iter(self.lights.values()), None)
             if ports.spectrometer_port is not None:
                 self.spectrometer = open_spectrometer(ports.spectrometer_port, ports.protocol, reopen_s=ports.reopen_s)
             if (usb := ports.seabreeze_spectrometer) is not None:  # dark: electric where it can, else the sweep's
@@ -74,9 +125,10 @@ class HardwareRig:
         return self
 
     def __exit__(self, *exc_info) -> None:
-        for device in (self.light, self.spectrometer):
-            if device is not None:
-                device.close()
+        if not self.safe_states:  # once: a released serial light would otherwise reopen its port to switch off
+            self.safe_states = to_safe_state(self.lights)
+        if self.spectrometer is not None:
+            self.spectrometer.close()
 
     def open_camera(self, sweep: SweepSpec) -> Camera:
         return open_camera(sweep.camera.backend, sweep.camera.device_id, policy=sweep.camera.policy())

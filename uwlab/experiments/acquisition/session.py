@@ -3,13 +3,15 @@ simulated rig — what `uwlab sweep` and `uwlab.sweep` run.
 
 The order is the safe one: the plan is validated and the dataset is created (or opened with its lock held, and
 checked to come from the same plan) before any device is opened; the rig is a context manager, so the lights go to
-their safe state and the simulators stop on any exit; every point is durable before the next one starts
+their safe state and the simulators stop on any exit, and the dataset records whether each light read back off
+(`record_safe_state`); every point is durable before the next one starts
 (`uwlab.experiments.acquisition.sweep`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -56,7 +58,7 @@ def make_rig(plan: Plan, sim: bool, confirm: Confirm | None = None, seed: int = 
     if sim:
         from uwlab.experiments.acquisition.sim_rig import SimRig
 
-        return SimRig(plan.rig_path, seed=seed)
+        return SimRig(plan.rig_path, seed=seed, lights=plan.lights)
     return HardwareRig(plan, confirm)
 
 
@@ -86,6 +88,27 @@ def run_session(
     called after each recorded point. Returns the dataset's directory."""
     with open_target(plan, out, resume=resume, sim=sim, force=force, purpose=purpose) as dataset:
         rig = make_rig(plan, sim, confirm, seed)
-        with rig:
-            SweepRunner(plan, dataset, rig, progress).run()
+        try:
+            with rig:
+                SweepRunner(plan, dataset, rig, progress).run()
+        except BaseException:
+            record_safe_state(dataset, rig, quiet=True)
+            raise
+        record_safe_state(dataset, rig)
         return Path(dataset.root)
+
+
+def record_safe_state(dataset: Dataset, rig: SimRig | HardwareRig, quiet: bool = False) -> None:
+    """Write into the dataset's metadata whether each light read back in its safe state (output off) when the rig
+    closed — on a normal end, an error, Ctrl-C or a lost camera alike (``lights_safe_state``: name → {off, utc}).
+    ``quiet`` (an error is ending the sweep): a failure to write it does not hide that error."""
+    if not rig.safe_states:
+        return
+    utc = datetime.now(UTC).isoformat(timespec="seconds")
+    try:
+        dataset.update_metadata(
+            lights_safe_state={name: {"off": off, "utc": utc} for name, off in rig.safe_states.items()}
+        )
+    except Exception:
+        if not quiet:
+            raise

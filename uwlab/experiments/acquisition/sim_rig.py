@@ -7,7 +7,11 @@ sensor under a diffuse disk source, the spectrometer at the sensor plane).
   processes behind real pseudo-terminals, driven through the real serial drivers;
 - camera: the in-process simulated camera through the real `Camera` interface, one per sweep, with the
   sweep's sensor profile and lens (`uwlab.sim.scene.RigScene` renders the electron-rate map);
-- all of them share one `RigState` file, so a light level set through the serial driver dims the images.
+- all of them share one `RigState` file, so a light level set through the serial driver dims the images;
+- a plan's [[lights]] on pyvisa-sim (``visa_library = "PATH.yaml@sim"``) are driven through their instrument
+  definitions on the third-party simulator; the first of them (`MirroredLight`) also passes its read-back (output,
+  level) to the serial light, so it lights the simulated tank as the serial light would. Lights on real resources
+  are replaced by the serial light (the first) or left out.
 
 Apertures are set directly (`RigScene.set_lens` and a re-render); the spectrometer is moved between the
 target and the camera with the simulator's ``SIM:POS`` command. "No lens" gives a uniform field (a bare
@@ -34,8 +38,10 @@ import numpy as np
 
 from uwlab.drivers.camera import Camera, open_camera
 from uwlab.drivers.camera.pixels import pixel_format
+from uwlab.drivers.instruments import VisaLight, open_visa_light
 from uwlab.drivers.serial import Light, Spectrometer, open_light, open_spectrometer
-from uwlab.experiments.acquisition.plan import SweepSpec
+from uwlab.experiments.acquisition.plan import LightSpec, SweepSpec
+from uwlab.experiments.acquisition.rigs import to_safe_state
 from uwlab.experiments.acquisition.roi import Rect
 from uwlab.experiments.saturation import sensor_clip_dn
 from uwlab.lockfile import OwnerLock, is_stale, read_holder
@@ -61,8 +67,11 @@ class SimRig:
 
     sim = True
 
-    def __init__(self, rig_path: Path, faults: SimFaults | None = None, seed: int = 0):
+    def __init__(
+        self, rig_path: Path, faults: SimFaults | None = None, seed: int = 0, lights: tuple[LightSpec, ...] = ()
+    ):
         self.rig_path = Path(rig_path)
+        self.light_specs = lights
         self.faults = faults
         self.seed = seed
         remove_stale_rig_folders()
@@ -71,6 +80,9 @@ class SimRig:
         self._owner.acquire()
         self._serial = SerialRig(self._tmp.name, SerialSimSettings.from_config(self.rig_path), seed=seed)
         self.light: Light | None = None
+        self.lights: dict[str, Light] = {}
+        self.hold_levels: dict[str, float] = {spec.name: spec.level for spec in lights}
+        self.safe_states: dict[str, bool] = {}
         self.spectrometer: Spectrometer | None = None
         self._scene: RigScene | BenchScene | None = None
         self._sensor: SimSensor | None = None
@@ -80,7 +92,8 @@ class SimRig:
     def __enter__(self) -> SimRig:
         try:
             self._serial.start()
-            self.light = open_light(self._serial.ports["light"], reopen_s=SIM_REOPEN_S)
+            self.lights = self._open_lights(open_light(self._serial.ports["light"], reopen_s=SIM_REOPEN_S))
+            self.light = next(iter(self.lights.values()))
             self.spectrometer = open_spectrometer(self._serial.ports["spectrometer"], reopen_s=SIM_REOPEN_S)
         except BaseException:
             self.close()
@@ -90,10 +103,32 @@ class SimRig:
     def __exit__(self, *exc_info) -> None:
         self.close()
 
+    def _open_lights(self, serial_light: Light) -> dict[str, Light]:
+        """The serial light as ``light`` (no [[lights]]), or the plan's lights: those on pyvisa-sim through their
+        definitions (the first mirrored into the tank), the first otherwise replaced by the serial light."""
+        if not self.light_specs:
+            return {"light": serial_light}
+        lights: dict[str, Light] = {}
+        try:
+            for index, spec in enumerate(self.light_specs):
+                simulated = spec.visa_library is not None and spec.visa_library.endswith("@sim")
+                if simulated:
+                    visa = open_visa_light(spec.instrument, spec.resource, spec.visa_library, spec.max_current_a)
+                    lights[spec.name] = MirroredLight(visa, serial_light) if index == 0 else visa
+                elif index == 0:
+                    lights[spec.name] = serial_light
+        except BaseException:
+            to_safe_state(lights)
+            raise
+        if not any(light is serial_light or isinstance(light, MirroredLight) for light in lights.values()):
+            serial_light.close()
+        return lights
+
     def close(self) -> None:
-        for device in (self.light, self.spectrometer):
-            if device is not None:
-                device.close()
+        if not self.safe_states:  # once: a released serial light would otherwise reopen its port to switch off
+            self.safe_states = to_safe_state(self.lights)
+        if self.spectrometer is not None:
+            self.spectrometer.close()
         self._serial.stop()
         self._tmp.cleanup()
         self._owner.release()
@@ -181,6 +216,61 @@ class SimRig:
         rate = self._sensor.rate_e_per_s
         bh, bv = s.binning
         return rate[s.offset_y * bv : (s.offset_y + s.height) * bv, s.offset_x * bh : (s.offset_x + s.width) * bh]
+
+
+class MirroredLight(Light):
+    """A VISA light on pyvisa-sim that lights the simulated tank: after every set, its read-back (output, level) is
+    set on the serial simulator's light, whose state the simulated camera and spectrometer see. Everything else
+    (identity, read-backs, limits, drive and measured current, the safe state) is the VISA light's."""
+
+    def __init__(self, visa: VisaLight, scene_light: Light) -> None:
+        self.visa, self.scene_light = visa, scene_light
+        self.port = visa.port
+
+    @property
+    def recoveries(self) -> int:
+        return self.visa.recoveries + self.scene_light.recoveries
+
+    @property
+    def level_tolerance(self) -> float:
+        return self.visa.level_tolerance
+
+    @property
+    def safe_state_reached(self) -> bool | None:
+        return self.visa.safe_state_reached
+
+    def identity(self) -> str:
+        return self.visa.identity()
+
+    def reset(self) -> None:
+        self.visa.reset()
+        self.scene_light.reset()
+
+    def close(self) -> None:
+        try:
+            self.visa.close()
+        finally:
+            try:
+                self.scene_light.set_output(False)
+            finally:
+                self.scene_light.close()
+
+    def set_output(self, on: bool) -> None:
+        self.visa.set_output(on)
+        self.scene_light.set_output(self.visa.output())
+
+    def output(self) -> bool:
+        return self.visa.output()
+
+    def set_level(self, level: float) -> None:
+        self.visa.set_level(level)
+        self.scene_light.set_level(min(max(self.visa.level(), 0.0), 1.0))
+
+    def level(self) -> float:
+        return self.visa.level()
+
+    def state(self) -> dict:
+        return self.visa.state()
 
 
 def remove_stale_rig_folders(directory: str | os.PathLike | None = None) -> list[Path]:

@@ -15,11 +15,14 @@ With ``save_frames``, every frame the point was computed from, bright and dark (
 each point), is kept as TIFF with its settings (`uwlab.experiments.dataset_frames`), committed with the point.
 
 Read-backs (`uwlab.experiments.acquisition.readbacks`): a point's lit frames and spectrometer readings are one
-verified window — the light's output and level and the camera's settings are read back before and after it, and
+verified window — every light's output and level (the swept light at the point's level, the plan's other [[lights]]
+at their hold level) and the camera's settings are read back before and after it, and
 no instrument reset or reopen and no camera reconnect may happen within it; otherwise the point is measured
 again (at most 3 times, then one `DeviceError`; the frames of a void attempt are not kept). Dark frames and the
 spectrometer's dark references are verified windows of their own, with the light read back off. Each row records
-the read-backs it used (``light_on_readback``, ``light_level_readback``, ``exposure_us_readback``,
+the read-backs it used (``light_on_readback``, ``light_level_readback``, the swept light's drive and measured
+current where its instrument has them: ``light_current_a_readback``, ``light_measured_current_a``; every light's
+read-back as JSON: ``lights_readback``; ``exposure_us_readback``,
 ``gain_db_readback``, ``spectrometer_integration_ms_readback``, ``spectrometer_averaging_readback``), the window
 (``readback_t_start_ns``, ``readback_t_end_ns``) and ``attempts``.
 
@@ -32,6 +35,7 @@ again; a failed write raises `DatasetWriteError` with the dataset intact.
 
 from __future__ import annotations
 
+import json
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
@@ -102,6 +106,7 @@ class SweepRunner:
         self.sleep = sleep
         self._done = len(dataset.completed())
         self._spectrometer_darks: dict = {}
+        self._swept: str | None = None  # the light the current sweep dims (the others hold their level)
 
     def run(self) -> None:
         """Measure every remaining point, then record the finish time."""
@@ -114,6 +119,7 @@ class SweepRunner:
 
     def _run_sweep(self, sweep: SweepSpec, todo: list[Point]) -> None:
         self._needs_instruments(sweep)
+        self._swept = sweep.light or next(iter(self.rig.lights), None)
         block_frames = None
         with self.rig.open_camera(sweep) as camera:
             self._configure(camera, sweep)
@@ -163,8 +169,12 @@ class SweepRunner:
             )
 
     def _needs_instruments(self, sweep: SweepSpec) -> None:
-        if self.rig.light is None and (sweep.kind in ("light-level", "dark") or sweep.dark != "none"):
-            raise ConfigError("instruments.light_port", None, f"sweep {sweep.id} switches or dims the light")
+        if not self.rig.lights and (sweep.kind in ("light-level", "dark") or sweep.dark != "none"):
+            raise ConfigError("lights", None, f"sweep {sweep.id} switches or dims the light: the plan needs [[lights]]")
+        if sweep.light is not None and sweep.light not in self.rig.lights:
+            raise ConfigError(
+                f"sweep.{sweep.id}.light", sweep.light, f"not on this rig (its lights: {', '.join(self.rig.lights)})"
+            )
         if self.rig.spectrometer is None and sweep.spectrometer:
             raise ConfigError("instruments.spectrometer_port", None, f"sweep {sweep.id} reads the spectrometer")
 
@@ -193,7 +203,8 @@ class SweepRunner:
                 "backend": info.backend,
                 "id": info.device_id,
             },
-            "light": self.rig.light.identity() if self.rig.light is not None else None,
+            "light": self.rig.lights[self._swept].identity() if self._swept is not None else None,
+            "lights": {name: light.identity() for name, light in self.rig.lights.items()},
             "spectrometer": self.rig.spectrometer.identity() if self.rig.spectrometer is not None else None,
         }
         changes = {"devices": {sweep.id: devices}, "rigs": {sweep.id: resolved_rig(sweep.design)}}
@@ -203,14 +214,21 @@ class SweepRunner:
         self.dataset.update_metadata(**changes)
 
     def _set_light(self, on: bool, level: float, settle_s: float) -> None:
-        if self.rig.light is None:
+        """The swept light to ``level``, every other light to its hold level, all of them ``on`` (or off)."""
+        if not self.rig.lights:
             return
-        self.rig.light.set_level(level)
-        self.rig.light.set_output(on)
+        for name, want in self._wanted_light(on, level).items():
+            light = self.rig.lights[name]
+            light.set_level(want.level)
+            light.set_output(want.on)
         self.sleep(settle_s)
 
-    def _wanted_light(self, on: bool, level: float) -> LightReadback | None:
-        return LightReadback(on, level) if self.rig.light is not None else None
+    def _wanted_light(self, on: bool, level: float) -> dict[str, LightReadback]:
+        """The state wanted of each light: the swept one at ``level``, the others at their hold level."""
+        return {
+            name: LightReadback(on, level if name == self._swept else self.rig.hold_levels.get(name, level))
+            for name in self.rig.lights
+        }
 
     def _roi(self, sweep: SweepSpec, camera: Camera) -> Rect:
         image = camera.acquire(1)[0].image
@@ -247,6 +265,7 @@ class SweepRunner:
             self._wanted_light(False, level),
             lambda: self._set_light(False, level, sweep.settle_s),
             stack,
+            self._swept,
         )
         self._set_light(sweep.kind != "dark", level, 0.0)
         return stats
@@ -306,6 +325,7 @@ class SweepRunner:
             self._wanted_light(point.light_on, point.light_level),
             lambda: self._apply(sweep, camera, point),
             lambda: self._lit(sweep, camera, roi, point, recorder),
+            self._swept,
         )
         for reading in reversed(raw):  # the spectrometer is at the last position: measure its darks first
             self._spectrometer_dark(sweep, reading.position, reading.readback.integration_ms)
@@ -315,6 +335,7 @@ class SweepRunner:
             dark = self._dark(sweep, camera, roi, recorder, point)
         settings = frames[-1].settings
         lens = replace(sweep.lens, f_number=point.f_number)
+        swept_state = window.lights.get(self._swept, {}) if self._swept is not None else {}
         row = point_row(
             sweep_id=sweep.id,
             point_index=point.index,
@@ -333,7 +354,7 @@ class SweepRunner:
             exposure_us=point.exposure_us,
             gain_db=point.gain_db,
             black_level_dn=settings.black_level,
-            light_level=point.light_level if self.rig.light is not None else None,
+            light_level=point.light_level if self._swept is not None else None,
             light_on=point.light_on,
             bit_depth=pixel_format(settings.pixel_format).bits,
             roi_x=roi[0],
@@ -344,6 +365,9 @@ class SweepRunner:
             gain_db_readback=settings.gain_db,
             light_on_readback=window.light.on if window.light else None,
             light_level_readback=window.light.level if window.light else None,
+            light_current_a_readback=swept_state.get("current_a"),
+            light_measured_current_a=swept_state.get("measured_current_a"),
+            lights_readback=json.dumps(window.lights, sort_keys=True) if window.lights else None,
             spectrometer_integration_ms_readback=raw[0].readback.integration_ms if raw else None,
             spectrometer_averaging_readback=raw[0].readback.averaging if raw else None,
             readback_t_start_ns=window.t_start_ns,
@@ -400,6 +424,7 @@ class SweepRunner:
                     self._wanted_light(False, sweep.light_level),
                     prepare,
                     spectrometer.read_spectrum,
+                    self._swept,
                 )
             finally:
                 spectrometer.set_integration_ms(was.integration_ms)
