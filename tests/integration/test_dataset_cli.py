@@ -146,7 +146,9 @@ def test_resume_into_read_only_output_is_one_line_and_changes_nothing(tmp_path):
 
 
 def test_a_sweep_whose_devices_never_opened_leaves_an_empty_dataset_the_same_command_reuses(tmp_path):
-    hardware = plan_file(tmp_path, points=2, name="hardware", instruments={"light_port": "/nonexistent/tty9"})
+    hardware = plan_file(
+        tmp_path, points=2, name="hardware", lights=[{"instrument": "uwlab-ascii", "resource": "/nonexistent/tty9"}]
+    )
     out = tmp_path / "data"
     for _ in range(2):  # the same command fails the same way: on the device, not on the dataset it left
         code, _, err = run("sweep", hardware, "--out", out)
