@@ -118,6 +118,30 @@ def test_relative_flux_needs_a_level_one_reference():
         relative_flux(points.assign(irradiance_w_m2=[10.0, None]))
 
 
+def test_relative_flux_follows_a_light_drifting_during_a_sweep():
+    """A level-1 sweep whose light settles by 1 % while it runs (truth known), read with 0.1 % noise and one
+    glitched reading: each point's output is the drifting truth to within the noise, not the sweep's median; a
+    dimmed sweep is scaled by the level-1 reference and keeps its own drift."""
+    rng = np.random.default_rng(3)
+    index = np.arange(12)
+    truth = 1.005 - 0.01 * index / 11  # +0.5 % → −0.5 %
+    readings = 20.0 * truth * (1 + 0.001 * rng.standard_normal(12))
+    readings[4] *= 1.2  # a glitch
+    dimmed = 5.0 * truth[:5] * (1 + 0.001 * rng.standard_normal(5))
+    points = pd.DataFrame(
+        {
+            "sweep_id": ["full"] * 12 + ["dim"] * 5,
+            "point_index": np.concatenate([index, index[:5]]),
+            "light_level": [1.0] * 12 + [0.5] * 5,
+            "irradiance_w_m2": np.concatenate([readings, dimmed]),
+            "irradiance_position": ["target"] * 17,
+        }
+    )
+    flux = relative_flux(points)
+    assert np.max(np.abs(flux[:12] / truth - 1)) < 0.002  # the median alone would be off by up to 0.5 %
+    assert np.max(np.abs(flux[12:] / (0.25 * truth[:5]) - 1)) < 0.004
+
+
 def test_sampling_coordinates_round_trip_with_the_stated_jacobian(campaign):
     """u ↔ θ round trips, and log_u − log p(θ) equals ln|det ∂θ/∂u| computed by central differences."""
     points, rigs = campaign

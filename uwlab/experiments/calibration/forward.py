@@ -38,6 +38,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy.stats import theilslopes
 import pandas as pd
 from scipy.interpolate import CubicSpline
 
@@ -446,12 +447,20 @@ def _characterised_sensors(
 def relative_flux(points: pd.DataFrame) -> np.ndarray:
     """The light's output at each point relative to full output (level 1), from the spectrometer.
 
-    The light's level→flux curve is not assumed: the median irradiance of the points of one sweep, position and
-    level is divided by the median irradiance of all level-1 points at that position. Taking the median over a
-    sweep's points at one level (assumed steady over a sweep; each point's reading stays in the dataset) keeps the
-    reading noise of a dimmed light (read-noise limited) out of the predictions. The same normalisation, applied
-    to the level-1 sweeps, removes a drift of the light's output between sweeps (a lamp warming up). Points all at
-    level 1 without readings get 1.
+    The light's level→flux curve is not assumed: each point's irradiance is taken from the readings of its sweep,
+    position and level, divided by the median of those values over all level-1 points at that position. Within a
+    sweep at one level the readings follow a straight line in the point's place in the sweep (a robust Theil–Sen
+    line, Sen 1968, J. Am. Stat. Assoc. 63, 1379: the median of the pairwise slopes), so a light that drifts while
+    the sweep runs (an LED warming up) is followed, while the reading noise of a single point (a dimmed light is
+    read-noise limited) stays out of the predictions; the points are taken at a steady pace, so their place stands
+    for their time. With fewer than three points, or without ``point_index``, the group's median stands for all of
+    them. The same normalisation, applied to the level-1 sweeps, removes a drift of the light's output between
+    sweeps. Points all at level 1 without readings get 1.
+
+    >>> points = pd.DataFrame({"light_level": [1.0] * 4, "irradiance_w_m2": [10.3, 10.1, 9.9, 9.7],
+    ...                        "point_index": [0, 1, 2, 3]})
+    >>> relative_flux(points).round(4).tolist()
+    [1.03, 1.01, 0.99, 0.97]
     """
     levels = points["light_level"].to_numpy(float) if "light_level" in points else np.ones(len(points))
     readings = "irradiance_w_m2" in points and points["irradiance_w_m2"].notna().all()
@@ -469,18 +478,31 @@ def relative_flux(points: pd.DataFrame) -> np.ndarray:
         else np.full(len(points), "")
     )
     sweep = points["sweep_id"].astype(str).to_numpy() if "sweep_id" in points else np.full(len(points), "")
-    irradiance = pd.Series(points["irradiance_w_m2"].to_numpy(float))
-    level_median = irradiance.groupby([sweep, position, levels]).transform("median").to_numpy()
+    irradiance = points["irradiance_w_m2"].to_numpy(float)
+    place = points["point_index"].to_numpy(float) if "point_index" in points else None
+    steady = np.empty(len(points))
+    groups = pd.Series(np.arange(len(points))).groupby([sweep, position, levels]).indices
+    for rows in groups.values():
+        steady[rows] = _steady_reading(irradiance[rows], None if place is None else place[rows])
     out = np.empty(len(points))
     for pos in np.unique(position):
         here = position == pos
-        reference = irradiance.to_numpy()[here & (levels == 1.0)]
+        reference = steady[here & (levels == 1.0)]
         if reference.size == 0:
             raise ConfigError(
                 "light_level", pos, "no level-1 spectrometer reading at this position to normalise against"
             )
-        out[here] = level_median[here] / np.median(reference)
+        out[here] = steady[here] / np.median(reference)
     return out
+
+
+def _steady_reading(irradiance: np.ndarray, place: np.ndarray | None) -> np.ndarray:
+    """The readings of one sweep at one level as a Theil–Sen line in ``place`` (three or more distinct places),
+    else their median (`relative_flux`)."""
+    if place is None or np.unique(place).size < 3:
+        return np.full(irradiance.shape, np.median(irradiance))
+    slope, intercept, *_ = theilslopes(irradiance, place)
+    return intercept + slope * place
 
 
 def _scalar(design: Design, dotted: str) -> float:
