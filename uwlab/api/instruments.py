@@ -14,7 +14,10 @@ safe state) on any exit. Limits are checked before anything is sent; every setti
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
+
+from uwlab.errors import ConfigError
 
 from uwlab.experiments.acquisition.grab import Grabbed as Grab
 
@@ -82,8 +85,23 @@ def open_light(
     return serial.open_light(port, protocol, **options) if protocol else serial.open_light(port, **options)
 
 
-def open_spectrometer(port: str, protocol: str | None = None, **options: Any) -> Spectrometer:
-    """Open the spectrometer on a serial `port` (`uwlab.drivers.serial.open_spectrometer`). Returns the
+def open_spectrometer(
+    port: str | None = None,
+    protocol: str | None = None,
+    *,
+    instrument: str | None = None,
+    calibration: str | Path | None = None,
+    area_cm2: float | None = None,
+    backend: str | None = None,
+    integration_ms: float | None = None,
+    **options: Any,
+) -> Spectrometer:
+    """Open a spectrometer. With `instrument` (a definition in configs/instruments/, e.g. ``"ocean-insight"``:
+    an Ocean Insight spectrometer through python-seabreeze, docs/spectrometers.md), `port` is its serial number
+    (None: the first found), `calibration` the lamp calibration file (``wavelength_nm, uJ_per_count``) that turns
+    its counts into W/m²/nm, `area_cm2`, `backend` and `integration_ms` default to the definition's
+    (`uwlab.drivers.ocean_insight.open_instrument`; ``dark_mode`` in `options`). Without it, the ``uwlab-ascii``
+    spectrometer on a serial `port`, already calibrated (`uwlab.drivers.serial.open_spectrometer`). Returns the
     `Spectrometer` (a context manager).
 
     Examples
@@ -91,7 +109,25 @@ def open_spectrometer(port: str, protocol: str | None = None, **options: Any) ->
     >>> import uwlab
     >>> with uwlab.open_spectrometer("/dev/ttyUSB1") as spectrometer:  # doctest: +SKIP
     ...     wavelength_nm, irradiance_w_m2_nm = spectrometer.read_spectrum()
+    >>> with uwlab.open_spectrometer(instrument="ocean-insight", calibration="cc3-lamp.csv") as flame:  # doctest: +SKIP
+    ...     wavelength_nm, irradiance_w_m2_nm = flame.read_spectrum()
     """
+    if instrument is not None:
+        from uwlab.drivers.ocean_insight import open_instrument
+
+        if calibration is None:
+            raise ConfigError(
+                "calibration", None, f"{instrument} needs a calibration file (wavelength_nm, uJ_per_count)"
+            )
+        return open_instrument(
+            instrument, port, calibration, area_cm2, backend=backend, integration_ms=integration_ms, **options
+        )
+    given = {"calibration": calibration, "area_cm2": area_cm2, "backend": backend, "integration_ms": integration_ms}
+    for key, value in given.items():
+        if value is not None:
+            raise ConfigError(key, value, "needs instrument (a serial uwlab-ascii spectrometer is calibrated)")
+    if port is None:
+        raise ConfigError("port", None, "the serial port of the spectrometer (or give instrument)")
     from uwlab.drivers import serial
 
     if protocol:

@@ -7,8 +7,10 @@ from datetime import datetime, UTC
 
 from uwlab.progress import bar
 
-from uwlab.drivers.serial import PROTOCOLS, open_light, open_spectrometer
-from uwlab.drivers.serial.base import check_level
+from uwlab.api.instruments import open_light, open_spectrometer
+from uwlab.drivers.ocean_insight import read_dark
+from uwlab.drivers.serial import PROTOCOLS
+from uwlab.drivers.serial.base import check_integration_ms, check_level
 from uwlab.errors import ConfigError
 from uwlab.experiments.acquisition.light_calibration import calibrate_light, calibration_levels, save_light_calibration
 from uwlab.outputs import output_file
@@ -43,9 +45,35 @@ def register(subparsers) -> None:
         help="measure irradiance at N light levels",
         description="Step the light through N levels in [0, 1] and store the spectrum at each.",
     )
-    c.add_argument("--light", required=True, metavar="PORT", help="serial port of the light")
-    c.add_argument("--spectrometer", required=True, metavar="PORT", help="serial port of the spectrometer")
-    c.add_argument("--protocol", choices=PROTOCOLS, default=PROTOCOLS[0], help="instrument protocol")
+    light = c.add_argument_group("the light (one of)")
+    light.add_argument("--light", metavar="PORT", help="serial port of a uwlab-ascii light")
+    light.add_argument(
+        "--instrument", metavar="NAME|FILE", help="light by instrument definition (configs/instruments/)"
+    )
+    light.add_argument("--resource", metavar="RESOURCE", help="VISA resource (or serial port) of --instrument")
+    light.add_argument("--visa-library", metavar="LIB", help="PyVISA library: @py (default), PATH.yaml@sim, a vendor's")
+    light.add_argument(
+        "--max-current-a", type=float, help="the rig's maximum drive [A]: full level (default: the definition's)"
+    )
+    spectrometer = c.add_argument_group("the spectrometer (one of)")
+    spectrometer.add_argument("--spectrometer", metavar="PORT", help="serial port of a uwlab-ascii spectrometer")
+    spectrometer.add_argument(
+        "--spectrometer-instrument",
+        metavar="NAME",
+        help="spectrometer by instrument definition (ocean-insight: python-seabreeze; docs/spectrometers.md)",
+    )
+    spectrometer.add_argument(
+        "--spectrometer-resource", metavar="SERIAL", help="its serial number (default: the first)"
+    )
+    spectrometer.add_argument(
+        "--calibration", metavar="FILE.csv", help="its irradiance calibration (wavelength_nm, uJ_per_count)"
+    )
+    spectrometer.add_argument("--area-cm2", type=float, help="its collection area [cm²] (default: the definition's)")
+    spectrometer.add_argument(
+        "--dark", metavar="FILE.csv", help="a dark spectrum (default: the device's electric dark)"
+    )
+    spectrometer.add_argument("--integration-ms", type=float, help="its integration time [ms] (halved while saturated)")
+    c.add_argument("--protocol", choices=PROTOCOLS, default=PROTOCOLS[0], help="protocol of --light/--spectrometer")
     c.add_argument("--levels", type=int, default=11, help="number of levels, evenly spaced over [0, 1] (default 11)")
     c.add_argument(
         "--out",
@@ -81,15 +109,13 @@ def run(args) -> int:
 
 def run_instrument(args) -> int:
     """``--instrument NAME --resource RESOURCE``: set, then print the read-back (on, level, drive, measured)."""
-    from uwlab.drivers.instruments import open_light_instrument
-
     if args.port is not None:
         raise ConfigError("port", args.port, "give either --port or --instrument")
     if args.resource is None:
         raise ConfigError("resource", None, "--instrument needs --resource (uwlab devices lists them)")
     if args.level is not None:
         check_level(args.level)
-    with open_light_instrument(args.instrument, args.resource, args.visa_library) as light:
+    with open_light(args.resource, instrument=args.instrument, visa_library=args.visa_library) as light:
         if args.level is not None:
             light.set_level(args.level)
         if args.output is not None:
@@ -109,17 +135,24 @@ def run_instrument(args) -> int:
 
 
 def run_calibrate(args) -> int:
+    """The light by port or definition, the spectrometer by port or definition; every input is checked before
+    either is opened, and the light goes to its safe state on any exit."""
     levels = calibration_levels(args.levels)
     out = output_file(args.out, "--out")
+    light_options, light_name = _calibration_light(args)
+    spectrometer_options, spectrometer_name = _calibration_spectrometer(args)
+    dark = None if args.dark is None else read_dark(args.dark)
     with (
-        open_light(args.light, args.protocol) as light,
-        open_spectrometer(args.spectrometer, args.protocol) as spectrometer,
+        open_spectrometer(**spectrometer_options) as spectrometer,  # first: its files are checked on opening
+        open_light(**light_options) as light,
         bar(total=len(levels), desc="light levels", unit="level") as shown,
     ):
+        if dark is not None:
+            spectrometer.use_dark(dark, args.dark)
         comments = [
             f"uwlab light calibration, {datetime.now(UTC).isoformat(timespec='seconds')}",
-            f"light: {args.light} ({light.identity()})",
-            f"spectrometer: {args.spectrometer} ({spectrometer.identity()})",
+            f"light: {light_name} ({light.identity()})",
+            f"spectrometer: {spectrometer_name} ({spectrometer.identity()})",
         ]
         calibration = calibrate_light(light, spectrometer, levels, lambda done, total: shown.update(1))
     save_light_calibration(out, calibration, comments)
@@ -137,3 +170,51 @@ def run_calibrate(args) -> int:
         for row in zip(result["level"], result["irradiance_w_m2"], result["illuminance_lux"], strict=True):
             print(f"{row[0]:8.3f} {row[1]:16.6g} {row[2]:16.6g}")
     return 0
+
+
+def _calibration_light(args) -> tuple[dict, str]:
+    """`uwlab.open_light`'s arguments and the light's name in the file, from --light or --instrument."""
+    if (args.light is None) == (args.instrument is None):
+        raise ConfigError("light", args.light or args.instrument, "give either --light PORT or --instrument NAME")
+    if args.light is not None:
+        extra = next((k for k in ("resource", "visa_library", "max_current_a") if getattr(args, k) is not None), None)
+        if extra is not None:
+            raise ConfigError(extra.replace("_", "-"), getattr(args, extra), "needs --instrument (not --light)")
+        return {"port": args.light, "protocol": args.protocol}, args.light
+    if args.resource is None:
+        raise ConfigError("resource", None, "--instrument needs --resource (uwlab devices lists them)")
+    options = {
+        "port": args.resource,
+        "instrument": args.instrument,
+        "visa_library": args.visa_library,
+        "max_current_a": args.max_current_a,
+    }
+    return options, f"{args.instrument} on {args.resource}"
+
+
+def _calibration_spectrometer(args) -> tuple[dict, str]:
+    """`uwlab.open_spectrometer`'s arguments and the spectrometer's name in the file."""
+    if (args.spectrometer is None) == (args.spectrometer_instrument is None):
+        raise ConfigError(
+            "spectrometer",
+            args.spectrometer or args.spectrometer_instrument,
+            "give either --spectrometer PORT or --spectrometer-instrument NAME",
+        )
+    if args.spectrometer is not None:
+        keys = ("spectrometer_resource", "calibration", "area_cm2", "dark", "integration_ms")
+        extra = next((k for k in keys if getattr(args, k) is not None), None)
+        if extra is not None:
+            raise ConfigError(extra.replace("_", "-"), getattr(args, extra), "needs --spectrometer-instrument")
+        return {"port": args.spectrometer, "protocol": args.protocol}, args.spectrometer
+    if args.integration_ms is not None:
+        check_integration_ms(args.integration_ms)
+    options = {
+        "port": args.spectrometer_resource,
+        "instrument": args.spectrometer_instrument,
+        "calibration": args.calibration,
+        "area_cm2": args.area_cm2,
+        "integration_ms": args.integration_ms,
+        "dark_mode": "electric" if args.dark is None else "measured",
+    }
+    where = args.spectrometer_resource or "the first found"
+    return options, f"{args.spectrometer_instrument} {where}, calibration {args.calibration}"
