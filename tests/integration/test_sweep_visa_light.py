@@ -110,3 +110,20 @@ def test_ctrl_c_or_an_error_mid_sweep_leaves_the_light_dark_and_says_so(tmp_path
     data = Dataset.open(tmp_path / "d")
     assert len(data.points()) == 1  # the point completed before the interruption is kept
     assert data.metadata["lights_safe_state"]["led"]["off"] is True
+
+
+def test_the_dataset_records_which_placement_each_light_drives(tmp_path):
+    rig = tmp_path / "placed.toml"
+    rig.write_text(
+        (CONFIGS / "rigs" / "sim-tank.toml").read_text() + '\n[[lights]]\nname = "led"\nposition_m = [0.0, -0.1, 0.0]\n'
+    )
+    plan = load_plan(
+        write_plan(
+            tmp_path / "placed-plan.toml", "placed", [SWEEP], rig=rig, camera=camera(32, 24), lights=[keysight()]
+        )
+    )
+    data = Dataset.open(run_session(plan, tmp_path / "placed", sim=True))
+    assert data.metadata["devices"]["l"]["light_placements"] == {
+        "led": {"placement": 0, "position_m": [0.0, -0.1, 0.0]}
+    }
+    assert data.metadata["rigs"]["l"]["lights"][0]["name"] == "led"  # the resolved rig the fit reads

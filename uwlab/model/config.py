@@ -162,6 +162,9 @@ class LightPlacement(Schema):
     """Extended model: one light of the [[lights]] array, placed in the camera frame (x right, y down, z along the
     optical axis from the camera's port) [m]; unset beam keys are [light]'s."""
 
+    name: NonEmptyText | None = Field(
+        None, description="the light's name: the sweep plan's [[lights]] table of this name drives it"
+    )
     position_m: tuple[PositionM, PositionM, PositionM] = Field(description="the light's position [x, y, z] [m]")
     aim_m: tuple[PositionM, PositionM, PositionM] | None = Field(
         None, description="a point the light is aimed at [m] (default: along the optical axis)"

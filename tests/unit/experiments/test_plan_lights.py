@@ -109,3 +109,41 @@ def test_points_written_before_the_light_current_columns_still_read():
     assert table.schema == POINT_SCHEMA
     assert table.column("light_level_readback").to_pylist() == [0.5]
     assert all(table.column(name).to_pylist() == [None] for name in new)
+
+
+def placed_rig(tmp_path, *names: str | None) -> str:
+    """The simulated tank's rig with one [[lights]] placement per name (None: unnamed), 10 cm apart."""
+    text = (CONFIGS / "rigs" / "sim-tank.toml").read_text()
+    for number, name in enumerate(names):
+        named = "" if name is None else f'name = "{name}"\n'
+        text += f"\n[[lights]]\n{named}position_m = [{0.1 * number}, -0.1, 0.0]\n"
+    path = tmp_path / "placed-rig.toml"
+    path.write_text(text)
+    return str(path)
+
+
+def test_each_plan_light_drives_the_rig_placement_of_its_name(tmp_path):
+    rig = placed_rig(tmp_path, "key", "fill")
+    p = plan(tmp_path, light(name="fill", level=0.5), light(name="key"), rig=rig)
+    assert {spec.name: spec.placement for spec in p.lights} == {"fill": 1, "key": 0}
+
+
+def test_unnamed_placements_are_driven_in_order(tmp_path):
+    p = plan(tmp_path, light(name="a"), light(name="b"), rig=placed_rig(tmp_path, None, None))
+    assert [spec.placement for spec in p.lights] == [0, 1]
+    # a rig that places none (the paper's light.count identical lights): no placement to drive
+    assert [spec.placement for spec in plan(tmp_path, light(), light()).lights] == [None, None]
+
+
+@pytest.mark.parametrize(
+    ("names", "lights", "key", "says"),
+    [
+        ((None, None), [light()], "lights", "places 2 lights"),
+        ((None,), [light(), light()], "lights", "places 1 lights"),
+        (("key", "fill"), [light(name="key"), light(name="rim")], "lights[1].name", "places key, fill"),
+    ],
+)
+def test_a_light_without_its_placement_is_refused(tmp_path, names, lights, key, says):
+    with pytest.raises(ConfigError) as error:
+        plan(tmp_path, *lights, rig=placed_rig(tmp_path, *names))
+    assert error.value.key == key and says in str(error.value)

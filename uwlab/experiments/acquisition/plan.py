@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import copy
 import hashlib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -390,6 +390,7 @@ class LightSpec:
     visa_library: str | None
     max_current_a: float | None
     level: float
+    placement: int | None = None  # the rig's [[lights]] placement it drives (None: the rig places none)
 
 
 @dataclass(frozen=True)
@@ -432,7 +433,7 @@ def parse_plan(raw: dict, path: Path, sha256: str) -> Plan:
     duplicated = sorted({i for i in ids if ids.count(i) > 1})
     if duplicated:
         raise ConfigError("sweep.id", duplicated[0], "sweep ids must be unique within the plan")
-    lights = _lights(plan, path.resolve().parent)
+    lights = _placed(_lights(plan, path.resolve().parent), sweeps, rig_path)
     for sweep in sweeps:
         if sweep.light is not None and sweep.light not in {light.name for light in lights}:
             known = ", ".join(light.name for light in lights) or "none: the plan has no [[lights]]"
@@ -468,6 +469,38 @@ def _lights(plan: PlanFile, plan_dir: Path) -> tuple[LightSpec, ...]:
             raise ConfigError(f"lights[{index}].name", name, "light names must be unique within the plan")
         lights.append(LightSpec(name, table.instrument, table.resource, library, table.max_current_a, table.level))
     return tuple(lights)
+
+
+def _placed(lights: tuple[LightSpec, ...], sweeps: list[SweepSpec], rig_path: Path) -> tuple[LightSpec, ...]:
+    """Each plan light joined to the rig's placement it drives (the extended model's [[lights]] in the rig): by
+    name where the rig names its placements, else in order, one instrument per placement. Every sweep's resolved
+    rig must place the same lights. A rig without placements (the paper's ``light.count`` identical lights, lit
+    together) joins none."""
+    placements = [sweep.rig_raw.get("lights") or [] for sweep in sweeps]
+    first = placements[0] if placements else []
+    for sweep, placed in zip(sweeps, placements, strict=True):
+        if [light.get("name") for light in placed] != [light.get("name") for light in first]:
+            raise ConfigError(
+                f"sweep.{sweep.id}.geometry.lights", len(placed), "every sweep must place the plan's lights alike"
+            )
+    if not lights or not first:
+        return lights
+    names = [light.get("name") for light in first]
+    if any(name is not None for name in names):
+        index = {name: i for i, name in enumerate(names)}
+        for number, light in enumerate(lights):
+            if light.name not in index:
+                known = ", ".join(str(n) for n in names)
+                raise ConfigError(f"lights[{number}].name", light.name, f"the rig {rig_path.name} places {known}")
+        return tuple(replace(light, placement=index[light.name]) for light in lights)
+    if len(lights) != len(first):
+        raise ConfigError(
+            "lights",
+            len(lights),
+            f"the rig {rig_path.name} places {len(first)} lights ([[lights]]): give one instrument per placement, "
+            "in the same order (or name the placements)",
+        )
+    return tuple(replace(light, placement=number) for number, light in enumerate(lights))
 
 
 def _check_light_instrument(index: int, table: LightTable) -> None:

@@ -205,6 +205,14 @@ class SweepRunner:
             },
             "light": self.rig.lights[self._swept].identity() if self._swept is not None else None,
             "lights": {name: light.identity() for name, light in self.rig.lights.items()},
+            "light_placements": {
+                spec.name: {
+                    "placement": spec.placement,
+                    "position_m": sweep.rig_raw["lights"][spec.placement]["position_m"],
+                }
+                for spec in self.plan.lights
+                if spec.placement is not None
+            },
             "spectrometer": self.rig.spectrometer.identity() if self.rig.spectrometer is not None else None,
         }
         changes = {"devices": {sweep.id: devices}, "rigs": {sweep.id: resolved_rig(sweep.design)}}
