@@ -11,10 +11,11 @@ from __future__ import annotations
 import json
 import sys
 
-from uwlab.drivers.ocean_insight import open_instrument, read_dark, write_dark
+from uwlab.api.instruments import open_spectrometer
+from uwlab.drivers.ocean_insight import read_dark, write_dark
 from uwlab.drivers.ocean_insight.definition import BACKENDS
 from uwlab.drivers.ocean_insight.device import DarkMode, DarkSpectrum
-from uwlab.drivers.serial import PROTOCOLS, open_spectrometer
+from uwlab.drivers.serial import PROTOCOLS
 from uwlab.drivers.serial.base import check_averaging, check_integration_ms
 from uwlab.errors import ConfigError
 from uwlab.experiments.acquisition.spectra import read_sekonic_csv, spectrum_summary, write_spectrum_csv
@@ -128,10 +129,6 @@ def _confirm(message: str) -> None:
 def _measure_ocean(args) -> tuple[tuple, bool, dict[str, object], DarkSpectrum | None]:
     """((wavelength_nm, irradiance_w_m2_nm), saturated, what the reading used, the dark measured now or None)
     from a seabreeze spectrometer; every file and value is checked before the device is opened."""
-    if args.calibration is None:
-        raise ConfigError(
-            "calibration", None, "--instrument needs --calibration FILE.csv (wavelength_nm, uJ_per_count)"
-        )
     if args.save_dark is not None and not args.dark_now:
         raise ConfigError("save-dark", args.save_dark, "needs --dark-now")
     if args.integration_ms is not None:
@@ -143,11 +140,11 @@ def _measure_ocean(args) -> tuple[tuple, bool, dict[str, object], DarkSpectrum |
             "dark", args.dark, "a dark file fixes the integration time; use --dark-now with --auto-integration"
         )
     dark_mode: DarkMode = "electric" if dark_file is None and not args.dark_now else "measured"
-    with open_instrument(
-        args.instrument,
+    with open_spectrometer(
         args.resource,
-        args.calibration,
-        args.area_cm2,
+        instrument=args.instrument,
+        calibration=args.calibration,
+        area_cm2=args.area_cm2,
         backend=args.backend,
         integration_ms=args.integration_ms,
         dark_mode=dark_mode,
