@@ -139,3 +139,9 @@ def test_bad_options_are_refused_before_the_device_is_opened(lamp, capsys, tmp_p
 def test_seabreeze_options_need_instrument(capsys):
     err = one_line_error(capsys, ["spectrum", "--port", "/dev/null", "--calibration", CALIBRATION])
     assert "calibration" in err and "needs --instrument" in err
+
+
+def test_an_instrument_without_its_calibration_is_refused_before_opening(lamp, capsys):
+    err = one_line_error(capsys, ["spectrum", "--instrument", "ocean-insight", "--json"])
+    assert "calibration" in err and "uJ_per_count" in err
+    assert lamp.integration_us is None and not lamp.is_open
