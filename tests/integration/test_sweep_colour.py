@@ -15,8 +15,10 @@ import numpy as np
 import pytest
 
 from uwlab.cli.main import main
+from uwlab.errors import ConfigError
 from uwlab.experiments.acquisition.plan import load_plan
-from uwlab.experiments.dataset import CHANNEL_FIELDS, Dataset
+from uwlab.experiments.calibration.forward import build_forward_model
+from uwlab.experiments.dataset import CHANNEL_FIELDS, Dataset, channel_view
 from uwlab.experiments.frames.frame import CHANNEL_NAMES
 from uwlab.model.evaluation import evaluate
 
@@ -99,6 +101,29 @@ def test_a_mono_point_has_no_channel_columns(colour_sweep):
     mono = data.points().set_index("sweep_id").loc[["mono"]]
     assert mono["bayer"].isna().all()
     assert all(mono[name].isna().all() for name, _ in CHANNEL_FIELDS)
+    with pytest.raises(ConfigError, match="sweeps mono have no per-channel columns"):
+        channel_view(data.points(), "red")
+
+
+def test_the_fits_forward_model_predicts_each_channel_with_its_own_qe(colour_sweep):
+    """The fit's forward model (`uwlab.experiments.calibration.forward`) at the nominal parameters and the rig's true
+    light efficiency predicts each channel's points within 2 %; the mosaic's combined QE would miss red and blue by
+    far more."""
+    _, data = colour_sweep
+    points = data.points()
+    points = points[points["sweep_id"] == "colour"].reset_index(drop=True)
+    efficiency = data.metadata["sim_truth"]["colour"]["light_efficiency"]
+    predictions = {}
+    for channel in CHANNEL_NAMES.values():
+        view = channel_view(points, channel)
+        model = build_forward_model(view, data.metadata["rigs"], ("light_efficiency",))
+        predictions[channel] = model.predict(np.array([[efficiency]]))[0]
+        difference = view["signal_dn"].to_numpy(float) / predictions[channel] - 1
+        print(channel, [f"{100 * d:+.2f} %" for d in difference])
+        assert np.abs(difference).max() < 0.02, channel
+    mosaic = build_forward_model(points, data.metadata["rigs"], ("light_efficiency",)).predict(np.array([[efficiency]]))
+    np.testing.assert_allclose(mosaic[0], points["signal_dn"], rtol=0.02)  # the mosaic with the combined QE
+    assert abs(predictions["red"] / mosaic[0] - 1).min() > 0.2 and abs(predictions["blue"] / mosaic[0] - 1).min() > 0.2
 
 
 COLOUR_CAMERA = {"pixel_format": "BayerRG12", "window": WINDOW}
@@ -133,3 +158,44 @@ def test_a_bayer_layout_the_camera_does_not_deliver_is_refused_before_anything_i
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and shown in err and device in err, err
     assert Dataset.open(out).points().empty
+
+
+def test_a_fit_of_one_channel_recovers_the_light_from_that_channels_qe(tmp_path, sim_rig):
+    """``uwlab.fit(..., channel="red")`` on a two-lens colour campaign: the light efficiency (the rig's truth, which
+    the fit never sees) is recovered from the red sites alone; predicting them with the mosaic's combined QE would
+    put it near 0.46."""
+    import uwlab
+
+    lenses = [
+        {"focal_length_mm": 30, "f_number": 2.0, "f_number_range": [2.0, 16.0]},
+        {"focal_length_mm": 12, "f_number": 4.0, "f_number_range": [1.4, 16.0]},
+    ]
+    sweeps = [
+        {
+            "id": f"lens{i}",
+            "kind": "exposure",
+            "values": {"start": 50 * (4 if i else 1), "stop": 600 * (4 if i else 1), "num": 8},
+            "sensor": "imx250c",
+            "lens": lens,
+            "camera": {"pixel_format": "BayerRG12", "window": WINDOW, "bayer": "RG"},
+        }
+        for i, lens in enumerate(lenses)
+    ]
+    plan = load_plan(write_plan(tmp_path / "plan.toml", "campaign", sweeps, defaults={"frames_per_point": 2}))
+    data = record(plan, tmp_path / "data", sim_rig)
+    fit = uwlab.fit(tmp_path / "data", "paper", channel="red", progress=False, max_steps=1000, chunk_steps=500)
+    assert fit.summary["channel"] == "red"
+    efficiency = fit.parameters.loc["light_efficiency"]
+    truth = data.metadata["sim_truth"]["lens0"]["light_efficiency"]
+    assert efficiency["p2_5"] < truth < efficiency["p97_5"]
+    assert efficiency["median"] == pytest.approx(truth, rel=0.05)
+    # the red sites read with the combined QE: 0.8 × (red signal / mosaic signal) ≈ 0.46, outside the 95 % interval
+    assert efficiency["p2_5"] > 0.55
+
+
+def test_fitting_a_channel_of_monochrome_points_is_refused_in_one_line(colour_sweep, capsys, tmp_path):
+    _, data = colour_sweep
+    assert main(["fit", str(data.root), "--channel", "red", "--out", str(tmp_path / "fit")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "--channel = 'red': sweeps mono have no per-channel columns" in err, err
+    assert not (tmp_path / "fit").exists()

@@ -311,6 +311,40 @@ def _channel_columns(bright: StackStatistics, dark: StackStatistics | None, satu
     return columns
 
 
+# The whole-ROI columns a channel's own replace in `channel_view`.
+CHANNEL_VIEW_COLUMNS = (
+    "mean_dn",
+    "temporal_var_dn2",
+    "spatial_var_dn2",
+    "dark_mean_dn",
+    "dark_temporal_var_dn2",
+    "dark_spatial_var_dn2",
+    "signal_dn",
+    "saturated_fraction",
+    "saturated",
+)
+
+
+def channel_view(points: pd.DataFrame, channel: str) -> pd.DataFrame:
+    """The points as one colour ``channel`` ("red", "green", "blue") of their Bayer mosaics saw them: the whole-ROI
+    statistics (`CHANNEL_VIEW_COLUMNS`) replaced by the channel's own, ``pixels`` its sites per frame and
+    ``channel`` its name (the design model's ``sensor.channel``), so that anything reading a point (the fit's
+    forward model, a photon-transfer check) reads the channel as a sensor of its own (EMVA 1288 Release 4.0 Linear
+    §1.2). Points without the channel's columns (monochrome, or recorded before they existed) are refused:
+    `ConfigError` naming their sweeps.
+    """
+    if channel not in CHANNEL_NAMES.values():
+        raise ConfigError("channel", channel, f"must be one of {', '.join(CHANNEL_NAMES.values())}")
+    missing = points[f"{channel}_mean_dn"].isna() if f"{channel}_mean_dn" in points else pd.Series(True, points.index)
+    if missing.any():
+        sweeps = ", ".join(dict.fromkeys(points.loc[missing, "sweep_id"].astype(str)))
+        raise ConfigError("channel", channel, f"sweeps {sweeps} have no per-channel columns (not a Bayer format)")
+    view = points.copy()
+    for column in CHANNEL_VIEW_COLUMNS:
+        view[column] = points[f"{channel}_{column}"]
+    return view.assign(pixels=points[f"{channel}_pixels"], channel=channel)
+
+
 def _split_columns(prefix: str, stats: StackStatistics | None) -> dict:
     spatial = stats.spatial if stats is not None else None
     return {
