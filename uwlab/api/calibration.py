@@ -156,6 +156,7 @@ def fit(
     *,
     config: str | os.PathLike[str] | None = None,
     train: list[str] | None = None,
+    channel: str | None = None,
     progress: bool = True,
     **sampler: int,
 ) -> Fit:
@@ -174,6 +175,9 @@ def fit(
         the dataset's cameras).
     train
         The sweeps the held-out check fits (it predicts the others).
+    channel
+        ``"red"``, ``"green"`` or ``"blue"``: fit that colour channel of a Bayer dataset with the profile's QE of
+        that channel (``uwlab fit --channel``); None: the whole mosaic with its combined QE.
     progress
         Show the sampling progress (a terminal or a notebook).
     **sampler
@@ -208,6 +212,7 @@ def fit(
             progress=update,
             model=model,
             sampler=dict(sampler) or None,
+            channel=channel,
         )
     return Fit.open(target)
 

@@ -38,6 +38,12 @@ def register(subparsers) -> None:
         help="use the camera as characterised by `uwlab emva characterize` (FROM: its profile TOML or output "
         "folder): its measured response curve, with its uncertainty, enters the model (repeat per camera)",
     )
+    p.add_argument(
+        "--channel",
+        choices=("red", "green", "blue"),
+        help="fit one colour channel of a Bayer dataset, predicted with the profile's QE of that channel "
+        "(default: the whole mosaic, with its combined QE)",
+    )
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(func=run)
 
@@ -49,14 +55,21 @@ def run(args) -> int:
     bar, update = tau_bar("sampling")
     with bar:
         calibration = calibrate(
-            args.dataset, args.config, out, args.train, progress=update, model=args.model, sensors=args.sensor
+            args.dataset,
+            args.config,
+            out,
+            args.train,
+            progress=update,
+            model=args.model,
+            sensors=args.sensor,
+            channel=args.channel,
         )
     summary = calibration.summary
     if args.json:
         json.dump(summary, sys.stdout, indent=2)
         sys.stdout.write("\n")
         return 0
-    print(f"calibration written to {out}")
+    print(f"calibration written to {out}" + (f" ({args.channel} channel)" if args.channel else ""))
     coverage = summary["predictive_coverage"]
     print(
         f"{summary['model']} model: {'adequate' if summary['model_adequate'] else 'NOT adequate'}; "

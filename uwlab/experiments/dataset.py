@@ -59,6 +59,7 @@ from uwlab.experiments.dataset_store import (
     read_sealed,
     write_sealed,
 )
+from uwlab.experiments.frames.frame import CHANNEL_NAMES
 from uwlab.experiments.frames.stack import StackStatistics
 from uwlab.experiments.saturation import POINT_SATURATED_FRACTION, ClipLevel, point_saturated
 from uwlab.jsonable import dumps
@@ -93,6 +94,23 @@ SOFTWARE_PACKAGES = (
     "emcee",
 )
 
+# The per-channel columns of a raw Bayer point, ``<channel>_<statistic>`` with the design model's channel names
+# (``sensor.channel``: red, green, blue); null for a monochrome point (`point_row`).
+CHANNEL_STATISTICS = (
+    ("pixels", pa.int64()),
+    ("mean_dn", pa.float64()),
+    ("temporal_var_dn2", pa.float64()),
+    ("spatial_var_dn2", pa.float64()),
+    ("dark_mean_dn", pa.float64()),
+    ("dark_temporal_var_dn2", pa.float64()),
+    ("dark_spatial_var_dn2", pa.float64()),
+    ("signal_dn", pa.float64()),
+    ("saturated_fraction", pa.float64()),
+    ("saturated", pa.bool_()),
+)
+CHANNEL_FIELDS = tuple(
+    (f"{channel}_{statistic}", kind) for channel in CHANNEL_NAMES.values() for statistic, kind in CHANNEL_STATISTICS
+)
 POINT_SCHEMA = pa.schema(
     [
         ("sweep_id", pa.string()),
@@ -135,6 +153,8 @@ POINT_SCHEMA = pa.schema(
         ("saturated", pa.bool_()),
         ("clip_level_dn", pa.float64()),
         ("clip_source", pa.string()),
+        ("bayer", pa.string()),
+        *CHANNEL_FIELDS,
         ("exposure_us_readback", pa.float64()),
         ("gain_db_readback", pa.float64()),
         ("light_on_readback", pa.bool_()),
@@ -232,9 +252,13 @@ def point_row(
     for a ROI too small for the highpass), ``mean_diff_dn`` (μ[0] − μ[1] of the first frame pair), the ``dark_*``
     columns and ``signal_dn = mean_dn − dark_mean_dn`` (null without dark frames); from the clip level and the one
     saturation rule (`uwlab.experiments.saturation`) ``saturated_fraction``, ``saturated``, ``clip_level_dn`` and
-    ``clip_source``. ``columns`` are the settings and identity columns of `POINT_SCHEMA` (camera, lens, exposure,
-    read-backs, irradiance, times, ...); a column given twice, an unknown column or a missing required one raises
-    `ConfigError` naming it.
+    ``clip_source``. A raw Bayer point (``bright.channels``, `uwlab.experiments.frames.stack`) has the same per
+    colour channel, ``<red|green|blue>_<statistic>`` (`CHANNEL_STATISTICS`: its ``pixels`` per frame, the means,
+    variances and ``signal_dn`` = its mean − its dark mean, its saturated fraction at the frame's one clip level and
+    the flag by the same threshold; EMVA 1288 Release 4.0 Linear §1.2: each channel is a sensor of its own); they
+    are null for a monochrome point. ``columns`` are the settings and identity columns of `POINT_SCHEMA` (camera,
+    lens, exposure, read-backs, irradiance, times, the Bayer layout ``bayer``, ...); a column given twice, an
+    unknown column or a missing required one raises `ConfigError` naming it.
     """
     derived = {
         "frames": bright.frames,
@@ -253,11 +277,72 @@ def point_row(
         "saturated": point_saturated(bright.saturated_fraction, saturation_threshold),
         "clip_level_dn": clip.dn,
         "clip_source": clip.source,
+        **_channel_columns(bright, dark, saturation_threshold),
     }
     twice = sorted(set(derived) & set(columns))
     if twice:
         raise ConfigError(f"point.{twice[0]}", columns[twice[0]], "derived from the frame statistics; do not pass it")
     return check_point_row({"sweep_id": sweep_id, "point_index": point_index, "kind": kind, **derived, **columns})
+
+
+def _channel_columns(bright: StackStatistics, dark: StackStatistics | None, saturation_threshold: float) -> dict:
+    """The per-channel columns of a Bayer point (`CHANNEL_STATISTICS`), {} for a monochrome one."""
+    if bright.channels is None:
+        return {}
+    dark_channels = None if dark is None else dark.channels
+    if dark is not None and dark_channels is None:
+        raise ConfigError("point.dark", "monochrome", "the bright frames are Bayer: dark frames must be too")
+    columns: dict[str, Any] = {}
+    for colour, channel in CHANNEL_NAMES.items():
+        lit = bright.channels[colour]
+        unlit = dark_channels[colour] if dark_channels is not None else None
+        columns |= {
+            f"{channel}_pixels": lit.pixels,
+            f"{channel}_mean_dn": lit.mean_dn,
+            f"{channel}_temporal_var_dn2": lit.temporal_var_dn2,
+            f"{channel}_spatial_var_dn2": lit.spatial_var_dn2,
+            f"{channel}_dark_mean_dn": unlit.mean_dn if unlit else None,
+            f"{channel}_dark_temporal_var_dn2": unlit.temporal_var_dn2 if unlit else None,
+            f"{channel}_dark_spatial_var_dn2": unlit.spatial_var_dn2 if unlit else None,
+            f"{channel}_signal_dn": lit.mean_dn - unlit.mean_dn if unlit else None,
+            f"{channel}_saturated_fraction": lit.saturated_fraction,
+            f"{channel}_saturated": point_saturated(lit.saturated_fraction, saturation_threshold),
+        }
+    return columns
+
+
+# The whole-ROI columns a channel's own replace in `channel_view`.
+CHANNEL_VIEW_COLUMNS = (
+    "mean_dn",
+    "temporal_var_dn2",
+    "spatial_var_dn2",
+    "dark_mean_dn",
+    "dark_temporal_var_dn2",
+    "dark_spatial_var_dn2",
+    "signal_dn",
+    "saturated_fraction",
+    "saturated",
+)
+
+
+def channel_view(points: pd.DataFrame, channel: str) -> pd.DataFrame:
+    """The points as one colour ``channel`` ("red", "green", "blue") of their Bayer mosaics saw them: the whole-ROI
+    statistics (`CHANNEL_VIEW_COLUMNS`) replaced by the channel's own, ``pixels`` its sites per frame and
+    ``channel`` its name (the design model's ``sensor.channel``), so that anything reading a point (the fit's
+    forward model, a photon-transfer check) reads the channel as a sensor of its own (EMVA 1288 Release 4.0 Linear
+    §1.2). Points without the channel's columns (monochrome, or recorded before they existed) are refused:
+    `ConfigError` naming their sweeps.
+    """
+    if channel not in CHANNEL_NAMES.values():
+        raise ConfigError("channel", channel, f"must be one of {', '.join(CHANNEL_NAMES.values())}")
+    missing = points[f"{channel}_mean_dn"].isna() if f"{channel}_mean_dn" in points else pd.Series(True, points.index)
+    if missing.any():
+        sweeps = ", ".join(dict.fromkeys(points.loc[missing, "sweep_id"].astype(str)))
+        raise ConfigError("channel", channel, f"sweeps {sweeps} have no per-channel columns (not a Bayer format)")
+    view = points.copy()
+    for column in CHANNEL_VIEW_COLUMNS:
+        view[column] = points[f"{channel}_{column}"]
+    return view.assign(pixels=points[f"{channel}_pixels"], channel=channel)
 
 
 def _split_columns(prefix: str, stats: StackStatistics | None) -> dict:

@@ -6,7 +6,9 @@ Schema (docs/sweeps.md has a commented example). Top level:
   simulated rig's ``[sim]``) or an EMVA 1288 bench (a ``[bench]`` table, `uwlab.model.bench`), relative to the plan
   file; ``[geometry]``: design sections overriding the rig for
   every sweep (``[geometry.light] distance_m = 1.2``);
-- ``[camera]``: ``backend``, ``id``, ``pixel_format``, ``window`` = [x, y, w, h] (device ROI), ``timeout_s``,
+- ``[camera]``: ``backend``, ``id``, ``pixel_format``, ``bayer`` (the colour filter layout the camera must deliver,
+  ``"RG"``, ``"GR"``, ``"GB"`` or ``"BG"``: a device whose PixelFormat is another layout or monochrome is refused
+  before anything is recorded), ``window`` = [x, y, w, h] (device ROI), ``timeout_s``,
   ``reconnect_attempts`` and ``outage_limit_s`` (the reconnect bounds of `uwlab.drivers.camera.Policy`);
 - ``[[lights]]``: one table per light, each its own instrument: ``name`` (default ``light<i>``), ``instrument`` (a
   definition in configs/instruments/ or a file, `uwlab.drivers.instruments`), ``resource`` (its VISA resource),
@@ -53,7 +55,7 @@ from pydantic import AfterValidator, BeforeValidator, ConfigDict, Field, StrictB
 from pydantic_core import PydanticCustomError
 
 from uwlab.drivers.camera import BACKENDS, Policy
-from uwlab.drivers.camera.pixels import PIXEL_FORMATS
+from uwlab.drivers.camera.pixels import BAYER_LAYOUTS, PIXEL_FORMATS
 from uwlab.drivers.instruments import load_any_light_definition
 from uwlab.drivers.ocean_insight.definition import CollectionAreaCm2
 from uwlab.drivers.serial import PROTOCOLS
@@ -135,6 +137,9 @@ class CameraSpec(Schema):
     backend: Literal[tuple(BACKENDS)] = Field("sim", description="camera backend")
     device_id: NonEmptyText | None = Field(None, alias="id", description="device id (default: the first found)")
     pixel_format: Literal[tuple(PIXEL_FORMATS)] | None = Field(None, description="pixel format (default: the camera's)")
+    bayer: Literal[BAYER_LAYOUTS] | None = Field(
+        None, description="colour filter layout the camera must deliver (refused when its PixelFormat differs)"
+    )
     window: Rectangle | None = Field(None, description="device region of interest [x, y, width, height] [px]")
     timeout_s: TimeoutS = Field(5.0, description="per-frame acquisition timeout [s]")
     reconnect_attempts: Attempts = Field(Policy.reconnect_attempts, description="reconnect attempts per outage")

@@ -11,6 +11,12 @@ columns and ``signal_dn = mean_dn − dark_mean_dn``. Frames are streamed throug
 pixels at the camera's clip level in any frame and the point is flagged ``saturated`` (never dropped), both by the
 one rule of `uwlab.experiments.saturation`; the row is built by `uwlab.experiments.dataset.point_row`.
 
+A camera delivering a raw Bayer format gives the same statistics per colour channel from the same frames, each
+over its own sites of the ROI (``red_*``, ``green_*``, ``blue_*`` columns; EMVA 1288 Release 4.0 Linear §1.2: each
+colour channel is a sensor of its own), and the row records the layout (``bayer``). A plan's ``camera.bayer``
+declares the layout the camera must deliver: every remaining sweep's camera is checked before the first point is
+measured, and a mismatch is refused (`ConfigError`, nothing recorded).
+
 With ``save_frames``, every frame the point was computed from, bright and dark (a shared dark block linked into
 each point), is kept as TIFF with its settings (`uwlab.experiments.dataset_frames`), committed with the point.
 
@@ -51,7 +57,7 @@ from uwlab.errors import ConfigError
 from uwlab.experiments.dataset import Dataset, FrameRecorder, point_row, spectra_frame
 from uwlab.experiments.acquisition.dataset_check import check
 from uwlab.experiments.acquisition.light_calibration import measure_unsaturated
-from uwlab.experiments.acquisition.plan import Plan, Point, SweepSpec, resolved_rig
+from uwlab.experiments.acquisition.plan import Plan, Point, SweepSpec, resolved_rig, sweep_tables
 from uwlab.experiments.acquisition.readbacks import verified
 from uwlab.experiments.acquisition.rigs import Rig
 from uwlab.experiments.acquisition.roi import Rect, check_inside
@@ -109,13 +115,37 @@ class SweepRunner:
         self._swept: str | None = None  # the light the current sweep dims (the others hold their level)
 
     def run(self) -> None:
-        """Measure every remaining point, then record the finish time."""
+        """Check every remaining sweep's colour filter layout, measure every remaining point, then record the
+        finish time."""
         completed = self.dataset.completed()
-        for sweep in self.plan.sweeps:
-            todo = [p for p in sweep.points() if (sweep.id, p.index) not in completed]
-            if todo:
-                self._run_sweep(sweep, todo)
+        remaining = [
+            (sweep, todo)
+            for sweep in self.plan.sweeps
+            if (todo := [p for p in sweep.points() if (sweep.id, p.index) not in completed])
+        ]
+        for sweep, _ in remaining:
+            if sweep.camera.bayer is not None:
+                with self.rig.open_camera(sweep) as camera:
+                    self._check_layout(camera, sweep)
+        for sweep, todo in remaining:
+            self._run_sweep(sweep, todo)
         self.dataset.finish()
+
+    def _check_layout(self, camera: Camera, sweep: SweepSpec) -> None:
+        """Refuse (`ConfigError` on ``camera.bayer``, or the sweep's own ``camera.bayer``) a camera whose pixel
+        format does not deliver the layout the plan declares."""
+        spec = sweep.camera
+        if spec.pixel_format is not None:
+            camera.pixel_format = spec.pixel_format
+        try:
+            camera.check_bayer(spec.bayer)
+        except ConfigError as exc:
+            key = f"sweep.{sweep.id}.camera.bayer" if "bayer" in self._sweep_camera(sweep) else "camera.bayer"
+            raise ConfigError(key, exc.value, exc.reason) from None
+
+    def _sweep_camera(self, sweep: SweepSpec) -> dict:
+        """The keys a sweep's own ``camera`` table sets (over [camera])."""
+        return sweep_tables(self.plan.raw).get(sweep.id, {}).get("camera", {})
 
     def _run_sweep(self, sweep: SweepSpec, todo: list[Point]) -> None:
         self._needs_instruments(sweep)
@@ -182,6 +212,8 @@ class SweepRunner:
         spec = sweep.camera
         if spec.pixel_format is not None:
             camera.pixel_format = spec.pixel_format
+        if spec.bayer is not None:
+            self._check_layout(camera, sweep)
         if spec.window is not None:
             camera.set_roi(*spec.window)
         if sweep.black_level_dn is not None:
@@ -283,13 +315,14 @@ class SweepRunner:
     ) -> tuple[StackStatistics, ClipLevel, list[Frame]]:
         """Streaming statistics of ``count`` frames over the ROI (one frame in memory at a time), the clip level
         (from the sweep's sensor profile and the first frame, `uwlab.experiments.saturation`) and the frames'
-        metadata (images dropped); ``keep`` (saving raw frames) sees every frame."""
+        metadata (images dropped); ``keep`` (saving raw frames) sees every frame. A raw Bayer frame's channels are
+        accumulated too, each over its own sites of the ROI (`uwlab.experiments.frames.stack`)."""
         accumulator, clip, kept = None, None, []
         for frame in camera.frames(count):
             image = _crop(frame.image, roi)
             if accumulator is None:
                 clip = frame_clip_level(frame, sweep.design.sensor, image)
-                accumulator = StackAccumulator(clip.dn)
+                accumulator = StackAccumulator(clip.dn, bayer=frame.bayer, origin=(roi[0], roi[1]))
             accumulator.add(image)
             if keep is not None:
                 keep(frame)
@@ -352,6 +385,7 @@ class SweepRunner:
             dark=dark,
             clip=clip,
             saturation_threshold=sweep.saturation_threshold,
+            bayer=frames[-1].bayer,
             camera_backend=camera.info.backend,
             camera_id=camera.info.device_id,
             camera_model=camera.info.model,

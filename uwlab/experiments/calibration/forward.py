@@ -28,6 +28,12 @@ G_k is evaluated once on `S_GRID` (one vectorised evaluation of the chain) and i
 (ln s, ln G): within 1e-8 of the chain. Points taken with the light dimmed are scaled by the light's measured
 relative output (`relative_flux`). A "no lens" point (f_number null) is a bare sensor: N = 0.5, T = 1, no
 vignetting (`uwlab.model.optics.NO_LENS`); the extended chain integrates its whole field of view.
+
+Colour: points with a ``channel`` column (`uwlab.experiments.dataset.channel_view`: one colour channel of Bayer
+points, its own signal, variances and ``pixels``) are predicted with that channel's QE (the design's
+``sensor.channel``, the colour profile's red, green or blue column), each channel of a sweep a configuration of its
+own; K is the camera's, shared by its channels. Without it, a Bayer point's whole-mosaic mean is predicted with the
+profile's ``combined`` QE, the mean response of one Bayer cell.
 """
 
 from __future__ import annotations
@@ -277,12 +283,20 @@ def _extended_rates(design: Design, lens: bool, roi_w: float, roi_h: float) -> t
 
 
 def _configuration_design(
-    rig: dict, base_dir: Path | None, sensor: str, focal_length_mm, f_number, kind: str | None
+    rig: dict,
+    base_dir: Path | None,
+    sensor: str,
+    focal_length_mm,
+    f_number,
+    kind: str | None,
+    channel: str | None = None,
 ) -> tuple[Design, bool]:
     raw: dict[str, Any] = {
         s: (list(v) if isinstance(v, list) else dict(v)) for s, v in rate_design_sections(rig).items()
     }
     raw.setdefault("sensor", {})["profile"] = sensor
+    if channel is not None:
+        raw["sensor"]["channel"] = channel
     raw["sensor"].pop("characterised", None)  # the response curve is the forward model's (`characterised_sensor`)
     has_lens = f_number is not None and np.isfinite(f_number)
     lens = LensSetting(float(focal_length_mm), float(f_number)) if has_lens else NO_LENS
@@ -314,9 +328,10 @@ def build_forward_model(
             raise ConfigError(
                 f"parameters.{name}", name, f"unknown parameter; this dataset allows {', '.join(sorted(allowed))}"
             )
-    keys = (
-        points[["sweep_id", "sensor_profile", "focal_length_mm", "f_number"]].astype(object).where(points.notna(), None)
-    )
+    key_columns = ["sweep_id", "sensor_profile", "focal_length_mm", "f_number"]
+    if "channel" in points:
+        key_columns.append("channel")
+    keys = points[key_columns].astype(object).where(points.notna(), None)
     key_tuples = [tuple(row) for row in keys.itertuples(index=False)]
     unique = list(dict.fromkeys(key_tuples))
     config = np.array([unique.index(k) for k in key_tuples])
@@ -324,10 +339,12 @@ def build_forward_model(
     has_lens: list[bool] = []
     rate0: list[float] = []
     transmission: list[np.ndarray] = []
-    for sweep_id, sensor, focal, f_number in unique:
+    for sweep_id, sensor, focal, f_number, *channel in unique:
         if sweep_id not in rigs:
             raise ConfigError("dataset", sweep_id, "no rig recorded for this sweep in metadata.json")
-        design, lens = _configuration_design(rigs[sweep_id], base_dir, sensor, focal, f_number, kind)
+        design, lens = _configuration_design(
+            rigs[sweep_id], base_dir, sensor, focal, f_number, kind, channel[0] if channel else None
+        )
         rows = points[config == len(designs)]
         roi = (float(rows["roi_w"].median()), float(rows["roi_h"].median()))
         rates = _extended_rates if design["model.kind"] == "extended" else _paper_rates
@@ -373,7 +390,11 @@ def build_forward_model(
                 gain = points["gain_db"].to_numpy(float)[mine]
                 bits = points["bit_depth"].to_numpy(float)[mine]
                 well_fraction[mine] = 1.0 / (profile.saturation_e * profile.gain_k(gain, bits))
-    n_pix = points["roi_w"].to_numpy(float) * points["roi_h"].to_numpy(float)
+    n_pix = (
+        points["pixels"].to_numpy(float)
+        if "pixels" in points
+        else points["roi_w"].to_numpy(float) * points["roi_h"].to_numpy(float)
+    )
     var_mean = points["temporal_var_dn2"].to_numpy(float) / (points["frames"].to_numpy(float) * n_pix)
     if "dark_temporal_var_dn2" in points and "dark_frames" in points:
         dark = points["dark_temporal_var_dn2"].to_numpy(float) / (points["dark_frames"].to_numpy(float).clip(1) * n_pix)

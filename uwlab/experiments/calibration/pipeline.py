@@ -34,7 +34,7 @@ from uwlab.experiments.calibration.validation import (
     posterior_predictive_checks,
     predicted_spectra,
 )
-from uwlab.experiments.dataset import Dataset
+from uwlab.experiments.dataset import Dataset, channel_view
 from uwlab.model.schema import parse
 
 
@@ -198,13 +198,16 @@ def calibrate(
     model: str | None = None,
     sampler: dict | None = None,
     sensors: list[str] | None = None,
+    channel: str | None = None,
 ) -> Calibration:
     """Fit the whole dataset with the chain `model` ("paper", "extended"; None: the rigs' [model] kind), check it
     per configuration, predict every configuration from a fit that did not see it (`held_out_folds`), judge the
     model (`uwlab.experiments.calibration.adequacy`), compare the spectra; write everything to `out`. `sampler`
     overrides the fit config's [sampler] keys (`resolve_fit_config`); `sensors` (``uwlab fit --sensor``) name
-    cameras characterised by ``uwlab emva characterize`` (`with_characterised_sensors`). Every input is checked
-    before sampling starts."""
+    cameras characterised by ``uwlab emva characterize`` (`with_characterised_sensors`); `channel` ("red",
+    "green", "blue"; ``uwlab fit --channel``) fits that colour channel of Bayer points, predicted with its own QE
+    (`uwlab.experiments.dataset.channel_view`), instead of the whole mosaic against the combined QE. Every input is
+    checked before sampling starts."""
     if model is not None and model not in MODELS:
         raise ConfigError("--model", model, f"must be one of {', '.join(MODELS)}")
     dataset = Dataset.open(dataset_dir)
@@ -214,6 +217,11 @@ def calibrate(
     if points.empty:
         raise ConfigError("dataset", str(dataset_dir), "has no points to fit; run (or --resume) its sweep first")
     points = points.assign(relative_flux=relative_flux(points))
+    if channel is not None:
+        try:
+            points = channel_view(points, channel)
+        except ConfigError as exc:
+            raise ConfigError("--channel", exc.value, exc.reason) from None
     rigs = with_characterised_sensors(metadata.get("rigs") or {}, points, sensors or [])
     config = resolve_fit_config(config_path, points, rigs, sampler)
     sweeps = list(dict.fromkeys(points.loc[~points["saturated"].astype(bool), "sweep_id"]))
@@ -229,6 +237,7 @@ def calibrate(
         "plan_sha256": metadata.get("plan_sha256"),
         "world": world_of(metadata),
         "sensors": sensor_descriptions(rigs, points),
+        "channel": channel or "combined",
         **assessment.summary(),
         "spectra": spectra_table.to_dict(orient="records"),
         "sim": bool(metadata.get("sim")),

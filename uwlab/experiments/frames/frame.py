@@ -17,6 +17,8 @@ from uwlab.experiments.saturation import frame_clip_level
 from uwlab.model.sensor import SensorProfile
 
 CHANNELS = ("R", "G", "B")
+# Each mosaic colour's name as the design model's ``sensor.channel`` and a colour profile's QE column call it.
+CHANNEL_NAMES = {"R": "red", "G": "green", "B": "blue"}
 
 
 def channel_pixels(image: np.ndarray, layout: str, x0: int = 0, y0: int = 0) -> dict[str, np.ndarray]:

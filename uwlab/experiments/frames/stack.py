@@ -13,7 +13,12 @@ pixels:
 * spatial variance of the mean image ⟨y⟩ (eq. 33–35) without highpass (``spatial_var_dn2``, s²_y.measured over all
   the ROI) and, on the highpassed mean image (§8.1), corrected and split into row, column and pixel parts
   (eq. 36–44, `uwlab.experiments.frames.nonuniformity.spatial_variances`) with σ²_y (L = 2) or σ²_y.stack (L > 2);
-* the fraction of pixels at or above the camera's clip level in any frame (`uwlab.experiments.saturation`).
+* the fraction of pixels at or above the camera's clip level in any frame (`uwlab.experiments.saturation`);
+* for a raw Bayer mosaic (``bayer``), the same statistics of each colour channel over its own sites
+  (`uwlab.experiments.frames.frame.channel_pixels`; ``G`` pools both green sites), at the one clip level of the
+  frame: EMVA 1288 Release 4.0 Linear §1.2 treats each colour channel of a colour camera as its own sensor. A
+  channel's pixels are not a rectangle, so its spatial variance is the unfiltered one (eq. 35) only: no highpass
+  split (``spatial`` None).
 
 Memory is bounded by a few frames whatever L is: a uint32 sum image (exact for up to 32 768 frames of
 16-bit data), a boolean "saturated in any frame" map and the first frame of the current pair; sums of squares of integer
@@ -30,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from uwlab.errors import ConfigError
+from uwlab.experiments.frames.frame import CHANNELS, channel_pixels
 from uwlab.experiments.frames.nonuniformity import HIGHPASS_MARGIN, SpatialVariances, highpass, spatial_variances
 
 CHUNK_PIXELS = 1 << 16
@@ -38,7 +44,8 @@ CHUNK_PIXELS = 1 << 16
 @dataclass(frozen=True)
 class StackStatistics:
     """EMVA statistics of one stack [DN, DN²]. ``spatial``: the highpassed, corrected spatial variances (None
-    for a ROI too small for the highpass); ``mean_image``: ⟨y⟩ (float32) when requested."""
+    for a ROI too small for the highpass); ``mean_image``: ⟨y⟩ (float32) when requested; ``channels``: the
+    statistics of each colour channel (``{"R", "G", "B"}``) of a Bayer stack, else None."""
 
     frames: int
     mean_dn: float
@@ -49,16 +56,25 @@ class StackStatistics:
     mean_diff_dn: float
     saturated_fraction: float
     mean_image: np.ndarray | None = None
+    channels: dict[str, StackStatistics] | None = None
+    pixels: int | None = None  # pixels per frame
 
 
 class StackAccumulator:
     """Accumulates frames (2-D integer arrays of one shape) for `StackStatistics`; ``clip_dn`` is the camera's
     clip level (`uwlab.experiments.saturation.ClipLevel.dn`); ``keep_mean_image`` keeps ⟨y⟩ in the result (for
-    the spectrograms, profiles and histograms of a nonuniformity stack)."""
+    the spectrograms, profiles and histograms of a nonuniformity stack); ``bayer``: the colour filter layout of a
+    raw Bayer stack (its frames cropped from the mosaic at ``origin`` = (x0, y0): an odd offset shifts the phase),
+    whose channels are accumulated too (``StackStatistics.channels``, the same rules over each channel's sites)."""
 
-    def __init__(self, clip_dn: float, keep_mean_image: bool = False):
+    def __init__(
+        self, clip_dn: float, keep_mean_image: bool = False, bayer: str | None = None, origin: tuple[int, int] = (0, 0)
+    ):
         self.clip_dn = float(clip_dn)
         self.keep_mean_image = keep_mean_image
+        self.bayer = bayer
+        self.origin = origin
+        self._channels = {colour: StackAccumulator(clip_dn) for colour in CHANNELS} if bayer is not None else None
         self._sum: np.ndarray | None = None
         self._saturated: np.ndarray | None = None
         self._pending: np.ndarray | None = None
@@ -79,6 +95,9 @@ class StackAccumulator:
             self._centre = int(round(float(frame.mean())))
         elif frame.shape != self._sum.shape:
             raise ConfigError("frame", frame.shape, f"shape differs from the first frame {self._sum.shape}")
+        if self._channels is not None:
+            for colour, values in channel_pixels(frame, self.bayer, *self.origin).items():
+                self._channels[colour].add(values[None, :])  # one row: a channel's sites are not a rectangle
         np.add(self._sum, frame, out=self._sum, casting="unsafe")
         self._saturated |= frame >= self.clip_dn
         self._squares += _centred_square_sum(frame, self._centre)
@@ -120,6 +139,8 @@ class StackAccumulator:
             mean_diff_dn=self._mean_diff,
             saturated_fraction=float(np.count_nonzero(self._saturated)) / n,
             mean_image=np.add(deviation, np.float32(mean), out=deviation) if self.keep_mean_image else None,
+            pixels=n,
+            channels=None if self._channels is None else {c: acc.result() for c, acc in self._channels.items()},
         )
 
     def _deviation_image(self, mean: float) -> np.ndarray:
@@ -163,9 +184,16 @@ def _pair_statistics(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
     return 0.5 * (squares / n - mean_diff**2), mean_diff
 
 
-def stack_statistics(frames: Iterable[np.ndarray], clip_dn: float, keep_mean_image: bool = False) -> StackStatistics:
-    """`StackStatistics` of an iterable of frames, consumed one at a time (a generator keeps memory flat)."""
-    acc = StackAccumulator(clip_dn, keep_mean_image)
+def stack_statistics(
+    frames: Iterable[np.ndarray],
+    clip_dn: float,
+    keep_mean_image: bool = False,
+    bayer: str | None = None,
+    origin: tuple[int, int] = (0, 0),
+) -> StackStatistics:
+    """`StackStatistics` of an iterable of frames, consumed one at a time (a generator keeps memory flat); with
+    ``bayer``, per colour channel too (`StackAccumulator`)."""
+    acc = StackAccumulator(clip_dn, keep_mean_image, bayer, origin)
     for frame in frames:
         acc.add(frame)
     return acc.result()
