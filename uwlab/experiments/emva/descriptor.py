@@ -24,8 +24,9 @@ bright exposure without its dark block, more than one spatial block of a kind, a
 at the same exposure; and on reading, an image of the wrong size or type, or with values outside 0 … 2^BITS − 1.
 
 Images are read one at a time (tifffile for TIFFs, OpenCV for other formats and TIFFs tifffile cannot decode) into
-`uwlab.experiments.frames.stack` statistics, one accumulator per block, the blocks spread over the CPU's threads. The clip level (`uwlab.experiments.saturation.clip_level`) is found once, from the first image of the
-brightest bright block (a pile-up at the top code), else it is the ADC maximum 2^BITS − 1.
+`uwlab.experiments.frames.stack` statistics, one accumulator per block, the blocks spread over the CPU's threads.
+The clip level (`uwlab.experiments.saturation.clip_level`) is found once, from the first image of the brightest
+bright block (a pile-up at the top code), else it is the ADC maximum 2^BITS − 1.
 """
 
 from __future__ import annotations
