@@ -16,7 +16,15 @@
    are processed by the reference (parser, loader, Data1288, Results1288 with all its results) and the ratio is
    reported; without it the reference is skipped (it is not a dependency of uwlab).
 
-Usage: python benchmarks/bench_emva.py [--frames N] [--repeats R] [--reference-python PY]
+3. ``lab`` (with ``--lab``): issue 26's lab-size descriptor, generated on the fly into a temporary folder and never
+   committed — 2448×2048 12-bit TIFFs, ``--lab-steps`` photon-transfer steps of two bright and two dark images each
+   plus two 10-image nonuniformity stacks (200 images, about 2 GB, by default), drawn from a known sensor (K =
+   `LAB_K` DN/e⁻, Poisson light, Gaussian read noise). In fresh interpreters: uwlab's characterisation (wall, CPU,
+   peak resident memory, GB/s of image data, K against the truth), a plain ``cat`` of the same files (the read
+   limit: the files are in the page cache, just written) and, with ``--reference-python``, the reference on the
+   same files (its wall time and peak memory, or its failure).
+
+Usage: python benchmarks/bench_emva.py [--frames N] [--repeats R] [--reference-python PY] [--lab [--lab-steps S]]
 """
 
 from __future__ import annotations
@@ -47,6 +55,29 @@ emva.register(parser.add_subparsers(dest="command"))
 args = parser.parse_args(["emva", "characterize", "--descriptor", sys.argv[1], "--json"])
 sys.exit(args.func(args))
 """
+PEAK_SCRIPT = """
+import json, resource, sys, time
+t0, c0 = time.perf_counter(), time.process_time()
+from uwlab.experiments.emva.analysis import characterize
+from uwlab.experiments.emva.descriptor import photon_transfer_from_descriptor
+result = characterize(photon_transfer_from_descriptor(sys.argv[1]))
+print(json.dumps({"wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0,
+                  "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+                  "K_dn_per_e": result.values["K_dn_per_e"]}))
+"""
+REFERENCE_PEAK_SCRIPT = """
+import json, logging, resource, sys, time
+t0, c0 = time.perf_counter(), time.process_time()
+from emva1288 import process
+p = process.ParseEmvaDescriptorFile(sys.argv[1], loglevel=logging.ERROR)
+images = process.LoadImageData(p.images, loglevel=logging.ERROR)
+data = process.Data1288(images.data, loglevel=logging.ERROR)
+results = process.Results1288(data.data, loglevel=logging.ERROR).results
+print(json.dumps({"wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0,
+                  "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
+                  "K_dn_per_e": results["K"]["value"]}))
+"""
+LAB_K, LAB_OFFSET_DN, LAB_READ_E, LAB_QE = 0.5, 100.0, 6.0, 0.6
 REFERENCE_SCRIPT = """
 import logging, sys, time
 t0, c0 = time.perf_counter(), time.process_time()
@@ -218,12 +249,96 @@ def descriptor_benchmark(repeats: int, reference_python: str | None) -> dict:
         return result
 
 
+def write_lab_descriptor(root: Path, steps: int, stack_frames: int = 10) -> Path:
+    """The lab-size descriptor of the module docstring (2448×2048, 12 bit) and its images under ``root``."""
+    import tifffile
+
+    from uwlab.experiments.emva.descriptor import DESCRIPTOR_NAME, Block, Descriptor, format_descriptor
+
+    rng = np.random.default_rng(26)
+    (root / "images").mkdir(parents=True)
+    blocks, count = [], 0
+    full_e = (4095 - LAB_OFFSET_DN) / LAB_K
+
+    def block(exposure_ns: float, photons: float, frames: int) -> None:
+        nonlocal count
+        names = []
+        for _ in range(frames):
+            electrons = rng.poisson(photons * LAB_QE, (HEIGHT, WIDTH)).astype(np.float32)
+            electrons += LAB_READ_E * rng.standard_normal((HEIGHT, WIDTH), dtype=np.float32)
+            names.append(f"images/image{count:04d}.tif")
+            tifffile.imwrite(
+                root / names[-1], np.clip(np.rint(LAB_OFFSET_DN + LAB_K * electrons), 0, 4095).astype(np.uint16)
+            )
+            count += 1
+        blocks.append(Block(photons == 0, exposure_ns, photons, tuple(names)))
+
+    for step in range(steps):
+        exposure_ns = 1e5 * (step + 1)
+        block(exposure_ns, (step + 0.5) / steps * 1.05 * full_e / LAB_QE, 2)  # the last steps saturate
+        block(exposure_ns, 0.0, 2)
+    block(5e6, 0.5 * full_e / LAB_QE, stack_frames)
+    block(5e6, 0.0, stack_frames)
+    path = root / DESCRIPTOR_NAME
+    path.write_text(format_descriptor(Descriptor("4.0", 12, WIDTH, HEIGHT, tuple(blocks)), ("lab-size benchmark",)))
+    return path
+
+
+def _child_json(argv: list[str]) -> dict:
+    """A child's one-line JSON, or its failure (the last line of its stderr)."""
+    done = subprocess.run(argv, capture_output=True, text=True)
+    if done.returncode != 0:
+        return {"failed": (done.stderr.strip().splitlines() or [f"exit {done.returncode}"])[-1]}
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def lab_benchmark(steps: int, reference_python: str | None) -> dict:
+    with tempfile.TemporaryDirectory(prefix="uwlab-bench-emva-lab-") as tmp:
+        t0 = time.perf_counter()
+        path = write_lab_descriptor(Path(tmp), steps)
+        generated_s = time.perf_counter() - t0
+        files = sorted(str(p) for p in (Path(tmp) / "images").iterdir())
+        data_gb = sum(os.path.getsize(f) for f in files) / 1e9
+        t0 = time.perf_counter()
+        subprocess.run(["cat", *files], check=True, stdout=subprocess.DEVNULL)
+        cat_s = time.perf_counter() - t0
+        uwlab = _child_json([sys.executable, "-c", PEAK_SCRIPT, str(path)])
+        result = {
+            "benchmark": "emva_lab_descriptor",
+            "images": len(files),
+            "width": WIDTH,
+            "height": HEIGHT,
+            "bits": 12,
+            "data_gb": round(data_gb, 3),
+            "generated_s": round(generated_s, 1),
+            "cat_s": round(cat_s, 3),
+            "uwlab": uwlab,
+            "uwlab_gb_s": round(data_gb / uwlab["wall_s"], 3) if "wall_s" in uwlab else None,
+            "K_truth_dn_per_e": LAB_K,
+            "cpus": os.cpu_count(),
+            "target": {"gb_s": ">= 1", "peak_rss_mb": "<= 1000", "vs_reference": ">= 5x faster"},
+        }
+        if "K_dn_per_e" in uwlab:
+            result["uwlab_K_error_percent"] = round(100 * (uwlab["K_dn_per_e"] / LAB_K - 1), 4)
+        if reference_python:
+            reference = _child_json([reference_python, "-c", REFERENCE_PEAK_SCRIPT, str(path)])
+            result["reference"] = reference
+            if "wall_s" in reference and "wall_s" in uwlab:
+                result["speedup_wall"] = round(reference["wall_s"] / uwlab["wall_s"], 2)
+        return result
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--frames", type=int, default=40, help="stream benchmark stack length (default 40)")
     parser.add_argument("--repeats", type=int, default=3, help="descriptor benchmark runs (median; default 3)")
     parser.add_argument("--reference-python", help="a Python interpreter with emva1288 importable")
+    parser.add_argument("--lab", action="store_true", help="also the lab-size descriptor (writes about 2 GB)")
+    parser.add_argument("--lab-steps", type=int, default=45, help="its photon-transfer steps (default 45: 200 images)")
     args = parser.parse_args()
+    if args.lab:
+        print(json.dumps(lab_benchmark(args.lab_steps, args.reference_python)))
+        return
     print(json.dumps(stream_benchmark(args.frames)))
     print(json.dumps(descriptor_benchmark(args.repeats, args.reference_python)))
 

@@ -17,6 +17,7 @@ from tests.support.cli_process import run
 from tests.support.paths import EXAMPLE, ROOT
 from uwlab.cli.main import main
 from uwlab.errors import UwlabError
+from uwlab.experiments import cluster
 from uwlab.experiments.design import distributed, grid as grid_module
 from uwlab.experiments.design.grid import DesignGrid, evaluate_grid, flatten_outputs, write_grid, write_part
 from uwlab.model.build import build_design
@@ -226,7 +227,7 @@ def test_scheduler_and_worker_processes_on_localhost(tmp_path):
 
 
 def test_unreachable_scheduler_is_one_line(capsys, tmp_path, monkeypatch):
-    monkeypatch.setattr(distributed, "WORKER_TIMEOUT_S", 2)
+    monkeypatch.setattr(cluster, "WORKER_TIMEOUT_S", 2)
     code = main(
         [
             "design",

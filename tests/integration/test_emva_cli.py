@@ -237,6 +237,8 @@ def test_fleet(dataset, tmp_path, capsys):
     assert [r["status"] for r in rows] == ["ok", "ok", "ok", "refused"]
     assert "bits" in rows[3]["error"]
     assert rows[1]["prnu_percent"] == pytest.approx(2.0, rel=0.2)
+    # the cameras in parallel on a real local Dask cluster: the same rows, in the same order
+    assert run_json(capsys, "emva", "fleet", str(fleet), "--dask", "local", "--json") == rows
     assert main(["emva", "fleet", str(fleet), "--out", str(tmp_path / "out")]) == 0
     captured = capsys.readouterr()
     assert "3 of 4 cameras characterised" in captured.out and "refused" in captured.out

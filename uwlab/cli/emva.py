@@ -67,6 +67,11 @@ def register(subparsers) -> None:
         "--pixel-size-um", type=float, help="pixel pitch for descriptors (datasets use their sensor profile)"
     )
     f.add_argument("--out", metavar="DIR", help="one sub-directory per camera, plus fleet.csv and fleet.json")
+    f.add_argument(
+        "--dask",
+        metavar="ADDRESS",
+        help="the cameras in parallel on a Dask cluster: local (one worker per core) or tcp://HOST:PORT",
+    )
     f.add_argument("--json", action="store_true", help="print the rows as a JSON list")
     f.set_defaults(func=run_fleet)
     e = sub.add_parser(
@@ -232,6 +237,7 @@ def run_fleet(args) -> int:
             pixel_size_um=args.pixel_size_um,
             out=Path(args.out) if args.out else None,
             progress=progress,
+            dask=args.dask,
         )
     documents = [row.document() for row in rows]
     if args.json:

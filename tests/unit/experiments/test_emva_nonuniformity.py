@@ -144,6 +144,17 @@ def test_stack_statistics_closed_form():
     assert stats.spatial.total == pytest.approx(expected.total, rel=1e-5)
 
 
+@pytest.mark.parametrize("count", [2, 3, 4, 7])
+def test_stack_variance_is_exact_for_every_stack_length(count):
+    """Eq. 65 to the last bit whatever L: a two-frame stack takes its sum of squares from the pair and the sum
+    image, longer ones also from the frames after the first two (16-bit values far from the integer centre)."""
+    rng = np.random.default_rng(count)
+    frames = [rng.integers(0, 65536, (33, 41), dtype=np.uint16) for _ in range(count)]
+    stack = np.array(frames, np.float64)
+    stats = stack_statistics(iter(frames), 65535)
+    assert stats.stack_var_dn2 == pytest.approx(stack.var(axis=0, ddof=1).mean(), rel=1e-12)
+
+
 def test_mean_difference_correction_of_eq_18():
     """A common offset between the two frames (all pixels in sync) does not enter σ²_y."""
     rng = np.random.default_rng(9)

@@ -23,15 +23,18 @@ nor the irradiance at one exposure (methods II/III), two bright blocks with the 
 bright exposure without its dark block, more than one spatial block of a kind, a spatial block without its partner
 at the same exposure; and on reading, an image of the wrong size or type, or with values outside 0 … 2^BITS − 1.
 
-Images are read one at a time (OpenCV, tifffile for TIFFs OpenCV cannot read) into `uwlab.experiments.frames.stack`
-statistics. The clip level (`uwlab.experiments.saturation.clip_level`) is found once, from the first image of the
-brightest bright block (a pile-up at the top code), else it is the ADC maximum 2^BITS − 1.
+Images are read one at a time (tifffile for TIFFs, OpenCV for other formats and TIFFs tifffile cannot decode) into
+`uwlab.experiments.frames.stack` statistics, one accumulator per block, the blocks spread over the CPU's threads.
+The clip level (`uwlab.experiments.saturation.clip_level`) is found once, from the first image of the brightest
+bright block (a pile-up at the top code), else it is the ADC maximum 2^BITS − 1.
 """
 
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path, PureWindowsPath
 
@@ -40,13 +43,14 @@ import numpy as np
 from uwlab.errors import ConfigError
 from uwlab.experiments.emva.dark import DarkSeries
 from uwlab.experiments.emva.datasheet import SheetInfo
-from uwlab.experiments.frames.stack import stack_statistics
+from uwlab.experiments.frames.stack import StackStatistics, stack_statistics
 from uwlab.experiments.emva.transfer import NonuniformityStack, PhotonTransfer, SpatialSplit
 from uwlab.experiments.saturation import ClipLevel, clip_level
 
 DESCRIPTOR_NAME = "EMVA1288descriptor.txt"
 SUPPORTED_BITS = (8, 10, 12, 14, 16)
 MAX_SIZE_PX = 1 << 16
+WORKERS = os.cpu_count() or 1
 
 
 @dataclass(frozen=True)
@@ -241,13 +245,13 @@ class ImageReader:
         path = self.path(name)
         if not path.is_file():
             raise ConfigError("image", str(path), "file not found")
-        import cv2
+        image = None
+        if path.suffix.lower() in (".tif", ".tiff"):
+            image = _read_tiff(path)
+        if image is None:
+            import cv2
 
-        image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-        if image is None and path.suffix.lower() in (".tif", ".tiff"):
-            import tifffile
-
-            image = tifffile.imread(path)
+            image = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
         if image is None:
             raise ConfigError("image", str(path), "unreadable image")
         if image.ndim != 2 or image.dtype.kind not in "ui":
@@ -261,12 +265,32 @@ class ImageReader:
                 f"size {image.shape[1]}x{image.shape[0]} differs from the "
                 f"descriptor's n line ({self.shape[1]}x{self.shape[0]})",
             )
-        if image.min() < 0 or image.max() > self.full:
+        if (image.dtype.kind == "i" and image.min() < 0) or image.max() > self.full:
             raise ConfigError("image", str(path), f"values outside 0..{self.full} (the descriptor's bit depth)")
         return image if image.dtype.itemsize <= 2 else image.astype(np.uint16 if self.full > 255 else np.uint8)
 
     def frames(self, block: Block) -> Iterator[np.ndarray]:
         return (self.read(name) for name in block.images)
+
+    def statistics(self, blocks: list[Block], clip_dn: float, keep_mean_image: bool = False) -> list[StackStatistics]:
+        """`StackStatistics` of each block, the blocks spread over `WORKERS` threads (reading and the arithmetic
+        release the GIL); each block's frames stream through its accumulator one at a time, so memory stays at
+        one accumulator and a frame per thread."""
+        if len(blocks) < 2 or WORKERS == 1:
+            return [stack_statistics(self.frames(b), clip_dn, keep_mean_image) for b in blocks]
+        with ThreadPoolExecutor(min(WORKERS, len(blocks))) as pool:
+            return list(pool.map(lambda b: stack_statistics(self.frames(b), clip_dn, keep_mean_image), blocks))
+
+
+def _read_tiff(path: Path) -> np.ndarray | None:
+    """A TIFF through tifffile (a plain read into one array: ~10x faster than OpenCV's decoder on uncompressed
+    16-bit images), None where tifffile cannot decode it."""
+    import tifffile
+
+    try:
+        return tifffile.imread(path)
+    except (ValueError, KeyError, NotImplementedError, tifffile.TiffFileError):
+        return None
 
 
 def descriptor_clip_level(reader: ImageReader, desc: Descriptor) -> ClipLevel:
@@ -289,8 +313,10 @@ def photon_transfer_from_descriptor(path: str | Path, pixel_size_um: float | Non
     bright = [b for b in temporal if not b.dark]
     if not bright:
         raise ConfigError(path.name, "b", "no bright (b) blocks with two images")
-    darks = {b.exposure_ns: stack_statistics(reader.frames(b), clip.dn) for b in temporal if b.dark}
-    stats = [stack_statistics(reader.frames(b), clip.dn) for b in bright]
+    dark_blocks = [b for b in temporal if b.dark]
+    measured = reader.statistics(dark_blocks + bright, clip.dn)
+    darks = {b.exposure_ns: s for b, s in zip(dark_blocks, measured[: len(dark_blocks)], strict=True)}
+    stats = measured[len(dark_blocks) :]
     dark_at = [darks[b.exposure_ns] for b in bright]
     arr = lambda seq, name: np.array([getattr(s, name) for s in seq], float)  # noqa: E731
     dark_t = np.array(sorted(darks))
@@ -328,8 +354,8 @@ def _stack(desc: Descriptor, reader: ImageReader, clip: ClipLevel) -> Nonuniform
     if len(spatial) != 2:
         return None
     bright, dark = spatial[False], spatial[True]
-    stats = {b.dark: stack_statistics(reader.frames(b), clip.dn, keep_mean_image=True) for b in (bright, dark)}
-    return NonuniformityStack(stats[False], stats[True], bright.photons, bright.exposure_ns * 1e-9)
+    bright_stats, dark_stats = reader.statistics([bright, dark], clip.dn, keep_mean_image=True)
+    return NonuniformityStack(bright_stats, dark_stats, bright.photons, bright.exposure_ns * 1e-9)
 
 
 SHEET_VARIABLES = {

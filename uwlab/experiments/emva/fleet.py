@@ -113,8 +113,13 @@ def characterize_fleet(
     pixel_size_um: float | None = None,
     out: Path | None = None,
     progress: Callable[[FleetRow], None] | None = None,
+    dask: str | None = None,
 ) -> list[FleetRow]:
-    """One `FleetRow` per input; ``progress`` is called after each camera."""
+    """One `FleetRow` per input, in input order; ``progress`` is called after each camera (in the order they
+    finish). ``dask``: the cameras in parallel on a Dask cluster (``local`` or ``tcp://HOST:PORT``,
+    `uwlab.experiments.cluster`), each on one worker (the workers write their cameras' sub-directories: on a
+    multi-machine cluster ``out`` must be on a file system they share); otherwise one after another, each camera's
+    blocks spread over this machine's threads."""
     from uwlab.experiments.emva.output import profile_name
 
     if out is not None:
@@ -127,18 +132,45 @@ def characterize_fleet(
             if (out / name).exists():
                 raise ConfigError("--out", str(out / name), "exists; refusing to overwrite")
         out.mkdir(exist_ok=True)
-    rows = []
-    for item in inputs:
-        try:
-            row = characterize_input(item, model=model, pixel_size_um=pixel_size_um, out=out)
-        except UwlabError as exc:
-            row = FleetRow(item.label, str(item.path), None, str(exc))
-        rows.append(row)
-        if progress is not None:
-            progress(row)
+    options = {"model": model, "pixel_size_um": pixel_size_um, "out": out}
+    if dask is None:
+        rows = []
+        for item in inputs:
+            rows.append(_row(item, options))
+            if progress is not None:
+                progress(rows[-1])
+    else:
+        rows = _rows_on_dask(inputs, options, dask, progress)
     if out is not None:
         write_fleet_table(rows, out)
     return rows
+
+
+def _row(item: FleetInput, options: dict) -> FleetRow:
+    """`characterize_input`, a refusal kept as the camera's row."""
+    try:
+        return characterize_input(item, **options)
+    except UwlabError as exc:
+        return FleetRow(item.label, str(item.path), None, str(exc))
+
+
+def _rows_on_dask(
+    inputs: list[FleetInput], options: dict, address: str, progress: Callable[[FleetRow], None] | None
+) -> list[FleetRow]:
+    from distributed import as_completed
+
+    from uwlab.experiments.cluster import dask_client
+
+    with dask_client(address) as client:
+        futures = [client.submit(_row, item, options, pure=False) for item in inputs]
+        index = {future.key: number for number, future in enumerate(futures)}
+        rows: list[FleetRow | None] = [None] * len(inputs)
+        for future in as_completed(futures):
+            row = future.result()
+            rows[index[future.key]] = row
+            if progress is not None:
+                progress(row)
+    return [row for row in rows if row is not None]
 
 
 def write_fleet_table(rows: list[FleetRow], out: Path) -> None:

@@ -107,12 +107,24 @@ def spatial_variances(mean_image: np.ndarray, temporal_var_dn2: float, frames: i
     """
     y = np.asarray(mean_image)
     rows, cols = y.shape
-    mu = float(y.mean(dtype=np.float64))
-    squares = sum(float(np.sum((block.astype(np.float64) - mu) ** 2)) for block in _row_blocks(y))
-    measured = squares / y.size
+    # one pass in float64 row blocks, about a first value (against cancellation in Σ y² − (Σ y)² / MN)
+    shift = float(y[0, 0])
+    total_sum, square_sum = 0.0, 0.0
+    col_sums = np.zeros(cols)
+    row_sums = []
+    for block in _row_blocks(y):
+        b = block.astype(np.float64)
+        b -= shift
+        row = b.sum(axis=1)
+        row_sums.append(row)
+        total_sum += float(row.sum())
+        col_sums += b.sum(axis=0)
+        square_sum += float(np.einsum("ij,ij->", b, b))
+    mu = shift + total_sum / y.size
+    measured = (square_sum - total_sum * total_sum / y.size) / y.size
     total = measured - temporal_var_dn2 / frames
-    col_means = y.mean(axis=0, dtype=np.float64)
-    row_means = y.mean(axis=1, dtype=np.float64)
+    col_means = shift + col_sums / rows
+    row_means = shift + np.concatenate(row_sums) / cols
     cav = float(np.mean((col_means - mu) ** 2)) - temporal_var_dn2 / (frames * rows)
     rav = float(np.mean((row_means - mu) ** 2)) - temporal_var_dn2 / (frames * cols)
     m, n = rows, cols

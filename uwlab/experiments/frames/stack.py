@@ -83,6 +83,7 @@ class StackAccumulator:
         self._pair_var_sum = 0.0
         self._pairs = 0
         self._mean_diff = 0.0
+        self._first_diff_squares = 0
         self.frames = 0
 
     def add(self, frame: np.ndarray) -> None:
@@ -98,19 +99,30 @@ class StackAccumulator:
         if self._channels is not None:
             for colour, values in channel_pixels(frame, self.bayer, *self.origin).items():
                 self._channels[colour].add(values[None, :])  # one row: a channel's sites are not a rectangle
+        if self.frames == 2:  # a third frame: the first pair's Σ (y − c)² now, from its sum (`_pair_squares`)
+            self._squares = self._pair_squares(_centred_square_sum(self._sum, 2 * self._centre))
         np.add(self._sum, frame, out=self._sum, casting="unsafe")
         self._saturated |= frame >= self.clip_dn
-        self._squares += _centred_square_sum(frame, self._centre)
+        if self.frames >= 2:
+            self._squares += _centred_square_sum(frame, self._centre)
         if self._pending is None:
             self._pending = frame.copy()
         else:
-            var, diff = _pair_statistics(self._pending, frame)
-            self._pair_var_sum += var
+            diff_squares, diff_sum = _pair_sums(self._pending, frame)
+            mean_diff = diff_sum / frame.size
+            self._pair_var_sum += 0.5 * (diff_squares / frame.size - mean_diff**2)  # eq. 18
             if self._pairs == 0:
-                self._mean_diff = diff
+                self._mean_diff = mean_diff
+                self._first_diff_squares = diff_squares
             self._pairs += 1
             self._pending = None
         self.frames += 1
+
+    def _pair_squares(self, sum_squares: int) -> int:
+        """Σ_l Σ (y_l − c)² of the first two frames from Σ (y_0 + y_1 − 2c)² and the pair's Σ (y_0 − y_1)²: per
+        pixel (a − c)² + (b − c)² = ((a + b − 2c)² + (a − b)²) / 2, exactly (the numerator is even). A two-frame
+        stack (every photon-transfer point) so needs no pass of squares over its frames."""
+        return (sum_squares + self._first_diff_squares) // 2
 
     def result(self) -> StackStatistics:
         if self._pairs == 0:
@@ -122,7 +134,8 @@ class StackAccumulator:
         # and eq. 35 of the unfiltered mean image is (Σ D² − (Σ D)² / MN) / (L² MN)
         d_sum = sum_total - n * frames * self._centre
         d_squares = _centred_square_sum(self._sum, frames * self._centre)
-        stack_var = (self._squares - d_squares / frames) / ((frames - 1) * n)
+        squares = self._pair_squares(d_squares) if frames == 2 else self._squares
+        stack_var = (squares - d_squares / frames) / ((frames - 1) * n)
         measured = (d_squares - d_sum * d_sum / n) / (frames**2 * n)
         temporal = self._pair_var_sum / self._pairs
         deviation = self._deviation_image(mean)
@@ -172,16 +185,14 @@ def _centred_square_sum(image: np.ndarray, centre: int) -> int:
     return total
 
 
-def _pair_statistics(a: np.ndarray, b: np.ndarray) -> tuple[float, float]:
-    """(σ²_y of the pair by eq. 18, μ[a] − μ[b]), accumulated in row chunks."""
+def _pair_sums(a: np.ndarray, b: np.ndarray) -> tuple[int, int]:
+    """(Σ (a − b)², Σ (a − b)) of two integer frames, exactly, accumulated in row chunks."""
     total, squares = 0, 0
     for rows_a, rows_b in zip(_row_chunks(a), _row_chunks(b), strict=True):
         diff = np.subtract(rows_a, rows_b, dtype=np.int64).ravel()
         total += int(diff.sum())
         squares += int(diff @ diff)
-    n = a.size
-    mean_diff = total / n
-    return 0.5 * (squares / n - mean_diff**2), mean_diff
+    return squares, total
 
 
 def stack_statistics(
