@@ -404,7 +404,7 @@ def plot_spectra(frame: pd.DataFrame, label) -> Figure:
                 )
     for ax in axes[-1]:
         ax.set_xlabel("wavelength [nm]", fontsize=LABEL_PT)
-    for ax in axes.ravel()[len(sweeps) * 2 :]:
+    for ax in axes.ravel():  # the cells after the last configuration, in every block's rows
         if not ax.has_data():
             ax.set_visible(False)
     axes[0, 0].legend(fontsize=TICK_PT)
