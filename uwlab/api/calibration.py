@@ -18,9 +18,9 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     import arviz
     import pandas as pd
-    from matplotlib.figure import Figure
 
     from uwlab.api.campaign import Dataset
+    from uwlab.experiments.figures import Figure
     from uwlab.model.design import Design
 
 

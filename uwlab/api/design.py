@@ -22,10 +22,10 @@ from uwlab.model.design import Design
 
 if TYPE_CHECKING:
     import pandas as pd
-    from matplotlib.figure import Figure
 
     from uwlab.api.calibration import Fit
     from uwlab.experiments.design.readout import DesignWarning
+    from uwlab.experiments.figures import Figure
 
 
 class Infeasible(UwlabError):

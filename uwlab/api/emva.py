@@ -15,12 +15,12 @@ from uwlab.errors import ConfigError
 
 if TYPE_CHECKING:
     import pandas as pd
-    from matplotlib.figure import Figure
 
     from uwlab.api.campaign import Dataset
     from uwlab.experiments.emva.analysis import EmvaResult as Analysis
     from uwlab.experiments.emva.datasheet import SheetInfo
     from uwlab.experiments.emva.transfer import PhotonTransfer
+    from uwlab.experiments.figures import Figure
     from uwlab.model.sensor import SensorProfile
 
 

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import io
 
+import matplotlib.figure
 import numpy as np
 import pytest
 from matplotlib.figure import Figure
@@ -40,6 +41,14 @@ def test_design_figures_render_and_refuse_a_grid():
     assert all(rendered(fig).startswith(PNG) for fig in figures.values())
     with pytest.raises(ConfigError, match="one design"):
         uwlab.design_figures(design.with_values(**{"lens.f_number": np.array([2.0, 4.0])}))
+
+
+def test_an_api_figure_shows_itself_in_a_notebook_without_pyplot():
+    formatters = pytest.importorskip("IPython.core.formatters")
+    fig = uwlab.design_figures(uwlab.load_design(uwlab.config_path("design/example.toml")))["qe"]
+    png = formatters.PNGFormatter()(fig)  # what IPython's display calls for image/png
+    assert png is not None and png.startswith(PNG)
+    assert formatters.PNGFormatter()(matplotlib.figure.Figure()) is None  # matplotlib's own, without pyplot: none
 
 
 def test_emva_result_figures_are_the_characterisations():

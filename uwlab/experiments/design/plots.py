@@ -18,6 +18,8 @@ from uwlab.outputs import output_dir
 
 
 def plot_dof(design: Design) -> Figure:
+    """Far (solid) and near (dashed) depth-of-field limits against the f-number, one colour per focus distance
+    (`dof_curves`); no far limit past the hyperfocal distance."""
     curves = dof_curves(design)
     fig = Figure(figsize=(7, 4.5))
     ax = fig.subplots()
@@ -36,6 +38,7 @@ def plot_dof(design: Design) -> Figure:
 
 
 def plot_stages(design: Design) -> Figure:
+    """The spectrum at each stage of the on-axis chain, one panel per stage (`stage_spectra`)."""
     spectra = stage_spectra(design)
     nm = spectra["wavelength_nm"]
     fig = Figure(figsize=(7, 10))
@@ -57,6 +60,8 @@ def plot_stages(design: Design) -> Figure:
 
 
 def plot_operation(design: Design) -> Figure:
+    """Minimum framerate for the overlap and maximum exposure for the blur limit against speed, one line per
+    altitude (`operation_curves`)."""
     curves = operation_curves(design)
     fig = Figure(figsize=(10, 4))
     (a1, a2) = fig.subplots(1, 2)
@@ -73,6 +78,7 @@ def plot_operation(design: Design) -> Figure:
 
 
 def plot_water(design: Design) -> Figure:
+    """Beam attenuation of every named water type (`water_attenuation`)."""
     fig = Figure(figsize=(7, 4.5))
     ax = fig.subplots()
     for name, c in water_attenuation(design.grid).items():
@@ -89,6 +95,7 @@ def plot_water(design: Design) -> Figure:
 
 
 def plot_qe(design: Design) -> Figure:
+    """Quantum efficiency of every shipped sensor profile and the design's own (bold; `quantum_efficiency`)."""
     fig = Figure(figsize=(7, 4.5))
     ax = fig.subplots()
     for name, (nm, qe) in quantum_efficiency((design.sensor,)).items():
