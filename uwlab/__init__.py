@@ -3,12 +3,12 @@
 The Python API mirrors the command line verb for verb (docs/api.md pairs each README workflow with its Python
 equivalent):
 
-- design: `load_design`, `evaluate` (→ `Evaluation`), `grid` (→ DataFrame; ``.to_xarray()``), `solve`
-  (→ DataFrame, the Pareto front);
+- design: `load_design`, `evaluate` (→ `Evaluation`), `design_figures` (→ matplotlib Figures), `grid`
+  (→ DataFrame; ``.to_xarray()``), `solve` (→ DataFrame, the Pareto front);
 - campaigns: `load_plan`, `sweep` (→ `Dataset`), `Dataset.open` (``.points``, ``.spectra``);
-- camera characterisation: `characterize` (→ `EmvaResult`);
-- calibration: `fit` (→ `Fit`: ``.posterior`` an ``arviz.InferenceData``, ``.verdict``, ``.predict(design)``),
-  `report`;
+- camera characterisation: `characterize` (→ `EmvaResult`; ``.figures()``);
+- calibration: `fit` (→ `Fit`: ``.posterior`` an ``arviz.InferenceData``, ``.verdict``, ``.predict(design)``,
+  ``.figures()``), `report`;
 - instruments: `open_camera`, `open_light`, `open_spectrometer`, `grab`;
 - `config_path`: a file of the bundled configs (designs, plans, rigs, sensors).
 
@@ -32,6 +32,7 @@ __version__ = "0.1.0"
 _EXPORTS: dict[str, str] = {
     "load_design": "uwlab.api.design",
     "evaluate": "uwlab.api.design",
+    "design_figures": "uwlab.api.design",
     "Evaluation": "uwlab.api.design",
     "grid": "uwlab.api.design",
     "solve": "uwlab.api.design",

@@ -10,6 +10,7 @@ from uwlab.api.campaign import load_plan as load_plan
 from uwlab.api.campaign import sweep as sweep
 from uwlab.api.design import Evaluation as Evaluation
 from uwlab.api.design import Infeasible as Infeasible
+from uwlab.api.design import design_figures as design_figures
 from uwlab.api.design import evaluate as evaluate
 from uwlab.api.design import grid as grid
 from uwlab.api.design import load_design as load_design

@@ -20,6 +20,7 @@ if TYPE_CHECKING:
     import pandas as pd
 
     from uwlab.api.campaign import Dataset
+    from uwlab.experiments.figures import Figure
     from uwlab.model.design import Design
 
 
@@ -65,7 +66,8 @@ class Fit:
       R-hat, and the simulated truth where known) as a DataFrame;
     - `posterior`: the posterior as `arviz.InferenceData` (walkers as chains);
     - `verdict`: `Verdict`; `held_out`: each configuration predicted by a fit that did not see it;
-    - `predict(design)`: the design's response and SNR over the posterior (credible band).
+    - `predict(design)`: the design's response and SNR over the posterior (credible band);
+    - `figures()`: the corner and response figures as matplotlib Figures.
 
     Examples
     --------
@@ -127,6 +129,16 @@ class Fit:
         import pandas as pd
 
         return pd.DataFrame(self.summary.get("cross_configuration") or [])
+
+    def figures(self) -> dict[str, Figure]:
+        """The fit's figures as matplotlib Figures (a notebook shows each inline), drawn again from this
+        directory: ``corner`` (the posterior's marginals, the simulated truth marked) and ``response`` (measured
+        against predicted per configuration, residuals with the fitted and held-out 95 % bands) — the same figures
+        as ``corner.png`` and ``response.png`` and the report. The walker traces need the whole chain, which is
+        kept only in ``traces.png``; ``arviz.plot_trace(fit.posterior)`` draws the kept samples."""
+        from uwlab.experiments.calibration.output import fit_dir_figures
+
+        return fit_dir_figures(self.directory)
 
     def predict(self, design: Design, samples: int = 1000) -> pd.DataFrame:
         """The design's on-axis response and SNR over (up to `samples` of) the posterior, the calibrated factors

@@ -1,4 +1,5 @@
-"""Designs from Python: `load_design`, `evaluate`, `grid`, `solve` — `uwlab design` and `uwlab design solve`.
+"""Designs from Python: `load_design`, `evaluate`, `design_figures`, `grid`, `solve` — `uwlab design` (``--plot``)
+and `uwlab design solve`.
 
 >>> import uwlab
 >>> design = uwlab.load_design(uwlab.config_path("design/example.toml"), operation__exposure_s="max-blur")
@@ -24,6 +25,7 @@ if TYPE_CHECKING:
 
     from uwlab.api.calibration import Fit
     from uwlab.experiments.design.readout import DesignWarning
+    from uwlab.experiments.figures import Figure
 
 
 class Infeasible(UwlabError):
@@ -169,6 +171,16 @@ class Evaluation:
         printer.text(str(self))
 
 
+def _has_arrays(design: Design) -> bool:
+    """Whether any input of `design` holds several values (a grid, not one design)."""
+    return any(
+        isinstance(v, np.ndarray) and v.size != 1
+        for body in design.values.values()
+        if isinstance(body, dict)
+        for v in body.values()
+    )
+
+
 def evaluate(design: Design) -> Evaluation:
     """Evaluate one design: FOV, exposure and framerate limits, depth of field, response, SNR, light budget.
 
@@ -189,17 +201,37 @@ def evaluate(design: Design) -> Evaluation:
     from uwlab.jsonable import to_jsonable
     from uwlab.model.evaluation import evaluate as run
 
-    arrays = [
-        v
-        for body in design.values.values()
-        if isinstance(body, dict)
-        for v in body.values()
-        if isinstance(v, np.ndarray) and v.size != 1
-    ]
-    if arrays:
+    if _has_arrays(design):
         raise ConfigError("design", "arrays", "evaluate takes one design; use uwlab.grid for many")
     outputs = to_jsonable(run(design))
     return Evaluation(design, outputs, tuple(design_warnings(design, outputs)))
+
+
+def design_figures(design: Design) -> dict[str, Figure]:
+    """The design figures of one design as matplotlib Figures (a notebook shows each inline), by name — the
+    figures ``uwlab design --plot DIR`` writes as ``DIR/NAME.png``:
+
+    - ``dof``: near and far depth-of-field limits against the f-number, for several focus distances;
+    - ``spectra``: the spectrum at each stage of the on-axis chain;
+    - ``operation``: the minimum framerate and maximum exposure against speed, for several altitudes;
+    - ``water``: the beam attenuation of every water type;
+    - ``qe``: the sensor's quantum efficiency.
+
+    Examples
+    --------
+    >>> import uwlab
+    >>> figures = uwlab.design_figures(uwlab.load_design(uwlab.config_path("design/example.toml")))
+    >>> list(figures)
+    ['dof', 'spectra', 'operation', 'water', 'qe']
+    >>> [ax.get_xlabel() for ax in figures["operation"].axes]
+    ['speed [m/s]', 'speed [m/s]']
+    >>> figures["dof"].savefig("dof.png", dpi=110)  # doctest: +SKIP
+    """
+    from uwlab.experiments.design.plots import design_figures as draw
+
+    if _has_arrays(design):
+        raise ConfigError("design", "arrays", "design_figures takes one design; use uwlab.grid for many")
+    return draw(design)
 
 
 def _raw(design: Design) -> dict[str, Any]:

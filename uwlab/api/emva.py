@@ -20,6 +20,7 @@ if TYPE_CHECKING:
     from uwlab.experiments.emva.analysis import EmvaResult as Analysis
     from uwlab.experiments.emva.datasheet import SheetInfo
     from uwlab.experiments.emva.transfer import PhotonTransfer
+    from uwlab.experiments.figures import Figure
     from uwlab.model.sensor import SensorProfile
 
 
@@ -28,7 +29,8 @@ class EmvaResult:
     ``dark_noise_e``, ``saturation_e``, ``snr_max_db``, ``dynamic_range_db``, ``linearity_error_percent``,
     ``dark_current_e_per_s``, ``dsnu_e``, ``prnu_percent``, ... — every key of ``emva.json``; None where the model
     or the data give none), `to_xml` (the reference implementation's XML), `datasheet` (the HTML datasheet),
-    `sensor_profile` (a profile `uwlab.load_design` can use) and `write` (everything ``--out`` writes).
+    `sensor_profile` (a profile `uwlab.load_design` can use), `figures` (the EMVA figures as matplotlib Figures)
+    and `write` (everything ``--out`` writes).
 
     Examples
     --------
@@ -45,6 +47,9 @@ class EmvaResult:
     (True, 'linear')
     >>> result.to_xml().startswith("<?xml")
     True
+    >>> figures = result.figures()
+    >>> list(figures)[:3], figures["snr"].axes[0].get_ylabel()
+    (['photon_transfer', 'snr', 'linearity'], 'SNR')
     """
 
     def __init__(
@@ -102,16 +107,24 @@ class EmvaResult:
 
         return str(results_xml(self.analysis))
 
+    def figures(self) -> dict[str, Figure]:
+        """The EMVA 1288 figures the data allow, by name, as matplotlib Figures (a notebook shows each inline):
+        ``photon_transfer`` (the general model: ``characteristic``), ``snr``, ``linearity`` (linear model),
+        ``stability``, ``dark_current``, then where measured ``dark_current_temperature``, ``spatial_variances``
+        and the DSNU/PRNU spectrograms, profiles and histograms — the same figures as the datasheet and the
+        ``NAME.png`` files of `write` (`uwlab.experiments.emva.plots`)."""
+        from uwlab.experiments.emva.plots import figures
+
+        return figures(self.analysis)
+
     def datasheet(self, path: str | os.PathLike[str]) -> Path:
         """Write the self-contained HTML datasheet (figures embedded) to `path`; returns it."""
         from uwlab.experiments.emva.datasheet import SheetInfo, write_datasheet
-        from uwlab.experiments.emva.plots import write_plots
+        from uwlab.experiments.emva.plots import figure_pngs
         from uwlab.outputs import output_file
 
         target = output_file(path, "datasheet")
-        with tempfile.TemporaryDirectory(prefix="uwlab-datasheet-") as tmp:
-            figures = write_plots(self.analysis, Path(tmp))
-            return write_datasheet(self.analysis, figures, target, self.info or SheetInfo())
+        return write_datasheet(self.analysis, figure_pngs(self.analysis), target, self.info or SheetInfo())
 
     def sensor_profile(self, name: str | None = None, directory: str | os.PathLike[str] | None = None) -> SensorProfile:
         """The measured sensor profile (linear model only: K, η, dark noise, saturation; the rest from the

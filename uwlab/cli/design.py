@@ -301,20 +301,13 @@ def run_solve(args) -> int:
             answer["out"] = str(out)
         if args.plot:
             from uwlab.experiments.design.plots import plot_front
+            from uwlab.experiments.figures import save_figure
 
             y, x = (f for f in problem.free[:2])
-            answer["plot"] = str(
-                plot_front(
-                    frame,
-                    x.key,
-                    y.key,
-                    (objectives[1].sense, objectives[0].sense),
-                    answer["requirements"],
-                    Path(args.plot) / "front.png",
-                    x.log,
-                    y.log,
-                )
+            front = plot_front(
+                frame, x.key, y.key, (objectives[1].sense, objectives[0].sense), answer["requirements"], x.log, y.log
             )
+            answer["plot"] = str(save_figure(front, Path(args.plot) / "front.png"))
     if args.json:
         json.dump(to_jsonable(answer), sys.stdout, indent=2)
         sys.stdout.write("\n")

@@ -1,8 +1,10 @@
-"""Figures and numbers in reports: saving matplotlib figures, PNGs as data URIs, numbers as text, and the rules
-every report figure follows.
+"""Figures and numbers in reports: matplotlib figures as PNG (`figure_png`, `save_figure`), PNGs as data URIs,
+numbers as text, and the rules every report figure follows.
 
-Figures are made with matplotlib's object API (`matplotlib.figure.Figure`), never
-through pyplot's global state, so importing uwlab leaves a notebook's backend alone and needs no screen.
+Figures are made with matplotlib's object API (`Figure`, a `matplotlib.figure.Figure`), never through pyplot's
+global state, so importing uwlab leaves a notebook's backend alone and needs no screen. Every ``plot_*`` function
+returns its laid-out `Figure`, which a notebook shows inline; the PNG files, the report and the datasheet turn it into
+PNG here, with the size and resolution each output has always had.
 
 Rules (`PALETTE`, `log_ticks`, `TICK_PT`, `LABEL_PT`): colours from the Okabe–Ito palette, distinguishable with
 every common colour-vision deficiency (Okabe & Ito, "Color Universal Design", 2008; Wong, Nature Methods 8, 441,
@@ -13,14 +15,25 @@ compared with; data beyond an axis drawn at its edge as a marker labelled with i
 from __future__ import annotations
 
 import base64
+import io
 import math
 from pathlib import Path
 
+import matplotlib.figure
 from matplotlib.axis import Axis
-from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
-__all__ = ["LABEL_PT", "PALETTE", "TICK_PT", "Figure", "log_ticks", "number_text", "png_data_uri", "save_figure"]
+__all__ = [
+    "LABEL_PT",
+    "PALETTE",
+    "TICK_PT",
+    "Figure",
+    "figure_png",
+    "log_ticks",
+    "number_text",
+    "png_data_uri",
+    "save_figure",
+]
 
 PALETTE = {  # Okabe–Ito
     "black": "#000000",
@@ -34,6 +47,21 @@ PALETTE = {  # Okabe–Ito
 }
 TICK_PT = 11
 LABEL_PT = 12
+
+
+class Figure(matplotlib.figure.Figure):
+    """A matplotlib Figure that a notebook shows inline as it is (IPython's ``_repr_png_``). A figure made without
+    pyplot is unknown to the inline backend's display hook, which would print only ``<Figure size ...>``; this
+    one draws itself, cropped to what is drawn as the inline backend does, and is otherwise matplotlib's own.
+
+    >>> fig = Figure(figsize=(2, 1))
+    >>> _ = fig.subplots().plot([0, 1], [0, 1])
+    >>> fig._repr_png_()[:8] == b"\\x89PNG\\r\\n\\x1a\\n"
+    True
+    """
+
+    def _repr_png_(self) -> bytes:
+        return figure_png(self, tight_bbox=True)
 
 
 def log_ticks(axis: Axis, max_labelled_decades: float = 3.0) -> None:
@@ -58,10 +86,21 @@ def log_ticks(axis: Axis, max_labelled_decades: float = 3.0) -> None:
     axis.set_minor_formatter(NullFormatter())
 
 
-def save_figure(fig: Figure, path: Path, dpi: int = 110) -> Path:
-    """Lay out and write `fig` as PNG; returns `path`."""
-    fig.tight_layout()
-    fig.savefig(path, dpi=dpi)
+def figure_png(fig: matplotlib.figure.Figure, dpi: int = 110, *, tight_bbox: bool = False) -> bytes:
+    """`fig` as PNG at `dpi`, cropped to what is drawn when `tight_bbox` (a figure laid out by its own grid rather
+    than ``tight_layout``): what `save_figure` writes and the report and datasheet embed.
+
+    >>> figure_png(Figure(figsize=(1, 1)), dpi=20)[:8]
+    b'\\x89PNG\\r\\n\\x1a\\n'
+    """
+    buffer = io.BytesIO()
+    fig.savefig(buffer, format="png", dpi=dpi, bbox_inches="tight" if tight_bbox else None)
+    return buffer.getvalue()
+
+
+def save_figure(fig: matplotlib.figure.Figure, path: Path, dpi: int = 110, *, tight_bbox: bool = False) -> Path:
+    """Write `fig` as the PNG of `figure_png` to `path`; returns `path`."""
+    path.write_bytes(figure_png(fig, dpi, tight_bbox=tight_bbox))
     return path
 
 

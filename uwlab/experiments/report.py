@@ -12,19 +12,17 @@ configuration and the spectra; the EMVA summary; the provenance of every dataset
 
 from __future__ import annotations
 
-import io
 import json
 import time
 from pathlib import Path
 
-from matplotlib.figure import Figure
 import numpy as np
 import pandas as pd
 from jinja2 import Environment, PackageLoader, StrictUndefined
 
 from uwlab.errors import UwlabError
 from uwlab.experiments.dataset import read_metadata
-from uwlab.experiments.figures import LABEL_PT, PALETTE, TICK_PT, number_text, png_data_uri
+from uwlab.experiments.figures import LABEL_PT, PALETTE, TICK_PT, Figure, figure_png, number_text, png_data_uri
 from uwlab.outputs import MANIFEST_FILE, METADATA_FILE, output_file
 from uwlab.experiments.calibration.adequacy import SWEPT_LABELS
 from uwlab.experiments.calibration.forward import PERCENT_PARAMETERS, parameter_label
@@ -53,12 +51,6 @@ def _find(root: Path, marker: str, also: str | None = None) -> list[Path]:
 
 def _img(path: Path) -> str:
     return png_data_uri(path.read_bytes())
-
-
-def _fig(fig) -> str:
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=90, bbox_inches="tight")
-    return png_data_uri(buffer.getvalue())
 
 
 def _number(value, digits: int = 4) -> str:
@@ -351,7 +343,11 @@ def _calibration(path: Path) -> dict:
         ),
         "corner_png": _img(path / "corner.png"),
         "traces_png": _img(path / "traces.png"),
-        "spectra_png": _spectra_figure(spectra, label) if spectra.exists() else None,
+        "spectra_png": (
+            png_data_uri(figure_png(plot_spectra(pd.read_parquet(spectra), label), dpi=90, tight_bbox=True))
+            if spectra.exists()
+            else None
+        ),
         "spectra": [
             {
                 "configuration": label(r["sweep_id"]),
@@ -367,10 +363,10 @@ def _calibration(path: Path) -> dict:
 SPECTRA_COLUMNS = 3  # ≤ 3 panels across keeps the text ≥ 11 px on the report's 1260 px column
 
 
-def _spectra_figure(path: Path, label) -> str:
-    """Predicted (line, on top) and measured (dots) spectra per configuration, at the target and at the camera,
-    three configurations across (`uwlab.experiments.figures` rules)."""
-    frame = pd.read_parquet(path)
+def plot_spectra(frame: pd.DataFrame, label) -> Figure:
+    """Predicted (line, on top) and measured (dots) spectra per configuration (a fit's ``spectra.parquet``), at the
+    target and at the camera, three configurations across (`uwlab.experiments.figures` rules); `label`: a
+    configuration's title from its sweep id."""
     sweeps = list(dict.fromkeys(frame["sweep_id"]))
     blocks = -(-len(sweeps) // SPECTRA_COLUMNS)
     columns = min(SPECTRA_COLUMNS, len(sweeps))
@@ -408,12 +404,12 @@ def _spectra_figure(path: Path, label) -> str:
                 )
     for ax in axes[-1]:
         ax.set_xlabel("wavelength [nm]", fontsize=LABEL_PT)
-    for ax in axes.ravel()[len(sweeps) * 2 :]:
+    for ax in axes.ravel():  # the cells after the last configuration, in every block's rows
         if not ax.has_data():
             ax.set_visible(False)
     axes[0, 0].legend(fontsize=TICK_PT)
     fig.tight_layout()
-    return _fig(fig)
+    return fig
 
 
 def _emva(path: Path) -> dict:

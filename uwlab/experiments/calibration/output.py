@@ -7,21 +7,23 @@ Files in the output directory: ``samples.parquet`` (posterior samples, one colum
 parameters that cannot be separated), ``predictions.parquet`` (measured vs predicted with bands at every point),
 ``dense.parquet`` (bands along dense sweeps), ``heldout.parquet`` (predictions of each configuration from a fit
 that did not see it), ``corner.png``, ``traces.png``, ``response.png`` (measured vs predicted per configuration,
-saturated points marked, and residuals in per cent with the fitted and held-out 95 % bands).
+saturated points marked, and residuals in per cent with the fitted and held-out 95 % bands): the `Figure` objects
+of `plot_corner`, `plot_traces` and `plot_response`, written with `PNG_OPTIONS`.
 """
 
 from __future__ import annotations
 
+import json
+from collections.abc import Sequence
 from pathlib import Path
 
 import corner
-from matplotlib.figure import Figure
 import numpy as np
 import pandas as pd
 from matplotlib.ticker import FuncFormatter
 
 from uwlab.errors import UwlabError
-from uwlab.experiments.figures import LABEL_PT, PALETTE, TICK_PT, log_ticks
+from uwlab.experiments.figures import LABEL_PT, PALETTE, TICK_PT, Figure, log_ticks, save_figure
 from uwlab.experiments.calibration.fit import FitResult
 from uwlab.experiments.calibration.inference import POSTERIOR_NAME, write_inference_data
 from uwlab.experiments.calibration.validation import dense_sweeps, point_predictions
@@ -39,6 +41,13 @@ OUTPUT_FILES = (
     "traces.png",
     "response.png",
 )
+# How each figure becomes its PNG (`uwlab.experiments.figures.save_figure`): the corner and traces at 80 dpi, the
+# response, laid out by its own grid, at 90 dpi cropped to what is drawn (the report embeds these files).
+PNG_OPTIONS: dict[str, dict] = {
+    "corner": {"dpi": 80},
+    "traces": {"dpi": 80},
+    "response": {"dpi": 90, "tight_bbox": True},
+}
 
 
 def check_output_dir(out: Path) -> None:
@@ -50,14 +59,17 @@ def check_output_dir(out: Path) -> None:
         raise UwlabError(f"{out} already holds a calibration ({', '.join(existing)}); choose another --out")
 
 
-def corner_plot(result: FitResult, path: Path, truth: dict | None = None) -> Path:
-    truths = [truth.get(n) for n in result.names] if truth else None
-    k = len(result.names)  # corner's own figure size for k parameters (its defaults), on a Figure of ours
+def plot_corner(samples: np.ndarray, names: Sequence[str], truth: dict | None = None) -> Figure:
+    """The posterior's one- and two-parameter marginals (`corner`), medians and 68 % intervals as titles, the
+    simulated `truth` (by parameter name) marked where known; `samples`: (draws, parameters) in the order of
+    `names`."""
+    truths = [truth.get(n) for n in names] if truth else None
+    k = len(names)  # corner's own figure size for k parameters (its defaults), on a Figure of ours
     size = 1.0 + 2.0 * k + 2.0 * (k - 1) * 0.05 + 0.4
-    fig = corner.corner(
-        result.samples,
+    fig: Figure = corner.corner(
+        samples,
         fig=Figure(figsize=(size, size)),
-        labels=list(result.names),
+        labels=list(names),
         truths=truths,
         quantiles=[0.16, 0.5, 0.84],
         show_titles=True,
@@ -65,11 +77,11 @@ def corner_plot(result: FitResult, path: Path, truth: dict | None = None) -> Pat
         title_kwargs={"fontsize": TICK_PT},
         label_kwargs={"fontsize": TICK_PT},
     )
-    fig.savefig(path, dpi=80)
-    return path
+    return fig
 
 
-def trace_plot(result: FitResult, path: Path) -> Path:
+def plot_traces(result: FitResult) -> Figure:
+    """Every walker's position against the step, one panel per parameter (the whole chain, burn-in included)."""
     n = len(result.names)
     fig = Figure(figsize=(8, 1.6 * n))
     axes = fig.subplots(n, 1, sharex=True)
@@ -81,8 +93,7 @@ def trace_plot(result: FitResult, path: Path) -> Path:
     axes[-1].set_xlabel("step")
     fig.suptitle(f"walker traces (τ max {np.max(result.tau):.0f} steps, {result.steps} steps)")
     fig.tight_layout()
-    fig.savefig(path, dpi=80)
-    return path
+    return fig
 
 
 def configuration_label(sensor_profile: str, focal_length_mm, f_number) -> str:
@@ -103,9 +114,7 @@ FITTED, HELD_OUT, SATURATED = PALETTE["blue"], PALETTE["orange"], PALETTE["vermi
 MIN_RESIDUAL_RANGE_PERCENT = 0.5
 
 
-def response_plot(
-    predictions: pd.DataFrame, dense: pd.DataFrame, path: Path, held_out: pd.DataFrame | None = None
-) -> Path:
+def plot_response(predictions: pd.DataFrame, dense: pd.DataFrame, held_out: pd.DataFrame | None = None) -> Figure:
     """Per configuration: the measured response against exposure with the fitted model (saturated points marked),
     and below it the residuals in per cent of the model with its 95 % band of a new measurement, fitted and, where
     given, predicted for the configuration held out of the fit. Axes follow `uwlab.experiments.figures`' rules: log
@@ -155,8 +164,7 @@ def response_plot(
             fig.legend(
                 handles, names, loc="upper center", ncol=5, fontsize=LABEL_PT, frameon=False, bbox_to_anchor=(0.5, 1.0)
             )
-    fig.savefig(path, dpi=90, bbox_inches="tight")
-    return path
+    return fig
 
 
 def _residuals(ax, pts: pd.DataFrame, held_out: pd.DataFrame | None) -> None:
@@ -228,6 +236,25 @@ def _residuals(ax, pts: pd.DataFrame, held_out: pd.DataFrame | None) -> None:
     ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:+.3g}" if v else "0"))
 
 
+def fit_dir_figures(fit_dir: Path) -> dict[str, Figure]:
+    """The figures of a written calibration drawn again from its files, by name: ``corner`` (from
+    ``samples.parquet`` and the truth in ``summary.json``) and ``response`` (from ``predictions.parquet``,
+    ``dense.parquet`` and ``heldout.parquet``) — with `PNG_OPTIONS`, the very ``corner.png`` and ``response.png``.
+    The traces are not among them: a fit directory keeps the samples after burn-in, not the whole chain."""
+    summary = json.loads((fit_dir / "summary.json").read_text())
+    samples = pd.read_parquet(fit_dir / "samples.parquet")
+    truth = {name: p["truth"] for name, p in summary["parameters"].items() if "truth" in p}
+    held_out = fit_dir / "heldout.parquet"
+    return {
+        "corner": plot_corner(samples.to_numpy(), list(samples.columns), truth or None),
+        "response": plot_response(
+            pd.read_parquet(fit_dir / "predictions.parquet"),
+            pd.read_parquet(fit_dir / "dense.parquet"),
+            pd.read_parquet(held_out) if held_out.is_file() else None,
+        ),
+    }
+
+
 def write_fit(
     result: FitResult,
     out: Path,
@@ -251,9 +278,13 @@ def write_fit(
     dense = dense_sweeps(result)
     predictions.to_parquet(out / "predictions.parquet", index=False)
     dense.to_parquet(out / "dense.parquet", index=False)
-    corner_plot(result, out / "corner.png", truth)
-    trace_plot(result, out / "traces.png")
-    response_plot(predictions, dense, out / "response.png", held_out)
+    figures = {
+        "corner": plot_corner(result.samples, result.names, truth),
+        "traces": plot_traces(result),
+        "response": plot_response(predictions, dense, held_out),
+    }
+    for name, fig in figures.items():
+        save_figure(fig, out / f"{name}.png", **PNG_OPTIONS[name])
     if held_out is not None:
         held_out.to_parquet(out / "heldout.parquet", index=False)
     (out / "summary.json").write_text(dumps(summary, indent=2) + "\n")

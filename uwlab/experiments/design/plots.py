@@ -1,23 +1,25 @@
-"""The design figures of the paper, as PNG files: depth of field, spectra along the chain, framerate and
-exposure limits, water attenuation, quantum efficiency."""
+"""The design figures of the paper: depth of field, spectra along the chain, framerate and exposure limits, water
+attenuation, quantum efficiency (`design_figures`, as `Figure` objects; ``uwlab design --plot`` writes them as PNG
+files), and the Pareto front of ``uwlab design solve --plot`` (`plot_front`)."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from matplotlib.figure import Figure
 import numpy as np
 from matplotlib.ticker import ScalarFormatter
 
 from uwlab.errors import ConfigError
-from uwlab.experiments.figures import save_figure
+from uwlab.experiments.figures import Figure, save_figure
 from uwlab.experiments.design.curves import dof_curves, operation_curves, quantum_efficiency, water_attenuation
 from uwlab.model.design import Design
 from uwlab.model.evaluation import stage_spectra
 from uwlab.outputs import output_dir
 
 
-def plot_dof(design: Design, path: Path) -> Path:
+def plot_dof(design: Design) -> Figure:
+    """Far (solid) and near (dashed) depth-of-field limits against the f-number, one colour per focus distance
+    (`dof_curves`); no far limit past the hyperfocal distance."""
     curves = dof_curves(design)
     fig = Figure(figsize=(7, 4.5))
     ax = fig.subplots()
@@ -31,10 +33,12 @@ def plot_dof(design: Design, path: Path) -> Path:
         title="Depth of field: far (solid) and near (dashed) limits",
     )
     ax.legend()
-    return save_figure(fig, path)
+    fig.tight_layout()
+    return fig
 
 
-def plot_stages(design: Design, path: Path) -> Path:
+def plot_stages(design: Design) -> Figure:
+    """The spectrum at each stage of the on-axis chain, one panel per stage (`stage_spectra`)."""
     spectra = stage_spectra(design)
     nm = spectra["wavelength_nm"]
     fig = Figure(figsize=(7, 10))
@@ -51,10 +55,13 @@ def plot_stages(design: Design, path: Path) -> Path:
         ax.set_ylabel(label, fontsize=8)
     axes[-1].set_xlabel("wavelength [nm]")
     axes[0].set_title("Spectrum at each stage of the on-axis chain")
-    return save_figure(fig, path)
+    fig.tight_layout()
+    return fig
 
 
-def plot_operation(design: Design, path: Path) -> Path:
+def plot_operation(design: Design) -> Figure:
+    """Minimum framerate for the overlap and maximum exposure for the blur limit against speed, one line per
+    altitude (`operation_curves`)."""
     curves = operation_curves(design)
     fig = Figure(figsize=(10, 4))
     (a1, a2) = fig.subplots(1, 2)
@@ -66,10 +73,12 @@ def plot_operation(design: Design, path: Path) -> Path:
     a1.set(xlabel="speed [m/s]", ylabel="minimum framerate [Hz]", title="Framerate for the overlap")
     a2.set(xlabel="speed [m/s]", ylabel="maximum exposure [ms]", yscale="log", title="Exposure for the blur limit")
     a1.legend()
-    return save_figure(fig, path)
+    fig.tight_layout()
+    return fig
 
 
-def plot_water(design: Design, path: Path) -> Path:
+def plot_water(design: Design) -> Figure:
+    """Beam attenuation of every named water type (`water_attenuation`)."""
     fig = Figure(figsize=(7, 4.5))
     ax = fig.subplots()
     for name, c in water_attenuation(design.grid).items():
@@ -81,17 +90,20 @@ def plot_water(design: Design, path: Path) -> Path:
         title="Water attenuation profiles",
     )
     ax.legend(fontsize=7, ncol=2)
-    return save_figure(fig, path)
+    fig.tight_layout()
+    return fig
 
 
-def plot_qe(design: Design, path: Path) -> Path:
+def plot_qe(design: Design) -> Figure:
+    """Quantum efficiency of every shipped sensor profile and the design's own (bold; `quantum_efficiency`)."""
     fig = Figure(figsize=(7, 4.5))
     ax = fig.subplots()
     for name, (nm, qe) in quantum_efficiency((design.sensor,)).items():
         ax.plot(nm, qe, label=name, linewidth=2.5 if name == design.sensor.name else 1)
     ax.set(xlabel="wavelength [nm]", ylabel="quantum efficiency η", title="Sensor quantum efficiency (mono / combined)")
     ax.legend(fontsize=7)
-    return save_figure(fig, path)
+    fig.tight_layout()
+    return fig
 
 
 def prepare_plot_dir(out_dir: str | Path) -> Path:
@@ -102,17 +114,25 @@ def prepare_plot_dir(out_dir: str | Path) -> Path:
     return out_dir
 
 
+DESIGN_FIGURES = {
+    "dof": plot_dof,
+    "spectra": plot_stages,
+    "operation": plot_operation,
+    "water": plot_water,
+    "qe": plot_qe,
+}
+
+
+def design_figures(design: Design) -> dict[str, Figure]:
+    """Every design figure of a scalar design by name (``uwlab design --plot`` writes each as ``NAME.png``)."""
+    return {name: plot(design) for name, plot in DESIGN_FIGURES.items()}
+
+
 def write_design_plots(design: Design, out_dir: Path) -> list[Path]:
     """Write all design figures for a scalar design into out_dir; returns the files."""
     out_dir = prepare_plot_dir(out_dir)
     try:
-        return [
-            plot_dof(design, out_dir / "dof.png"),
-            plot_stages(design, out_dir / "spectra.png"),
-            plot_operation(design, out_dir / "operation.png"),
-            plot_water(design, out_dir / "water.png"),
-            plot_qe(design, out_dir / "qe.png"),
-        ]
+        return [save_figure(fig, out_dir / f"{name}.png") for name, fig in design_figures(design).items()]
     except OSError as exc:
         raise ConfigError("--plot", str(out_dir), f"cannot write a figure ({exc.strerror})") from None
 
@@ -132,10 +152,9 @@ def plot_front(
     y_key: str,
     senses: tuple[str, str],
     requirements: list[str],
-    path: Path,
     log_x: bool,
     log_y: bool,
-) -> Path:
+) -> Figure:
     """The Pareto front of two objectives, points coloured by the requirements that bind there."""
     fig = Figure(figsize=(7.5, 5))
     ax = fig.subplots()
@@ -173,4 +192,5 @@ def plot_front(
     ax.tick_params(which="minor", labelsize=7)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7, loc="upper left")
-    return save_figure(fig, path)
+    fig.tight_layout()
+    return fig

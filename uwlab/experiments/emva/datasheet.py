@@ -21,22 +21,22 @@ from uwlab.experiments.emva.linear import linear_model_holds
 from uwlab.experiments.figures import number_text, png_data_uri
 
 TEMPLATE = "datasheet.html.j2"
-SUMMARY_FIGURES = {"linear": ("photon_transfer.png", "snr.png"), "general": ("characteristic.png", "snr.png")}
+SUMMARY_FIGURES = {"linear": ("photon_transfer", "snr"), "general": ("characteristic", "snr")}
 CAPTIONS = {
-    "photon_transfer.png": "Photon transfer (Fig. 7)",
-    "characteristic.png": "Characteristic curve (General Fig. 5)",
-    "snr.png": "Signal-to-noise ratio (Fig. 8; General Fig. 7)",
-    "linearity.png": "Linearity (Fig. 9)",
-    "stability.png": "Stability (Fig. 6)",
-    "dark_current.png": "Dark current (Fig. 10)",
-    "dark_current_temperature.png": "Dark current against temperature (Fig. 11)",
-    "spatial_variances.png": "Spatial variances at every step (§4.3)",
-    "dsnu_spectrogram.png": "DSNU spectrograms (Fig. 12)",
-    "prnu_spectrogram.png": "PRNU spectrograms (Fig. 13)",
-    "dsnu_profiles.png": "DSNU profiles (Fig. 14)",
-    "prnu_profiles.png": "PRNU profiles (Fig. 14)",
-    "dsnu_histograms.png": "DSNU histograms (Figs. 15a, 16a)",
-    "prnu_histograms.png": "PRNU histograms (Figs. 15b, 16b)",
+    "photon_transfer": "Photon transfer (Fig. 7)",
+    "characteristic": "Characteristic curve (General Fig. 5)",
+    "snr": "Signal-to-noise ratio (Fig. 8; General Fig. 7)",
+    "linearity": "Linearity (Fig. 9)",
+    "stability": "Stability (Fig. 6)",
+    "dark_current": "Dark current (Fig. 10)",
+    "dark_current_temperature": "Dark current against temperature (Fig. 11)",
+    "spatial_variances": "Spatial variances at every step (§4.3)",
+    "dsnu_spectrogram": "DSNU spectrograms (Fig. 12)",
+    "prnu_spectrogram": "PRNU spectrograms (Fig. 13)",
+    "dsnu_profiles": "DSNU profiles (Fig. 14)",
+    "prnu_profiles": "PRNU profiles (Fig. 14)",
+    "dsnu_histograms": "DSNU histograms (Figs. 15a, 16a)",
+    "prnu_histograms": "PRNU histograms (Figs. 15b, 16b)",
 }
 
 
@@ -245,10 +245,6 @@ def verdicts(values: dict) -> list[tuple[str, str]]:
     return out
 
 
-def _data_uri(path: Path) -> str:
-    return png_data_uri(path.read_bytes())
-
-
 def _duration(seconds: float) -> str:
     """An exposure time in s, ms or µs, three significant digits."""
     if seconds >= 1.0:
@@ -277,19 +273,18 @@ def operation_point(values: dict, curves: dict) -> list[tuple[str, str]]:
     ]
 
 
-def datasheet_html(result: EmvaResult, figures: list[Path], info: SheetInfo) -> str:
-    """The datasheet page of ``result`` with the PNG ``figures`` (written by `uwlab.experiments.emva.plots`)."""
+def datasheet_html(result: EmvaResult, figures: dict[str, bytes], info: SheetInfo) -> str:
+    """The datasheet page of ``result`` with its ``figures`` as PNG by name (`uwlab.experiments.emva.plots`'
+    `figure_pngs`)."""
     from jinja2 import Environment, PackageLoader, select_autoescape
 
     env = Environment(
         loader=PackageLoader("uwlab.experiments.emva", "templates"), autoescape=select_autoescape(["html", "j2"])
     )
     v = result.values
-    by_name = {p.name: p for p in figures}
-    summary = [(CAPTIONS[n], _data_uri(by_name[n])) for n in SUMMARY_FIGURES[v["model"]] if n in by_name]
-    details = [
-        (CAPTIONS.get(p.name, p.stem), _data_uri(p)) for p in figures if p.name not in SUMMARY_FIGURES[v["model"]]
-    ]
+    first = SUMMARY_FIGURES[v["model"]]
+    summary = [(CAPTIONS[n], png_data_uri(figures[n])) for n in first if n in figures]
+    details = [(CAPTIONS.get(n, n), png_data_uri(png)) for n, png in figures.items() if n not in first]
     return env.get_template(TEMPLATE).render(
         v=v,
         info=info,
@@ -305,6 +300,6 @@ def datasheet_html(result: EmvaResult, figures: list[Path], info: SheetInfo) -> 
     )
 
 
-def write_datasheet(result: EmvaResult, figures: list[Path], path: Path, info: SheetInfo) -> Path:
+def write_datasheet(result: EmvaResult, figures: dict[str, bytes], path: Path, info: SheetInfo) -> Path:
     path.write_text(datasheet_html(result, figures, info), encoding="utf-8")
     return path

@@ -56,7 +56,7 @@ class OutputPaths:
 def output_paths(out: Path, result: EmvaResult, name: str, with_profile: bool) -> OutputPaths:
     """The files a characterisation writes into ``out``; refuses (`ConfigError` on ``--out``) if any exists or
     ``out`` is not a place to write (`uwlab.outputs.output_dir`)."""
-    from uwlab.experiments.emva.plots import plot_names
+    from uwlab.experiments.emva.plots import figure_names
 
     out = output_dir(out, "--out")
     with_profile = with_profile and result.model == "linear"
@@ -64,7 +64,7 @@ def output_paths(out: Path, result: EmvaResult, name: str, with_profile: bool) -
         out / RESULT_NAME,
         out / DATASHEET_NAME,
         out / XML_NAME,
-        tuple(out / n for n in plot_names(result)),
+        tuple(out / f"{n}.png" for n in figure_names(result)),
         (out / f"{name}.toml", out / f"{name}_qe.csv") if with_profile else None,
     )
     for path in paths.all():
@@ -91,7 +91,7 @@ def write_characterization(
     """Write the figures, datasheet, XML, the profile (when its paths are given) and ``emva.json``; returns the
     document written."""
     from uwlab.experiments.emva.datasheet import SheetInfo, write_datasheet
-    from uwlab.experiments.emva.plots import write_plots
+    from uwlab.experiments.emva.plots import figure_pngs
     from uwlab.experiments.emva.profile import profile_documents
     from uwlab.experiments.emva.results_xml import write_results_xml
 
@@ -107,7 +107,9 @@ def write_characterization(
     out = paths.result.parent
     try:
         out.mkdir(exist_ok=True)
-        figures = write_plots(result, out)
+        figures = figure_pngs(result)
+        for path in paths.plots:
+            path.write_bytes(figures[path.stem])
         write_datasheet(result, figures, paths.datasheet, info or SheetInfo())
         write_results_xml(result, paths.xml)
         if paths.profile is not None:

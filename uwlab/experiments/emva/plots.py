@@ -1,22 +1,23 @@
-"""EMVA 1288 Release 4.0 figures (PNG), as the standard draws them (Linear §6–8, General §6–8):
+"""EMVA 1288 Release 4.0 figures, as the standard draws them (Linear §6–8, General §6–8):
 
 photon transfer (Fig. 7; general model: the characteristic curve, General Fig. 5), SNR (Fig. 8; general: input SNR,
 General Fig. 7), linearity (Fig. 9), stability (Fig. 6), dark current against exposure time (Fig. 10) and against
 temperature (Fig. 11, log scale), the spatial variances at every illumination step (§4.3), horizontal and vertical
 spectrograms of the DSNU and PRNU images (Figs. 12–13), their profiles (Fig. 14) and their logarithmic and accumulated
-histograms (Figs. 15–16). `write_plots` returns the files it wrote, in that order; a figure whose data are missing
-(no stacks, one temperature) is not drawn.
+histograms (Figs. 15–16). Each ``plot_*`` returns its `Figure`; `figures` draws every one the result has data for
+(a figure whose data are missing — no stacks, one temperature — is not drawn), in that order, by name: the
+characterisation writes each as ``NAME.png`` and embeds the same PNGs (`figure_pngs`) in the datasheet.
 """
 
 from __future__ import annotations
 
-from pathlib import Path
+from collections.abc import Callable
 
 import numpy as np
 
 from uwlab.experiments.emva.analysis import EmvaResult
 from uwlab.experiments.emva.linear import total_snr_model
-from uwlab.experiments.figures import PALETTE, Figure, log_ticks, save_figure
+from uwlab.experiments.figures import PALETTE, Figure, figure_png, log_ticks
 from uwlab.model.sensor import snr
 
 FIGSIZE = (6.4, 4.2)
@@ -27,7 +28,7 @@ def _fmt(value, spec: str = ".4g", unit: str = "") -> str:
     return "n/a" if value is None else f"{value:{spec}}{unit}"
 
 
-def plot_photon_transfer(result: EmvaResult, path: Path) -> Path:
+def plot_photon_transfer(result: EmvaResult) -> Figure:
     """Fig. 7: σ²_y − σ²_y.dark against μ_y − μ_y.dark, the 0–70 % fit points and the regression line."""
     c, v = result.curves, result.values
     fig = Figure(figsize=FIGSIZE)
@@ -48,10 +49,11 @@ def plot_photon_transfer(result: EmvaResult, path: Path) -> Path:
     )
     ax.set_ylim(bottom=min(0.0, float(np.nanmin(c["signal_var_dn2"]))))
     ax.legend(fontsize=10)
-    return save_figure(fig, path)
+    fig.tight_layout()
+    return fig
 
 
-def plot_characteristic(result: EmvaResult, path: Path) -> Path:
+def plot_characteristic(result: EmvaResult) -> Figure:
     """General Fig. 5: μ_y − μ_y.dark against μ_p with the B-spline regression up to saturation."""
     c, v = result.curves, result.values
     fig = Figure(figsize=FIGSIZE)
@@ -72,10 +74,11 @@ def plot_characteristic(result: EmvaResult, path: Path) -> Path:
         title=f"Characteristic curve: R_d = {v['responsivity_dark_dn_per_photon']:.4g} DN/p",
     )
     ax.legend(fontsize=10)
-    return save_figure(fig, path)
+    fig.tight_layout()
+    return fig
 
 
-def plot_snr(result: EmvaResult, path: Path) -> Path:
+def plot_snr(result: EmvaResult) -> Figure:
     """Fig. 8 (linear: measured SNR and SNR_total, eq. 21 and eq. 69 models, ideal sensor) or General Fig. 7 (input
     SNR_p and SNR_p.total, ideal sensor), with the sensitivity threshold and saturation marked."""
     c, v = result.curves, result.values
@@ -128,10 +131,11 @@ def plot_snr(result: EmvaResult, path: Path) -> Path:
     log_ticks(ax.xaxis)
     log_ticks(ax.yaxis)
     ax.legend(fontsize=10)
-    return save_figure(fig, path)
+    fig.tight_layout()
+    return fig
 
 
-def plot_linearity(result: EmvaResult, path: Path) -> Path:
+def plot_linearity(result: EmvaResult) -> Figure:
     """Fig. 9: the characteristic curve with the linearity regression, and the relative deviation δ over 5–95 %."""
     c, v = result.curves, result.values
     fig = Figure(figsize=(6.4, 5.6))
@@ -145,10 +149,11 @@ def plot_linearity(result: EmvaResult, path: Path) -> Path:
     bx.plot(c["photons"][idx], c["linearity_dev_percent"][idx], "o-", ms=3, color="tab:green")
     bx.axhline(0.0, color="0.5", lw=0.8)
     bx.set(xlabel="irradiation μ_p [photons/pixel]", ylabel="deviation δ [%]")
-    return save_figure(fig, path)
+    fig.tight_layout()
+    return fig
 
 
-def plot_stability(result: EmvaResult, path: Path) -> Path:
+def plot_stability(result: EmvaResult) -> Figure:
     """Fig. 6: σ_y and μ[0] − μ[1] against μ_y − μ_y.dark."""
     c = result.curves
     fig = Figure(figsize=FIGSIZE)
@@ -159,10 +164,11 @@ def plot_stability(result: EmvaResult, path: Path) -> Path:
     ax.axhline(0.0, color="0.7", lw=0.8)
     ax.set(xlabel="gray value μ_y − μ_y.dark [DN]", ylabel="[DN]", title="Stability check")
     ax.legend(fontsize=10)
-    return save_figure(fig, path)
+    fig.tight_layout()
+    return fig
 
 
-def plot_dark_current(result: EmvaResult, path: Path) -> Path:
+def plot_dark_current(result: EmvaResult) -> Figure:
     """Fig. 10: dark mean and dark variance against exposure time with their regression lines."""
     c, v = result.curves, result.values
     dark, fit = c["dark"], c["dark_current_fit"]
@@ -189,10 +195,11 @@ def plot_dark_current(result: EmvaResult, path: Path) -> Path:
     bx.set(xlabel="exposure time [s]", ylabel="variance dark signal [DN²]", title="Dark current from variance")
     ax.legend(fontsize=10)
     bx.legend(fontsize=10)
-    return save_figure(fig, path)
+    fig.tight_layout()
+    return fig
 
 
-def plot_dark_temperature(result: EmvaResult, path: Path) -> Path:
+def plot_dark_temperature(result: EmvaResult) -> Figure:
     """Fig. 11: the dark current (log scale) against temperature."""
     v = result.values
     unit = "e" if v["model"] == "linear" else "p"
@@ -212,10 +219,11 @@ def plot_dark_temperature(result: EmvaResult, path: Path) -> Path:
         title="Dark current against temperature",
     )
     ax.legend(fontsize=10)
-    return save_figure(fig, path)
+    fig.tight_layout()
+    return fig
 
 
-def plot_spatial_variances(result: EmvaResult, path: Path) -> Path:
+def plot_spatial_variances(result: EmvaResult) -> Figure:
     """§4.3 at every illumination step: the row, column and pixel parts of the highpassed spatial variance (bright
     and dark) against μ_y − μ_y.dark, signed on a linear axis [DN²]: a part estimated below zero (noise in a
     difference of variances) is drawn where it is, not left out."""
@@ -234,10 +242,11 @@ def plot_spatial_variances(result: EmvaResult, path: Path) -> Path:
         title="Spatial nonuniformity at every step (highpassed, eq. 44)",
     )
     ax.legend(fontsize=9.5, ncol=2)
-    return save_figure(fig, path)
+    fig.tight_layout()
+    return fig
 
 
-def _spectrogram(spectrograms: dict, level_lines: list[tuple[float, str]], unit: str, title: str, path: Path) -> Path:
+def _spectrogram(spectrograms: dict, level_lines: list[tuple[float, str]], unit: str, title: str) -> Figure:
     fig = Figure(figsize=(6.4, 6.0))
     axes = fig.subplots(2, 1)
     for ax, name in zip(axes, ("horizontal", "vertical"), strict=True):
@@ -255,10 +264,11 @@ def _spectrogram(spectrograms: dict, level_lines: list[tuple[float, str]], unit:
             title=f"{title}: {name} spectrogram",
         )
         ax.legend(fontsize=9.5)
-    return save_figure(fig, path)
+    fig.tight_layout()
+    return fig
 
 
-def plot_dsnu_spectrogram(result: EmvaResult, path: Path) -> Path:
+def plot_dsnu_spectrogram(result: EmvaResult) -> Figure:
     """Fig. 12: horizontal and vertical spectrograms of the highpassed DSNU image, with DSNU₁₂₈₈ and the temporal
     noise σ_y.stack.dark of a single image as lines [DN]."""
     v, stack = result.values, result.images
@@ -275,11 +285,10 @@ def plot_dsnu_spectrogram(result: EmvaResult, path: Path) -> Path:
         ],
         "DN",
         "DSNU",
-        path,
     )
 
 
-def plot_prnu_spectrogram(result: EmvaResult, path: Path) -> Path:
+def plot_prnu_spectrogram(result: EmvaResult) -> Figure:
     """Fig. 13: spectrograms of the highpassed PRNU image in percent of the mean, with PRNU₁₂₈₈ and σ_y.stack/μ."""
     v, stack = result.values, result.images
     sigma = None
@@ -293,11 +302,10 @@ def plot_prnu_spectrogram(result: EmvaResult, path: Path) -> Path:
         ],
         "%",
         "PRNU",
-        path,
     )
 
 
-def _profiles(profiles: dict, title: str, lower_upper, path: Path) -> Path:
+def _profiles(profiles: dict, title: str, lower_upper) -> Figure:
     fig = Figure(figsize=(6.4, 6.0))
     axes = fig.subplots(2, 1)
     for ax, name, axis in zip(axes, ("horizontal", "vertical"), ("column index n", "row index m"), strict=True):
@@ -307,31 +315,30 @@ def _profiles(profiles: dict, title: str, lower_upper, path: Path) -> Path:
         ax.set_ylim(*lower_upper(prof))
         ax.set(xlabel=axis, ylabel="[DN]", title=f"{title}: {name} profile")
         ax.legend(fontsize=9.5, ncol=4)
-    return save_figure(fig, path)
+    fig.tight_layout()
+    return fig
 
 
-def plot_dsnu_profiles(result: EmvaResult, path: Path) -> Path:
+def plot_dsnu_profiles(result: EmvaResult) -> Figure:
     """Fig. 14 for ⟨y_dark⟩ (unfiltered): range 0.9 × mean of the minimum line … 1.1 × mean of the maximum line
     (§8.7)."""
     return _profiles(
         result.images.dsnu_profiles,
         "DSNU",
         lambda p: (0.9 * float(np.mean(p["min"])), 1.1 * float(np.mean(p["max"]))),
-        path,
     )
 
 
-def plot_prnu_profiles(result: EmvaResult, path: Path) -> Path:
+def plot_prnu_profiles(result: EmvaResult) -> Figure:
     """Fig. 14 for ⟨y_50⟩ − ⟨y_dark⟩ (unfiltered): range 0.9 … 1.1 × the mean (§8.7)."""
     return _profiles(
         result.images.prnu_profiles,
         "PRNU",
         lambda p: (0.9 * float(np.mean(p["mean"])), 1.1 * float(np.mean(p["mean"]))),
-        path,
     )
 
 
-def _histograms(histograms: dict, title: str, spread: str, path: Path) -> Path:
+def _histograms(histograms: dict, title: str, spread: str) -> Figure:
     fig = Figure(figsize=(6.4, 6.0))
     (ax, bx) = fig.subplots(2, 1)
     log = histograms["log"]
@@ -348,52 +355,60 @@ def _histograms(histograms: dict, title: str, spread: str, path: Path) -> Path:
         ylabel="pixels deviating at least this much [%]",
         title=f"Accumulated logarithmic histogram {title}",
     )
-    return save_figure(fig, path)
+    fig.tight_layout()
+    return fig
 
 
-def plot_dsnu_histograms(result: EmvaResult, path: Path) -> Path:
+def plot_dsnu_histograms(result: EmvaResult) -> Figure:
     """Figs. 15a and 16a: logarithmic and accumulated histograms of the highpassed DSNU image."""
     hist = result.images.dsnu_histograms
-    return _histograms(hist, "DSNU", f"s_nw = {hist['log'].spread_dn:.3g} DN", path)
+    return _histograms(hist, "DSNU", f"s_nw = {hist['log'].spread_dn:.3g} DN")
 
 
-def plot_prnu_histograms(result: EmvaResult, path: Path) -> Path:
+def plot_prnu_histograms(result: EmvaResult) -> Figure:
     """Figs. 15b and 16b: logarithmic and accumulated histograms of the highpassed PRNU image."""
     hist = result.images.prnu_histograms
-    return _histograms(hist, "PRNU", f"s_nw = {hist['log'].spread_dn:.3g} DN", path)
+    return _histograms(hist, "PRNU", f"s_nw = {hist['log'].spread_dn:.3g} DN")
 
 
-def figure_makers(result: EmvaResult) -> list[tuple[str, object]]:
-    """(file name, maker) of every figure the result has data for."""
+def figure_makers(result: EmvaResult) -> list[tuple[str, Callable[[EmvaResult], Figure]]]:
+    """(name, ``plot_*`` function) of every figure the result has data for, in the datasheet's order."""
     v = result.values
     linear = v["model"] == "linear"
-    makers = [
-        ("photon_transfer.png", plot_photon_transfer) if linear else ("characteristic.png", plot_characteristic),
-        ("snr.png", plot_snr),
+    makers: list[tuple[str, Callable[[EmvaResult], Figure]]] = [
+        ("photon_transfer", plot_photon_transfer) if linear else ("characteristic", plot_characteristic),
+        ("snr", plot_snr),
     ]
     if linear:
-        makers.append(("linearity.png", plot_linearity))
-    makers += [("stability.png", plot_stability), ("dark_current.png", plot_dark_current)]
+        makers.append(("linearity", plot_linearity))
+    makers += [("stability", plot_stability), ("dark_current", plot_dark_current)]
     if len(v["dark_current_by_temperature"]) >= 2:
-        makers.append(("dark_current_temperature.png", plot_dark_temperature))
+        makers.append(("dark_current_temperature", plot_dark_temperature))
     if np.isfinite(result.curves["spatial_split"].total).any():
-        makers.append(("spatial_variances.png", plot_spatial_variances))
+        makers.append(("spatial_variances", plot_spatial_variances))
     if result.images is not None:
         makers += [
-            ("dsnu_spectrogram.png", plot_dsnu_spectrogram),
-            ("prnu_spectrogram.png", plot_prnu_spectrogram),
-            ("dsnu_profiles.png", plot_dsnu_profiles),
-            ("prnu_profiles.png", plot_prnu_profiles),
-            ("dsnu_histograms.png", plot_dsnu_histograms),
-            ("prnu_histograms.png", plot_prnu_histograms),
+            ("dsnu_spectrogram", plot_dsnu_spectrogram),
+            ("prnu_spectrogram", plot_prnu_spectrogram),
+            ("dsnu_profiles", plot_dsnu_profiles),
+            ("prnu_profiles", plot_prnu_profiles),
+            ("dsnu_histograms", plot_dsnu_histograms),
+            ("prnu_histograms", plot_prnu_histograms),
         ]
     return makers
 
 
-def plot_names(result: EmvaResult) -> list[str]:
+def figure_names(result: EmvaResult) -> list[str]:
+    """The names of `figure_makers` (the files are ``NAME.png``)."""
     return [name for name, _ in figure_makers(result)]
 
 
-def write_plots(result: EmvaResult, out_dir: Path) -> list[Path]:
-    """Every figure of `figure_makers` into ``out_dir``."""
-    return [make(result, out_dir / name) for name, make in figure_makers(result)]
+def figures(result: EmvaResult) -> dict[str, Figure]:
+    """Every figure of `figure_makers`, drawn, by name."""
+    return {name: make(result) for name, make in figure_makers(result)}
+
+
+def figure_pngs(result: EmvaResult) -> dict[str, bytes]:
+    """Every figure of `figures` as PNG (`uwlab.experiments.figures.figure_png`): the files ``NAME.png`` and the
+    datasheet's images."""
+    return {name: figure_png(fig) for name, fig in figures(result).items()}

@@ -1,14 +1,14 @@
 """Figures of a traced port (`uwlab.model.port_field.trace_design`): the distortion it adds and the paraxial rule's
-error across the field, and where the lens must focus across the field (virtual image, depth of field)."""
+error across the field, and where the lens must focus across the field (virtual image, depth of field); `Figure`
+objects (`port_figures`) that ``uwlab port trace --plot`` writes as PNG files."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from matplotlib.figure import Figure
 import numpy as np
 
-from uwlab.experiments.figures import save_figure
+from uwlab.experiments.figures import Figure, save_figure
 
 _STYLE = {
     "x": ("tab:blue", "along x (to the edge)"),
@@ -28,7 +28,7 @@ def _port_label(design) -> str:
     return f"flat port t {h['flat_thickness_mm']:g} mm, air gap {h['flat_air_gap_mm']:g} mm, tilt ({tx:g}, {ty:g})°"
 
 
-def plot_distortion(design, trace: dict, path: Path) -> Path:
+def plot_distortion(design, trace: dict) -> Figure:
     """Distortion the port adds [%] and the paraxial rule's image error [px] against the field angle in air."""
     profile = trace["profile"]
     fig = Figure(figsize=(11, 4.5))
@@ -57,10 +57,11 @@ def plot_distortion(design, trace: dict, path: Path) -> Path:
         f"{trace['distortion_percent']['corner']:+.2f} % ({trace['distortion_px']['corner']:+.1f} px)",
         fontsize=9,
     )
-    return save_figure(fig, path)
+    fig.tight_layout()
+    return fig
 
 
-def plot_focus(design, trace: dict, path: Path) -> Path:
+def plot_focus(design, trace: dict) -> Figure:
     """Axial distance of the virtual image of the target plane against the field angle (tangential and sagittal),
     with the lens's focus setting, its depth of field in image space and its closest focus."""
     profile, aid = trace["profile"], trace["focus"]
@@ -96,12 +97,15 @@ def plot_focus(design, trace: dict, path: Path) -> Path:
         fontsize=9,
     )
     ax.legend(fontsize=7, loc="best")
-    return save_figure(fig, path)
+    fig.tight_layout()
+    return fig
+
+
+def port_figures(design, trace: dict) -> dict[str, Figure]:
+    """Both port figures of a traced design by name (``port_distortion``, ``port_focus``)."""
+    return {"port_distortion": plot_distortion(design, trace), "port_focus": plot_focus(design, trace)}
 
 
 def write_trace_plots(design, trace: dict, out_dir: Path) -> list[Path]:
-    """Both port figures into out_dir (an existing, writable folder)."""
-    return [
-        plot_distortion(design, trace, out_dir / "port_distortion.png"),
-        plot_focus(design, trace, out_dir / "port_focus.png"),
-    ]
+    """Both port figures into out_dir (an existing, writable folder) as ``NAME.png``."""
+    return [save_figure(fig, out_dir / f"{name}.png") for name, fig in port_figures(design, trace).items()]
