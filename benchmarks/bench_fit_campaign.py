@@ -47,6 +47,7 @@ def main() -> dict:
         "fit_walkers": int(alone.chain.shape[1]),
         "assess_s (fit + held-out folds + checks)": round(assess_s, 1),
         "held_out_inside_95": assessment.cross.inside_95,
+        "held_out_band_sharpness": assessment.cross.sharpness,
         "folds_converged": [fold["converged"] for fold in assessment.cross.folds],
         "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
         "target": "minutes, not hours, on two cores",
