@@ -16,6 +16,10 @@ import numpy as np
 import pytest
 
 from uwlab.cli.main import main
+from uwlab.errors import ConfigError
+from uwlab.model.sensor import load_sensor_profile
+from uwlab.sim.devices.camera import SimNodeMap, SimTruth
+from uwlab.sim.devices.gige_xml import genicam_xml
 from tests.support.paths import CONFIGS
 
 gi.require_version("Aravis", "0.8")
@@ -158,3 +162,20 @@ def test_bayer_buffers_through_harvesters(monkeypatch, capsys):
         )
         for stats in channels.values():
             assert stats["mean"] == pytest.approx(255 * stats["saturated_fraction"])
+
+
+def test_sim_colour_camera_windows_by_whole_bayer_cells(capsys):
+    """A colour sensor's window steps by its 2 × 2 Bayer cell, as real colour cameras' (GenICam Inc = 2): an odd
+    offset, which would shift the mosaic under an unchanged PixelFormat, is refused in one line, and so is binning;
+    an even one keeps the layout."""
+    rig = str(CONFIGS / "rigs" / "sim-tank-colour.toml")
+    base = ["grab", "--config", rig, "--pixel-format", "BayerRG12", "--frames", "2", "--bayer", "RG"]
+    assert main([*base, "--roi", "1001,1000,64,48"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "\n" not in err and "1001" in err and "multiple of 2" in err
+    doc = grab(capsys, *base[1:], "--roi", "1002,1000,64,48")
+    assert doc["frames"][0]["bayer"] == "RG"
+    nodes = SimNodeMap(SimTruth.from_sensor_profile(load_sensor_profile("imx250c")))
+    with pytest.raises(ConfigError, match="BinningHorizontal"):
+        nodes.set("BinningHorizontal", 2)
+    assert b"<Inc>2</Inc>" in genicam_xml(nodes)

@@ -309,6 +309,7 @@ class _Node:
     bounds: Callable[[], tuple[float, float]] | None = None
     entries: tuple[str, ...] = ()
     writable: bool = True
+    increment: int = 1  # GenICam <Inc>: an integer's values step by it
 
 
 class SimNodeMap:
@@ -320,6 +321,9 @@ class SimNodeMap:
         width, height = truth.resolution_px
         fmts = bayer_formats(truth.bayer) if truth.bayer else MONO_FORMATS
         kind = f"Bayer{truth.bayer}" if truth.bayer else "Mono"
+        # a colour sensor's window moves and grows by its 2 × 2 Bayer cell (an odd offset would shift the mosaic
+        # under an unchanged PixelFormat), and it does not bin (charge of different filters would mix)
+        step, max_binning = (2, 1) if truth.bayer else (1, 4)
         self.nodes: dict[str, _Node] = {
             "DeviceVendorName": _Node("str", "uwlab", writable=False),
             "DeviceModelName": _Node("str", f"SimCam-{truth.name}", writable=False),
@@ -327,14 +331,32 @@ class SimNodeMap:
             "DeviceFirmwareVersion": _Node("str", "uwlab-sim-1.0", writable=False),
             "SensorWidth": _Node("int", width, writable=False),
             "SensorHeight": _Node("int", height, writable=False),
-            "BinningHorizontal": _Node("int", 1, lambda: (1, 4)),
-            "BinningVertical": _Node("int", 1, lambda: (1, 4)),
-            "Width": _Node("int", width, lambda: (8, width // self.value("BinningHorizontal") - self.value("OffsetX"))),
-            "Height": _Node(
-                "int", height, lambda: (8, height // self.value("BinningVertical") - self.value("OffsetY"))
+            "BinningHorizontal": _Node("int", 1, lambda: (1, max_binning)),
+            "BinningVertical": _Node("int", 1, lambda: (1, max_binning)),
+            "Width": _Node(
+                "int",
+                width,
+                lambda: (8, width // self.value("BinningHorizontal") - self.value("OffsetX")),
+                increment=step,
             ),
-            "OffsetX": _Node("int", 0, lambda: (0, width // self.value("BinningHorizontal") - self.value("Width"))),
-            "OffsetY": _Node("int", 0, lambda: (0, height // self.value("BinningVertical") - self.value("Height"))),
+            "Height": _Node(
+                "int",
+                height,
+                lambda: (8, height // self.value("BinningVertical") - self.value("OffsetY")),
+                increment=step,
+            ),
+            "OffsetX": _Node(
+                "int",
+                0,
+                lambda: (0, width // self.value("BinningHorizontal") - self.value("Width")),
+                increment=step,
+            ),
+            "OffsetY": _Node(
+                "int",
+                0,
+                lambda: (0, height // self.value("BinningVertical") - self.value("Height")),
+                increment=step,
+            ),
             "PixelFormat": _Node("enum", f"{kind}8" if truth.bit_depth <= 8 else f"{kind}16", entries=fmts),
             "PayloadSize": _Node("int", 0, writable=False),
             "ExposureTime": _Node(
@@ -409,6 +431,8 @@ class SimNodeMap:
         lo, hi = node.bounds() if node.bounds else (-np.inf, np.inf)
         if not lo <= number <= hi:
             raise ConfigError(name, value, f"allowed range [{lo:g}, {hi:g}]")
+        if node.kind == "int" and number % node.increment:
+            raise ConfigError(name, value, f"must be a multiple of {node.increment} (the sensor's Bayer cell)")
         return number
 
     def payload_size(self) -> int:

@@ -128,7 +128,8 @@ def _feature_xml(name: str, nodes: object, addr: dict[tuple[str, str], int]) -> 
         else:
             limits, extra = "", []
         return [
-            f'<Integer Name="{name}" NameSpace="Standard"><pValue>{name}Reg</pValue>{limits}<Inc>1</Inc></Integer>',
+            f'<Integer Name="{name}" NameSpace="Standard"><pValue>{name}Reg</pValue>{limits}'
+            f"<Inc>{node.increment}</Inc></Integer>",
             _int_reg(name, addr[(name, "value")], access),
             *extra,
         ]
