@@ -178,3 +178,14 @@ def test_a_channel_lit_by_its_own_line_saturates_and_recovers_its_quantum_effici
     assert doc["quantum_efficiency"] == pytest.approx(truth[f"quantum_efficiency_{channel}"], rel=0.03)
     assert doc["saturation_e"] == pytest.approx(truth["saturation_e"], rel=0.1)
     assert not any("never reaches the clip level" in note for note in doc["notes"])
+
+
+def test_a_fleet_gives_a_colour_camera_a_row_per_channel(colour, capsys, tmp_path):
+    data, truth = colour
+    code, out, _ = run(capsys, "emva", "fleet", str(data.parent), "--out", str(tmp_path / "fleet"), "--json")
+    assert code == 0
+    rows = json.loads(out)
+    assert [row["camera"] for row in rows] == [f"SimCam-IMX250C-{channel}" for channel in CHANNELS]
+    for channel, row in zip(CHANNELS, rows, strict=True):
+        assert row["quantum_efficiency"] == pytest.approx(truth[f"quantum_efficiency_{channel}"], rel=0.03)
+        assert (tmp_path / "fleet" / "data" / channel / "datasheet.html").exists()
