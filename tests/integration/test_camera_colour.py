@@ -179,3 +179,29 @@ def test_sim_colour_camera_windows_by_whole_bayer_cells(capsys):
     with pytest.raises(ConfigError, match="BinningHorizontal"):
         nodes.set("BinningHorizontal", 2)
     assert b"<Inc>2</Inc>" in genicam_xml(nodes)
+
+
+def test_emva_on_a_fake_1_bayer_sweep_goes_per_channel_and_refuses_in_one_line(tmp_path, capsys):
+    """A BayerRG8 sweep of ``Fake_1`` through the hardware rig records per-channel statistics (here BG: the fake's
+    quirk) and ``uwlab emva characterize`` reads them per channel; the fake has no light to switch off, so the
+    sweep has no dark frames and EMVA 1288 refuses it in one line, with or without --channel."""
+    from uwlab.experiments.acquisition.plan import load_plan
+    from uwlab.experiments.acquisition.rigs import HardwareRig
+    from uwlab.experiments.acquisition.sweep import SweepRunner
+    from uwlab.experiments.dataset import Dataset
+    from tests.support.plans import write_plan
+
+    sweep = {"id": "fake", "kind": "exposure", "values": [2000.0, 10000.0], "frames_per_point": 2, "dark": "none"}
+    camera = {"backend": "aravis", "id": "Fake_1", "pixel_format": "BayerRG8", "window": [0, 0, 64, 32]}
+    plan = load_plan(write_plan(tmp_path / "fake.toml", "fake", [{**sweep, "sensor": "imx250c"}], camera=camera))
+    with (
+        Dataset.create(tmp_path / "ds", plan.raw, plan_sha256=plan.sha256, sim=False) as data,
+        HardwareRig(plan, None) as rig,
+    ):
+        SweepRunner(plan, data, rig).run()
+    points = Dataset.open(tmp_path / "ds").points()
+    assert points["bayer"].tolist() == ["BG", "BG"] and points["red_mean_dn"].notna().all()
+    for argv in ([], ["--channel", "red"]):
+        assert main(["emva", "characterize", str(tmp_path / "ds"), *argv]) == 2
+        err = capsys.readouterr().err.strip()
+        assert "\n" not in err and "no dark frames" in err

@@ -184,8 +184,10 @@ def characterize(
     model: str = "linear",
     sweep: str | None = None,
     pixel_size_um: float | None = None,
+    channel: str | None = None,
 ) -> EmvaResult:
-    """EMVA 1288 Release 4.0 characterisation of a camera (``uwlab emva characterize``).
+    """EMVA 1288 Release 4.0 characterisation of a camera (``uwlab emva characterize``), or of one colour channel of
+    a colour camera's raw Bayer sweep (Release 4.0 Linear §1.2: each channel is a sensor of its own).
 
     Parameters
     ----------
@@ -198,6 +200,10 @@ def characterize(
         The dataset's photon-transfer sweep (default: the only one).
     pixel_size_um
         The pixel pitch (default: the dataset's sensor profile; needed for a descriptor's sensor profile).
+    channel
+        ``"red"``, ``"green"`` or ``"blue"``: that channel of a dataset's raw Bayer sweep, from its per-channel
+        statistics (required for a colour sweep; refused for a monochrome one). Its η is the channel's QE at the
+        light's wavelength.
 
     Returns
     -------
@@ -215,11 +221,15 @@ def characterize(
 
         check(PixelSizeUm, pixel_size_um, "pixel_size_um")
     if isinstance(source, PhotonTransfer):
+        if channel is not None:
+            raise ConfigError("channel", channel, "for a dataset; a PhotonTransfer is one sensor's already")
         return EmvaResult(run(source, model), source, pixel_size_um=pixel_size_um)
     from uwlab.api.campaign import dataset_path
 
     path = dataset_path(source)
     if path.is_file():
+        if channel is not None:
+            raise ConfigError("channel", channel, "for a dataset; a descriptor holds one sensor")
         from uwlab.experiments.emva.descriptor import parse_descriptor, photon_transfer_from_descriptor, sheet_info
 
         pt = photon_transfer_from_descriptor(path, pixel_size_um)
@@ -228,9 +238,17 @@ def characterize(
         return EmvaResult(run(pt, model), pt, camera=camera, info=info, pixel_size_um=pixel_size_um)
     if not path.is_dir():
         raise ConfigError("source", str(path), "neither a dataset directory nor a descriptor file")
-    from uwlab.experiments.emva.from_dataset import load_dataset_input
+    from uwlab.experiments.emva.from_dataset import CHANNELS, load_dataset_inputs
 
-    loaded = load_dataset_input(path, sweep_id=sweep, pixel_size_um=pixel_size_um)
+    inputs = load_dataset_inputs(path, sweep_id=sweep, pixel_size_um=pixel_size_um, channel=channel)
+    if len(inputs) > 1:
+        raise ConfigError(
+            "channel",
+            None,
+            f"a colour (raw Bayer) sweep: choose one of {', '.join(CHANNELS)} (each is a sensor of its own, "
+            "EMVA 1288 Release 4.0 Linear §1.2)",
+        )
+    loaded = next(iter(inputs.values()))
     return EmvaResult(
         run(loaded.transfer, model),
         loaded.transfer,

@@ -7,7 +7,15 @@ import json
 import sys
 from pathlib import Path
 
+from typing import TYPE_CHECKING
+
 from uwlab.errors import ConfigError
+
+if TYPE_CHECKING:
+    from uwlab.experiments.emva.datasheet import SheetInfo
+    from uwlab.experiments.emva.output import OutputPaths
+    from uwlab.experiments.emva.transfer import PhotonTransfer
+    from uwlab.model.sensor import SensorProfile
 
 _SUMMARY = (
     ("K_dn_per_e", "system gain K", "DN/e-", "{:.5g}"),
@@ -51,12 +59,14 @@ def register(subparsers) -> None:
     c.add_argument("dataset", nargs="?", help="uwlab sweep dataset directory")
     c.add_argument("--descriptor", metavar="FILE", help="EMVA 1288 descriptor file (instead of a dataset)")
     _input_options(c)
+    _channel_option(c, "characterise only this colour channel of a raw Bayer sweep (default: each of the three)")
     _model_option(c)
     c.add_argument("--name", help="name of the sensor profile written to --out (default: measured-<camera>)")
     c.add_argument(
         "--out",
         metavar="DIR",
-        help="write emva.json, datasheet.html, emva1288.xml, the figures and the profile TOML here",
+        help="write emva.json, datasheet.html, emva1288.xml, the figures and the profile TOML here (a colour sweep "
+        "without --channel: one sub-directory per channel, DIR/red, DIR/green, DIR/blue, and DIR/channels.json)",
     )
     c.add_argument("--json", action="store_true", help="print one JSON object")
     c.set_defaults(func=run_characterize)
@@ -81,6 +91,7 @@ def register(subparsers) -> None:
     )
     e.add_argument("dataset", help="uwlab sweep dataset directory")
     _input_options(e)
+    _channel_option(e, "the colour channel of a raw Bayer sweep to export (required for one)")
     e.add_argument("--out", metavar="DIR", required=True, help="directory for the descriptor and its images")
     e.add_argument(
         "--image-size",
@@ -99,6 +110,14 @@ def _model_option(p) -> None:
         default="linear",
         help="Release 4.0 Linear (default) or General (non-linear cameras; suggested by the linear "
         "characterisation when the camera is not linear)",
+    )
+
+
+def _channel_option(p, text: str) -> None:
+    p.add_argument(
+        "--channel",
+        choices=("red", "green", "blue"),
+        help=f"{text}; each channel is a sensor of its own (EMVA 1288 Release 4.0 Linear §1.2)",
     )
 
 
@@ -149,16 +168,20 @@ def _override(args):
     )
 
 
+def _dataset_options(args) -> dict:
+    return {
+        "sweep_id": args.sweep,
+        "pixel_size_um": args.pixel_size_um,
+        "override": _override(args),
+        "wavelength_nm": args.wavelength_nm,
+        "channel": args.channel,
+    }
+
+
 def _load_dataset(args):
     from uwlab.experiments.emva.from_dataset import load_dataset_input
 
-    return load_dataset_input(
-        args.dataset,
-        sweep_id=args.sweep,
-        pixel_size_um=args.pixel_size_um,
-        override=_override(args),
-        wavelength_nm=args.wavelength_nm,
-    )
+    return load_dataset_input(args.dataset, **_dataset_options(args))
 
 
 def run_characterize(args) -> int:
@@ -169,30 +192,116 @@ def run_characterize(args) -> int:
         raise ConfigError("DATASET|--descriptor", None, "give exactly one of a dataset directory or --descriptor")
     _check_inputs(args)
     _check_out(args.out)
+    jobs: dict[str | None, tuple[PhotonTransfer, SensorProfile | None, str, SheetInfo]]
     if args.descriptor:
         from uwlab.experiments.emva.descriptor import parse_descriptor, photon_transfer_from_descriptor, sheet_info
 
-        pt, base = photon_transfer_from_descriptor(args.descriptor, args.pixel_size_um), None
+        if args.channel:
+            raise ConfigError("--channel", args.channel, "a descriptor holds one sensor: --channel is for a dataset")
+        pt = photon_transfer_from_descriptor(args.descriptor, args.pixel_size_um)
         info = sheet_info(parse_descriptor(args.descriptor))
-        camera = info.model if info.model != "—" else "descriptor"
+        jobs = {None: (pt, None, info.model if info.model != "—" else "descriptor", info)}
     else:
-        loaded = _load_dataset(args)
-        pt, base, camera, info = loaded.transfer, loaded.profile, loaded.camera, loaded.info
-    result = characterize(pt, args.model)
-    name = profile_name(args.name or f"measured-{camera}")
+        from uwlab.experiments.emva.from_dataset import load_dataset_inputs
+
+        loaded = load_dataset_inputs(args.dataset, **_dataset_options(args))
+        jobs = {channel: (one.transfer, one.profile, one.camera, one.info) for channel, one in loaded.items()}
+    split = len(jobs) > 1  # every channel of a colour sweep, each a sensor of its own
+    results = {channel: characterize(job[0], args.model) for channel, job in jobs.items()}
+    documents: dict[str | None, dict] = {}
     if args.out:
-        paths = output_paths(Path(args.out), result, name, bool(args.pixel_size_um or base))
-        document = write_characterization(
-            result, pt, paths, name=name, base=base, pixel_size_um=args.pixel_size_um, info=info
-        )
+        if split:
+            _make_dir(Path(args.out))
+        targets: dict[str | None, tuple[str, OutputPaths]] = {}
+        for channel, (_, base, camera, _) in jobs.items():
+            name = profile_name(f"{args.name}-{channel}" if args.name and split else args.name or f"measured-{camera}")
+            out = Path(args.out) / channel if split and channel else Path(args.out)
+            targets[channel] = (name, output_paths(out, results[channel], name, bool(args.pixel_size_um or base)))
+        summary = Path(args.out) / CHANNELS_FILE
+        if split and summary.exists():
+            raise ConfigError("--out", str(summary), "exists; refusing to overwrite")
+        for channel, (pt, base, _, info) in jobs.items():
+            name, paths = targets[channel]
+            documents[channel] = write_characterization(
+                results[channel], pt, paths, name=name, base=base, pixel_size_um=args.pixel_size_um, info=info
+            )
+        if split:
+            from uwlab.jsonable import dumps
+
+            summary.write_text(dumps(_channels_document(documents), indent=2) + "\n")
     else:
-        document = result_document(result)
+        documents = {channel: result_document(result) for channel, result in results.items()}
+    if not split:
+        document = next(iter(documents.values()))
+        if args.json:
+            json.dump(document, sys.stdout, indent=2)
+            sys.stdout.write("\n")
+        else:
+            print(_summary(document))
+        return 0
     if args.json:
-        json.dump(document, sys.stdout, indent=2)
-        sys.stdout.write("\n")
+        from uwlab.jsonable import dumps
+
+        sys.stdout.write(dumps({**_channels_document(documents), "documents": documents}, indent=2) + "\n")
     else:
-        print(_summary(document))
+        print(_channels_summary(documents, Path(args.out) / CHANNELS_FILE if args.out else None))
     return 0
+
+
+CHANNELS_FILE = "channels.json"
+
+
+def _make_dir(out: Path) -> None:
+    """The directory holding a colour sweep's per-channel sub-directories (checked by `_check_out`)."""
+    try:
+        out.mkdir(exist_ok=True)
+    except OSError as exc:
+        raise ConfigError("--out", str(out), f"cannot create ({exc.strerror or exc})") from None
+
+
+def _channels_document(documents: dict) -> dict:
+    """The per-channel summary of a colour sweep (``channels.json``): the table's figures of each channel."""
+    first = next(iter(documents.values()))
+    return {
+        "standard": first["standard"],
+        "source": first["source"].rsplit(",", 1)[0],
+        "channels": {
+            channel: {key: doc.get(key) for key, _, _ in _FLEET_COLUMNS} | {"wavelength_nm": doc.get("wavelength_nm")}
+            for channel, doc in documents.items()
+        },
+    }
+
+
+def _channels_summary(documents: dict, summary: Path | None) -> str:
+    """Each colour channel's figures, one row each, then the files written."""
+    first = next(iter(documents.values()))
+    header = ["channel", *(label for _, label, _ in _FLEET_COLUMNS)]
+    rows = [
+        [channel, *("—" if doc.get(key) is None else fmt.format(doc[key]) for key, _, fmt in _FLEET_COLUMNS)]
+        for channel, doc in documents.items()
+    ]
+    lines = [
+        f"EMVA 1288 ({first['standard']}) — {first['source'].rsplit(',', 1)[0]}: each colour channel a sensor of "
+        "its own (Release 4.0 Linear §1.2)",
+        *_aligned([header, *rows]),
+    ]
+    notes = {channel: doc.get("notes", []) for channel, doc in documents.items()}
+    shared = [n for n in notes[next(iter(notes))] if all(n in other for other in notes.values())]
+    lines += [f"  note: {n}" for n in shared]
+    lines += [f"  note ({c}): {n}" for c, some in notes.items() for n in some if n not in shared]
+    if summary is not None:
+        lines += [f"  wrote {Path(doc['files'][0]).parent}/ ({channel})" for channel, doc in documents.items()]
+        lines.append(f"  wrote {summary}")
+    return "\n".join(lines)
+
+
+def _aligned(rows: list[list[str]]) -> list[str]:
+    """Rows of cells as text columns: the first left-aligned, the others right-aligned."""
+    widths = [max(len(str(r[i])) for r in rows) for i in range(len(rows[0]))]
+    return [
+        "  ".join(str(c).rjust(w) if i else str(c).ljust(w) for i, (c, w) in enumerate(zip(r, widths, strict=True)))
+        for r in rows
+    ]
 
 
 def _summary(doc: dict) -> str:
@@ -288,7 +397,7 @@ def run_export(args) -> int:
     _check_out(args.out)
     pt = _load_dataset(args).transfer
     dataset = Dataset.open(args.dataset)
-    recorded = has_recorded_frames(dataset, pt)
+    recorded = pt.channel is None and has_recorded_frames(dataset, pt)  # a channel's sites are no frame of their own
     if recorded:
         points = dataset.points()
         darks = dark_rows(points, points[(points["sweep_id"] == pt.sweep_id)])
@@ -297,7 +406,11 @@ def run_export(args) -> int:
         how = "the recorded frames"
     else:
         path = write_descriptor(pt, args.out, shape=shape, source=pt.source)
-        how = "SYNTHETIC images from the recorded statistics: the sweep kept no raw frames (save_frames = true)"
+        how = (
+            f"SYNTHETIC images from the {pt.channel} channel's recorded statistics"
+            if pt.channel
+            else "SYNTHETIC images from the recorded statistics: the sweep kept no raw frames (save_frames = true)"
+        )
     if args.json:
         json.dump(
             {"descriptor": str(path), "points": int(len(pt.photons)), "synthetic_images": not recorded}, sys.stdout

@@ -13,7 +13,9 @@ Irradiance at the sensor plane: E = π L / (1 + 4 N²) on the axis, falling off 
 exact view factor of a Lambertian disk (`uwlab.model.optics.disk_source_irradiance_factor`); a spectrometer or
 photodiode "put at the place of the image sensor" (§6.4) reads the on-axis value. Electron rate of a pixel:
 A ∫ E(λ) λ/(h c) η(λ) dλ with the sensor profile's QE curve; the photon-weighted quantum efficiency the bench
-measures is ∫ E λ η dλ / ∫ E λ dλ (the η that Release 4.0 Linear eq. 52 recovers).
+measures is ∫ E λ η dλ / ∫ E λ dλ (the η that Release 4.0 Linear eq. 52 recovers). A colour sensor's pixels each
+see the source through their own filter: η is then the ``red``, ``green`` or ``blue`` QE curve of the profile, one
+photon-weighted η per channel (Release 4.0 Linear §1.2: each colour channel is a sensor of its own).
 
 Config keys besides ``[bench]``: ``[sensor] profile`` and the simulation's ``[sim]`` (``seed``, ``light_gamma``).
 A plan sweeping on a bench must be lensless (``lens = "none"``).
@@ -92,19 +94,21 @@ class Bench:
             self.f_number, np.asarray(r_m, float) / d_m
         ) / disk_source_irradiance_factor(self.f_number)
 
-    def on_axis_rate_e_per_s(self, level_fraction: float = 1.0) -> float:
-        """Photo-electrons per second of the on-axis pixel: A ∫ E λ/(h c) η dλ."""
+    def on_axis_rate_e_per_s(self, level_fraction: float = 1.0, channel: str = "combined") -> float:
+        """Photo-electrons per second of the on-axis pixel: A ∫ E λ/(h c) η dλ, with η the QE of ``channel`` (a
+        colour sensor's "red", "green" or "blue" pixel; "combined": the profile's mono or combined curve)."""
         grid = self.grid()
         nm, e = self.sensor_irradiance_w_m2_nm(level_fraction)
-        qe = self.sensor.qe_on(grid)
+        qe = self.sensor.qe_on(grid, channel)
         return float(self.sensor.pixel_area_m2 * np.sum(e * photons_per_joule(nm) * qe * grid.w_nm))
 
-    def quantum_efficiency(self) -> float:
-        """The photon-weighted η of the sensor under this source: ∫ E λ η dλ / ∫ E λ dλ."""
+    def quantum_efficiency(self, channel: str = "combined") -> float:
+        """The photon-weighted η of the sensor (or of a colour sensor's ``channel``) under this source:
+        ∫ E λ η dλ / ∫ E λ dλ."""
         grid = self.grid()
         nm, e = self.sensor_irradiance_w_m2_nm()
         weight = e * photons_per_joule(nm) * grid.w_nm
-        return float(np.sum(weight * self.sensor.qe_on(grid)) / np.sum(weight))
+        return float(np.sum(weight * self.sensor.qe_on(grid, channel)) / np.sum(weight))
 
 
 def is_bench(raw: dict) -> bool:

@@ -2,9 +2,10 @@
 bare sensor in air under a uniform diffuse disk source, the spectrometer at the sensor plane.
 
 It offers the scene interface the simulated rig uses (`uwlab.sim.scene.RigScene`): the electron-rate map of
-the full sensor (the on-axis rate times the disk's exact falloff), the spectrum at the ``sensor`` position, the
-light state, the ``[sim]`` settings (``seed``, ``light_gamma``) and the ground truth, including the photon-weighted
-quantum efficiency the characterisation must recover.
+the full sensor (the on-axis rate times the disk's exact falloff; for a colour sensor a raw Bayer mosaic, each
+pixel's rate through its own filter's QE, as `uwlab.sim.scene.RigScene` renders one), the spectrum at the ``sensor``
+position, the light state, the ``[sim]`` settings (``seed``, ``light_gamma``) and the ground truth, including the
+photon-weighted quantum efficiency the characterisation must recover (a colour sensor's per channel too).
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from uwlab.drivers.camera.pixels import bayer_sites
 from uwlab.sim.rig_state import RigState, WarmUp
 from uwlab.sim.settings import SimSettings
 from uwlab.errors import ConfigError
@@ -59,13 +61,21 @@ class BenchScene:
         return self.design.on_axis_rate_e_per_s(flux_fraction)
 
     def electron_rate_map(self, shape_yx: tuple[int, int], flux_fraction: float = 1.0) -> np.ndarray:
-        """Per-pixel electron rate [e⁻/s] (float32) for an image of ``shape_yx`` covering the full sensor."""
+        """Per-pixel electron rate [e⁻/s] (float32) for an image of ``shape_yx`` covering the full sensor; for a
+        colour sensor the raw Bayer mosaic (`SensorProfile.bayer`), each site at its own channel's rate."""
         ny, nx = shape_yx
         size_x, size_y = self.sensor.size_m
         x = (np.arange(nx) + 0.5) / nx * size_x - size_x / 2
         y = (np.arange(ny) + 0.5) / ny * size_y - size_y / 2
         relative = self.design.relative_irradiance(np.hypot(x[None, :], y[:, None]))
-        return (self.on_axis_rate_e_per_s(flux_fraction) * relative).astype(np.float32)
+        if not self.sensor.color:
+            return (self.on_axis_rate_e_per_s(flux_fraction) * relative).astype(np.float32)
+        out = np.empty(shape_yx, np.float32)
+        for colour, channel in (("R", "red"), ("G", "green"), ("B", "blue")):
+            rate = self.design.on_axis_rate_e_per_s(flux_fraction, channel)
+            for row, col in bayer_sites(self.sensor.bayer)[colour]:
+                out[row::2, col::2] = rate * relative[row::2, col::2]
+        return out
 
     def board_roi(self, shape_yx: tuple[int, int]) -> tuple[int, int, int, int]:
         """The whole image: the bench has no target board."""
@@ -81,10 +91,13 @@ class BenchScene:
         return self.design.sensor_irradiance_w_m2_nm(flux_fraction)
 
     def truth(self) -> dict:
-        """The bench's ground truth for checking a characterisation."""
+        """The bench's ground truth for checking a characterisation; a colour sensor's photon-weighted QE per
+        channel as ``quantum_efficiency_<red|green|blue>`` (``quantum_efficiency``: its combined curve's)."""
         b = self.design
         nm, e = b.sensor_irradiance_w_m2_nm()
+        channels = ("red", "green", "blue") if self.sensor.color else ()
         return {
+            **{f"quantum_efficiency_{c}": b.quantum_efficiency(c) for c in channels},
             "quantum_efficiency": b.quantum_efficiency(),
             "bench_f_number": b.f_number,
             "source_diameter_mm": b.source_diameter_mm,

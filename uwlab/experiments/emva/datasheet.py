@@ -18,6 +18,7 @@ from pathlib import Path
 from uwlab import __version__
 from uwlab.experiments.emva.analysis import EmvaResult
 from uwlab.experiments.emva.linear import linear_model_holds
+from uwlab.experiments.emva.transfer import CHANNEL_NO_SPLIT
 from uwlab.experiments.figures import number_text, png_data_uri
 
 TEMPLATE = "datasheet.html.j2"
@@ -66,6 +67,8 @@ FRAMES_FOR_PARTS = 16  # frames at 50 % saturation that resolve parts of ~0.1 % 
 def missing_reason(values: dict, parts: list[str], which: str) -> str:
     """Why DSNU or PRNU (`which`) of `parts` is not given, and what change to the measurement gives it."""
     spatial = values.get("spatial_variances")
+    if not spatial and values.get("channel"):
+        return CHANNEL_NO_SPLIT
     if not spatial:
         return (
             "not computed: no highpassed spatial variances; record the sweep with a region of interest larger than "
@@ -265,7 +268,10 @@ def operation_point(values: dict, curves: dict) -> list[tuple[str, str]]:
         ("Exposure control", "by exposure time" if varied else "by irradiance"),
         ("Exposure time", exposure_text),
         ("Gain", f"{v['gain_db']:g} dB"),
-        ("Data transfer mode", f"Mono {v['bit_depth']}"),
+        (
+            "Data transfer mode",
+            f"Mono {v['bit_depth']}" if not v.get("channel") else f"raw Bayer {v['bit_depth']}, {v['channel']} channel",
+        ),
         ("Camera temperature", "—" if v.get("temperature_c") is None else f"{v['temperature_c']:.1f} °C"),
         ("Wavelength (centroid)", "—" if wavelength is None else f"{wavelength:.0f} nm"),
         ("Pixel area", "—" if not v.get("pixel_area_m2") else f"{v['pixel_area_m2'] * 1e12:.4g} µm²"),

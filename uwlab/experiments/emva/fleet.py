@@ -3,7 +3,8 @@ EMVA 1288 descriptor file (``EMVA1288*.txt``) found under a folder, one table ro
 
 A camera whose data are refused (a one-line `UwlabError`) gets a row with the reason and the fleet goes on; with an
 output directory each camera's files (`uwlab.experiments.emva.output`) go to a sub-directory of its own, and the
-table to ``fleet.csv`` and ``fleet.json``.
+table to ``fleet.csv`` and ``fleet.json``. A colour camera's raw Bayer dataset gives a row per colour channel (EMVA 1288
+Release 4.0 Linear §1.2: each channel is a sensor of its own), its files in ``<camera>/<channel>``.
 """
 
 from __future__ import annotations
@@ -81,29 +82,43 @@ class FleetRow:
         return row
 
 
-def characterize_input(item: FleetInput, *, model: str, pixel_size_um: float | None, out: Path | None) -> FleetRow:
-    """Load, characterise and (with ``out``) write one camera."""
+def characterize_input(
+    item: FleetInput, *, model: str, pixel_size_um: float | None, out: Path | None
+) -> list[FleetRow]:
+    """Load, characterise and (with ``out``) write one camera: one row, or one per colour channel."""
     from uwlab.experiments.emva.analysis import characterize
     from uwlab.experiments.emva.output import output_paths, profile_name, result_document, write_characterization
 
     if item.kind == "dataset":
-        from uwlab.experiments.emva.from_dataset import load_dataset_input
+        from uwlab.experiments.emva.from_dataset import load_dataset_inputs
 
-        loaded = load_dataset_input(item.path, pixel_size_um=pixel_size_um)
-        pt, base, camera, info = loaded.transfer, loaded.profile, loaded.camera, loaded.info
+        loaded = load_dataset_inputs(item.path, pixel_size_um=pixel_size_um)
+        jobs = {channel: (one.transfer, one.profile, one.camera, one.info) for channel, one in loaded.items()}
     else:
         from uwlab.experiments.emva.descriptor import parse_descriptor, photon_transfer_from_descriptor, sheet_info
 
-        pt, base = photon_transfer_from_descriptor(item.path, pixel_size_um), None
+        pt = photon_transfer_from_descriptor(item.path, pixel_size_um)
         info = sheet_info(parse_descriptor(item.path))
-        camera = info.model if info.model != "—" else item.label
-    result = characterize(pt, model)
+        jobs = {None: (pt, None, info.model if info.model != "—" else item.label, info)}
+    results = {channel: characterize(job[0], model) for channel, job in jobs.items()}
     if out is None:
-        return FleetRow(camera, str(item.path), result_document(result))
-    name = profile_name(f"measured-{camera}")
-    paths = output_paths(out / profile_name(item.label), result, name, bool(pixel_size_um or base))
-    document = write_characterization(result, pt, paths, name=name, base=base, pixel_size_um=pixel_size_um, info=info)
-    return FleetRow(camera, str(item.path), document)
+        return [FleetRow(jobs[c][2], str(item.path), result_document(r)) for c, r in results.items()]
+    targets = {}
+    for channel, (_, base, camera, _) in jobs.items():
+        name = profile_name(f"measured-{camera}")
+        folder = out / profile_name(item.label)
+        if channel is not None:
+            folder.mkdir(exist_ok=True)
+            folder = folder / channel
+        targets[channel] = (name, output_paths(folder, results[channel], name, bool(pixel_size_um or base)))
+    rows = []
+    for channel, (pt, base, camera, info) in jobs.items():
+        name, paths = targets[channel]
+        document = write_characterization(
+            results[channel], pt, paths, name=name, base=base, pixel_size_um=pixel_size_um, info=info
+        )
+        rows.append(FleetRow(camera, str(item.path), document))
+    return rows
 
 
 def characterize_fleet(
@@ -136,7 +151,7 @@ def characterize_fleet(
     if dask is None:
         rows = []
         for item in inputs:
-            rows.append(_row(item, options))
+            rows += _rows(item, options)
             if progress is not None:
                 progress(rows[-1])
     else:
@@ -146,12 +161,12 @@ def characterize_fleet(
     return rows
 
 
-def _row(item: FleetInput, options: dict) -> FleetRow:
+def _rows(item: FleetInput, options: dict) -> list[FleetRow]:
     """`characterize_input`, a refusal kept as the camera's row."""
     try:
         return characterize_input(item, **options)
     except UwlabError as exc:
-        return FleetRow(item.label, str(item.path), None, str(exc))
+        return [FleetRow(item.label, str(item.path), None, str(exc))]
 
 
 def _rows_on_dask(
@@ -162,15 +177,15 @@ def _rows_on_dask(
     from uwlab.experiments.cluster import dask_client
 
     with dask_client(address) as client:
-        futures = [client.submit(_row, item, options, pure=False) for item in inputs]
+        futures = [client.submit(_rows, item, options, pure=False) for item in inputs]
         index = {future.key: number for number, future in enumerate(futures)}
-        rows: list[FleetRow | None] = [None] * len(inputs)
+        rows: list[list[FleetRow]] = [[] for _ in inputs]
         for future in as_completed(futures):
-            row = future.result()
-            rows[index[future.key]] = row
+            found = future.result()
+            rows[index[future.key]] = found
             if progress is not None:
-                progress(row)
-    return [row for row in rows if row is not None]
+                progress(found[-1])
+    return [row for found in rows for row in found]
 
 
 def write_fleet_table(rows: list[FleetRow], out: Path) -> None:

@@ -18,6 +18,15 @@ Per point, the highpassed spatial variance split (``spatial_var_{row,col,pixel}_
 saturated fraction, μ[0] − μ[1] and the temperature are taken when recorded. The dark series (for the dark noise and
 the dark current, with its temperatures) is every dark measurement of the camera at the sweep's gain: the sweep's
 own dark frames and the rows of ``dark`` sweeps.
+
+Colour (EMVA 1288 Release 4.0 Linear §1.2: "each color channel" of a colour camera is characterised "as a sensor of
+its own"): a sweep of raw Bayer frames records each channel's statistics (``<red|green|blue>_*`` columns, over the
+channel's own sites; `uwlab.experiments.dataset.channel_view`). With a ``channel``, the photon transfer is that
+channel's: its means, temporal variances, dark series and saturated fractions; μ_p per pixel is the same for every
+channel (the irradiance on the sensor does not depend on the filter above a pixel), so η = R/K is the channel's QE at
+the light's wavelength. The highpassed row/column/pixel split of the spatial variance needs the channel's sites as an
+image of their own and is not recorded per channel: DSNU and PRNU are then not given (the datasheet says why,
+`uwlab.experiments.emva.transfer.CHANNEL_NO_SPLIT`). `load_dataset_inputs` gives every channel of a colour sweep.
 """
 
 from __future__ import annotations
@@ -32,6 +41,7 @@ from uwlab.errors import ConfigError
 from uwlab.experiments.emva.dark import DarkSeries
 from uwlab.experiments.emva.datasheet import SheetInfo
 from uwlab.experiments.emva.transfer import PhotonTransfer, SpatialSplit, photons_per_pixel
+from uwlab.experiments.frames.frame import CHANNEL_NAMES
 from uwlab.model.data import read_csv_columns
 from uwlab.model.photometry import photon_flux, photons_per_joule
 from uwlab.model.sensor import SensorProfile, load_sensor_profile
@@ -53,6 +63,12 @@ REQUIRED_COLUMNS = (
     "gain_db",
 )
 SENSOR_PLANE = "sensor"
+CHANNELS = tuple(CHANNEL_NAMES.values())
+# The whole-ROI columns that have no per-channel counterpart: null in a channel's view (`channel_points`).
+WHOLE_ROI_ONLY = (
+    *(f"{prefix}spatial_var_{part}_dn2" for prefix in ("", "dark_") for part in ("row", "col", "pixel")),
+    "mean_diff_dn",
+)
 
 
 @dataclass(frozen=True)
@@ -190,6 +206,42 @@ def _split(rows: pd.DataFrame, prefix: str) -> SpatialSplit:
     return SpatialSplit(*(_column(rows, f"{prefix}spatial_var_{part}_dn2") for part in ("row", "col", "pixel")))
 
 
+def sweep_channels(points: pd.DataFrame, sweep_id: str) -> tuple[str, ...]:
+    """The colour channels of a sweep (`CHANNELS` when its points are raw Bayer frames with per-channel columns,
+    else ())."""
+    rows = points[points["sweep_id"] == sweep_id]
+    bayer = rows["bayer"].notna().any() if "bayer" in rows else False
+    recorded = "red_mean_dn" in rows and rows["red_mean_dn"].notna().all()
+    return CHANNELS if bayer and recorded else ()
+
+
+def channel_points(points: pd.DataFrame, sweep_id: str, channel: str) -> pd.DataFrame:
+    """The sweep's rows and its dark rows (`dark_rows`) as the colour ``channel`` saw them
+    (`uwlab.experiments.dataset.channel_view`), the whole-ROI columns without a per-channel counterpart
+    (`WHOLE_ROI_ONLY`) null; a sweep without per-channel columns (monochrome) is refused (`ConfigError` on
+    ``--channel``)."""
+    from uwlab.experiments.dataset import channel_view
+
+    if channel not in CHANNELS:
+        raise ConfigError("--channel", channel, f"must be one of {', '.join(CHANNELS)}")
+    own = points[points["sweep_id"] == sweep_id]
+    lit = own[own["kind"].isin(SWEEP_KINDS)]
+    darks = dark_rows(points, lit) if len(lit) else own.iloc[:0]
+    selected = pd.concat([own, darks[darks["sweep_id"] != sweep_id]])
+    if not sweep_channels(selected, sweep_id):
+        raise ConfigError(
+            "--channel",
+            channel,
+            f"sweep {sweep_id} has no per-channel statistics (a monochrome camera, or recorded before uwlab kept "
+            "them): characterise it without --channel",
+        )
+    try:
+        view = channel_view(selected, channel)
+    except ConfigError as exc:
+        raise ConfigError("--channel", channel, exc.reason) from None
+    return view.assign(**{column: np.nan for column in WHOLE_ROI_ONLY if column in view})
+
+
 def dark_rows(points: pd.DataFrame, rows: pd.DataFrame) -> pd.DataFrame:
     """The rows of dark sweeps taken with the camera and gain of the photon-transfer ``rows``."""
     cam = rows["camera_id"].iloc[0] if "camera_id" in rows else None
@@ -238,10 +290,14 @@ def photon_transfer_from_points(
     override: IrradianceOverride | None = None,
     wavelength_nm: float | None = None,
     source: str = "",
+    channel: str | None = None,
 ) -> PhotonTransfer:
-    """The `PhotonTransfer` of one sweep of a dataset's points/spectra tables (see the module docstring)."""
+    """The `PhotonTransfer` of one sweep of a dataset's points/spectra tables, or of one colour ``channel`` of it
+    (see the module docstring)."""
     check_columns(points, source or "dataset")
     sweep = select_sweep(points, sweep_id)
+    if channel is not None:
+        points = channel_points(points, sweep, channel)
     rows = points[(points["sweep_id"] == sweep) & points["kind"].isin(SWEEP_KINDS) & (points["light_on"] == True)]  # noqa: E712
     if len(rows) == 0:
         raise ConfigError("sweep", sweep, "no points with the light on")
@@ -261,7 +317,19 @@ def photon_transfer_from_points(
     width = rows["roi_w"].dropna() if "roi_w" in rows else pd.Series(dtype=float)
     height = rows["roi_h"].dropna() if "roi_h" in rows else pd.Series(dtype=float)
     col = lambda name: rows[name].to_numpy(float)  # noqa: E731
-    notes = () if override is None else ("irradiance from --irradiance (taken to be at the sensor plane)",)
+    notes: tuple[str, ...] = ()
+    if override is not None:
+        notes = ("irradiance from --irradiance (taken to be at the sensor plane)",)
+    if channel is not None:
+        sites = pd.to_numeric(rows["pixels"], errors="coerce").dropna()
+        layout = rows["bayer"].dropna()
+        notes += (
+            f"the {channel} channel of the raw Bayer mosaic"
+            + (f" ({layout.iloc[0]})" if len(layout) else "")
+            + (f", {int(sites.iloc[0])} sites per frame" if len(sites) else "")
+            + ", characterised as a sensor of its own (Release 4.0 Linear §1.2); μ_p per pixel is the same for "
+            "every channel, η is this channel's at the light's wavelength",
+        )
     return PhotonTransfer(
         photons=photons_per_pixel(e_p, exposure_s, area),
         exposure_s=exposure_s,
@@ -285,8 +353,9 @@ def photon_transfer_from_points(
         pixel_area_m2=area,
         wavelength_nm=lam,
         gain_db=float(rows["gain_db"].iloc[0]),
-        source=f"{source} sweep {sweep}".strip(),
+        source=f"{source} sweep {sweep}".strip() + (f", {channel} channel" if channel else ""),
         notes=notes,
+        channel=channel,
     )
 
 
@@ -301,37 +370,68 @@ class DatasetInput:
     info: SheetInfo
 
 
-def load_dataset_input(
+def load_dataset_inputs(
     root,
     *,
     sweep_id: str | None = None,
     pixel_size_um: float | None = None,
     override: IrradianceOverride | None = None,
     wavelength_nm: float | None = None,
-) -> DatasetInput:
-    """Open the dataset at ``root`` and build its `PhotonTransfer` (`photon_transfer_from_points`)."""
+    channel: str | None = None,
+) -> dict[str | None, DatasetInput]:
+    """Open the dataset at ``root`` and build the `PhotonTransfer` of its sweep (`photon_transfer_from_points`): for
+    a monochrome sweep ``{None: input}``; for a colour (raw Bayer) sweep one per channel, ``{"red": ..., "green":
+    ..., "blue": ...}``, each channel a sensor of its own (Release 4.0 Linear §1.2), or only ``channel``'s. A
+    ``channel`` on a monochrome sweep is refused (`ConfigError` on ``--channel``)."""
     from uwlab.experiments.dataset import Dataset
 
     dataset = Dataset.open(root)
     points = dataset.points()
-    pt = photon_transfer_from_points(
-        points,
-        dataset.spectra(),
-        sweep_id=sweep_id,
-        pixel_size_um=pixel_size_um,
-        override=override,
-        wavelength_nm=wavelength_nm,
-        source=f"dataset {root}",
-    )
+    check_columns(points, f"dataset {root}")
+    sweep = select_sweep(points, sweep_id)
+    channels: tuple[str | None, ...] = (channel,) if channel is not None else (sweep_channels(points, sweep) or (None,))
+    inputs = {}
+    for one in channels:
+        pt = photon_transfer_from_points(
+            points,
+            dataset.spectra(),
+            sweep_id=sweep,
+            pixel_size_um=pixel_size_um,
+            override=override,
+            wavelength_nm=wavelength_nm,
+            source=f"dataset {root}",
+            channel=one,
+        )
+        inputs[one] = _dataset_input(dataset, points, pt, one)
+    return inputs
+
+
+def load_dataset_input(root, *, channel: str | None = None, **options) -> DatasetInput:
+    """The one `PhotonTransfer` of the dataset at ``root`` (`load_dataset_inputs`): of its monochrome sweep, or of
+    the colour ``channel`` of its colour sweep (a colour sweep without ``channel`` is refused: `ConfigError` on
+    ``--channel``)."""
+    inputs = load_dataset_inputs(root, channel=channel, **options)
+    if len(inputs) > 1:
+        raise ConfigError(
+            "--channel",
+            None,
+            f"a colour (raw Bayer) sweep: choose one of {', '.join(CHANNELS)} (each channel is a sensor of its own, "
+            "EMVA 1288 Release 4.0 Linear §1.2)",
+        )
+    return next(iter(inputs.values()))
+
+
+def _dataset_input(dataset, points: pd.DataFrame, pt: PhotonTransfer, channel: str | None) -> DatasetInput:
     camera = points["camera_model"].dropna() if "camera_model" in points else pd.Series(dtype=object)
     name = str(camera.iloc[0]) if len(camera) else "camera"
     device = (dataset.metadata.get("devices") or {}).get(pt.sweep_id, {}).get("camera") or {}
+    model = device.get("model") or name
     info = SheetInfo(
         vendor=device.get("vendor") or "—",
-        model=device.get("model") or name,
+        model=model if channel is None else f"{model}, {channel} channel",
         serial=device.get("serial") or "—",
         measured=dataset.metadata.get("started_utc") or "—",
         interface=device.get("backend") or "—",
         type_of_data="Single (simulated camera)" if dataset.metadata.get("sim") else "Single",
     )
-    return DatasetInput(pt, named_profile(points), name, info)
+    return DatasetInput(pt, named_profile(points), name if channel is None else f"{name}-{channel}", info)

@@ -51,7 +51,14 @@ from uwlab.experiments.emva.linear import (
     require_fit_points,
 )
 from uwlab.experiments.emva.regression import bspline_regression, fit_line, intervals_for
-from uwlab.experiments.emva.transfer import PhotonTransfer, points_between, saturation, spatial_point
+from uwlab.experiments.emva.transfer import (
+    PhotonTransfer,
+    no_split_note,
+    points_between,
+    saturation,
+    spatial_point,
+    unsaturated_note,
+)
 
 MAX_SNR_P_AT_LOWEST_POINT = 2.0
 
@@ -74,6 +81,9 @@ def characterize_general(pt: PhotonTransfer) -> tuple[dict, dict]:
     notes = list(pt.notes)
     signal = pt.signal_dn
     sat = saturation(pt)
+    unsaturated = unsaturated_note(pt, sat)
+    if unsaturated:
+        notes.append(unsaturated)
     idx = np.arange(sat.index + 1)
     idx = idx[pt.photons[idx] > 0]
     intervals = intervals_for(len(idx) + 1)
@@ -186,7 +196,7 @@ def _nonuniformity(
         snr_total = pt.photons / np.sqrt((pt.temporal_var_dn2 + pt.spatial.total) / all_slopes**2)
     point = spatial_point(pt, sat)
     if point is None:
-        notes.append("DSNU and PRNU not computed: no highpassed spatial variances")
+        notes.append(no_split_note(pt))
         return values, snr_total
     slope_50 = float(slope(point.photons))
     for p in PARTS:

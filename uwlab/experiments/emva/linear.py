@@ -45,7 +45,15 @@ from uwlab.experiments.emva.dark import dark_current, dark_current_by_temperatur
 from uwlab.experiments.frames.nonuniformity import dsnu_e, prnu_percent
 from uwlab.experiments.emva.regression import bspline_regression, fit_line, intervals_for
 from uwlab.experiments.emva.response import response_curve
-from uwlab.experiments.emva.transfer import PhotonTransfer, Saturation, points_between, saturation, spatial_point
+from uwlab.experiments.emva.transfer import (
+    PhotonTransfer,
+    Saturation,
+    no_split_note,
+    points_between,
+    saturation,
+    spatial_point,
+    unsaturated_note,
+)
 
 QUANTISATION_VAR_DN2 = 1.0 / 12.0
 MIN_DARK_VAR_DN2 = 0.24
@@ -129,6 +137,9 @@ def characterize_linear(pt: PhotonTransfer) -> tuple[dict, dict]:
     notes = list(pt.notes)
     signal, var = pt.signal_dn, pt.signal_var_dn2
     sat = saturation(pt)
+    unsaturated = unsaturated_note(pt, sat)
+    if unsaturated:
+        notes.append(unsaturated)
     fit_idx = points_between(signal, sat.index, -np.inf, SENSITIVITY_FIT_FRACTION)
     fit_idx = fit_idx[pt.photons[fit_idx] > 0]
     require_fit_points(fit_idx, "sensitivity fit (0-70 % of saturation)", len(signal))
@@ -335,10 +346,7 @@ def _nonuniformity(pt: PhotonTransfer, sat: Saturation, k: float, notes: list[st
         snr_total = pt.signal_dn / np.sqrt(pt.temporal_var_dn2 + pt.spatial.total)
     curves = {"snr_total": snr_total, "spatial_split": pt.spatial, "dark_spatial_split": pt.dark_spatial}
     if point is None:
-        notes.append(
-            "DSNU and PRNU not computed: no highpassed spatial variances (a ROI larger than 19 px a side "
-            "and statistics recorded by this version of uwlab are needed)"
-        )
+        notes.append(no_split_note(pt))
         return values, curves
     for p in PARTS:
         values[f"dsnu{part_suffix(p)}_e"] = dsnu_e(point.dark[p], k)
@@ -382,5 +390,6 @@ def condition_values(pt: PhotonTransfer, notes: list[str]) -> dict:
         "width_px": int(pt.width_px),
         "height_px": int(pt.height_px),
         "source": pt.source,
+        "channel": pt.channel,
         "notes": notes,
     }

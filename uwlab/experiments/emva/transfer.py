@@ -102,7 +102,8 @@ class PhotonTransfer:
     current) and optionally the nonuniformity stacks.
 
     ``saturated_fraction``, ``mean_diff_dn``, ``temperature_c`` and ``point_index`` (the dataset row of each point,
-    of sweep ``sweep_id``) may hold NaN where not recorded.
+    of sweep ``sweep_id``) may hold NaN where not recorded. ``channel``: the colour channel ("red", "green", "blue")
+    of a raw Bayer sweep these statistics are of (None: the whole image of a monochrome camera).
     """
 
     photons: np.ndarray
@@ -130,6 +131,7 @@ class PhotonTransfer:
     gain_db: float = 0.0
     source: str = ""
     notes: tuple[str, ...] = field(default=())
+    channel: str | None = None
 
     def __post_init__(self) -> None:
         n = len(np.asarray(self.photons))
@@ -176,6 +178,23 @@ class Saturation:
     variance_max_index: int
 
 
+CHANNEL_NO_SPLIT = (
+    "not computed for a colour channel: its highpassed row/column/pixel split (Release 4.0 §8.1's filters) needs "
+    "the channel's sites as an image of their own, and the dataset records only the channel's total spatial "
+    "variance; uwlab does not yet compute the split per channel"
+)
+
+
+def no_split_note(pt: PhotonTransfer) -> str:
+    """Why DSNU and PRNU are not computed when the sweep has no highpassed spatial variances."""
+    if pt.channel is not None:
+        return f"DSNU and PRNU of the {pt.channel} channel {CHANNEL_NO_SPLIT}"
+    return (
+        "DSNU and PRNU not computed: no highpassed spatial variances (a ROI larger than 19 px a side "
+        "and statistics recorded by this version of uwlab are needed)"
+    )
+
+
 RULE_CLIP = "0.2 % of pixels at the clip level (Release 4.0 §6.6)"
 RULE_VARIANCE = "maximum of the temporal variance"
 
@@ -209,6 +228,22 @@ def saturation(pt: PhotonTransfer) -> Saturation:
                 )
             return Saturation(int(saturated[0]) - 1, RULE_CLIP, variance_max)
     return Saturation(variance_max, RULE_VARIANCE, variance_max)
+
+
+def unsaturated_note(pt: PhotonTransfer, sat: Saturation) -> str | None:
+    """A note when the sweep (sorted by μ_p) never reaches the clip level and its variance maximum is its brightest
+    point: the saturation point is then only where the sweep stopped (Release 4.0 Linear §6.6 asks for the mean
+    "where the histogram ... is not significantly cut-off"), so the figures taken there are lower bounds. A colour
+    channel whose filter passes little of the light is the usual case."""
+    fractions = pt.saturated_fraction
+    if sat.rule != RULE_VARIANCE or sat.index != len(pt.photons) - 1 or not np.all(np.isfinite(fractions)):
+        return None
+    where = f" in the {pt.channel} channel" if pt.channel else ""
+    fix = ", or light the channel at a wavelength its filter passes (Release 4.0 Linear §1.2)" if pt.channel else ""
+    return (
+        f"the sweep never reaches the clip level{where}: its brightest point is taken for saturation, so μ_p.sat, "
+        f"μ_e.sat, SNR_max and the dynamic range are lower bounds; extend the exposures{fix}"
+    )
 
 
 def points_between(signal: np.ndarray, sat: int, lo: float, hi: float) -> np.ndarray:
