@@ -28,10 +28,11 @@ demo: venv
 	$(VENV)/bin/uwlab demo
 
 # Everything: the in-process unit and slow tests and the doctests on two workers, then the integration tests
-# (processes, devices, ptys, GigE, Aravis, Chromium, Dask) one after another, as their timings assume.
+# (processes, devices, ptys, GigE, Aravis, Chromium, Dask) on two workers a file at a time (a file's tests share
+# their simulators and fixtures).
 test: $(VENV)/.aravis
 	$(PY) -m pytest -n 2 tests/unit tests/slow uwlab
-	$(PY) -m pytest tests/integration
+	$(PY) -m pytest -n 2 --dist loadfile tests/integration
 
 # The in-process unit tests and the doctests (no devices, no subprocesses), on two workers.
 test-fast: venv
