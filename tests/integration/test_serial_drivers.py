@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import termios
+
 import numpy as np
 import pytest
 
@@ -142,6 +144,27 @@ def test_light_recovers_from_fault(rig, light, fault):
     light.set_level(0.3)
     assert light.level() == 0.3
     assert received(rig, "light")[-3:-1] == ["LEV 0.3", "LEV 0.3"]
+
+
+def test_a_port_gone_while_its_read_timeout_is_set_is_recovered(rig, light, monkeypatch):
+    """Setting the read timeout reconfigures the port (termios): when the instrument vanishes just then (a restart
+    between the command and its reply, as the random-restart sweep found), that is a lost port like a failed read,
+    recovered by reopening, not a raw termios error."""
+    port = light.transport._serial
+    real = port._reconfigure_port
+    failures = []
+
+    def gone_once(*args, **kwargs):
+        if not failures:
+            failures.append(1)
+            raise termios.error(5, "Input/output error")
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(port, "_reconfigure_port", gone_once)
+    recoveries = light.recoveries
+    light.set_level(0.3)
+    assert failures and light.recoveries == recoveries + 1
+    assert light.level() == 0.3
 
 
 def test_reopened_port_gets_the_full_state_again_verified_by_read_back(rig, light):

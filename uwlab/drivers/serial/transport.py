@@ -222,10 +222,15 @@ class LineTransport:
             if len(self._buffer) > MAX_LINE_BYTES:
                 self._buffer = b""
                 raise ReplyParseError(f"line longer than {MAX_LINE_BYTES} bytes")
-            self._serial.timeout = remaining
-            self._buffer += self._io(lambda: self._serial.read(max(1, self._serial.in_waiting)))
+            self._buffer += self._io(lambda t=remaining: self._read_within(t))
         line, _, self._buffer = self._buffer.partition(TERMINATOR)
         return line
+
+    def _read_within(self, timeout_s: float) -> bytes:
+        """What arrives within `timeout_s`; setting the timeout reconfigures the port (termios), which fails like
+        a read when the port has just gone, so both are one I/O step (`_io`)."""
+        self._serial.timeout = timeout_s
+        return self._serial.read(max(1, self._serial.in_waiting))
 
     def _read_reply(self, deadline: float) -> Reply:
         reply = parse_reply(self._read_line(deadline))
