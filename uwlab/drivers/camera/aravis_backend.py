@@ -203,9 +203,9 @@ class AravisTransport:
     def start(self) -> None:
         try:
             payload = self._camera.get_payload()
-            self._stream = self._camera.create_stream(None, None)
+            stream = self._stream = self._camera.create_stream(None, None)
             for _ in range(N_BUFFERS):
-                self._stream.push_buffer(Aravis.Buffer.new_allocate(payload))
+                stream.push_buffer(Aravis.Buffer.new_allocate(payload))
             self._camera.start_acquisition()
         except GLib.Error as exc:
             self._stream = None

@@ -15,6 +15,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -54,7 +55,8 @@ class _Setting:
     def agrees(self, reported: object) -> bool:
         if isinstance(self.value, bool) or isinstance(self.value, int):
             return reported == self.value
-        return abs(float(reported) - float(self.value)) <= READBACK_TOLERANCE * max(1.0, abs(float(self.value)))
+        got, want = float(cast(float, reported)), float(cast(float, self.value))  # parsed numbers
+        return abs(got - want) <= READBACK_TOLERANCE * max(1.0, abs(want))
 
 
 class _AsciiInstrument:

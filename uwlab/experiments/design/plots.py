@@ -169,10 +169,10 @@ def plot_front(
         ylabel=f"{_axis_label(y_key)} ({senses[1]})",
     )
     for axis in (ax.xaxis, ax.yaxis):
-        axis.set_major_formatter(ScalarFormatter())
-        axis.set_minor_formatter(ScalarFormatter())
-        axis.get_major_formatter().set_scientific(False)
-        axis.get_minor_formatter().set_scientific(False)
+        for setter in (axis.set_major_formatter, axis.set_minor_formatter):
+            formatter = ScalarFormatter()
+            formatter.set_scientific(False)
+            setter(formatter)
     number = lambda v: f"{v:,.0f}" if abs(v) >= 1000 else f"{v:.3g}"  # noqa: E731
     for i, align in ((0, "left"), (len(x) - 1, "right")):
         ax.annotate(

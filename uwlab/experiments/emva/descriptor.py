@@ -333,8 +333,8 @@ def photon_transfer_from_descriptor(path: str | Path, pixel_size_um: float | Non
         dark_spatial=SpatialSplit.of(dark_at),
         dark=DarkSeries(
             dark_t * 1e-9,
-            [darks[t].mean_dn for t in dark_t],
-            [darks[t].temporal_var_dn2 for t in dark_t],
+            np.array([darks[t].mean_dn for t in dark_t]),
+            np.array([darks[t].temporal_var_dn2 for t in dark_t]),
             np.full(len(dark_t), np.nan),
         ),
         bit_depth=desc.bits,
@@ -370,5 +370,11 @@ SHEET_VARIABLES = {
 def sheet_info(desc: Descriptor) -> SheetInfo:
     """The datasheet header from the descriptor's ``l`` variables (names matched case-insensitively)."""
     found = {name.lower(): value for name, value in desc.variables.items()}
-    values = {key: next((found[n] for n in names if n in found), "—") for key, names in SHEET_VARIABLES.items()}
-    return SheetInfo(**values)
+    value = {key: str(next((found[n] for n in names if n in found), "—")) for key, names in SHEET_VARIABLES.items()}
+    return SheetInfo(
+        vendor=value["vendor"],
+        model=value["model"],
+        serial=value["serial"],
+        measured=value["measured"],
+        interface=value["interface"],
+    )

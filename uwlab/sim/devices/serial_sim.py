@@ -246,6 +246,7 @@ def _child_main(factory, link: Path, command_log: Path | None, vanish_s: float, 
         return
     status.send("ready")
     parent = multiprocessing.parent_process()
+    assert parent is not None  # the simulator runs in a child process
     try:
         while not stop.is_set() and parent.is_alive():
             server.step(0.1)
@@ -375,7 +376,7 @@ class SerialSimSettings:
             raise ConfigError(
                 "spectrometer_position", spectrometer_position, f"must be one of {', '.join(SPECTROMETER_POSITIONS)}"
             )
-        scene = load_scene(path)
+        scene = load_scene(None if path is None else Path(path))
         return cls(
             Path(path) if path is not None else None, scene.sim.light_gamma, spectrometer_position, scene.warm_up()
         )
@@ -390,9 +391,10 @@ class SceneSpectrum:
         self._scene = None
 
     def __call__(self, position: str, flux_fraction: float):
-        if self._scene is None:
-            self._scene = load_scene(self.config_path)
-        return self._scene.spectral_irradiance(position, flux_fraction)
+        scene = self._scene
+        if scene is None:
+            scene = self._scene = load_scene(self.config_path)
+        return scene.spectral_irradiance(position, flux_fraction)
 
 
 def _make_light(rig_state_path: Path, gamma: float, state_log: Path, warm_up: WarmUp) -> SimLight:
