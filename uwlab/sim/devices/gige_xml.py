@@ -11,9 +11,13 @@ announced by the bootstrap "first URL" register as ``Local:<file>;<address>;<len
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 from xml.sax.saxutils import escape
 
 from uwlab.drivers.camera.pixels import PIXEL_FORMATS
+
+if TYPE_CHECKING:
+    from uwlab.sim.devices.camera import SimNodeMap
 
 INT_BASE = 0x0002_0000
 FLOAT_BASE = 0x0003_0000
@@ -93,7 +97,7 @@ def _int_reg(name: str, address: int, access: str) -> str:
     )
 
 
-def _feature_xml(name: str, nodes: object, addr: dict[tuple[str, str], int]) -> list[str]:
+def _feature_xml(name: str, nodes: SimNodeMap, addr: dict[tuple[str, str], int]) -> list[str]:
     node = nodes.nodes[name]
     access = "RW" if node.writable else "RO"
     if name in ENUM_VALUES:
@@ -148,7 +152,7 @@ def _feature_xml(name: str, nodes: object, addr: dict[tuple[str, str], int]) -> 
     ]
 
 
-def genicam_xml(nodes: object) -> bytes:
+def genicam_xml(nodes: SimNodeMap) -> bytes:
     """The device description for a `SimNodeMap` (vendor/model from its string features)."""
     addr = _addresses()
     names = [n for n in nodes.nodes if n in STRING_REGISTERS or n in INT_FEATURES or n in FLOAT_FEATURES]
