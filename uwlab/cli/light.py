@@ -111,8 +111,7 @@ def run_instrument(args) -> int:
     """``--instrument NAME --resource RESOURCE``: set, then print the read-back (on, level, drive, measured)."""
     if args.port is not None:
         raise ConfigError("port", args.port, "give either --port or --instrument")
-    if args.resource is None:
-        raise ConfigError("resource", None, "--instrument needs --resource (uwlab devices lists them)")
+    _require_resource(args)
     if args.level is not None:
         check_level(args.level)
     with open_light(args.resource, instrument=args.instrument, visa_library=args.visa_library) as light:
@@ -172,6 +171,12 @@ def run_calibrate(args) -> int:
     return 0
 
 
+def _require_resource(args) -> None:
+    """--instrument names a definition; the device it drives is --resource."""
+    if args.resource is None:
+        raise ConfigError("resource", None, "--instrument needs --resource (uwlab devices lists them)")
+
+
 def _calibration_light(args) -> tuple[dict, str]:
     """`uwlab.open_light`'s arguments and the light's name in the file, from --light or --instrument."""
     if (args.light is None) == (args.instrument is None):
@@ -181,8 +186,7 @@ def _calibration_light(args) -> tuple[dict, str]:
         if extra is not None:
             raise ConfigError(extra.replace("_", "-"), getattr(args, extra), "needs --instrument (not --light)")
         return {"port": args.light, "protocol": args.protocol}, args.light
-    if args.resource is None:
-        raise ConfigError("resource", None, "--instrument needs --resource (uwlab devices lists them)")
+    _require_resource(args)
     options = {
         "port": args.resource,
         "instrument": args.instrument,

@@ -11,14 +11,13 @@ EMVA logo: a licence is needed to claim compliance (Preface), and this page says
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 
 from uwlab import __version__
 from uwlab.experiments.emva.analysis import EmvaResult
 from uwlab.experiments.emva.linear import linear_model_holds
-from uwlab.experiments.emva.transfer import CHANNEL_NO_SPLIT
+from uwlab.experiments.emva.transfer import CHANNEL_NO_SPLIT, SheetInfo
 from uwlab.experiments.figures import number_text, png_data_uri
 
 TEMPLATE = "datasheet.html.j2"
@@ -39,19 +38,6 @@ CAPTIONS = {
     "dsnu_histograms": "DSNU histograms (Figs. 15a, 16a)",
     "prnu_histograms": "PRNU histograms (Figs. 15b, 16b)",
 }
-
-
-@dataclass(frozen=True)
-class SheetInfo:
-    """What the datasheet header and operation point say beyond the characterisation itself."""
-
-    vendor: str = "—"
-    model: str = "—"
-    serial: str = "—"
-    measured: str = "—"
-    type_of_data: str = "Single"
-    interface: str = "—"
-    extra: dict = field(default_factory=dict)
 
 
 def _with_std(values: dict, key: str, spec: str) -> str:

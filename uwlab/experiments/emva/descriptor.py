@@ -42,7 +42,7 @@ import numpy as np
 
 from uwlab.errors import ConfigError
 from uwlab.experiments.emva.dark import DarkSeries
-from uwlab.experiments.emva.datasheet import SheetInfo
+from uwlab.experiments.emva.transfer import SheetInfo
 from uwlab.experiments.frames.stack import StackStatistics, stack_statistics
 from uwlab.experiments.emva.transfer import NonuniformityStack, PhotonTransfer, SpatialSplit
 from uwlab.experiments.saturation import ClipLevel, clip_level

@@ -39,7 +39,7 @@ import pandas as pd
 
 from uwlab.errors import ConfigError
 from uwlab.experiments.emva.dark import DarkSeries
-from uwlab.experiments.emva.datasheet import SheetInfo
+from uwlab.experiments.emva.transfer import SheetInfo
 from uwlab.experiments.emva.transfer import PhotonTransfer, SpatialSplit, photons_per_pixel
 from uwlab.experiments.frames.frame import CHANNEL_NAMES
 from uwlab.model.data import read_csv_columns

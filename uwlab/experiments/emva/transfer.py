@@ -300,3 +300,18 @@ def spatial_point(pt: PhotonTransfer, sat: int) -> SpatialPoint | None:
         int(pt.frames[i]),
         f"sweep point {i} ({pt.frames[i]:.0f} frames, {100 * pt.signal_dn[i] / pt.signal_dn[sat]:.0f} % of saturation)",
     )
+
+
+@dataclass(frozen=True)
+class SheetInfo:
+    """What the datasheet header and operation point say beyond the characterisation itself (the camera's
+    identity from a descriptor's ``l`` lines or a dataset's metadata; kept here, not beside the datasheet's
+    rendering, so that reading a measurement never loads matplotlib)."""
+
+    vendor: str = "—"
+    model: str = "—"
+    serial: str = "—"
+    measured: str = "—"
+    type_of_data: str = "Single"
+    interface: str = "—"
+    extra: dict = field(default_factory=dict)
