@@ -9,12 +9,16 @@ code), a channel's saturated fraction is the fraction of its sites at or above i
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
-from uwlab.drivers.camera import Frame
 from uwlab.drivers.camera.pixels import bayer_sites
 from uwlab.experiments.saturation import frame_clip_level
-from uwlab.model.sensor import SensorProfile
+
+if TYPE_CHECKING:  # annotations only
+    from uwlab.drivers.camera import Frame
+    from uwlab.model.sensor import SensorProfile
 
 CHANNELS = ("R", "G", "B")
 # Each mosaic colour's name as the design model's ``sensor.channel`` and a colour profile's QE column call it.
