@@ -5,6 +5,9 @@ block, a header, data lines and ``END``). What is recovered, each within ``1 + r
 
 - no reply, or a partial line followed by silence (timeout) → the command is sent again;
 - garbage (non-ASCII, control bytes, wrong reply type) → input discarded, command sent again;
+- after a failed attempt, a reopen, and a reply that needed more than one attempt, input is read and
+  discarded until the line has been quiet for ``QUIET_S``: a late reply to an abandoned attempt must not be
+  taken for the answer to the next command (the protocol's replies carry no sequence number);
 - ``ERR 200`` (busy) → sent again; any other ``ERR`` is reported at once;
 - a banner (``# ...``, the instrument has reset, during a command or between commands) → ``on_recover``
   is called (drivers re-apply and verify their settings), then the command is sent again;
@@ -42,6 +45,7 @@ from uwlab.errors import ConfigError, DeviceError
 
 BAUDRATE = 115200
 PORT_ERRORS = (serial.SerialException, OSError, termios.error)
+QUIET_S = 0.2
 T = TypeVar("T")
 
 
@@ -138,21 +142,26 @@ class LineTransport:
 
     def _transact(self, command: str, receive: Callable[[float], T], timeout_s: float) -> T:
         attempts = 1 + self.retries
-        for _ in range(attempts):
+        for attempt in range(attempts):
             try:
                 self._ensure_open(command)
                 self._drain_unsolicited()
                 self._send(command)
-                return receive(time.monotonic() + timeout_s)
+                result = receive(time.monotonic() + timeout_s)
+                if attempt:
+                    self._wait_quiet()
+                return result
             except _Reset as exc:
                 last = exc
                 self._restore()
             except _PortLost as exc:
                 last = exc
                 self._reopen(command)
+                self._wait_quiet()
                 self._restore()
             except (_Retry, ReplyParseError) as exc:
                 last = exc
+                self._wait_quiet()
             except _Refused as exc:
                 raise DeviceError(f"{self.port}: command {command!r} refused by the instrument: {exc}") from None
         raise DeviceError(f"{self.port}: command {command!r} failed after {attempts} attempts (last: {last})")
@@ -207,6 +216,17 @@ class LineTransport:
                 continue
             if banner:
                 self._restore()
+
+    def _wait_quiet(self) -> None:
+        """Collect input until none has arrived for ``QUIET_S`` (at most ``timeout_s + reopen_s``, for an
+        instrument that never stops talking); the next command's `_drain_unsolicited` discards it, noting any
+        banner. A port lost meanwhile is left to the next attempt."""
+        give_up = time.monotonic() + self.timeout_s + self.reopen_s
+        try:
+            while time.monotonic() < give_up and (late := self._read_within(QUIET_S)):
+                self._buffer += late
+        except PORT_ERRORS:
+            pass
 
     def _send(self, command: str) -> None:
         line = command.encode("ascii") + TERMINATOR
