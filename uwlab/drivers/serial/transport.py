@@ -25,7 +25,8 @@ from __future__ import annotations
 
 import termios
 import time
-from typing import TypeVar
+from functools import partial
+from typing import TypeVar, overload
 from collections.abc import Callable
 
 import serial
@@ -126,7 +127,11 @@ class LineTransport:
         """Send a setting command; the instrument must reply ``OK``."""
         self._transact(command, lambda deadline: self._expect(self._read_reply(deadline), "ok"), self.timeout_s)
 
-    def query(self, command: str, parse: Callable[[str], T] = str) -> T:
+    @overload
+    def query(self, command: str) -> str: ...
+    @overload
+    def query(self, command: str, parse: Callable[[str], T]) -> T: ...
+    def query(self, command: str, parse: Callable[[str], object] = str) -> object:
         """Send a query; returns its value text through ``parse`` (a `ReplyParseError` there is retried)."""
         return self._transact(
             command, lambda deadline: parse(self._expect(self._read_reply(deadline), "value").text), self.timeout_s
@@ -142,6 +147,7 @@ class LineTransport:
 
     def _transact(self, command: str, receive: Callable[[float], T], timeout_s: float) -> T:
         attempts = 1 + self.retries
+        last: Exception | None = None
         for attempt in range(attempts):
             try:
                 self._ensure_open(command)
@@ -165,6 +171,12 @@ class LineTransport:
             except _Refused as exc:
                 raise DeviceError(f"{self.port}: command {command!r} refused by the instrument: {exc}") from None
         raise DeviceError(f"{self.port}: command {command!r} failed after {attempts} attempts (last: {last})")
+
+    def _port(self) -> serial.SerialBase:
+        """The open port; a transport closed meanwhile (e.g. by ``on_recover``) has lost it."""
+        if self._serial is None:
+            raise _PortLost("port closed")
+        return self._serial
 
     def _open_port(self) -> serial.SerialBase:
         return serial.serial_for_url(self.port, baudrate=self.baudrate, timeout=self.timeout_s, exclusive=True)
@@ -207,7 +219,8 @@ class LineTransport:
 
     def _drain_unsolicited(self) -> None:
         """Discard pending input; a banner among it means the instrument reset since the last reply."""
-        pending = self._buffer + self._io(lambda: self._serial.read(self._serial.in_waiting))
+        port = self._port()
+        pending = self._buffer + self._io(lambda: port.read(port.in_waiting))
         self._buffer = b""
         for raw in pending.split(TERMINATOR):
             try:
@@ -230,27 +243,29 @@ class LineTransport:
 
     def _send(self, command: str) -> None:
         line = command.encode("ascii") + TERMINATOR
-        self._io(lambda: (self._serial.write(line), self._serial.flush()))
+        port = self._port()
+        self._io(lambda: (port.write(line), port.flush()))
 
     def _read_line(self, deadline: float) -> bytes:
         while TERMINATOR not in self._buffer:
             remaining = deadline - time.monotonic()
             if remaining <= 0:
-                partial = f", partial line {self._buffer[:40]!r}" if self._buffer else ""
+                tail = f", partial line {self._buffer[:40]!r}" if self._buffer else ""
                 self._buffer = b""
-                raise _Retry(f"no reply within {self.timeout_s:g} s{partial}")
+                raise _Retry(f"no reply within {self.timeout_s:g} s{tail}")
             if len(self._buffer) > MAX_LINE_BYTES:
                 self._buffer = b""
                 raise ReplyParseError(f"line longer than {MAX_LINE_BYTES} bytes")
-            self._buffer += self._io(lambda t=remaining: self._read_within(t))
+            self._buffer += self._io(partial(self._read_within, remaining))
         line, _, self._buffer = self._buffer.partition(TERMINATOR)
         return line
 
     def _read_within(self, timeout_s: float) -> bytes:
         """What arrives within `timeout_s`; setting the timeout reconfigures the port (termios), which fails like
         a read when the port has just gone, so both are one I/O step (`_io`)."""
-        self._serial.timeout = timeout_s
-        return self._serial.read(max(1, self._serial.in_waiting))
+        port = self._port()
+        port.timeout = timeout_s
+        return port.read(max(1, port.in_waiting))
 
     def _read_reply(self, deadline: float) -> Reply:
         reply = parse_reply(self._read_line(deadline))

@@ -310,15 +310,18 @@ def summarize(dataset: Dataset) -> dict:
     report = check(dataset)
     meta, points, totals = dataset.metadata, report.points, report.totals or {}
     sweeps = []
+    saturated_points = 0
     for sweep_id, total in totals.items():
         rows = points[points["sweep_id"] == sweep_id]
+        saturated = int(rows["saturated"].fillna(False).astype(bool).sum())
+        saturated_points += saturated
         sweeps.append(
             {
                 "id": sweep_id,
                 "kind": rows["kind"].iloc[0] if len(rows) else None,
                 "points_done": int(len(rows)),
                 "points_total": int(total),
-                "saturated_points": int(rows["saturated"].fillna(False).astype(bool).sum()),
+                "saturated_points": saturated,
                 "sensor_profile": rows["sensor_profile"].iloc[0] if len(rows) else None,
                 "lens_label": rows["lens_label"].iloc[0] if len(rows) else None,
             }
@@ -341,7 +344,7 @@ def summarize(dataset: Dataset) -> dict:
         "finished_utc": meta.get("finished_utc"),
         "points_done": done,
         "points_total": total,
-        "saturated_points": int(sum(s["saturated_points"] for s in sweeps)),
+        "saturated_points": saturated_points,
         "time_span": span,
         "spectra_rows": int(sum(p.rows("spectra") for p in dataset.store.parts)),
         "sweeps": sweeps,

@@ -21,6 +21,7 @@ import numpy as np
 import pandas as pd
 
 from uwlab.drivers.camera import Camera
+from uwlab.sim.devices.camera import SimTransport
 from uwlab.sim.devices.serial_sim import SerialRig
 from uwlab.sim.state_log import reads_during, states_during
 
@@ -50,8 +51,11 @@ def camera_outage(camera: Callable[[], Camera | None], outage_s: tuple[float, fl
         target = camera()
         if target is None:
             return None
+        transport = target.transport
+        if not isinstance(transport, SimTransport):
+            raise TypeError(f"a camera outage needs a simulated camera, not {type(transport).__name__}")
         seconds = float(rng.uniform(*outage_s))
-        target.transport.cut(seconds)
+        transport.cut(seconds)
         time.sleep(seconds)
         return {"fault": "camera outage", "down_s": seconds}
 

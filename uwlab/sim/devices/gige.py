@@ -233,7 +233,10 @@ class GigeCameraServer:
         if reg is None:
             raise KeyError(address)
         if reg.part != "value":
-            lo, hi = self.nodes.bounds(reg.feature)
+            bounds = self.nodes.bounds(reg.feature)
+            if bounds is None:  # only features with bounds have min and max registers (`register_map`)
+                raise KeyError(address)
+            lo, hi = bounds
             return int(lo if reg.part == "min" else hi)
         value = self._feature_value(reg.feature)
         if reg.feature in ENUM_VALUES:
