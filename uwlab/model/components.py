@@ -15,6 +15,7 @@ CSV as an absolute path). Files named in a profile are relative to the profile. 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Annotated
 
 from pydantic import Field, model_validator
 
@@ -53,7 +54,7 @@ class LightProfile(Schema):
 
     def design_values(self, folder: Path) -> dict[str, object]:
         """The design config values of this light (``section.key`` → value; None: the key is unset)."""
-        spectrum = self.spectrum if self.spectrum is not None else str((folder / self.spectrum_csv).resolve())
+        spectrum = self.spectrum if self.spectrum_csv is None else str((folder / self.spectrum_csv).resolve())
         return {
             "light.luminous_flux_lm": self.luminous_flux_lm,
             "light.beam_half_angle_deg": self.beam_half_angle_deg,
@@ -67,7 +68,7 @@ class LensProfile(Schema):
 
     name: NonEmptyText = Field(description="product name")
     focal_length_mm: FocalLengthMm = Field(description="focal length [mm]")
-    transmittance: number_or(Transmittance, NonEmptyText, NAME_OR_FILE) | None = Field(
+    transmittance: Annotated[Transmittance | NonEmptyText, number_or(NAME_OR_FILE)] | None = Field(
         None, description="broadband transmittance (or give transmittance_csv)"
     )
     transmittance_csv: NonEmptyText | None = Field(None, description="spectral transmittance CSV beside the profile")
@@ -79,6 +80,7 @@ class LensProfile(Schema):
 
     def design_values(self, folder: Path) -> dict[str, object]:
         """The design config values of this lens (``section.key`` → value)."""
+        transmittance: float | str
         if self.transmittance_csv is not None:
             transmittance = str((folder / self.transmittance_csv).resolve())
         else:

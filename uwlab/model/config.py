@@ -71,6 +71,10 @@ AttenuationScale = Annotated[float, limits(0.0, 100.0, "", hint="a factor on the
 # Image overlap between frames along the motion: a fraction below 1 (1 would need an infinite framerate).
 Overlap = Annotated[float, limits(0.0, 1.0, "", hint="a fraction, not a percentage", hi_open=True)]
 NAME_OR_FILE = "must be a number or a name or file path"
+# A port's transmittance: a fraction, or "fresnel" (computed from the indices).
+PortTransmittance = Annotated[Grid[Transmittance] | Literal["fresnel"], number_or('must be a number or "fresnel"')]
+# The design's exposure: a time, or "max-blur" (the longest within the blur limit).
+ExposureOrMaxBlur = Annotated[Grid[ExposureS] | Literal["max-blur"], number_or('must be a number or "max-blur"')]
 # A flat window's thickness: 0 (the thin window of the paraxial rule) to 200 mm.
 WindowMm = Annotated[float, limits(0.0, 200.0, "mm")]
 # Entrance pupil → inner face of a flat window: 0 to 1000 mm.
@@ -203,7 +207,7 @@ class Water(Schema):
 class Target(Schema):
     """The Lambertian target (seafloor, test board)."""
 
-    reflectance: number_or(Grid[Fraction], NonEmptyText, NAME_OR_FILE) = Field(
+    reflectance: Annotated[Grid[Fraction] | NonEmptyText, number_or(NAME_OR_FILE)] = Field(
         description="diffuse reflectance: a fraction, a named material or a CSV file"
     )
     board_size_m: tuple[DistanceM, DistanceM] | None = Field(
@@ -219,7 +223,7 @@ class Housing(Schema):
     port: Literal["flat", "dome"] = Field("flat", description="port shape")
     water_index: Grid[RefractiveIndex] = Field(1.333, description="refractive index of the water")
     port_index: Grid[RefractiveIndex] = Field(1.49, description="refractive index of the port material")
-    port_transmittance: number_or(Grid[Transmittance], Literal["fresnel"], 'must be a number or "fresnel"') = Field(
+    port_transmittance: PortTransmittance = Field(
         "fresnel", description='port transmittance: a fraction, or "fresnel" (two interfaces at normal incidence)'
     )
     dome_radius_mm: Grid[HousingMm] | None = Field(None, description="dome outer radius [mm] (dome ports)")
@@ -262,7 +266,7 @@ class Lens(Schema):
 
     focal_length_mm: Grid[FocalLengthMm] = Field(description="focal length (in air) [mm]")
     f_number: Grid[FNumber] = Field(description="f-number N = f / D")
-    transmittance: number_or(Grid[Transmittance], NonEmptyText, NAME_OR_FILE) = Field(
+    transmittance: Annotated[Grid[Transmittance] | NonEmptyText, number_or(NAME_OR_FILE)] = Field(
         1.0, description="lens transmittance: a fraction or a CSV file"
     )
     min_focus_distance_m: Grid[DistanceM] | None = Field(
@@ -296,7 +300,7 @@ class Operation(Schema):
     speed_m_s: Grid[SpeedMS] = Field(0.0, description="vehicle speed over the target [m/s]")
     overlap: Grid[Overlap] = Field(0.0, description="overlap between consecutive frames along the motion")
     max_blur_px: Grid[BlurPx] = Field(1.0, description="largest acceptable motion blur [px]")
-    exposure_s: number_or(Grid[ExposureS], Literal["max-blur"], 'must be a number or "max-blur"') = Field(
+    exposure_s: Annotated[Grid[ExposureS] | Literal["max-blur"], number_or('must be a number or "max-blur"')] = Field(
         "max-blur", description='exposure time [s], or "max-blur": the longest exposure within max_blur_px'
     )
     motion_axis: Literal["x", "y"] = Field("y", description="sensor axis along the motion")

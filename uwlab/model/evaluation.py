@@ -3,6 +3,8 @@
 
 from __future__ import annotations
 
+from typing import Literal, get_args
+
 import numpy as np
 
 from uwlab.model import extended, focus, optics
@@ -125,7 +127,8 @@ def _extended_response(rate, veil, exposure, k, dark, bits, sensor):
     return total, mu_y, saturated, snr(total - veil_e, sensor.dark_noise_e, k, veil_e), veil_e
 
 
-SPECTROMETER_POSITIONS = ("target", "camera", "sensor")
+SpectrometerPosition = Literal["target", "camera", "sensor"]
+SPECTROMETER_POSITIONS: tuple[str, ...] = get_args(SpectrometerPosition)
 
 
 def stage_spectra(d: Design) -> dict[str, np.ndarray]:

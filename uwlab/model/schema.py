@@ -65,6 +65,7 @@ from pydantic import (
     ConfigDict,
     Discriminator,
     Field,
+    GetCoreSchemaHandler,
     StringConstraints,
     Tag,
     TypeAdapter,
@@ -197,27 +198,47 @@ Text = Annotated[str, StringConstraints(strict=True)]
 Number = Annotated[float, Field(strict=True, allow_inf_nan=False)]
 
 
-def either(reason: str, *members: tuple[Callable[[Any], bool], Any]):
-    """A value validated by the first member whose test accepts it, e.g. ``either("…", (is_text, Literal["none"]),
-    (is_table, LensTable))``; a value no test accepts fails with `reason`."""
+@dataclass(frozen=True)
+class Either:
+    """Metadata of a union, ``Annotated[A | B, Either(reason, (test_a, test_b))]``: a value is validated by the first
+    member whose test accepts it (``test_a`` for ``A``, …), e.g. ``Annotated[Literal["none"] | LensTable,
+    either("…", is_text, is_table)]``; a value no test accepts fails with `reason`. The type checker sees the union."""
 
-    def which(value):
-        return next((str(i) for i, (test, _) in enumerate(members) if test(value)), None)
+    reason: str
+    tests: tuple[Callable[[Any], bool], ...]
 
-    def words(value, handler):  # a word that is not one of a Literal's: the whole choice is the reason
-        try:
-            return handler(value)
-        except ValidationError:
-            raise PydanticCustomError("either", reason) from None
+    def __get_pydantic_core_schema__(self, source: Any, handler: GetCoreSchemaHandler) -> core_schema.CoreSchema:
+        members = typing.get_args(source)
+        if len(members) != len(self.tests):
+            raise TypeError(f"{source!r}: {len(self.tests)} tests for {len(members)} union members")
+        return handler.generate_schema(self._tagged(members))
 
-    tagged = [
-        Annotated[type_, WrapValidator(words), Tag(str(i))]
-        if typing.get_origin(type_) is Literal
-        else Annotated[type_, Tag(str(i))]
-        for i, (_, type_) in enumerate(members)
-    ]
-    choice = Discriminator(which, custom_error_type="either", custom_error_message=reason)
-    return Annotated[Union[tuple(tagged)], choice]  # noqa: UP007 (a union of a computed tuple of types)
+    def _tagged(self, members: tuple[Any, ...]) -> Any:
+        """The union of `members`, each tagged with its index, chosen by the first test that accepts the value."""
+        tests, reason = self.tests, self.reason
+
+        def which(value: Any) -> str | None:
+            return next((str(i) for i, test in enumerate(tests) if test(value)), None)
+
+        def words(value: Any, handler: Callable[[Any], Any]) -> Any:  # a word not one of a Literal's: the reason
+            try:
+                return handler(value)
+            except ValidationError:
+                raise PydanticCustomError("either", reason) from None
+
+        tagged = [
+            Annotated[type_, WrapValidator(words), Tag(str(i))]
+            if typing.get_origin(type_) is Literal
+            else Annotated[type_, Tag(str(i))]
+            for i, type_ in enumerate(members)
+        ]
+        choice = Discriminator(which, custom_error_type="either", custom_error_message=reason)
+        return Annotated[Union[tuple(tagged)], choice]  # noqa: UP007 (a union of a computed tuple of types)
+
+
+def either(reason: str, *tests: Callable[[Any], bool]) -> Either:
+    """`Either` metadata: one test per member of the annotated union, in order."""
+    return Either(reason, tests)
 
 
 def is_text(value) -> bool:
@@ -236,10 +257,11 @@ def is_list(value) -> bool:
     return isinstance(value, (list, tuple))
 
 
-def number_or(number, alternative, reason: str):
-    """A number (of type `number`, arrays included when it is a `Grid`) or, for strings, `alternative` (a
-    ``Literal`` of words or `NonEmptyText` for a name or path); anything else fails with `reason`."""
-    return either(reason, (is_number, number), (is_text, alternative))
+def number_or(reason: str) -> Either:
+    """`Either` metadata of ``Annotated[Number | Alternative, number_or(reason)]``: a number (of type ``Number``,
+    arrays included when it is a `Grid`) or, for strings, ``Alternative`` (a ``Literal`` of words or `NonEmptyText`
+    for a name or path); anything else fails with `reason`."""
+    return either(reason, is_number, is_text)
 
 
 # --- Named physical quantities (limits and their reasons: the module docstring). ---------------------------------

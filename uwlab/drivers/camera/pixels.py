@@ -23,6 +23,7 @@ a Bayer image stays the raw mosaic (no demosaicing: each pixel is its own filter
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal, get_args
 
 import numpy as np
 
@@ -110,7 +111,8 @@ PIXEL_FORMATS: dict[str, PixelFormat] = {
     )
 }
 MONO_FORMATS = tuple(name for name, pf in PIXEL_FORMATS.items() if pf.bayer is None)
-BAYER_LAYOUTS = ("RG", "GR", "GB", "BG")
+BayerLayout = Literal["RG", "GR", "GB", "BG"]
+BAYER_LAYOUTS: tuple[str, ...] = get_args(BayerLayout)
 _BY_CODE = {pf.code: pf for pf in PIXEL_FORMATS.values()}
 
 

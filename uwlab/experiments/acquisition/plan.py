@@ -48,15 +48,16 @@ import copy
 import hashlib
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Annotated, Any, Literal
+from typing import TYPE_CHECKING, Annotated, Any, Literal
 
 import numpy as np
 from pydantic import AfterValidator, BeforeValidator, ConfigDict, Field, StrictBool, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
 from uwlab.drivers.camera import BACKENDS, Policy
-from uwlab.drivers.camera.pixels import BAYER_LAYOUTS, PIXEL_FORMATS
+from uwlab.drivers.camera.pixels import PIXEL_FORMATS, BayerLayout
 from uwlab.drivers.instruments import load_any_light_definition
+from uwlab.drivers.instruments.definition import SerialLightDefinition
 from uwlab.drivers.ocean_insight.definition import CollectionAreaCm2
 from uwlab.drivers.serial import PROTOCOLS
 from uwlab.drivers.serial.base import Averaging, IntegrationMs
@@ -70,8 +71,9 @@ from uwlab.model.data import read_toml, resolve_path
 from uwlab.model.bench import Bench, build_bench, is_bench
 from uwlab.model.build import build_design
 from uwlab.model.design import Design
-from uwlab.model.evaluation import SPECTROMETER_POSITIONS
+from uwlab.model.evaluation import SpectrometerPosition
 from uwlab.model.optics import NO_LENS, LensSetting
+from uwlab.model.sensor import SensorProfile
 from uwlab.model.schema import (
     DurationS,
     ExposureUs,
@@ -97,7 +99,7 @@ from uwlab.model.schema import (
     within,
 )
 
-DARK_MODES = ("point", "block", "none")
+DarkMode = Literal["point", "block", "none"]
 MAX_POINTS = 10000
 # Pixel coordinates of a window or ROI: offsets from 0, sizes from 2 (a variance needs two pixels).
 OffsetPx = Annotated[int, limits(0, 100000, "px", hint="", integer=True)]
@@ -110,6 +112,14 @@ MaxDrive = Annotated[float, limits(0.0, 100.0, "A", lo_open=True, hint="amperes,
 LEGACY_LIGHT_KEYS = ("light_port", "protocol")
 DigitalNumber = Annotated[float, limits(0.0, 2.0**32, "DN", hint="")]
 PointCount = Annotated[int, limits(1, MAX_POINTS, "points", hint="", integer=True)]
+if TYPE_CHECKING:  # names registered at run time (the installed camera backends, pixel formats, serial protocols)
+    BackendName = str
+    PixelFormatName = str
+    ProtocolName = str
+else:
+    BackendName = Literal[tuple(BACKENDS)]
+    PixelFormatName = Literal[tuple(PIXEL_FORMATS)]
+    ProtocolName = Literal[PROTOCOLS]
 
 
 def _four(value):
@@ -134,10 +144,10 @@ class CameraSpec(Schema):
 
     model_config = ConfigDict(populate_by_name=True)
 
-    backend: Literal[tuple(BACKENDS)] = Field("sim", description="camera backend")
+    backend: BackendName = Field("sim", description="camera backend")
     device_id: NonEmptyText | None = Field(None, alias="id", description="device id (default: the first found)")
-    pixel_format: Literal[tuple(PIXEL_FORMATS)] | None = Field(None, description="pixel format (default: the camera's)")
-    bayer: Literal[BAYER_LAYOUTS] | None = Field(
+    pixel_format: PixelFormatName | None = Field(None, description="pixel format (default: the camera's)")
+    bayer: BayerLayout | None = Field(
         None, description="colour filter layout the camera must deliver (refused when its PixelFormat differs)"
     )
     window: Rectangle | None = Field(None, description="device region of interest [x, y, width, height] [px]")
@@ -171,7 +181,7 @@ class InstrumentsSection(Schema):
     seabreeze_spectrometer: SeabreezeSpectrometerTable | None = Field(
         None, description="a USB spectrometer through python-seabreeze instead of spectrometer_port"
     )
-    protocol: Literal[PROTOCOLS] = Field(PROTOCOLS[0], description="instrument protocol")
+    protocol: ProtocolName = Field(PROTOCOLS[0], description="instrument protocol")
     reopen_s: ReopenS = Field(5.0, description="how long a vanished serial port may take to come back [s]")
 
     @model_validator(mode="after")
@@ -231,17 +241,17 @@ class ValueRange(Schema):
         return tuple(float(v) for v in space(self.start, self.stop, self.num))
 
 
-SweepValues = either(
-    "must be a list of numbers or {start, stop, num, spacing}",
-    (is_list, Annotated[list[Number], Field(min_length=1, max_length=MAX_POINTS)]),
-    (is_table, ValueRange),
-)
-LensSpec = either(
-    'must be "none" or {focal_length_mm, f_number, f_number_range, manual}',
-    (is_text, Literal["none"]),
-    (is_table, LensTable),
-)
-Roi = either('must be [x, y, width, height] in pixels or "aruco"', (is_text, Literal["aruco"]), (is_list, Rectangle))
+SweepValues = Annotated[
+    Annotated[list[Number], Field(min_length=1, max_length=MAX_POINTS)] | ValueRange,
+    either("must be a list of numbers or {start, stop, num, spacing}", is_list, is_table),
+]
+LensSpec = Annotated[
+    Literal["none"] | LensTable,
+    either('must be "none" or {focal_length_mm, f_number, f_number_range, manual}', is_text, is_table),
+]
+Roi = Annotated[
+    Literal["aruco"] | Rectangle, either('must be [x, y, width, height] in pixels or "aruco"', is_text, is_list)
+]
 DesignSections = dict[str, dict[str, Any]]
 
 
@@ -253,9 +263,9 @@ class SweepTable(Schema):
     values: SweepValues = Field(description="exposure_us, f-number, gain_db or light level of each point")
     frames_per_point: FrameCount = Field(2, description="frames averaged per point")
     settle_s: DurationS = Field(0.0, description="wait after changing the light [s]")
-    dark: Literal[DARK_MODES] = Field("point", description="dark frames at every point, once per sweep, or none")
+    dark: DarkMode = Field("point", description="dark frames at every point, once per sweep, or none")
     dark_frames: FrameCount | None = Field(None, description="dark frames per dark point (default: frames_per_point)")
-    spectrometer: list[Literal[SPECTROMETER_POSITIONS]] = Field([], description="positions read at each point")
+    spectrometer: list[SpectrometerPosition] = Field([], description="positions read at each point")
     spectrometer_integration_ms: IntegrationMs = Field(10.0, description="spectrometer integration time [ms]")
     spectrometer_averaging: Averaging = Field(1, description="spectra averaged per reading")
     roi: Roi | None = Field(None, description='[x, y, width, height] within the image [px], or "aruco"')
@@ -463,7 +473,7 @@ def _lights(plan: PlanFile, plan_dir: Path) -> tuple[LightSpec, ...]:
         raise ConfigError(
             "instruments.light_port", plan.instruments.light_port, "give either [[lights]] or light_port, not both"
         )
-    lights = []
+    lights: list[LightSpec] = []
     for index, table in enumerate(plan.lights):
         library = table.visa_library
         if library is not None and library.endswith("@sim") and len(library) > 4:
@@ -517,9 +527,11 @@ def _check_light_instrument(index: int, table: LightTable) -> None:
     limit = table.max_current_a
     if table.visa_library is not None and definition.adapter != "visa":
         raise ConfigError(f"lights[{index}].visa_library", table.visa_library, f"{table.instrument} is not on VISA")
-    if limit is not None and definition.drive != "current_a":
+    if limit is None:
+        return
+    if isinstance(definition, SerialLightDefinition) or definition.drive != "current_a":
         raise ConfigError(f"lights[{index}].max_current_a", limit, f"{table.instrument} drives {definition.drive}")
-    if limit is not None and limit > definition.max_drive:
+    if limit > definition.max_drive:
         raise ConfigError(
             f"lights[{index}].max_current_a",
             limit,
@@ -642,17 +654,17 @@ def _apply_sweep(rig: dict, table: SweepTable, lens: LensSetting) -> None:
         apply_override(rig, key, value)
 
 
-def _lens(key: str, spec: LensTable | str | None, rig: dict) -> LensSetting:
+def _lens(key: str, spec: LensTable | Literal["none"] | None, rig: dict) -> LensSetting:
     """The sweep's lens: none, its table, or (not given) the rig's lens."""
-    if spec == "none":
-        return NO_LENS
+    if isinstance(spec, LensTable):
+        return spec.setting()
     if spec is None:
         section = rig.get("lens", {})
-        spec = parse(LensTable, {k: section[k] for k in ("focal_length_mm", "f_number") if k in section}, key)
-    return spec.setting()
+        return parse(LensTable, {k: section[k] for k in ("focal_length_mm", "f_number") if k in section}, key).setting()
+    return NO_LENS
 
 
-def _check_values(spec: SweepSpec, sensor) -> None:
+def _check_values(spec: SweepSpec, sensor: SensorProfile) -> None:
     key = f"sweep.{spec.id}.values"
     if spec.kind in ("exposure", "dark"):
         within(key, spec.values, sensor.exposure_min_us, sensor.exposure_max_us, f"{sensor.name}'s exposure range [µs]")
@@ -676,7 +688,7 @@ def _check_dark_mode(spec: SweepSpec) -> None:
         )
 
 
-def resolved_rig(design: Design) -> dict:
+def resolved_rig(design: Design | Bench) -> dict:
     """The validated design of a sweep as plain TOML-able sections (defaults filled, paths absolute)."""
 
     def table(body: dict) -> dict:
