@@ -349,7 +349,7 @@ SWEEP_DEFAULTS = {
     "frames_per_point": 2,
     "settle_s": 0.0,
     "dark": "point",
-    "spectrometer": (),
+    "spectrometer": [],
     "spectrometer_integration_ms": 10.0,
     "spectrometer_averaging": 1,
     "roi": None,
@@ -407,10 +407,10 @@ def test_plans_round_trip(path):
     for table, sweep in zip(raw["sweep"], plan.sweeps, strict=True):
         body = {**raw.get("defaults", {}), **table}
         for key, default in SWEEP_DEFAULTS.items():
-            expected = body.get(key, default)
-            assert getattr(sweep, key) == (tuple(expected) if isinstance(expected, list) else expected), key
-        assert sweep.id == body["id"] and sweep.kind == body["kind"]
-        assert sweep.dark_frames == body.get("dark_frames", sweep.frames_per_point)
+            value, expected = getattr(sweep.table, key), body.get(key, default)
+            assert (list(value) if isinstance(value, tuple) else value) == expected, key
+        assert sweep.table.id == body["id"] and sweep.table.kind == body["kind"]
+        assert sweep.dark_frames == body.get("dark_frames", sweep.table.frames_per_point)
         values = body["values"]
         if isinstance(values, list):
             assert sweep.values == tuple(values)

@@ -47,7 +47,7 @@ def test_crash_then_interrupt_then_resume_completes_exactly_the_missing_points(t
     code, stdout, err = run("sweep", plan_path, "--sim", "--resume", out, "--json", env=env)
     assert code == 0, err
     points = Dataset.open(out).points()
-    expected = {(s.id, p.index) for s in load_plan(plan_path).sweeps for p in s.points()}
+    expected = {(s.table.id, p.index) for s in load_plan(plan_path).sweeps for p in s.points()}
     keys = list(zip(points["sweep_id"], points["point_index"], strict=True))
     assert len(keys) == len(set(keys)) and set(keys) == expected  # as a non-interrupted run
     summary = json.loads(stdout)

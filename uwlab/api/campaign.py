@@ -30,7 +30,7 @@ def load_plan(path: str | Path) -> Plan:
     --------
     >>> import uwlab
     >>> plan = uwlab.load_plan(uwlab.config_path("plans/emva-photon-transfer.toml"))
-    >>> [(s.id, s.kind, len(s.values)) for s in plan.sweeps]
+    >>> [(s.table.id, s.table.kind, len(s.values)) for s in plan.sweeps]
     [('photon-transfer', 'exposure', 60), ('dark-current', 'dark', 6)]
     """
     from uwlab.experiments.acquisition.plan import load_plan as load

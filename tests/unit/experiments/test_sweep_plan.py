@@ -18,11 +18,11 @@ def test_shipped_plans_parse_with_the_papers_cameras_and_lenses():
     tank = load_plan(ROOT / "configs" / "plans" / "tank-exposure-sweep.toml")
     pairs = {(s.sensor_profile, s.lens.label) for s in tank.sweeps}
     assert pairs == {(c, lens) for c in ("imx250m", "icx285alm") for lens in ("no-lens", "30mm-F2.0", "12mm-F4.0")}
-    assert all(s.spectrometer == ("target", "camera") and s.kind == "exposure" for s in tank.sweeps)
+    assert all(s.table.spectrometer == ["target", "camera"] and s.table.kind == "exposure" for s in tank.sweeps)
     emva = load_plan(ROOT / "configs" / "plans" / "emva-photon-transfer.toml")
     transfer, dark = emva.sweeps
-    assert len(transfer.values) >= 50 and transfer.frames_per_point >= 2 and transfer.dark == "point"
-    assert dark.kind == "dark" and len(dark.values) >= 3
+    assert len(transfer.values) >= 50 and transfer.table.frames_per_point >= 2 and transfer.table.dark == "point"
+    assert dark.table.kind == "dark" and len(dark.values) >= 3
     no_lens = tank.sweeps[0].design
     assert no_lens["lens.f_number"] == 0.5 and no_lens["lens.transmittance"] == 1.0
 

@@ -348,51 +348,34 @@ class Point:
 
 @dataclass(frozen=True)
 class SweepSpec:
-    id: str
-    kind: str
-    values: tuple[float, ...]
-    frames_per_point: int
-    settle_s: float
-    dark: str
-    dark_frames: int
-    spectrometer: tuple[str, ...]
-    spectrometer_integration_ms: float
-    spectrometer_averaging: int
-    roi: tuple[int, int, int, int] | str | None
-    aruco_dictionary: str
-    saturation_threshold: float
-    lens: LensSetting
-    sensor_profile: str
-    camera: CameraSpec
-    exposure_us: float
-    gain_db: float
-    black_level_dn: float | None
-    light_level: float
-    save_frames: bool
-    rig_raw: dict
-    design: Design | Bench
-    light: str | None = None  # the [[lights]] name the sweep's level applies to (None: the first, or no lights)
+    """One ``[[sweep]]`` resolved: its validated table (every setting as written, the plan's [defaults] filled in:
+    each declared once, in `SweepTable`) and what is resolved from the table and the rig."""
+
+    table: SweepTable
+    values: tuple[float, ...]  # the table's values, a range expanded
+    dark_frames: int  # the table's dark_frames, else its frames_per_point
+    exposure_us: float  # the table's exposure_us, else an exposure or dark sweep's median value, else 1000 µs
+    lens: LensSetting  # the table's lens, else the rig's
+    sensor_profile: str  # the rig's sensor.profile (the table's sensor, if it sets one)
+    camera: CameraSpec  # the plan's [camera] with the table's camera keys over it
+    rig_raw: dict  # the rig config with the plan's and the sweep's geometry, its sensor and lens written in
+    design: Design | Bench  # rig_raw validated: the design of its rates, or the EMVA 1288 bench
 
     def points(self) -> list[Point]:
         """Every point of the sweep, in order."""
         return [self._point(i, v) for i, v in enumerate(self.values)]
 
     def _point(self, index: int, value: float) -> Point:
-        settings = {
-            "exposure_us": self.exposure_us,
-            "gain_db": self.gain_db,
-            "f_number": self.lens.f_number,
-            "light_level": self.light_level,
-        }
-        key = {
-            "exposure": "exposure_us",
-            "dark": "exposure_us",
-            "gain": "gain_db",
-            "aperture": "f_number",
-            "light-level": "light_level",
-        }[self.kind]
-        settings[key] = value
-        return Point(index=index, light_on=self.kind != "dark", **settings)
+        """The point stepping the setting of the sweep's kind to ``value``, the others at the sweep's fixed ones."""
+        kind = self.table.kind
+        return Point(
+            index=index,
+            exposure_us=value if kind in ("exposure", "dark") else self.exposure_us,
+            gain_db=value if kind == "gain" else self.table.gain_db,
+            f_number=value if kind == "aperture" else self.lens.f_number,
+            light_level=value if kind == "light-level" else self.table.light_level,
+            light_on=kind != "dark",
+        )
 
 
 @dataclass(frozen=True)
@@ -444,15 +427,16 @@ def parse_plan(raw: dict, path: Path, sha256: str) -> Plan:
         _sweep({**plan.defaults, **body}, number, rig_raw, rig_path.parent, plan.geometry, camera)
         for number, body in enumerate(plan.sweep)
     ]
-    ids = [s.id for s in sweeps]
+    ids = [s.table.id for s in sweeps]
     duplicated = sorted({i for i in ids if ids.count(i) > 1})
     if duplicated:
         raise ConfigError("sweep.id", duplicated[0], "sweep ids must be unique within the plan")
     lights = _placed(_lights(plan, path.resolve().parent), sweeps, rig_path)
     for sweep in sweeps:
-        if sweep.light is not None and sweep.light not in {light.name for light in lights}:
-            known = ", ".join(light.name for light in lights) or "none: the plan has no [[lights]]"
-            raise ConfigError(f"sweep.{sweep.id}.light", sweep.light, f"no such light; known: {known}")
+        light = sweep.table.light
+        if light is not None and light not in {spec.name for spec in lights}:
+            known = ", ".join(spec.name for spec in lights) or "none: the plan has no [[lights]]"
+            raise ConfigError(f"sweep.{sweep.table.id}.light", light, f"no such light; known: {known}")
     return Plan(
         path=path,
         sha256=sha256,
@@ -496,7 +480,7 @@ def _placed(lights: tuple[LightSpec, ...], sweeps: list[SweepSpec], rig_path: Pa
     for sweep, placed in zip(sweeps, placements, strict=True):
         if [light.get("name") for light in placed] != [light.get("name") for light in first]:
             raise ConfigError(
-                f"sweep.{sweep.id}.geometry.lights", len(placed), "every sweep must place the plan's lights alike"
+                f"sweep.{sweep.table.id}.geometry.lights", len(placed), "every sweep must place the plan's lights alike"
             )
     if not lights or not first:
         return lights
@@ -607,33 +591,18 @@ def _sweep(body: dict, number: int, rig_raw: dict, rig_dir: Path, geometry: dict
         f"{prefix}.gain_db", table.gain_db, sensor.gain_min_db, sensor.gain_max_db, f"{sensor.name}'s gain range [dB]"
     )
     spec = SweepSpec(
-        id=table.id,
-        kind=table.kind,
+        table=table,
         values=values,
-        frames_per_point=table.frames_per_point,
-        settle_s=table.settle_s,
-        dark=table.dark,
         dark_frames=table.frames_per_point if table.dark_frames is None else table.dark_frames,
-        spectrometer=tuple(table.spectrometer),
-        spectrometer_integration_ms=table.spectrometer_integration_ms,
-        spectrometer_averaging=table.spectrometer_averaging,
-        roi=table.roi,
-        aruco_dictionary=table.aruco_dictionary,
-        saturation_threshold=table.saturation_threshold,
+        exposure_us=float(exposure_us),
         lens=lens,
         sensor_profile=str(rig["sensor"]["profile"]),
         camera=parse(CameraSpec, {**camera, **table.camera}, f"{prefix}.camera"),
-        exposure_us=float(exposure_us),
-        gain_db=table.gain_db,
-        black_level_dn=table.black_level_dn,
-        light_level=table.light_level,
-        save_frames=table.save_frames,
         rig_raw=rig,
         design=design,
-        light=table.light,
     )
     _check_values(spec, sensor)
-    _check_dark_mode(spec)
+    _check_dark_mode(table)
     return spec
 
 
@@ -665,26 +634,26 @@ def _lens(key: str, spec: LensTable | Literal["none"] | None, rig: dict) -> Lens
 
 
 def _check_values(spec: SweepSpec, sensor: SensorProfile) -> None:
-    key = f"sweep.{spec.id}.values"
-    if spec.kind in ("exposure", "dark"):
+    kind, key = spec.table.kind, f"sweep.{spec.table.id}.values"
+    if kind in ("exposure", "dark"):
         within(key, spec.values, sensor.exposure_min_us, sensor.exposure_max_us, f"{sensor.name}'s exposure range [µs]")
-    elif spec.kind == "gain":
+    elif kind == "gain":
         within(key, spec.values, sensor.gain_min_db, sensor.gain_max_db, f"{sensor.name}'s gain range [dB]")
-    elif spec.kind == "light-level":
+    elif kind == "light-level":
         within(key, spec.values, 0.0, 1.0, "the light level range")
     elif spec.lens.bare:
-        raise ConfigError(f"sweep.{spec.id}.lens", "none", "an aperture sweep needs a lens")
+        raise ConfigError(f"sweep.{spec.table.id}.lens", "none", "an aperture sweep needs a lens")
     else:
         lo, hi = spec.lens.f_number_range or (limits_of(FNumber).lo, limits_of(FNumber).hi)
         within(key, spec.values, lo, hi, "the lens's f-number range")
 
 
-def _check_dark_mode(spec: SweepSpec) -> None:
-    if spec.dark == "block" and spec.kind in ("exposure", "gain"):
+def _check_dark_mode(table: SweepTable) -> None:
+    if table.dark == "block" and table.kind in ("exposure", "gain"):
         raise ConfigError(
-            f"sweep.{spec.id}.dark",
+            f"sweep.{table.id}.dark",
             "block",
-            f"an {spec.kind} sweep changes the camera settings at every point: use 'point'",
+            f"an {table.kind} sweep changes the camera settings at every point: use 'point'",
         )
 
 

@@ -140,7 +140,9 @@ class HardwareRig:
 
     def set_aperture(self, sweep: SweepSpec, f_number: float) -> None:
         self._ask(
-            f"sweep.{sweep.id}.values", f_number, f"set the {sweep.lens.focal_length_mm:g} mm lens to F{f_number:g}"
+            f"sweep.{sweep.table.id}.values",
+            f_number,
+            f"set the {sweep.lens.focal_length_mm:g} mm lens to F{f_number:g}",
         )
 
     def place_spectrometer(self, position: str) -> None:
@@ -149,7 +151,7 @@ class HardwareRig:
             self._position = position
 
     def board_roi(self, sweep: SweepSpec, camera: Camera, image: np.ndarray) -> Rect:
-        return aruco_roi(image, sweep.aruco_dictionary)
+        return aruco_roi(image, sweep.table.aruco_dictionary)
 
     def truth(self, camera: Camera) -> dict | None:
         return None

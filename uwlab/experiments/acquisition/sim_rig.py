@@ -36,10 +36,11 @@ from pathlib import Path
 
 import numpy as np
 
-from uwlab.drivers.camera import Camera, open_camera
+from uwlab.drivers.camera import Camera, Settings, open_camera
 from uwlab.drivers.camera.pixels import pixel_format
 from uwlab.drivers.instruments import VisaLight, open_visa_light
 from uwlab.drivers.serial import Light, Spectrometer, open_light, open_spectrometer
+from uwlab.drivers.serial.ascii import AsciiSpectrometer
 from uwlab.experiments.acquisition.plan import LightSpec, SweepSpec
 from uwlab.experiments.acquisition.rigs import to_safe_state
 from uwlab.experiments.acquisition.roi import Rect
@@ -47,7 +48,7 @@ from uwlab.experiments.saturation import sensor_clip_dn
 from uwlab.lockfile import OwnerLock, is_stale, read_holder
 from uwlab.model.chain import beam_half_angle_rad
 from uwlab.sim.bench import BenchScene
-from uwlab.sim.devices.camera import SimFaults, SimSensor, SimTruth, flat_rate_map
+from uwlab.sim.devices.camera import RateMap, SimFaults, SimSensor, SimTruth, flat_rate_map
 from uwlab.sim.devices.serial_sim import SerialRig, SerialSimSettings
 from uwlab.sim.rig_state import RigState
 from uwlab.sim.scene import RigScene, load_scene
@@ -149,28 +150,35 @@ class SimRig:
         scene.use(sweep.design, sweep.lens.bare)
         truth = SimTruth.from_sensor_profile(scene.sensor, **scene.sensor_realism())
         self._scene, self._sweep = scene, sweep
-        self._sensor = SimSensor(truth, self._rate_map(), scene.flux_fraction, seed=scene.sim.seed + self.seed)
+        self._sensor = SimSensor(
+            truth, _rate_map(scene, sweep.lens.bare), scene.flux_fraction, seed=scene.sim.seed + self.seed
+        )
         self.camera = open_camera("sim", "sim0", policy=sweep.camera.policy(), sensor=self._sensor, faults=self.faults)
         return self.camera
 
-    def _rate_map(self):
-        scene = self._scene
-        if self._sweep.lens.bare and not isinstance(scene, BenchScene):
-            return flat_rate_map(scene.on_axis_rate_e_per_s())
-        return lambda shape: scene.electron_rate_map(shape, 1.0)
+    def _open(self) -> tuple[RigScene | BenchScene, SimSensor, SweepSpec]:
+        """The scene, simulated sensor and sweep of the camera `open_camera` opened last."""
+        if self._scene is None or self._sensor is None or self._sweep is None:
+            raise RuntimeError("no sweep's camera is open on the simulated rig")
+        return self._scene, self._sensor, self._sweep
 
     def set_aperture(self, sweep: SweepSpec, f_number: float) -> None:
         """Set the simulated lens's f-number directly and re-render the scene."""
-        self._scene.set_lens(f_number=f_number)
-        self._sensor.set_rate_map(self._rate_map())
+        scene, sensor, open_sweep = self._open()
+        scene.set_lens(f_number=f_number)
+        sensor.set_rate_map(_rate_map(scene, open_sweep.lens.bare))
 
     def place_spectrometer(self, position: str) -> None:
+        """Move the simulated spectrometer (the simulator's ``SIM:POS`` command on its serial line)."""
+        if not isinstance(self.spectrometer, AsciiSpectrometer):
+            raise RuntimeError("the simulated rig's spectrometer is not open")
         self.spectrometer.transport.command(f"SIM:POS {position}")
 
     def board_roi(self, sweep: SweepSpec, camera: Camera, image: np.ndarray) -> Rect:
         """The board's footprint within the acquired window (the simulated board has no printed markers)."""
-        width, height = self._sensor.truth.resolution_px
-        bx, by, bw, bh = self._scene.board_roi((height, width))
+        scene, sensor, _ = self._open()
+        width, height = sensor.truth.resolution_px
+        bx, by, bw, bh = scene.board_roi((height, width))
         s = camera.read_settings()
         x0, y0 = max(bx - s.offset_x, 0), max(by - s.offset_y, 0)
         x1, y1 = min(bx + bw - s.offset_x, image.shape[1]), min(by + bh - s.offset_y, image.shape[0])
@@ -178,7 +186,8 @@ class SimRig:
 
     def truth(self, camera: Camera) -> dict:
         """Ground truth of the sweep's simulated sensor and light, for checking an EMVA characterisation."""
-        truth = self._sensor.truth
+        scene, sensor, _ = self._open()
+        truth = sensor.truth
         s = camera.read_settings()
         fmt_bits = pixel_format(s.pixel_format).bits
         common = {
@@ -194,28 +203,37 @@ class SimRig:
                 truth.bit_depth,
                 s.pixel_format,
             ),
-            "light_gamma": self._scene.sim.light_gamma,
+            "light_gamma": scene.sim.light_gamma,
             "light_curve": "flux_fraction = level ** light_gamma",
             "window_mean_rate_e_per_s": float(self._window_rate(s).mean()),
         }
-        if isinstance(self._scene, BenchScene):
-            return {**common, **self._scene.truth()}
+        if isinstance(scene, BenchScene):
+            return {**common, **scene.truth()}
         return {
             **common,
-            "on_axis_rate_e_per_s": self._scene.on_axis_rate_e_per_s(),
-            "f_number": self._scene.design["lens.f_number"],
-            "light_efficiency": self._scene.sim.light_efficiency,
-            "attenuation_scale": float(self._scene.design["water.attenuation_scale"]),
-            "beam_half_angle_deg": float(np.degrees(beam_half_angle_rad(self._scene.design))),
-            "reflectance": float(self._scene.design["target.reflectance"]),
-            "lens_transmittance": float(self._scene.design["lens.transmittance"]),
-            "world": self._scene.world.summary(),
+            "on_axis_rate_e_per_s": scene.on_axis_rate_e_per_s(),
+            "f_number": scene.design["lens.f_number"],
+            "light_efficiency": scene.sim.light_efficiency,
+            "attenuation_scale": float(scene.design["water.attenuation_scale"]),
+            "beam_half_angle_deg": float(np.degrees(beam_half_angle_rad(scene.design))),
+            "reflectance": float(scene.design["target.reflectance"]),
+            "lens_transmittance": float(scene.design["lens.transmittance"]),
+            "world": scene.world.summary(),
         }
 
-    def _window_rate(self, s) -> np.ndarray:
-        rate = self._sensor.rate_e_per_s
+    def _window_rate(self, s: Settings) -> np.ndarray:
+        _, sensor, _ = self._open()
+        rate = sensor.rate_e_per_s
         bh, bv = s.binning
         return rate[s.offset_y * bv : (s.offset_y + s.height) * bv, s.offset_x * bh : (s.offset_x + s.width) * bh]
+
+
+def _rate_map(scene: RigScene | BenchScene, bare: bool) -> RateMap:
+    """The electron-rate map of the scene: uniform for a bare sensor in the tank (it sees the whole hemisphere),
+    else the scene's rendering."""
+    if bare and not isinstance(scene, BenchScene):
+        return flat_rate_map(scene.on_axis_rate_e_per_s())
+    return lambda shape: scene.electron_rate_map(shape, 1.0)
 
 
 class MirroredLight(Light):

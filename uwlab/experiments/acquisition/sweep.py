@@ -50,9 +50,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from uwlab.drivers.camera import Camera, Frame
+from uwlab.drivers.camera import Camera, Frame, Settings
 from uwlab.drivers.camera.pixels import pixel_format
-from uwlab.drivers.serial.base import AVERAGING_RANGE, LightReadback, SpectrometerReadback
+from uwlab.drivers.serial.base import AVERAGING_RANGE, LightReadback, Spectrometer, SpectrometerReadback
 from uwlab.errors import ConfigError
 from uwlab.experiments.dataset import Dataset, FrameRecorder, point_row, spectra_frame
 from uwlab.experiments.acquisition.dataset_check import check
@@ -89,6 +89,15 @@ class Reading:
     readback: SpectrometerReadback
 
 
+@dataclass(frozen=True)
+class FrameRecord:
+    """What a point's row keeps of each frame it was computed from (its image is not kept)."""
+
+    frame_id: int
+    settings: Settings
+    bayer: str | None
+
+
 def _crop(image: np.ndarray, roi: Rect) -> np.ndarray:
     x, y, w, h = roi
     return image[y : y + h, x : x + w]
@@ -121,45 +130,46 @@ class SweepRunner:
         remaining = [
             (sweep, todo)
             for sweep in self.plan.sweeps
-            if (todo := [p for p in sweep.points() if (sweep.id, p.index) not in completed])
+            if (todo := [p for p in sweep.points() if (sweep.table.id, p.index) not in completed])
         ]
         for sweep, _ in remaining:
-            if sweep.camera.bayer is not None:
+            if (bayer := sweep.camera.bayer) is not None:
                 with self.rig.open_camera(sweep) as camera:
-                    self._check_layout(camera, sweep)
+                    self._check_layout(camera, sweep, bayer)
         for sweep, todo in remaining:
             self._run_sweep(sweep, todo)
         self.dataset.finish()
 
-    def _check_layout(self, camera: Camera, sweep: SweepSpec) -> None:
+    def _check_layout(self, camera: Camera, sweep: SweepSpec, bayer: str) -> None:
         """Refuse (`ConfigError` on ``camera.bayer``, or the sweep's own ``camera.bayer``) a camera whose pixel
-        format does not deliver the layout the plan declares."""
+        format does not deliver the layout ``bayer`` the plan declares."""
         spec = sweep.camera
         if spec.pixel_format is not None:
             camera.pixel_format = spec.pixel_format
         try:
-            camera.check_bayer(spec.bayer)
+            camera.check_bayer(bayer)
         except ConfigError as exc:
-            key = f"sweep.{sweep.id}.camera.bayer" if "bayer" in self._sweep_camera(sweep) else "camera.bayer"
+            key = f"sweep.{sweep.table.id}.camera.bayer" if "bayer" in self._sweep_camera(sweep) else "camera.bayer"
             raise ConfigError(key, exc.value, exc.reason) from None
 
     def _sweep_camera(self, sweep: SweepSpec) -> dict:
         """The keys a sweep's own ``camera`` table sets (over [camera])."""
-        return sweep_tables(self.plan.raw).get(sweep.id, {}).get("camera", {})
+        return sweep_tables(self.plan.raw).get(sweep.table.id, {}).get("camera", {})
 
     def _run_sweep(self, sweep: SweepSpec, todo: list[Point]) -> None:
         self._needs_instruments(sweep)
-        self._swept = sweep.light or next(iter(self.rig.lights), None)
+        table = sweep.table
+        self._swept = table.light or next(iter(self.rig.lights), None)
         block_frames = None
         with self.rig.open_camera(sweep) as camera:
             self._configure(camera, sweep)
             self._record_devices(sweep, camera)
-            self._set_light(sweep.kind != "dark", sweep.light_level, sweep.settle_s)
+            self._set_light(table.kind != "dark", table.light_level, table.settle_s)
             roi = self._roi(sweep, camera)
             try:
                 block = None
-                if sweep.dark == "block":
-                    block_frames = self.dataset.dark_block_recorder(sweep.id) if sweep.save_frames else None
+                if table.dark == "block":
+                    block_frames = self.dataset.dark_block_recorder(table.id) if table.save_frames else None
                     block = self._dark(sweep, camera, roi, block_frames)
                 for point in todo:
                     self._record(sweep, camera, roi, point, block, block_frames)
@@ -177,7 +187,7 @@ class SweepRunner:
         block_frames: FrameRecorder | None,
     ) -> None:
         """Measure one point and record it (with its frames when the sweep saves them)."""
-        frames = self.dataset.frame_recorder(sweep.id, point.index) if sweep.save_frames else None
+        frames = self.dataset.frame_recorder(sweep.table.id, point.index) if sweep.table.save_frames else None
         try:
             row, spectra = self._measure(sweep, camera, roi, point, block, frames)
             if frames is not None and block_frames is not None:
@@ -192,37 +202,38 @@ class SweepRunner:
                 Progress(
                     self._done,
                     self.plan.total_points(),
-                    sweep.id,
+                    sweep.table.id,
                     point.index,
                     {k: row[k] for k in ("exposure_us", "signal_dn", "saturated")},
                 )
             )
 
     def _needs_instruments(self, sweep: SweepSpec) -> None:
-        if not self.rig.lights and (sweep.kind in ("light-level", "dark") or sweep.dark != "none"):
-            raise ConfigError("lights", None, f"sweep {sweep.id} switches or dims the light: the plan needs [[lights]]")
-        if sweep.light is not None and sweep.light not in self.rig.lights:
+        table = sweep.table
+        if not self.rig.lights and (table.kind in ("light-level", "dark") or table.dark != "none"):
+            raise ConfigError("lights", None, f"sweep {table.id} switches or dims the light: the plan needs [[lights]]")
+        if table.light is not None and table.light not in self.rig.lights:
             raise ConfigError(
-                f"sweep.{sweep.id}.light", sweep.light, f"not on this rig (its lights: {', '.join(self.rig.lights)})"
+                f"sweep.{table.id}.light", table.light, f"not on this rig (its lights: {', '.join(self.rig.lights)})"
             )
-        if self.rig.spectrometer is None and sweep.spectrometer:
-            raise ConfigError("instruments.spectrometer_port", None, f"sweep {sweep.id} reads the spectrometer")
+        if table.spectrometer:
+            self._spectrometer(sweep)  # refused now, before anything is measured
 
     def _configure(self, camera: Camera, sweep: SweepSpec) -> None:
         spec = sweep.camera
         if spec.pixel_format is not None:
             camera.pixel_format = spec.pixel_format
         if spec.bayer is not None:
-            self._check_layout(camera, sweep)
+            self._check_layout(camera, sweep, spec.bayer)
         if spec.window is not None:
             camera.set_roi(*spec.window)
-        if sweep.black_level_dn is not None:
-            camera.black_level = sweep.black_level_dn
-        camera.gain_db = sweep.gain_db
+        if sweep.table.black_level_dn is not None:
+            camera.black_level = sweep.table.black_level_dn
+        camera.gain_db = sweep.table.gain_db
         camera.exposure_us = sweep.exposure_us
-        if self.rig.spectrometer is not None and sweep.spectrometer:
-            self.rig.spectrometer.set_integration_ms(sweep.spectrometer_integration_ms)
-            self.rig.spectrometer.set_averaging(sweep.spectrometer_averaging)
+        if self.rig.spectrometer is not None and sweep.table.spectrometer:
+            self.rig.spectrometer.set_integration_ms(sweep.table.spectrometer_integration_ms)
+            self.rig.spectrometer.set_averaging(sweep.table.spectrometer_averaging)
 
     def _record_devices(self, sweep: SweepSpec, camera: Camera) -> None:
         info = camera.info
@@ -247,10 +258,10 @@ class SweepRunner:
             },
             "spectrometer": self.rig.spectrometer.identity() if self.rig.spectrometer is not None else None,
         }
-        changes = {"devices": {sweep.id: devices}, "rigs": {sweep.id: resolved_rig(sweep.design)}}
+        changes = {"devices": {sweep.table.id: devices}, "rigs": {sweep.table.id: resolved_rig(sweep.design)}}
         truth = self.rig.truth(camera)
         if truth is not None:
-            changes["sim_truth"] = {sweep.id: truth}
+            changes["sim_truth"] = {sweep.table.id: truth}
         self.dataset.update_metadata(**changes)
 
     def _set_light(self, on: bool, level: float, settle_s: float) -> None:
@@ -273,11 +284,11 @@ class SweepRunner:
     def _roi(self, sweep: SweepSpec, camera: Camera) -> Rect:
         image = camera.acquire(1)[0].image
         height, width = image.shape
-        if sweep.roi is None:
+        if sweep.table.roi is None:
             return 0, 0, width, height
-        if sweep.roi == "aruco":
-            return check_inside(f"sweep.{sweep.id}.roi", self.rig.board_roi(sweep, camera, image), image.shape)
-        return check_inside(f"sweep.{sweep.id}.roi", sweep.roi, image.shape)
+        if sweep.table.roi == "aruco":
+            return check_inside(f"sweep.{sweep.table.id}.roi", self.rig.board_roi(sweep, camera, image), image.shape)
+        return check_inside(f"sweep.{sweep.table.id}.roi", sweep.table.roi, image.shape)
 
     def _dark(
         self,
@@ -289,7 +300,7 @@ class SweepRunner:
     ) -> StackStatistics:
         """Statistics of dark frames (light read back off before and after), leaving the light as the sweep
         wants it; with a ``recorder``, the frames of the recorded attempt are kept."""
-        level = sweep.light_level
+        level = sweep.table.light_level
 
         def stack() -> StackStatistics:
             if recorder is not None:
@@ -299,25 +310,27 @@ class SweepRunner:
             )[0]
 
         stats, _ = verified(
-            f"sweep {sweep.id}: dark frames",
+            f"sweep {sweep.table.id}: dark frames",
             self.rig,
             camera,
             self._wanted_light(False, level),
-            lambda: self._set_light(False, level, sweep.settle_s),
+            lambda: self._set_light(False, level, sweep.table.settle_s),
             stack,
             self._swept,
         )
-        self._set_light(sweep.kind != "dark", level, 0.0)
+        self._set_light(sweep.table.kind != "dark", level, 0.0)
         return stats
 
     def _stack(
         self, sweep: SweepSpec, camera: Camera, roi: Rect, count: int, keep: Callable[[Frame], None] | None = None
-    ) -> tuple[StackStatistics, ClipLevel, list[Frame]]:
+    ) -> tuple[StackStatistics, ClipLevel, list[FrameRecord]]:
         """Streaming statistics of ``count`` frames over the ROI (one frame in memory at a time), the clip level
         (from the sweep's sensor profile and the first frame, `uwlab.experiments.saturation`) and the frames'
-        metadata (images dropped); ``keep`` (saving raw frames) sees every frame. A raw Bayer frame's channels are
-        accumulated too, each over its own sites of the ROI (`uwlab.experiments.frames.stack`)."""
-        accumulator, clip, kept = None, None, []
+        records (`FrameRecord`: no images); ``keep`` (saving raw frames) sees every frame. A raw Bayer frame's
+        channels are accumulated too, each over its own sites of the ROI (`uwlab.experiments.frames.stack`)."""
+        accumulator: StackAccumulator | None = None
+        clip: ClipLevel | None = None
+        kept: list[FrameRecord] = []
         for frame in camera.frames(count):
             image = _crop(frame.image, roi)
             if accumulator is None:
@@ -326,28 +339,36 @@ class SweepRunner:
             accumulator.add(image)
             if keep is not None:
                 keep(frame)
-            kept.append(replace(frame, image=None))
+            kept.append(FrameRecord(frame.frame_id, frame.settings, frame.bayer))
+        if accumulator is None or clip is None:
+            raise ValueError(f"no frames to stack (count {count})")
         return accumulator.result(), clip, kept
 
     def _apply(self, sweep: SweepSpec, camera: Camera, point: Point) -> None:
         """Every setting the point depends on: camera exposure and gain, aperture, light output and level."""
         camera.exposure_us = point.exposure_us
         camera.gain_db = point.gain_db
-        if sweep.kind == "aperture":
+        if sweep.table.kind == "aperture":
+            if point.f_number is None:  # an aperture sweep's points carry their own (`SweepSpec.points`)
+                raise ValueError(f"sweep {sweep.table.id} point {point.index}: no f-number to set")
             self.rig.set_aperture(sweep, point.f_number)
         self._set_light(point.light_on, point.light_level, 0.0)
-        self.sleep(sweep.settle_s)
+        self.sleep(sweep.table.settle_s)
 
     def _lit(
         self, sweep: SweepSpec, camera: Camera, roi: Rect, point: Point, recorder: FrameRecorder | None
-    ) -> tuple[StackStatistics, ClipLevel, list[Frame], list[Reading]]:
+    ) -> tuple[StackStatistics, ClipLevel, list[FrameRecord], list[Reading]]:
         """The point's own frames and spectrometer readings (the verified window)."""
         if recorder is not None:
             recorder.forget("bright")
         bright, clip, frames = self._stack(
-            sweep, camera, roi, sweep.frames_per_point, self._keeper(recorder, "bright", sweep, camera, roi, point)
+            sweep,
+            camera,
+            roi,
+            sweep.table.frames_per_point,
+            self._keeper(recorder, "bright", sweep, camera, roi, point),
         )
-        return bright, clip, frames, [self._reading(position) for position in sweep.spectrometer]
+        return bright, clip, frames, [self._reading(sweep, position) for position in sweep.table.spectrometer]
 
     def _measure(
         self,
@@ -360,7 +381,7 @@ class SweepRunner:
     ) -> tuple[dict, pd.DataFrame]:
         t_start = time.time_ns()
         (bright, clip, frames, raw), window = verified(
-            f"sweep {sweep.id} point {point.index}",
+            f"sweep {sweep.table.id} point {point.index}",
             self.rig,
             camera,
             self._wanted_light(point.light_on, point.light_level),
@@ -372,19 +393,19 @@ class SweepRunner:
             self._spectrometer_dark(sweep, reading.position, reading.readback.integration_ms)
         readings = [self._minus_dark(sweep, reading) for reading in raw]
         dark = block
-        if sweep.dark == "point":
+        if sweep.table.dark == "point":
             dark = self._dark(sweep, camera, roi, recorder, point)
         settings = frames[-1].settings
         lens = replace(sweep.lens, f_number=point.f_number)
         swept_state = window.lights.get(self._swept, {}) if self._swept is not None else {}
         row = point_row(
-            sweep_id=sweep.id,
+            sweep_id=sweep.table.id,
             point_index=point.index,
-            kind=sweep.kind,
+            kind=sweep.table.kind,
             bright=bright,
             dark=dark,
             clip=clip,
-            saturation_threshold=sweep.saturation_threshold,
+            saturation_threshold=sweep.table.saturation_threshold,
             bayer=frames[-1].bayer,
             camera_backend=camera.info.backend,
             camera_id=camera.info.device_id,
@@ -422,13 +443,20 @@ class SweepRunner:
             t_start_ns=t_start,
             t_end_ns=time.time_ns(),
         )
-        return row, spectra_frame(sweep.id, point.index, readings)
+        return row, spectra_frame(sweep.table.id, point.index, readings)
 
-    def _reading(self, position: str) -> Reading:
+    def _spectrometer(self, sweep: SweepSpec) -> Spectrometer:
+        """The rig's spectrometer, which the sweep reads (`ConfigError` when the rig has none)."""
+        if self.rig.spectrometer is None:
+            raise ConfigError("instruments.spectrometer_port", None, f"sweep {sweep.table.id} reads the spectrometer")
+        return self.rig.spectrometer
+
+    def _reading(self, sweep: SweepSpec, position: str) -> Reading:
         """A spectrometer reading at ``position`` (integration halved while it saturates) and its read-back."""
+        spectrometer = self._spectrometer(sweep)
         self.rig.place_spectrometer(position)
-        wavelength_nm, irradiance = measure_unsaturated(self.rig.spectrometer)
-        return Reading(position, wavelength_nm, irradiance, self.rig.spectrometer.readback())
+        wavelength_nm, irradiance = measure_unsaturated(spectrometer)
+        return Reading(position, wavelength_nm, irradiance, spectrometer.readback())
 
     def _minus_dark(self, sweep: SweepSpec, reading: Reading) -> tuple[str, np.ndarray, np.ndarray]:
         """The reading minus the spectrometer's own light-off reading (see `_spectrometer_dark`)."""
@@ -447,23 +475,23 @@ class SweepRunner:
         back off). It is read with DARK_AVERAGING times the usual averaging (up to the instrument's limit): every
         reading of the sweep shares its noise, which would otherwise bias the sweep's whole flux scale. The
         spectrometer's integration time and averaging are left as they were."""
-        spectrometer = self.rig.spectrometer
-        key = (sweep.id, position, integration_ms)
+        spectrometer = self._spectrometer(sweep)
+        key = (sweep.table.id, position, integration_ms)
         if key not in self._spectrometer_darks:
             was = spectrometer.readback()
 
             def prepare() -> None:
-                self._set_light(False, sweep.light_level, sweep.settle_s)
+                self._set_light(False, sweep.table.light_level, sweep.table.settle_s)
                 self.rig.place_spectrometer(position)
                 spectrometer.set_integration_ms(integration_ms)
                 spectrometer.set_averaging(min(AVERAGING_RANGE[1], DARK_AVERAGING * was.averaging))
 
             try:
                 self._spectrometer_darks[key], _ = verified(
-                    f"sweep {sweep.id}: spectrometer dark at the {position}",
+                    f"sweep {sweep.table.id}: spectrometer dark at the {position}",
                     self.rig,
                     None,
-                    self._wanted_light(False, sweep.light_level),
+                    self._wanted_light(False, sweep.table.light_level),
                     prepare,
                     spectrometer.read_spectrum,
                     self._swept,
@@ -471,7 +499,7 @@ class SweepRunner:
             finally:
                 spectrometer.set_integration_ms(was.integration_ms)
                 spectrometer.set_averaging(was.averaging)
-            self._set_light(sweep.kind != "dark", sweep.light_level, sweep.settle_s)
+            self._set_light(sweep.table.kind != "dark", sweep.table.light_level, sweep.table.settle_s)
         return self._spectrometer_darks[key]
 
     def _keeper(
@@ -487,10 +515,10 @@ class SweepRunner:
         if recorder is None:
             return None
         context = {
-            "sweep_id": sweep.id,
+            "sweep_id": sweep.table.id,
             "point_index": None if point is None else point.index,
-            "light_on": role == "bright" and sweep.kind != "dark",
-            "light_level": sweep.light_level if point is None else point.light_level,
+            "light_on": role == "bright" and sweep.table.kind != "dark",
+            "light_level": sweep.table.light_level if point is None else point.light_level,
             "f_number": sweep.lens.f_number if point is None else point.f_number,
             "roi": list(roi),
             "camera": asdict(camera.info),
