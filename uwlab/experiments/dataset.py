@@ -261,9 +261,10 @@ def point_row(
     colour channel, ``<red|green|blue>_<statistic>`` (`CHANNEL_STATISTICS`: its ``pixels`` per frame, the means,
     variances and ``signal_dn`` = its mean − its dark mean, its saturated fraction at the frame's one clip level and
     the flag by the same threshold, the highpassed split of its sites' planes; EMVA 1288 Release 4.0 Linear §1.2:
-    each channel is a sensor of its own); they are null for a monochrome point. ``columns`` are the settings and identity columns of `POINT_SCHEMA` (camera,
-    lens, exposure, read-backs, irradiance, times, the Bayer layout ``bayer``, ...); a column given twice, an
-    unknown column or a missing required one raises `ConfigError` naming it.
+    each channel is a sensor of its own); they are null for a monochrome point. ``columns`` are the settings and
+    identity columns of `POINT_SCHEMA` (camera, lens, exposure, read-backs, irradiance, times, the Bayer layout
+    ``bayer``, ...); a column given twice, an unknown column or a missing required one raises `ConfigError` naming
+    it.
     """
     derived = {
         "frames": bright.frames,
