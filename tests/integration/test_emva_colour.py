@@ -15,6 +15,7 @@ percent: 3 % covers both.
 """
 
 import json
+import shutil
 
 import pytest
 
@@ -66,11 +67,31 @@ def run(capsys, *argv: str) -> tuple[int, str, str]:
     return code, captured.out, captured.err
 
 
+# Fixed patterns the bench renders (the shipped profile has none): white DSNU and PRNU over every site.
+DSNU_E, PRNU_PERCENT = 2.0, 1.0
+
+
+def colour_profile(folder):
+    """The shipped IMX250C profile with `DSNU_E` and `PRNU_PERCENT` (top-level keys go before its tables)."""
+    shipped = ROOT / "configs" / "sensors" / "imx250c.toml"
+    text = shipped.read_text().replace(
+        "[provenance]", f"dsnu_e = {DSNU_E}\nprnu_percent = {PRNU_PERCENT}\n\n[provenance]", 1
+    )
+    shutil.copy(shipped.with_name("imx250c_qe.csv"), folder / "imx250c_qe.csv")
+    (folder / "imx250c-patterned.toml").write_text(text)
+    return folder / "imx250c-patterned.toml"
+
+
 @pytest.fixture(scope="module")
 def colour(tmp_path_factory):
     """The colour bench sweep's dataset and its ground truth."""
     folder = tmp_path_factory.mktemp("colour")
-    plan = write_plan(folder / "plan.toml", "emva-colour", **COLOUR_PLAN)
+    profile = colour_profile(folder)
+    plan = write_plan(
+        folder / "plan.toml",
+        "emva-colour",
+        **COLOUR_PLAN | {"defaults": COLOUR_PLAN["defaults"] | {"sensor": str(profile)}},
+    )
     data = folder / "data"
     assert main(["sweep", str(plan), "--sim", "--out", str(data)]) == 0
     return data, Dataset.open(data).metadata["sim_truth"]["photon-transfer"]
@@ -86,8 +107,9 @@ def test_each_channel_recovers_the_true_gain_and_its_own_quantum_efficiency(colo
         assert doc["channel"] == channel
         assert doc["K_dn_per_e"] == pytest.approx(truth["K_dn_per_e_output"], rel=0.03), channel
         assert doc["quantum_efficiency"] == pytest.approx(truth[f"quantum_efficiency_{channel}"], rel=0.03), channel
-        assert doc["dsnu_e"] is None and doc["prnu_percent"] is None
-        assert any("not computed for a colour channel" in note for note in doc["notes"])
+        assert truth["dsnu_e"] == DSNU_E and truth["prnu_percent"] == PRNU_PERCENT
+        assert doc["dsnu_e"] == pytest.approx(DSNU_E, rel=0.25), channel
+        assert doc["prnu_percent"] == pytest.approx(PRNU_PERCENT, rel=0.25), channel
 
 
 def test_only_the_green_channel_reaches_saturation_at_525_nm(colour, capsys):
@@ -118,7 +140,7 @@ def test_without_channel_every_channel_gets_its_own_outputs(colour, capsys, tmp_
         doc = json.loads((folder / "emva.json").read_text())
         assert summary["channels"][channel]["K_dn_per_e"] == doc["K_dn_per_e"]
         sheet = (folder / "datasheet.html").read_text()
-        assert f"{channel} channel" in sheet and "not computed for a colour channel" in sheet
+        assert f"{channel} channel" in sheet and "not computed for a colour channel" not in sheet  # DSNU, PRNU given
         profile = load_sensor_profile(str(folder / f"measured-simcam-imx250c-{channel}.toml"))
         assert profile.K_dn_per_e == pytest.approx(truth["K_dn_per_e"], rel=0.03)
     # nothing is overwritten: a second run is refused in one line

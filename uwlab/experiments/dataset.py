@@ -107,6 +107,11 @@ CHANNEL_STATISTICS = (
     ("signal_dn", pa.float64()),
     ("saturated_fraction", pa.float64()),
     ("saturated", pa.bool_()),
+    *(
+        (f"{prefix}spatial_var_{part}_dn2", pa.float64())
+        for prefix in ("", "dark_")
+        for part in ("row", "col", "pixel")
+    ),
 )
 CHANNEL_FIELDS = tuple(
     (f"{channel}_{statistic}", kind) for channel in CHANNEL_NAMES.values() for statistic, kind in CHANNEL_STATISTICS
@@ -255,10 +260,11 @@ def point_row(
     ``clip_source``. A raw Bayer point (``bright.channels``, `uwlab.experiments.frames.stack`) has the same per
     colour channel, ``<red|green|blue>_<statistic>`` (`CHANNEL_STATISTICS`: its ``pixels`` per frame, the means,
     variances and ``signal_dn`` = its mean − its dark mean, its saturated fraction at the frame's one clip level and
-    the flag by the same threshold; EMVA 1288 Release 4.0 Linear §1.2: each channel is a sensor of its own); they
-    are null for a monochrome point. ``columns`` are the settings and identity columns of `POINT_SCHEMA` (camera,
-    lens, exposure, read-backs, irradiance, times, the Bayer layout ``bayer``, ...); a column given twice, an
-    unknown column or a missing required one raises `ConfigError` naming it.
+    the flag by the same threshold, the highpassed split of its sites' planes; EMVA 1288 Release 4.0 Linear §1.2:
+    each channel is a sensor of its own); they are null for a monochrome point. ``columns`` are the settings and
+    identity columns of `POINT_SCHEMA` (camera, lens, exposure, read-backs, irradiance, times, the Bayer layout
+    ``bayer``, ...); a column given twice, an unknown column or a missing required one raises `ConfigError` naming
+    it.
     """
     derived = {
         "frames": bright.frames,
@@ -307,6 +313,8 @@ def _channel_columns(bright: StackStatistics, dark: StackStatistics | None, satu
             f"{channel}_signal_dn": lit.mean_dn - unlit.mean_dn if unlit else None,
             f"{channel}_saturated_fraction": lit.saturated_fraction,
             f"{channel}_saturated": point_saturated(lit.saturated_fraction, saturation_threshold),
+            **_split_columns(f"{channel}_", lit),
+            **_split_columns(f"{channel}_dark_", unlit),
         }
     return columns
 
@@ -322,6 +330,7 @@ CHANNEL_VIEW_COLUMNS = (
     "signal_dn",
     "saturated_fraction",
     "saturated",
+    *(f"{prefix}spatial_var_{part}_dn2" for prefix in ("", "dark_") for part in ("row", "col", "pixel")),
 )
 
 

@@ -2,7 +2,8 @@
 
 Truth: synthetic mosaics whose every colour site is drawn from its own known distribution (mean and temporal
 standard deviation per colour, a known count of sites at the clip level), so each channel's statistics have closed
-forms the accumulator never sees; the phase of a crop at an odd offset is checked by cropping the same frames.
+forms the accumulator never sees; the phase of a crop at an odd offset is checked by cropping the same frames; fixed
+patterns of known variance on each site (pixel, row and column parts) for each channel's highpassed split.
 """
 
 from __future__ import annotations
@@ -47,7 +48,11 @@ def test_each_channel_has_its_own_mean_and_temporal_variance():
         assert channel.mean_dn == pytest.approx(mean, abs=5 * sd / np.sqrt(8 * sites))
         # temporal variance of a rounded normal: σ² + 1/12 (quantisation); 4 pairs × the sites, ~1.5 % standard error
         assert channel.temporal_var_dn2 == pytest.approx(sd**2 + 1 / 12, rel=0.07)
-        assert channel.spatial is None  # a channel's sites are no rectangle: no highpass split
+        # no fixed pattern: the highpassed split of each channel's site planes, corrected for the temporal noise,
+        # is about zero (a part's noise is ~σ²/(L·√sites))
+        assert channel.spatial is not None
+        for part in (channel.spatial.row, channel.spatial.col, channel.spatial.pixel):
+            assert abs(part) < 0.2 * sd**2 / 8
     # the mosaic pools the channels: its mean is their site-weighted mean, and its spatial variance holds the spread
     # between the channel means, which no channel's does
     assert stats.mean_dn == pytest.approx((TRUTH["R"][0] + 2 * TRUTH["G"][0] + TRUTH["B"][0]) / 4, abs=0.5)
@@ -72,6 +77,29 @@ def test_saturation_is_counted_per_channel_at_the_one_clip_level():
     assert stats.channels["G"].saturated_fraction == pytest.approx(4 / cell_rows)
     assert stats.channels["R"].saturated_fraction == stats.channels["B"].saturated_fraction == 0.0
     assert stats.saturated_fraction == pytest.approx(2 * 4 / cell_rows / 4)
+
+
+def test_each_channel_splits_its_own_fixed_patterns():
+    """Fixed patterns (no temporal noise) of known variance per site: a pixel pattern on every site (red σ 20, the
+    two green sites σ 10 and 30, blue σ 40), a row pattern on red only (σ 15) and a column pattern on blue only
+    (σ 25). Each channel's split finds its own: green the mean of its two sites' (500 DN²); no channel sees
+    another's rows or columns. Tolerances: a row part over 300 plane rows has a relative standard error of
+    √(2/300) ≈ 8 % (25 % is 3σ), a column part over 400 columns 7 % (20 %), a pixel part over 120 000 sites 0.4 %
+    (3 %, the highpass's edge effects included)."""
+    rng = np.random.default_rng(8)
+    frame = np.full((600, 800), 1000.0)
+    for (row, col), sd in {(0, 0): 20.0, (0, 1): 10.0, (1, 0): 30.0, (1, 1): 40.0}.items():
+        frame[row::2, col::2] += rng.normal(0.0, sd, (300, 400))
+    frame[0::2, 0::2] += rng.normal(0.0, 15.0, (300, 1))
+    frame[1::2, 1::2] += rng.normal(0.0, 25.0, (1, 400))
+    mosaic = np.rint(frame).astype(np.uint16)
+    channels = stack_statistics([mosaic, mosaic], CLIP_DN, bayer="RG").channels
+    expected = {"R": (20.0**2, 15.0**2, 0.0), "G": ((10.0**2 + 30.0**2) / 2, 0.0, 0.0), "B": (40.0**2, 0.0, 25.0**2)}
+    for colour, (pixel, row_var, col_var) in expected.items():
+        split = channels[colour].spatial
+        assert split.pixel == pytest.approx(pixel, rel=0.03), colour
+        assert split.row == pytest.approx(row_var, rel=0.25, abs=0.02 * pixel), colour
+        assert split.col == pytest.approx(col_var, rel=0.2, abs=0.02 * pixel), colour
 
 
 def test_a_mono_stack_has_no_channels():

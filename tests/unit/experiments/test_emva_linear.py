@@ -16,7 +16,14 @@ from uwlab.experiments.emva.dark import DarkSeries
 from uwlab.experiments.emva.from_dataset import photon_transfer_from_points
 from uwlab.experiments.emva.linear import linearity_fit
 from uwlab.experiments.emva.regression import fit_line
-from uwlab.experiments.emva.transfer import RULE_CLIP, RULE_VARIANCE, PhotonTransfer, SpatialSplit, photons_per_pixel
+from uwlab.experiments.emva.transfer import (
+    PER_POINT,
+    RULE_CLIP,
+    RULE_VARIANCE,
+    PhotonTransfer,
+    SpatialSplit,
+    photons_per_pixel,
+)
 from uwlab.model.photometry import C_M_S, H_J_S, photon_flux, photons_per_joule
 from tests.support.paths import DATA
 
@@ -172,6 +179,30 @@ def test_variance_maximum_when_the_clip_level_is_never_reached():
     assert v["saturation_index"] == v["variance_max_index"]
     photons = 1.0e6 * np.linspace(0.001, 0.02, 40)
     assert v["saturation_photons"] == pytest.approx(photons[ETA * photons <= SAT_E].max())
+
+
+def test_a_variance_maximum_within_the_noise_of_its_successors_is_not_saturation():
+    """A sweep that stops below saturation (the first 20 points of the model camera, up to 0.63 of full well), no
+    pixel at the clip level, its second-brightest variance 1 % above the brightest's: with P = 3072 pixels and one
+    pair, the difference of two variance estimates has a standard error of √2 · √(2/3072) = 3.6 %, so 1 % is noise
+    and the brightest point is the saturation point (a lower bound, said in a note); a 30 % drop is saturation.
+    Without a pixel count the maximum is taken as it is."""
+    whole = model_transfer()
+    pt = replace(
+        whole,
+        **{name: np.asarray(getattr(whole, name))[:20] for name in PER_POINT},
+        spatial=SpatialSplit.unknown(20),
+        dark_spatial=SpatialSplit.unknown(20),
+    )
+    var = pt.temporal_var_dn2.copy()
+    var[18] = 1.01 * var[19]
+    noisy = replace(pt, temporal_var_dn2=var, pixels=3072)
+    assert characterize(noisy).values["saturation_index"] == 19
+    assert any("never reaches the clip level" in note for note in characterize(noisy).values["notes"])
+    assert characterize(replace(noisy, pixels=0)).values["saturation_index"] == 18
+    dropped = var.copy()
+    dropped[19] = 0.7 * dropped[18]
+    assert characterize(replace(noisy, temporal_var_dn2=dropped)).values["saturation_index"] == 18
 
 
 def test_saturation_where_the_reference_implementation_picks_a_point_past_it():

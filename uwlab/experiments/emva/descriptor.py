@@ -343,6 +343,7 @@ def photon_transfer_from_descriptor(path: str | Path, pixel_size_um: float | Non
         stack=_stack(desc, reader, clip),
         width_px=desc.width,
         height_px=desc.height,
+        pixels=desc.width * desc.height,
         pixel_area_m2=(pixel_size_um * 1e-6) ** 2 if pixel_size_um else None,
         source=f"descriptor {path}",
         notes=(f"clip level {clip.dn:g} DN ({clip.source})",),

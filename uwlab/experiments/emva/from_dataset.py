@@ -24,8 +24,9 @@ its own"): a sweep of raw Bayer frames records each channel's statistics (``<red
 channel's own sites; `uwlab.experiments.dataset.channel_view`). With a ``channel``, the photon transfer is that
 channel's: its means, temporal variances, dark series and saturated fractions; μ_p per pixel is the same for every
 channel (the irradiance on the sensor does not depend on the filter above a pixel), so η = R/K is the channel's QE at
-the light's wavelength. The highpassed row/column/pixel split of the spatial variance needs the channel's sites as an
-image of their own and is not recorded per channel: DSNU and PRNU are then not given (the datasheet says why,
+the light's wavelength. The highpassed row/column/pixel split of a channel's spatial variance is taken on its sites'
+planes (`uwlab.experiments.frames.stack`; green: the mean of its two planes'), so DSNU and PRNU are the channel's;
+a dataset recorded before uwlab kept the split per channel gives none (the datasheet says why,
 `uwlab.experiments.emva.transfer.CHANNEL_NO_SPLIT`). `load_dataset_inputs` gives every channel of a colour sweep.
 """
 
@@ -65,10 +66,7 @@ REQUIRED_COLUMNS = (
 SENSOR_PLANE = "sensor"
 CHANNELS = tuple(CHANNEL_NAMES.values())
 # The whole-ROI columns that have no per-channel counterpart: null in a channel's view (`channel_points`).
-WHOLE_ROI_ONLY = (
-    *(f"{prefix}spatial_var_{part}_dn2" for prefix in ("", "dark_") for part in ("row", "col", "pixel")),
-    "mean_diff_dn",
-)
+WHOLE_ROI_ONLY = ("mean_diff_dn",)
 
 
 @dataclass(frozen=True)
@@ -204,6 +202,14 @@ def _column(rows: pd.DataFrame, name: str) -> np.ndarray:
 
 def _split(rows: pd.DataFrame, prefix: str) -> SpatialSplit:
     return SpatialSplit(*(_column(rows, f"{prefix}spatial_var_{part}_dn2") for part in ("row", "col", "pixel")))
+
+
+def _pixels(rows: pd.DataFrame, width: pd.Series, height: pd.Series, channel: str | None) -> int:
+    """Pixels per frame of the statistics: a channel's sites, else the ROI's (0 when not recorded)."""
+    if channel is not None:
+        sites = pd.to_numeric(rows["pixels"], errors="coerce").dropna() if "pixels" in rows else pd.Series([])
+        return int(sites.iloc[0]) if len(sites) else 0
+    return int(width.iloc[0]) * int(height.iloc[0]) if len(width) and len(height) else 0
 
 
 def sweep_channels(points: pd.DataFrame, sweep_id: str) -> tuple[str, ...]:
@@ -350,6 +356,7 @@ def photon_transfer_from_points(
         sweep_id=sweep,
         width_px=int(width.iloc[0]) if len(width) else 0,
         height_px=int(height.iloc[0]) if len(height) else 0,
+        pixels=_pixels(rows, width, height, channel),
         pixel_area_m2=area,
         wavelength_nm=lam,
         gain_db=float(rows["gain_db"].iloc[0]),

@@ -157,6 +157,7 @@ class DirectBench:
             stack=None if stack_exposure_us is None else self.nonuniformity_stack(stack_exposure_us, stack_frames),
             width_px=self.truth.resolution_px[0],
             height_px=self.truth.resolution_px[1],
+            pixels=self.truth.resolution_px[0] * self.truth.resolution_px[1],
             pixel_area_m2=(self.truth.pixel_size_um * 1e-6) ** 2,
             wavelength_nm=self.wavelength_nm,
             source=f"direct simulation of {self.truth.name}",

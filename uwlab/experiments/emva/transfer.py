@@ -15,7 +15,11 @@ saturation point the maximum of the temporal variance (the Release 3.1 practice,
 implementation): the variance drops as soon as the clipped tail is cut off. The maximum is searched among the
 points with at least half the largest signal and a positive dark-corrected variance, so that neither a disturbed
 low-signal frame pair nor the flat, noisy tail past saturation (where the dark-corrected variance is negative) can
-be taken for it.
+be taken for it. A maximum before the brightest of those points counts only when the variance then drops by more
+than three standard errors of the difference of two estimates (each from P pixels and the point's frame pairs:
+relative standard error √(2/(P·pairs)), for Gaussian noise): a variance still rising, with one point above its
+successor by chance (a colour channel whose filter passes little of the light is the usual case), gives the brightest
+point.
 """
 
 from __future__ import annotations
@@ -126,6 +130,7 @@ class PhotonTransfer:
     stack: NonuniformityStack | None = None
     width_px: int = 0
     height_px: int = 0
+    pixels: int = 0  # pixels per frame the statistics are over (a colour channel: its sites); 0: unknown
     pixel_area_m2: float | None = None
     wavelength_nm: float | None = None
     gain_db: float = 0.0
@@ -179,9 +184,9 @@ class Saturation:
 
 
 CHANNEL_NO_SPLIT = (
-    "not computed for a colour channel: its highpassed row/column/pixel split (Release 4.0 §8.1's filters) needs "
-    "the channel's sites as an image of their own, and the dataset records only the channel's total spatial "
-    "variance; uwlab does not yet compute the split per channel"
+    "not computed for a colour channel: the dataset was recorded before uwlab kept each channel's highpassed "
+    "row/column/pixel split (Release 4.0 §8.1's filters, on the planes of the channel's sites); record the sweep "
+    "again"
 )
 
 
@@ -201,7 +206,8 @@ RULE_VARIANCE = "maximum of the temporal variance"
 
 def variance_maximum_index(pt: PhotonTransfer) -> int:
     """Index of the largest temporal variance among the points with at least half the largest signal and a
-    positive dark-corrected variance (see the module docstring)."""
+    positive dark-corrected variance, unless the variance does not drop significantly after it (see the module
+    docstring)."""
     signal, var = pt.signal_dn, pt.temporal_var_dn2
     candidates = np.flatnonzero((signal >= 0.5 * np.nanmax(signal)) & (pt.signal_var_dn2 > 0))
     if candidates.size == 0:
@@ -210,7 +216,14 @@ def variance_maximum_index(pt: PhotonTransfer) -> int:
             None,
             "no point of the upper half of the sweep has a dark-corrected temporal variance above zero",
         )
-    return int(candidates[np.argmax(var[candidates])])
+    best = int(candidates[np.argmax(var[candidates])])
+    later = candidates[candidates > best]
+    if later.size and pt.pixels > 0:
+        pairs = max(1, int(pt.frames[best]) // 2)
+        drop_se = np.sqrt(2.0) * np.sqrt(2.0 / (pt.pixels * pairs)) * var[best]
+        if var[best] - np.min(var[later]) <= 3.0 * drop_se:
+            return int(candidates[-1])
+    return best
 
 
 def saturation(pt: PhotonTransfer) -> Saturation:

@@ -16,9 +16,11 @@ pixels:
 * the fraction of pixels at or above the camera's clip level in any frame (`uwlab.experiments.saturation`);
 * for a raw Bayer mosaic (``bayer``), the same statistics of each colour channel over its own sites
   (`uwlab.experiments.frames.frame.channel_pixels`; ``G`` pools both green sites), at the one clip level of the
-  frame: EMVA 1288 Release 4.0 Linear §1.2 treats each colour channel of a colour camera as its own sensor. A
-  channel's pixels are not a rectangle, so its spatial variance is the unfiltered one (eq. 35) only: no highpass
-  split (``spatial`` None).
+  frame: EMVA 1288 Release 4.0 Linear §1.2 treats each colour channel of a colour camera as its own sensor. Each
+  site of the 2 × 2 cell is a regular grid, an image of half the width and height: red and blue are each one such
+  plane, with the highpassed split like a monochrome image's; green has two planes, and its split is the mean of
+  theirs (each of its parts a variance over the sites of one plane: the offset between the two green sites is not
+  in it, its total spatial variance ``spatial_var_dn2`` over both sites has it).
 
 Memory is bounded by a few frames whatever L is: a uint32 sum image (exact for up to 32 768 frames of
 16-bit data), a boolean "saturated in any frame" map and the first frame of the current pair; sums of squares of integer
@@ -30,12 +32,13 @@ of ⟨y⟩ − μ_y.
 from __future__ import annotations
 
 from collections.abc import Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
 from uwlab.errors import ConfigError
-from uwlab.experiments.frames.frame import CHANNELS, channel_pixels
+from uwlab.drivers.camera.pixels import bayer_sites
+from uwlab.experiments.frames.frame import channel_pixels
 from uwlab.experiments.frames.nonuniformity import HIGHPASS_MARGIN, SpatialVariances, highpass, spatial_variances
 
 CHUNK_PIXELS = 1 << 16
@@ -74,7 +77,10 @@ class StackAccumulator:
         self.keep_mean_image = keep_mean_image
         self.bayer = bayer
         self.origin = origin
-        self._channels = {colour: StackAccumulator(clip_dn) for colour in CHANNELS} if bayer is not None else None
+        # each colour's site planes (frame[row::2, col::2]); a colour of two sites (green) is also pooled
+        self._sites = bayer_sites(bayer, *origin) if bayer is not None else {}
+        self._planes = {site: StackAccumulator(clip_dn) for cells in self._sites.values() for site in cells}
+        self._pooled = {colour: StackAccumulator(clip_dn) for colour, cells in self._sites.items() if len(cells) > 1}
         self._sum: np.ndarray | None = None
         self._saturated: np.ndarray | None = None
         self._pending: np.ndarray | None = None
@@ -96,9 +102,12 @@ class StackAccumulator:
             self._centre = int(round(float(frame.mean())))
         elif frame.shape != self._sum.shape:
             raise ConfigError("frame", frame.shape, f"shape differs from the first frame {self._sum.shape}")
-        if self._channels is not None:
+        for (row, col), plane in self._planes.items():
+            plane.add(frame[row::2, col::2])
+        if self._pooled:
             for colour, values in channel_pixels(frame, self.bayer, *self.origin).items():
-                self._channels[colour].add(values[None, :])  # one row: a channel's sites are not a rectangle
+                if colour in self._pooled:
+                    self._pooled[colour].add(values[None, :])  # one row: both sites are not a rectangle
         if self.frames == 2:  # a third frame: the first pair's Σ (y − c)² now, from its sum (`_pair_squares`)
             self._squares = self._pair_squares(_centred_square_sum(self._sum, 2 * self._centre))
         np.add(self._sum, frame, out=self._sum, casting="unsafe")
@@ -153,8 +162,22 @@ class StackAccumulator:
             saturated_fraction=float(np.count_nonzero(self._saturated)) / n,
             mean_image=np.add(deviation, np.float32(mean), out=deviation) if self.keep_mean_image else None,
             pixels=n,
-            channels=None if self._channels is None else {c: acc.result() for c, acc in self._channels.items()},
+            channels=self._channel_results() if self._sites else None,
         )
+
+    def _channel_results(self) -> dict[str, StackStatistics]:
+        """Each colour's statistics: its one plane's, or (green) its pooled sites' with the mean of its planes'
+        highpassed splits."""
+        out = {}
+        for colour, cells in self._sites.items():
+            planes = [self._planes[site].result() for site in cells]
+            if colour not in self._pooled:
+                out[colour] = planes[0]
+                continue
+            splits = [plane.spatial for plane in planes]
+            split = None if any(s is None for s in splits) else _mean_split([s for s in splits if s is not None])
+            out[colour] = replace(self._pooled[colour].result(), spatial=split)
+        return out
 
     def _deviation_image(self, mean: float) -> np.ndarray:
         """⟨y⟩ − μ_y as float32 (computed from the exact integer sum, in row chunks)."""
@@ -163,6 +186,12 @@ class StackAccumulator:
         for rows, target in zip(_row_chunks(self._sum), _row_chunks(out), strict=True):
             np.subtract(rows * scale, mean, out=target, casting="unsafe")
         return out
+
+
+def _mean_split(splits: list[SpatialVariances]) -> SpatialVariances:
+    """The mean of the splits of equally weighted planes (the smallest plane's rows and columns)."""
+    mean = {f.name: float(np.mean([getattr(s, f.name) for s in splits])) for f in fields(SpatialVariances)}
+    return SpatialVariances(**mean | {"rows": min(s.rows for s in splits), "cols": min(s.cols for s in splits)})
 
 
 def _row_chunks(image: np.ndarray) -> list[np.ndarray]:
