@@ -17,8 +17,9 @@
    wall time per frame in ms) and the consumer thread's CPU time per frame in both loops (``time.thread_time``:
    what the loop itself costs, whatever paces the source — Viky's clock, Fake_1's image generator in its own
    thread).
-2. The in-process simulated camera of the default rig (IMX250, 2448 × 2048) in Mono8 and Mono16 through `Camera`
-   (it has no loop of its own): frames per second (median of the repeats).
+2. The in-process simulated camera of the default rig (IMX250, 2448 × 2048) in Mono8, Mono12p (packed by the
+   simulated device, unpacked by `Camera`) and Mono16 through `Camera` (it has no loop of its own): frames per second
+   and the consumer thread's CPU time per frame, rendering included (medians of the repeats).
 
 Usage: python benchmarks/bench_fake_camera.py [--frames N] [--repeats R] [--only aravis|harvesters|sim]
 """
@@ -217,7 +218,7 @@ def main() -> None:
     if args.only in (None, "harvesters"):
         overhead.append(compare("harvesters", harvesters_own, "Mono8", n, r))
     if args.only in (None, "sim"):
-        results += [sim(fmt, n, r) for fmt in ("Mono8", "Mono16")]
+        results += [sim(fmt, n, r) for fmt in ("Mono8", "Mono12p", "Mono16")]
     print(json.dumps({"benchmark": "fake_camera", "overhead": overhead, "sim": results}, indent=1))
 
 
