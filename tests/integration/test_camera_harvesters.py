@@ -4,13 +4,16 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 from genicam import gentl
+from harvesters.util.pfnc import Dictionary
 
 from uwlab.drivers.camera import BackendUnavailable, Policy, discover, open_camera
-from uwlab.drivers.camera.harvesters_backend import bundled_producers, cti_files
+from uwlab.drivers.camera.harvesters_backend import bundled_producers, cti_files, owns_memory, raw_frame
+from uwlab.drivers.camera.pixels import pack, pixel_format, unpack
 from uwlab.errors import ConfigError, DeviceError
 
 VIKY = str(bundled_producers()[0])  # the genicam wheel's viky.cti, found by the backend
@@ -131,3 +134,42 @@ def test_a_silent_stream_times_out_on_our_deadline():
             for _ in range(10):  # buffers filled before the stop are still delivered, then silence
                 cam.acquire(1)
         assert time.monotonic() - started < 10 * 0.5 + 1.0
+
+
+# -- the one copy: a frame never aliases a queued-back buffer, and is copied at most once ---------------------
+
+
+def test_frames_kept_past_the_buffer_pool_are_not_overwritten():
+    """viky queues 3 buffers: frames kept while 12 more arrive keep their own pixels (no view into a buffer)."""
+    with viky_at(200.0, Policy(timeout_s=5.0)) as cam:
+        kept = [(frame, frame.image.copy()) for frame in cam.frames(12)]
+        assert all(np.array_equal(frame.image, snapshot) for frame, snapshot in kept)
+        assert len({snapshot.tobytes() for _, snapshot in kept}) > 1  # the pattern moves: aliasing would show
+
+
+def fake_buffer(data: np.ndarray, width: int, height: int, data_format: str) -> SimpleNamespace:
+    module = SimpleNamespace(frame_id=7, timestamp_ns=1234, is_complete=lambda: True)
+    component = SimpleNamespace(width=width, height=height, data=data, data_format=data_format)
+    return SimpleNamespace(module=module, payload=SimpleNamespace(components=[component]))
+
+
+def test_a_view_into_the_gentl_buffer_is_copied_once():
+    gentl_memory = bytearray(range(12))  # what harvesters wraps with np.frombuffer for an unpacked format
+    view = np.frombuffer(gentl_memory, np.uint8)
+    assert not owns_memory(view) and not owns_memory(view[2:].reshape(2, 5))
+    raw = raw_frame(fake_buffer(view, 4, 3, "Mono8"))
+    gentl_memory[:] = bytes(12)  # the producer refills the buffer once it is queued back
+    assert raw.data.shape == (3, 4) and raw.data.ravel().tolist() == list(range(12))
+    assert (raw.frame_id, raw.timestamp_ns, raw.pixel_format, raw.complete) == (7, 1234, "Mono8", True)
+
+
+def test_an_image_harvesters_has_unpacked_is_not_copied_again():
+    """A packed format: harvesters' own decoder (the pfnc proxy its Component2DImage uses) yields a new array, taken
+    as is — and decoded as uwlab decodes the same bytes."""
+    image = np.arange(24, dtype=np.uint16).reshape(4, 6) * 170
+    wire = pack(image, pixel_format("Mono12p")).tobytes()
+    unpacked = Dictionary.get_proxy(symbolic="Mono12p").expand(np.frombuffer(wire, np.uint8))
+    assert owns_memory(unpacked)
+    raw = raw_frame(fake_buffer(unpacked, 6, 4, "Mono12p"))
+    assert np.shares_memory(raw.data, unpacked) and raw.data.shape == (4, 6)
+    assert np.array_equal(raw.data, unpack(wire, pixel_format("Mono12p"), 6, 4))

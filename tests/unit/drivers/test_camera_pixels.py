@@ -35,6 +35,18 @@ def test_pfnc_p_formats_match_lsb_first_bitstream(name, bits):
     np.testing.assert_array_equal(pack(values.reshape(1, -1), pixel_format(name)), lsb_first_bitstream(values, bits))
 
 
+@pytest.mark.parametrize("name,bits", [("Mono10p", 10), ("Mono12p", 12)])
+@pytest.mark.parametrize("n", [1, 2, 3, 4, 5, 37, 4099])
+def test_pfnc_p_formats_decode_the_lsb_first_bitstream(name, bits, n):
+    fmt = pixel_format(name)
+    values = np.random.default_rng(n).integers(0, 2**bits, n).astype(np.uint16)
+    wire = lsb_first_bitstream(values, bits)
+    np.testing.assert_array_equal(unpack(wire.tobytes(), fmt, n, 1)[0], values)
+    # an odd start address and trailing bytes (a buffer's chunk data, a partial last group's padding) change nothing
+    shifted = np.concatenate([[0xFF], wire, np.full(7, 0xFF)]).astype(np.uint8)[1:]
+    np.testing.assert_array_equal(unpack(shifted, fmt, n, 1)[0], values)
+
+
 def test_known_byte_layouts():
     two = np.array([[0x123, 0x456]], np.uint16)
     assert pack(two, pixel_format("Mono12p")).tolist() == [0x23, 0x61, 0x45]

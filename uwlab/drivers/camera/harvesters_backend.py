@@ -16,6 +16,10 @@ callback counts those events, so each one becomes an incomplete `RawFrame` that 
 counts and discards. Every buffer we receive is queued back (``with buffer``). harvesters'
 blocking ``fetch`` is not used: it silently re-queues incomplete buffers and restarts its timeout,
 so a link delivering only incomplete frames would block it forever.
+
+Pixels leave the buffer in at most one copy (`raw_frame`): the component data of a format harvesters delivers as it
+is (Mono8, Mono16, ...) is a view into the GenTL buffer, which the producer refills once queued back, so it is
+copied; the image harvesters decodes a packed format into (Mono10p, Mono12Packed, ...) is new memory, taken as it is.
 """
 
 from __future__ import annotations
@@ -24,6 +28,8 @@ import os
 import time
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 from uwlab.drivers.camera.interface import DeviceEntry, DeviceLost, FrameTimeout, RawFrame, unknown_device
 from uwlab.errors import ConfigError, DeviceError
@@ -117,6 +123,41 @@ def open_transport(
         h.reset()
         raise unknown_device("harvesters", device_id or "<first>", ids)
     return HarvestersTransport(h, device_id or ids[0], cti, fake)
+
+
+def owns_memory(array: np.ndarray) -> bool:
+    """True when ``array`` lives in memory numpy allocated (e.g. the unpacked image harvesters decodes a packed
+    format into), False for a view into foreign memory (a component's data over the GenTL buffer itself)."""
+    while isinstance(array.base, np.ndarray):
+        array = array.base
+    return array.base is None
+
+
+def raw_frame(buffer: Any) -> RawFrame:
+    """A `RawFrame` of a harvesters `Buffer` that stays valid once the buffer is queued back: the component's data
+    is copied only when it is a view into the GenTL buffer (a format harvesters delivers as is); an image harvesters
+    has already unpacked into memory of its own (packed formats) is taken as it is, not copied again."""
+    module = buffer.module
+    component = buffer.payload.components[0]
+    width, height = int(component.width), int(component.height)
+    data = component.data
+    if not owns_memory(data):  # a view into the GenTL buffer, which is queued back on return: the one copy
+        data = data.copy()
+    if data.size == width * height:  # one element per pixel: decoded (harvesters unpacks packed formats)
+        data = data.reshape(height, width)
+    try:
+        ts = int(module.timestamp_ns)
+    except gentl.GenericException:
+        ts = time.time_ns()
+    return RawFrame(
+        int(module.frame_id),
+        ts,
+        width,
+        height,
+        str(component.data_format),
+        data,
+        complete=bool(module.is_complete()),
+    )
 
 
 class IncompleteBuffers(Callback):
@@ -219,30 +260,10 @@ class HarvestersTransport:
                 raise DeviceLost(f"harvesters: {self.device_id}: {exc}") from exc
             if buffer is not None:
                 with buffer:
-                    return self._raw(buffer)
+                    return raw_frame(buffer)
             if self.incomplete.count > discarded:
                 return RawFrame(-1, time.time_ns(), 0, 0, "Mono8", b"", complete=False)
         raise FrameTimeout(f"harvesters: no buffer within {timeout_s:g} s")
-
-    def _raw(self, buffer: Any) -> RawFrame:
-        module = buffer.module
-        component = buffer.payload.components[0]
-        width, height = int(component.width), int(component.height)
-        data = component.data
-        data = data.reshape(height, width).copy() if data.size == width * height else data.tobytes()
-        try:
-            ts = int(module.timestamp_ns)
-        except gentl.GenericException:
-            ts = time.time_ns()
-        return RawFrame(
-            int(module.frame_id),
-            ts,
-            width,
-            height,
-            str(component.data_format),
-            data,
-            complete=bool(module.is_complete()),
-        )
 
     def reconnect(self) -> None:
         self.close()

@@ -585,17 +585,19 @@ class Camera:
                 raise DeviceError(f"{self.info.device_id}: {in_row} incomplete frames in a row")
 
     def _fetch_one(self, deadline: float, discarded: int) -> RawFrame:
-        timeout = f"acquisition timeout ({self.policy.timeout_s * 1e3:.0f} ms"
-        timeout += f", {discarded} incomplete frames discarded)" if discarded else ")"
         remaining = deadline - time.monotonic()
         if remaining <= 0:
-            raise DeviceError(f"{self.info.device_id}: {timeout}: no complete frame")
+            raise DeviceError(f"{self._timeout_message(discarded)}: no complete frame")
         if self._state.trigger == "software":
             self.transport.execute("TriggerSoftware")
         try:
             return self.transport.fetch(remaining)
         except FrameTimeout as exc:
-            raise DeviceError(f"{self.info.device_id}: {timeout}: {exc}") from exc
+            raise DeviceError(f"{self._timeout_message(discarded)}: {exc}") from exc
+
+    def _timeout_message(self, discarded: int) -> str:
+        timeout = f"{self.info.device_id}: acquisition timeout ({self.policy.timeout_s * 1e3:.0f} ms"
+        return timeout + (f", {discarded} incomplete frames discarded)" if discarded else ")")
 
     def _decode(self, raw: RawFrame) -> Frame:
         fmt = pixel_format(raw.pixel_format)

@@ -149,7 +149,8 @@ def bayer_sites(layout: str, x0: int = 0, y0: int = 0) -> dict[str, tuple[tuple[
     return {colour: tuple(sorted(cells)) for colour, cells in sites.items()}
 
 
-def _groups(raw: np.ndarray, group_bytes: int, n_pixels: int, pixels_per_group: int) -> np.ndarray:
+def _whole_groups(raw: np.ndarray, group_bytes: int, n_pixels: int, pixels_per_group: int) -> tuple[np.ndarray, int]:
+    """The payload and its number of groups, a partial last group padded with zeros (a copy only then)."""
     n_groups = -(-n_pixels // pixels_per_group)
     need = n_groups * group_bytes
     wire_bytes = -(-n_pixels * group_bytes // pixels_per_group)
@@ -157,24 +158,39 @@ def _groups(raw: np.ndarray, group_bytes: int, n_pixels: int, pixels_per_group: 
         raise ConfigError("payload", raw.size, f"too short for {n_pixels} pixels")
     if raw.size < need:
         raw = np.concatenate([raw, np.zeros(need - raw.size, np.uint8)])
-    return raw[:need].reshape(n_groups, group_bytes).astype(np.uint16)
+    return raw, n_groups
+
+
+def _groups(raw: np.ndarray, group_bytes: int, n_pixels: int, pixels_per_group: int) -> np.ndarray:
+    raw, n_groups = _whole_groups(raw, group_bytes, n_pixels, pixels_per_group)
+    return raw[: n_groups * group_bytes].reshape(n_groups, group_bytes).astype(np.uint16)
+
+
+def _words(raw: np.ndarray, n_groups: int, group_bytes: int, offset: int) -> np.ndarray:
+    """The little-endian 16-bit word at byte ``offset`` of every group: a strided view, nothing copied."""
+    return np.ndarray((n_groups,), "<u2", raw, offset, (group_bytes,))
 
 
 def _unpack_10p(raw: np.ndarray, n: int) -> np.ndarray:
-    b = _groups(raw, 5, n, 4)
-    out = np.empty((b.shape[0], 4), np.uint16)
-    out[:, 0] = b[:, 0] | ((b[:, 1] & 0x03) << 8)
-    out[:, 1] = (b[:, 1] >> 2) | ((b[:, 2] & 0x0F) << 6)
-    out[:, 2] = (b[:, 2] >> 4) | ((b[:, 3] & 0x3F) << 4)
-    out[:, 3] = (b[:, 3] >> 6) | (b[:, 4] << 2)
+    """4 pixels in 5 bytes: pixel k is bits 10k..10k+9 of the group, i.e. in the 16-bit word at byte k, shifted
+    right by 2k; one pass per pixel of the group straight from the payload (no widened copy of it)."""
+    raw, n_groups = _whole_groups(raw, 5, n, 4)
+    out = np.empty((n_groups, 4), np.uint16)
+    np.bitwise_and(_words(raw, n_groups, 5, 0), 0x03FF, out=out[:, 0])
+    for k in (1, 2):
+        np.right_shift(_words(raw, n_groups, 5, k), 2 * k, out=out[:, k])
+        out[:, k] &= 0x03FF
+    np.right_shift(_words(raw, n_groups, 5, 3), 6, out=out[:, 3])
     return out.reshape(-1)[:n]
 
 
 def _unpack_12p(raw: np.ndarray, n: int) -> np.ndarray:
-    b = _groups(raw, 3, n, 2)
-    out = np.empty((b.shape[0], 2), np.uint16)
-    out[:, 0] = b[:, 0] | ((b[:, 1] & 0x0F) << 8)
-    out[:, 1] = (b[:, 1] >> 4) | (b[:, 2] << 4)
+    """2 pixels in 3 bytes: pixel 0 is the low 12 bits of the word at byte 0, pixel 1 the high 12 of the word at
+    byte 1."""
+    raw, n_groups = _whole_groups(raw, 3, n, 2)
+    out = np.empty((n_groups, 2), np.uint16)
+    np.bitwise_and(_words(raw, n_groups, 3, 0), 0x0FFF, out=out[:, 0])
+    np.right_shift(_words(raw, n_groups, 3, 1), 4, out=out[:, 1])
     return out.reshape(-1)[:n]
 
 
