@@ -4,10 +4,14 @@
 from __future__ import annotations
 
 import sys
+from typing import TYPE_CHECKING
 
 from uwlab.errors import ConfigError
 from uwlab.jsonable import dumps
 from uwlab.model.config import parse_value, split_assignment
+
+if TYPE_CHECKING:
+    from uwlab.experiments.port.calibrate import PortCalibration
 
 
 def register(subparsers) -> None:
@@ -169,7 +173,7 @@ def run_trace(args) -> int:
     return 0
 
 
-def _calibration_table(result: dict) -> str:
+def _calibration_table(result: PortCalibration) -> str:
     def pm(value, std, fmt="{:+.3f}"):
         return f"{fmt.format(value)} ± {std:.3f}"
 

@@ -125,6 +125,7 @@ def write_descriptor(
 
 def has_recorded_frames(dataset, pt: PhotonTransfer) -> bool:
     """Whether the photon transfer's first point kept its raw frames (then every point must have them)."""
+    assert pt.point_index is not None  # PhotonTransfer.__post_init__ replaced a None by NaN
     try:
         dataset.frames(pt.sweep_id, int(pt.point_index[0]))
     except ConfigError:
@@ -156,31 +157,34 @@ def write_descriptor_from_frames(
     target = _target(out_dir)
     out = target.parent
     pt = pt.sorted()
+    point_index = pt.point_index
+    assert point_index is not None  # PhotonTransfer.__post_init__ replaced a None by NaN
     blocks: list[Block] = []
-    shape = [None]
+    shape: tuple[int, ...] | None = None
     counter = iter(range(10**9))
 
     def copy(paths, dark: bool, exposure_s: float, photons: float) -> None:
+        nonlocal shape
         names = []
         for path in paths:
             image, metadata = read_frame(path)
             x, y, w, h = metadata.get("roi") or (0, 0, image.shape[1], image.shape[0])
             image = image[y : y + h, x : x + w]
-            if shape[0] is None:
-                shape[0] = image.shape
-            elif image.shape != shape[0]:
-                raise ConfigError("frame", str(path), f"ROI {image.shape} differs from the first frame's {shape[0]}")
+            if shape is None:
+                shape = image.shape
+            elif image.shape != shape:
+                raise ConfigError("frame", str(path), f"ROI {image.shape} differs from the first frame's {shape}")
             name = f"images/image{next(counter):05d}.tif"
             tifffile.imwrite(out / name, image)
             names.append(name)
         blocks.append(Block(dark, exposure_s * 1e9, photons, tuple(names)))
 
-    frames = [dataset.frames(pt.sweep_id, int(i)) for i in pt.point_index]
+    frames = [dataset.frames(pt.sweep_id, int(i)) for i in point_index]
     dark_exposures = set()
     for i, found in enumerate(frames):
         if len(found.bright) < 2 or len(found.dark) < 2:
             raise ConfigError(
-                "point", f"{pt.sweep_id}#{int(pt.point_index[i])}", "needs two recorded bright and two dark frames"
+                "point", f"{pt.sweep_id}#{int(point_index[i])}", "needs two recorded bright and two dark frames"
             )
         copy(found.bright[:2], False, pt.exposure_s[i], pt.photons[i])
         key = round(pt.exposure_s[i] * 1e9, 3)
@@ -205,6 +209,7 @@ def write_descriptor_from_frames(
         f"Images: the camera's recorded frames (save_frames), cropped to the analysis ROI; stacks: {stack_text}.",
         "b exposure_ns photons_per_pixel / d exposure_ns / i image path (Release 4.0)",
     )
-    desc = Descriptor("4.0", pt.bit_depth, shape[0][1], shape[0][0], tuple(blocks))
+    assert shape is not None  # every point has at least two frames, refused above otherwise
+    desc = Descriptor("4.0", pt.bit_depth, shape[1], shape[0], tuple(blocks))
     target.write_text(format_descriptor(desc, comments))
     return target

@@ -100,6 +100,7 @@ def characterize_general(pt: PhotonTransfer) -> tuple[dict, dict]:
     snr_p = pt.photons[idx] / sigma_y * local_slope
     relative = 1.0 / np.r_[pt.photons[idx].min(), pt.photons[idx]]
     inverse = bspline_regression(np.r_[0.0, snr_p], x, intervals, (0.0, float(snr_p.max())), relative)
+    mu_p_min: float | None
     mu_p_min = float(inverse(1.0))
     if snr_p.min() > MAX_SNR_P_AT_LOWEST_POINT or not 0 < mu_p_min < mu_p_sat:
         notes.append(
@@ -190,7 +191,8 @@ def _nonuniformity(
     pt: PhotonTransfer, sat: int, r_d: float, slope, all_slopes: np.ndarray, notes: list[str]
 ) -> tuple[dict, np.ndarray]:
     """DSNU [p] (eq. 58), PRNU [%] (eq. 59) of every part, and the measured total SNR_p (eq. 60)."""
-    values = {f"dsnu{part_suffix(p)}_p": None for p in PARTS} | {f"prnu{part_suffix(p)}_percent": None for p in PARTS}
+    values: dict[str, object] = {f"dsnu{part_suffix(p)}_p": None for p in PARTS}
+    values |= {f"prnu{part_suffix(p)}_percent": None for p in PARTS}
     values |= {"dsnu_dn": None, "nonuniformity_source": None, "spatial_variances": None}
     with np.errstate(invalid="ignore", divide="ignore"):
         snr_total = pt.photons / np.sqrt((pt.temporal_var_dn2 + pt.spatial.total) / all_slopes**2)

@@ -340,7 +340,8 @@ def _nonuniformity(pt: PhotonTransfer, sat: Saturation, k: float, notes: list[st
     """DSNU [e⁻] and PRNU [%] of every part (eq. 66–67), the spatial variances for the XML, the measured total SNR
     at every point and the model of eq. 69."""
     point = spatial_point(pt, sat.index)
-    values = {f"dsnu{part_suffix(p)}_e": None for p in PARTS} | {f"prnu{part_suffix(p)}_percent": None for p in PARTS}
+    values: dict[str, object] = {f"dsnu{part_suffix(p)}_e": None for p in PARTS}
+    values |= {f"prnu{part_suffix(p)}_percent": None for p in PARTS}
     values |= {"dsnu_dn": None, "nonuniformity_source": None, "spatial_variances": None}
     with np.errstate(divide="ignore", invalid="ignore"):
         snr_total = pt.signal_dn / np.sqrt(pt.temporal_var_dn2 + pt.spatial.total)
@@ -353,18 +354,20 @@ def _nonuniformity(pt: PhotonTransfer, sat: Saturation, k: float, notes: list[st
         values[f"prnu{part_suffix(p)}_percent"] = prnu_percent(point.bright[p], point.dark[p], point.signal_dn)
     values["dsnu_dn"] = math.sqrt(point.dark["total"]) if point.dark["total"] >= 0 else None
     values["nonuniformity_source"] = point.source
-    values["spatial_variances"] = {"bright": point.bright, "dark": point.dark, "frames": point.frames}
-    if pt.stack is not None:
-        values["spatial_variances"] |= {
-            "bright_measured": pt.stack.bright.spatial.measured,
-            "dark_measured": pt.stack.dark.spatial.measured,
-            "bright_cav": pt.stack.bright.spatial.cav,
-            "bright_rav": pt.stack.bright.spatial.rav,
-            "dark_cav": pt.stack.dark.spatial.cav,
-            "dark_rav": pt.stack.dark.spatial.rav,
-            "bright_stack_var": pt.stack.bright.stack_var_dn2,
-            "dark_stack_var": pt.stack.dark.stack_var_dn2,
+    spatial: dict[str, object] = {"bright": point.bright, "dark": point.dark, "frames": point.frames}
+    stack = pt.stack
+    if stack is not None and stack.bright.spatial is not None and stack.dark.spatial is not None:
+        spatial |= {
+            "bright_measured": stack.bright.spatial.measured,
+            "dark_measured": stack.dark.spatial.measured,
+            "bright_cav": stack.bright.spatial.cav,
+            "bright_rav": stack.bright.spatial.rav,
+            "dark_cav": stack.dark.spatial.cav,
+            "dark_rav": stack.dark.spatial.rav,
+            "bright_stack_var": stack.bright.stack_var_dn2,
+            "dark_stack_var": stack.dark.stack_var_dn2,
         }
+    values["spatial_variances"] = spatial
     return values, curves
 
 

@@ -12,16 +12,29 @@ characterisation writes each as ``NAME.png`` and embeds the same PNGs (`figure_p
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import TypedDict
 
 import numpy as np
 
+from uwlab.errors import ConfigError
 from uwlab.experiments.emva.analysis import EmvaResult
+from uwlab.experiments.frames.nonuniformity import ImageAnalysis
 from uwlab.experiments.emva.linear import total_snr_model
 from uwlab.experiments.figures import PALETTE, Figure, figure_png, log_ticks
 from uwlab.model.sensor import snr
 
 FIGSIZE = (6.4, 4.2)
-SAT_STYLE = dict(ls="--", color="0.45", lw=1)
+
+
+class LineStyle(TypedDict):
+    """Keyword arguments of a matplotlib line."""
+
+    ls: str
+    color: str
+    lw: float
+
+
+SAT_STYLE: LineStyle = {"ls": "--", "color": "0.45", "lw": 1}
 
 
 def _fmt(value, spec: str = ".4g", unit: str = "") -> str:
@@ -246,7 +259,15 @@ def plot_spatial_variances(result: EmvaResult) -> Figure:
     return fig
 
 
-def _spectrogram(spectrograms: dict, level_lines: list[tuple[float, str]], unit: str, title: str) -> Figure:
+def _images(result: EmvaResult) -> ImageAnalysis:
+    """The analysis of the nonuniformity images, which the spectrogram, profile and histogram figures draw
+    (`figure_makers` lists them only when the result has it)."""
+    if result.images is None:
+        raise ConfigError("figure", None, "needs the nonuniformity stacks' mean images, which the result lacks")
+    return result.images
+
+
+def _spectrogram(spectrograms: dict, level_lines: list[tuple[float | None, str]], unit: str, title: str) -> Figure:
     fig = Figure(figsize=(6.4, 6.0))
     axes = fig.subplots(2, 1)
     for ax, name in zip(axes, ("horizontal", "vertical"), strict=True):
@@ -271,7 +292,7 @@ def _spectrogram(spectrograms: dict, level_lines: list[tuple[float, str]], unit:
 def plot_dsnu_spectrogram(result: EmvaResult) -> Figure:
     """Fig. 12: horizontal and vertical spectrograms of the highpassed DSNU image, with DSNU₁₂₈₈ and the temporal
     noise σ_y.stack.dark of a single image as lines [DN]."""
-    v, stack = result.values, result.images
+    v, stack = result.values, _images(result)
     sigma = (
         np.sqrt(v["spatial_variances"]["dark_stack_var"])
         if "dark_stack_var" in (v["spatial_variances"] or {})
@@ -290,7 +311,7 @@ def plot_dsnu_spectrogram(result: EmvaResult) -> Figure:
 
 def plot_prnu_spectrogram(result: EmvaResult) -> Figure:
     """Fig. 13: spectrograms of the highpassed PRNU image in percent of the mean, with PRNU₁₂₈₈ and σ_y.stack/μ."""
-    v, stack = result.values, result.images
+    v, stack = result.values, _images(result)
     sigma = None
     if v["spatial_variances"] and "bright_stack_var" in v["spatial_variances"]:
         sigma = 100 * np.sqrt(v["spatial_variances"]["bright_stack_var"]) / stack.signal_dn
@@ -323,7 +344,7 @@ def plot_dsnu_profiles(result: EmvaResult) -> Figure:
     """Fig. 14 for ⟨y_dark⟩ (unfiltered): range 0.9 × mean of the minimum line … 1.1 × mean of the maximum line
     (§8.7)."""
     return _profiles(
-        result.images.dsnu_profiles,
+        _images(result).dsnu_profiles,
         "DSNU",
         lambda p: (0.9 * float(np.mean(p["min"])), 1.1 * float(np.mean(p["max"]))),
     )
@@ -332,7 +353,7 @@ def plot_dsnu_profiles(result: EmvaResult) -> Figure:
 def plot_prnu_profiles(result: EmvaResult) -> Figure:
     """Fig. 14 for ⟨y_50⟩ − ⟨y_dark⟩ (unfiltered): range 0.9 … 1.1 × the mean (§8.7)."""
     return _profiles(
-        result.images.prnu_profiles,
+        _images(result).prnu_profiles,
         "PRNU",
         lambda p: (0.9 * float(np.mean(p["mean"])), 1.1 * float(np.mean(p["mean"]))),
     )
@@ -361,13 +382,13 @@ def _histograms(histograms: dict, title: str, spread: str) -> Figure:
 
 def plot_dsnu_histograms(result: EmvaResult) -> Figure:
     """Figs. 15a and 16a: logarithmic and accumulated histograms of the highpassed DSNU image."""
-    hist = result.images.dsnu_histograms
+    hist = _images(result).dsnu_histograms
     return _histograms(hist, "DSNU", f"s_nw = {hist['log'].spread_dn:.3g} DN")
 
 
 def plot_prnu_histograms(result: EmvaResult) -> Figure:
     """Figs. 15b and 16b: logarithmic and accumulated histograms of the highpassed PRNU image."""
-    hist = result.images.prnu_histograms
+    hist = _images(result).prnu_histograms
     return _histograms(hist, "PRNU", f"s_nw = {hist['log'].spread_dn:.3g} DN")
 
 

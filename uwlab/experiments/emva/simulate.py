@@ -17,6 +17,7 @@ import hashlib
 import json
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import TypedDict
 
 import numpy as np
 
@@ -30,6 +31,23 @@ from uwlab.model.photometry import photon_flux
 
 SWEEP_ID = "sim-photon-transfer"
 DARK_SWEEP_ID = "sim-dark-current"
+
+
+class CameraColumns(TypedDict):
+    """The dataset columns every point of `simulate_photon_transfer` shares: the camera's identity and settings."""
+
+    camera_backend: str
+    camera_id: str
+    camera_model: str
+    sensor_profile: str
+    gain_db: float
+    black_level_dn: float
+    bit_depth: int
+    roi_x: int
+    roi_y: int
+    roi_w: int
+    roi_h: int
+    gain_db_readback: float
 
 
 def line_spectrum(photon_irradiance_m2_s: float, wavelength_nm: float, fwhm_nm: float):
@@ -228,7 +246,7 @@ def simulate_photon_transfer(
         sim_truth={SWEEP_ID: bench.truth_document()},
         force=force,
     )
-    common = dict(
+    common = CameraColumns(
         camera_backend="sim",
         camera_id="sim0",
         camera_model=f"SimCam-{truth.name}",

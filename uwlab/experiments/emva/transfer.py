@@ -169,6 +169,7 @@ class PhotonTransfer:
     @property
     def operating_temperature_c(self) -> float | None:
         """The median temperature of the sweep's points (None when not recorded)."""
+        assert self.temperature_c is not None  # __post_init__ replaced a None by NaN
         known = self.temperature_c[np.isfinite(self.temperature_c)]
         return float(np.median(known)) if known.size else None
 
@@ -230,6 +231,7 @@ def saturation(pt: PhotonTransfer) -> Saturation:
     """The saturation point of ``pt`` (sorted by μ_p) by the module docstring's rule."""
     variance_max = variance_maximum_index(pt)
     fractions = pt.saturated_fraction
+    assert fractions is not None  # PhotonTransfer.__post_init__ replaced a None by NaN
     if np.all(np.isfinite(fractions)):
         saturated = np.flatnonzero([point_saturated(f, POINT_SATURATED_FRACTION) for f in fractions])
         if saturated.size:
@@ -249,6 +251,7 @@ def unsaturated_note(pt: PhotonTransfer, sat: Saturation) -> str | None:
     "where the histogram ... is not significantly cut-off"), so the figures taken there are lower bounds. A colour
     channel whose filter passes little of the light is the usual case."""
     fractions = pt.saturated_fraction
+    assert fractions is not None  # PhotonTransfer.__post_init__ replaced a None by NaN
     if sat.rule != RULE_VARIANCE or sat.index != len(pt.photons) - 1 or not np.all(np.isfinite(fractions)):
         return None
     where = f" in the {pt.channel} channel" if pt.channel else ""
@@ -272,8 +275,8 @@ class SpatialPoint:
     saturation and ``dark``, each {"total", "row", "col", "pixel"}; μ_y.50 − μ_y.dark, μ_p.50, the number of frames
     averaged and where they come from."""
 
-    bright: dict
-    dark: dict
+    bright: dict[str, float]
+    dark: dict[str, float]
     signal_dn: float
     photons: float
     frames: int
@@ -289,8 +292,8 @@ def half_saturation_index(pt: PhotonTransfer, sat: int) -> int:
 def spatial_point(pt: PhotonTransfer, sat: int) -> SpatialPoint | None:
     """The nonuniformity stacks' variances when recorded (§8.2: L frames), else the sweep point nearest 50 % of
     saturation (§4.2: two frames suffice for the variances); None when neither has them."""
-    if pt.stack is not None and pt.stack.bright.spatial is not None and pt.stack.dark.spatial is not None:
-        s = pt.stack
+    s = pt.stack
+    if s is not None and s.bright.spatial is not None and s.dark.spatial is not None:
         return SpatialPoint(
             s.bright.spatial.parts,
             s.dark.spatial.parts,

@@ -31,6 +31,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import NotRequired, TypedDict
 
 import cv2
 import numpy as np
@@ -73,7 +74,8 @@ def read_views(board: CharucoBoard, folder: str | Path, option: str) -> tuple[li
     files = sorted(p for p in path.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
     if not files:
         raise ConfigError(option, str(path), f"holds no images ({', '.join(IMAGE_SUFFIXES)})")
-    views, size = [], None
+    views: list[Detection] = []
+    size: tuple[int, int] | None = None
     for file in files:
         image = cv2.imread(str(file), cv2.IMREAD_UNCHANGED)
         if image is None:
@@ -85,6 +87,7 @@ def read_views(board: CharucoBoard, folder: str | Path, option: str) -> tuple[li
         found = detect(board, to_8bit(image), file.name)
         if found.ids.size >= MIN_CORNERS:
             views.append(found)
+    assert size is not None  # files is not empty
     return views, size, len(files)
 
 
@@ -133,15 +136,23 @@ class PortFit:
     residuals_px: np.ndarray = field(repr=False)
 
 
-def _make_port(kind: str, nominal: Port, p) -> Port:
+def _port_mismatch(kind: str) -> ConfigError:
+    return ConfigError("--port", kind, "does not match housing.port of the config")
+
+
+def _make_port(kind: str, nominal: Port, p: np.ndarray) -> Port:
     if kind == "dome":
+        if not isinstance(nominal, DomePort):
+            raise _port_mismatch(kind)
         return DomePort(
             nominal.outer_radius_m,
             nominal.thickness_m,
             nominal.glass_index,
             nominal.water_index,
-            tuple(float(v) * 1e-3 for v in p),
+            (float(p[0]) * 1e-3, float(p[1]) * 1e-3, float(p[2]) * 1e-3),
         )
+    if not isinstance(nominal, FlatPort):
+        raise _port_mismatch(kind)
     return FlatPort(
         nominal.thickness_m,
         float(p[0]) * 1e-3,
@@ -153,7 +164,11 @@ def _make_port(kind: str, nominal: Port, p) -> Port:
 
 def _initial_port(kind: str, nominal: Port) -> np.ndarray:
     if kind == "dome":
+        if not isinstance(nominal, DomePort):
+            raise _port_mismatch(kind)
         return np.asarray(nominal.decenter_m, float) * 1e3
+    if not isinstance(nominal, FlatPort):
+        raise _port_mismatch(kind)
     return np.array([nominal.air_gap_m * 1e3, *np.degrees(nominal.tilt_rad)])
 
 
@@ -337,6 +352,59 @@ def induced_distortion_px(port: Port, lens: BrownLens, size: tuple[int, int]) ->
     return float(np.max(np.abs(shift)) * lens.fx)
 
 
+class WaterViews(TypedDict):
+    """The views in water: images read, views with enough corners, corners fitted and outliers dropped."""
+
+    images: int
+    views: int
+    corners: int
+    outliers: int
+
+
+class AirViews(TypedDict):
+    """The views in air and the lens refined on all views (OpenCV's RMS: step 2's, before the joint fit)."""
+
+    images: int
+    views: int
+    corners: int
+    rms_px: float
+    opencv_rms_px: float
+    focal_length_px: list[float]
+    principal_point_px: list[float]
+    distortion: list[float]
+
+
+class FocusAndViews(TypedDict):
+    """The last keys of `PortCalibration`: the focus and the views of both sets."""
+
+    focus: str
+    focal_scale: float
+    focal_scale_std: float | None
+    water: WaterViews
+    air: AirViews
+    image_size_px: list[int]
+
+
+class PortCalibration(FocusAndViews):
+    """The result record of `calibrate_port` (the keys of `uwlab port calibrate`): the port, the focal ratio and the
+    RMS error in water, then `FocusAndViews`; the decentring and its verdict only for a dome, the port distance and
+    tilts only for a flat port."""
+
+    port: str
+    decenter_mm: NotRequired[dict[str, float]]
+    decenter_mm_std: NotRequired[dict[str, float]]
+    port_distance_mm: NotRequired[float]
+    port_distance_mm_std: NotRequired[float]
+    tilt_deg: NotRequired[dict[str, float]]
+    tilt_deg_std: NotRequired[dict[str, float]]
+    f_ratio: float
+    f_ratio_std: float
+    rms_px: float
+    centred_enough: NotRequired[bool]
+    induced_distortion_px: NotRequired[float]
+    max_distortion_px: NotRequired[float]
+
+
 def calibrate_port(
     board: CharucoBoard,
     air_dir,
@@ -345,12 +413,12 @@ def calibrate_port(
     nominal: Port,
     refocused: bool = False,
     max_distortion_px: float = DEFAULT_MAX_DISTORTION_PX,
-) -> dict:
+) -> PortCalibration:
     """The whole procedure (module docstring); returns the result record (the keys of `uwlab port calibrate`)."""
     if kind not in PORT_PARAMETERS:
         raise ConfigError("--port", kind, "must be flat or dome")
     if kind == "dome" and not isinstance(nominal, DomePort) or kind == "flat" and not isinstance(nominal, FlatPort):
-        raise ConfigError("--port", kind, "does not match housing.port of the config")
+        raise _port_mismatch(kind)
     air_views, air_size, air_total = read_views(board, air_dir, "DIR_AIR")
     _require(air_views, air_total, MIN_AIR_VIEWS, "DIR_AIR", air_dir)
     water_views, water_size, water_total = read_views(board, water_dir, "DIR_WATER")
@@ -363,43 +431,50 @@ def calibrate_port(
         )
     air = calibrate_air(board, air_views, air_size)
     fit = fit_port(kind, nominal, air.lens, board, air_views, water_views, free_scale=refocused)
-    record = {"port": kind}
-    if kind == "dome":
-        record["decenter_mm"] = dict(zip("xyz", fit.values, strict=True))
-        record["decenter_mm_std"] = dict(zip("xyz", fit.stds, strict=True))
-    else:
-        record["port_distance_mm"] = fit.values[0]
-        record["port_distance_mm_std"] = fit.stds[0]
-        record["tilt_deg"] = dict(zip("xy", fit.values[1:], strict=True))
-        record["tilt_deg_std"] = dict(zip("xy", fit.stds[1:], strict=True))
-    record.update({"f_ratio": fit.f_ratio, "f_ratio_std": fit.f_ratio_std, "rms_px": fit.rms_px})
+    tail: FocusAndViews = {
+        "focus": "refocused" if refocused else "locked",
+        "focal_scale": fit.scale,
+        "focal_scale_std": fit.scale_std if refocused else None,
+        "water": {
+            "images": water_total,
+            "views": len(water_views),
+            "corners": fit.corners,
+            "outliers": fit.outliers,
+        },
+        "air": {
+            "images": air_total,
+            "views": air.views,
+            "corners": air.corners,
+            "rms_px": fit.air_rms_px,
+            "opencv_rms_px": air.rms_px,
+            "focal_length_px": [fit.lens.fx, fit.lens.fy],
+            "principal_point_px": [fit.lens.cx, fit.lens.cy],
+            "distortion": list(fit.lens.distortion),
+        },
+        "image_size_px": list(air_size),
+    }
     if kind == "dome":
         distortion = induced_distortion_px(fit.port, _scaled(fit.lens, fit.scale), air_size)
-        record["centred_enough"] = bool(distortion <= max_distortion_px)
-        record["induced_distortion_px"] = distortion
-        record["max_distortion_px"] = max_distortion_px
-    record.update(
-        {
-            "focus": "refocused" if refocused else "locked",
-            "focal_scale": fit.scale,
-            "focal_scale_std": fit.scale_std if refocused else None,
-            "water": {
-                "images": water_total,
-                "views": len(water_views),
-                "corners": fit.corners,
-                "outliers": fit.outliers,
-            },
-            "air": {
-                "images": air_total,
-                "views": air.views,
-                "corners": air.corners,
-                "rms_px": fit.air_rms_px,
-                "opencv_rms_px": air.rms_px,
-                "focal_length_px": [fit.lens.fx, fit.lens.fy],
-                "principal_point_px": [fit.lens.cx, fit.lens.cy],
-                "distortion": list(fit.lens.distortion),
-            },
-            "image_size_px": list(air_size),
+        return {
+            "port": kind,
+            "decenter_mm": dict(zip("xyz", fit.values, strict=True)),
+            "decenter_mm_std": dict(zip("xyz", fit.stds, strict=True)),
+            "f_ratio": fit.f_ratio,
+            "f_ratio_std": fit.f_ratio_std,
+            "rms_px": fit.rms_px,
+            "centred_enough": bool(distortion <= max_distortion_px),
+            "induced_distortion_px": distortion,
+            "max_distortion_px": max_distortion_px,
+            **tail,
         }
-    )
-    return record
+    return {
+        "port": kind,
+        "port_distance_mm": fit.values[0],
+        "port_distance_mm_std": fit.stds[0],
+        "tilt_deg": dict(zip("xy", fit.values[1:], strict=True)),
+        "tilt_deg_std": dict(zip("xy", fit.stds[1:], strict=True)),
+        "f_ratio": fit.f_ratio,
+        "f_ratio_std": fit.f_ratio_std,
+        "rms_px": fit.rms_px,
+        **tail,
+    }
