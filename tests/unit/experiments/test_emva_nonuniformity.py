@@ -168,3 +168,42 @@ def test_stack_statistics_needs_a_pair():
     acc.add(np.zeros((4, 4), np.uint8))
     with pytest.raises(ConfigError, match="frames"):
         acc.result()
+
+
+@pytest.mark.parametrize(
+    ("dtype", "top", "shape"),
+    [
+        (np.uint8, 255, (40000, 3)),
+        (np.uint16, 4095, (2048, 61)),
+        (np.uint16, 46340, (300, 7)),
+        (np.uint16, 65535, (70, 9)),
+        (np.int16, 32767, (50, 11)),
+        (np.int32, 1 << 20, (20, 13)),
+    ],
+)
+def test_frame_sums_are_exact_at_their_bounds(dtype, top, shape):
+    """Σ y, Σ y² and a pair's Σ (a − b)² to the last unit, the pixels at the top code (every partial sum as large
+    as the block rules allow) and random, whatever routine the type takes (OpenCV row blocks or int64)."""
+    from uwlab.experiments.frames.stack import _diff_square_sum, _sums
+
+    rng = np.random.default_rng(top)
+    full = np.full(shape, top, dtype)
+    noisy = rng.integers(0, top + 1, shape).astype(dtype)
+    for a, b in ((full, np.zeros(shape, dtype)), (noisy, full), (noisy, noisy[::-1].copy())):
+        x, y = a.astype(object), b.astype(object)
+        assert _sums(a, top) == (int(x.sum()), int((x * x).sum()))
+        assert _diff_square_sum(a, b, top) == int(((x - y) ** 2).sum())
+
+
+def test_highpassed_variances_of_a_sum_image():
+    """The split of a stack's highpassed mean image, from the sum image less an integer offset (float32, exact) and
+    a scale 1/L, agrees with the highpass of the mean image itself."""
+    from uwlab.experiments.frames.nonuniformity import highpassed_variances
+
+    rng = np.random.default_rng(11)
+    frames = 3
+    total = rng.integers(3000, 9000, (64, 80)) + np.arange(80)[None, :] % 5
+    expected = spatial_variances(highpass(total / frames), 4.0, frames)
+    got = highpassed_variances((total - 18000).astype(np.float32), 4.0, frames, 1.0 / frames)
+    for name in ("measured", "total", "cav", "rav", "row", "col", "pixel"):
+        assert getattr(got, name) == pytest.approx(getattr(expected, name), rel=1e-5), name

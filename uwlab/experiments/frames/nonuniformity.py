@@ -120,11 +120,56 @@ def spatial_variances(mean_image: np.ndarray, temporal_var_dn2: float, frames: i
         total_sum += float(row.sum())
         col_sums += b.sum(axis=0)
         square_sum += float(np.einsum("ij,ij->", b, b))
-    mu = shift + total_sum / y.size
-    measured = (square_sum - total_sum * total_sum / y.size) / y.size
+    return _split(total_sum, square_sum, np.concatenate(row_sums), col_sums, shift, temporal_var_dn2, frames)
+
+
+def highpassed_variances(
+    image: np.ndarray, temporal_var_dn2: float, frames: int, scale: float = 1.0
+) -> SpatialVariances:
+    """``spatial_variances(scale · highpass(image), temporal_var_dn2, frames)`` without keeping the highpassed image:
+    OpenCV's row, column and squared sums (double accumulators) of ``image`` − its smoothing, the §8.1 filter
+    applied once. ``image`` (float32, exact integers make the best input) may be the sum of the L frames less an
+    integer offset, ``scale`` = 1/L: the highpass is linear and removes constants, so that is the mean image's.
+
+    >>> img = np.random.default_rng(1).normal(0.0, 1.0, (40, 50))
+    >>> a, b = highpassed_variances(2 * img + 9, 0.5, 2, 0.5), spatial_variances(highpass(img), 0.5, 2)
+    >>> bool(np.isclose(a.total, b.total, rtol=1e-5) and np.isclose(a.row, b.row, rtol=1e-4))
+    True
+    """
+    import cv2
+
+    image = np.asarray(image, np.float32)
+    m = HIGHPASS_MARGIN
+    if min(image.shape) <= 2 * m + 1:
+        raise ValueError(f"image {image.shape} too small for the EMVA 1288 highpass (needs > {2 * m + 1} px a side)")
+    kernel = smoothing_kernel().astype(np.float32)
+    smooth = cv2.sepFilter2D(image, cv2.CV_32F, kernel, kernel, borderType=cv2.BORDER_REFLECT)
+    inner = (slice(m, -m), slice(m, -m))
+    y = np.subtract(image[inner], smooth[inner], out=smooth[inner])
+    row_sums = cv2.reduce(y, 1, cv2.REDUCE_SUM, dtype=cv2.CV_64F).ravel() * scale
+    col_sums = cv2.reduce(y, 0, cv2.REDUCE_SUM, dtype=cv2.CV_64F).ravel() * scale
+    square_sum = cv2.norm(y, cv2.NORM_L2SQR) * scale * scale
+    return _split(float(row_sums.sum()), square_sum, row_sums, col_sums, 0.0, temporal_var_dn2, frames)
+
+
+def _split(
+    total_sum: float,
+    square_sum: float,
+    row_sums: np.ndarray,
+    col_sums: np.ndarray,
+    shift: float,
+    temporal_var_dn2: float,
+    frames: int,
+) -> SpatialVariances:
+    """Eq. 35–44 from the sums of an M×N image less ``shift``: its total, its squares, each row's and each column's
+    sum."""
+    rows, cols = row_sums.size, col_sums.size
+    size = rows * cols
+    mu = shift + total_sum / size
+    measured = (square_sum - total_sum * total_sum / size) / size
     total = measured - temporal_var_dn2 / frames
     col_means = shift + col_sums / rows
-    row_means = shift + np.concatenate(row_sums) / cols
+    row_means = shift + row_sums / cols
     cav = float(np.mean((col_means - mu) ** 2)) - temporal_var_dn2 / (frames * rows)
     rav = float(np.mean((row_means - mu) ** 2)) - temporal_var_dn2 / (frames * cols)
     m, n = rows, cols

@@ -20,11 +20,15 @@ pixels:
   channel's pixels are not a rectangle, so its spatial variance is the unfiltered one (eq. 35) only: no highpass
   split (``spatial`` None).
 
-Memory is bounded by a few frames whatever L is: a uint32 sum image (exact for up to 32 768 frames of
-16-bit data), a boolean "saturated in any frame" map and the first frame of the current pair; sums of squares of integer
-deviations from an integer centre are accumulated exactly (integers, over row chunks of at most `CHUNK_PIXELS`), so
-temporaries stay small and no precision is lost to cancellation. The highpass at the end works on a float32 copy
-of ⟨y⟩ − μ_y.
+Memory is bounded by a few frames whatever L is: the frames of the current pair, and for L > 2 a uint32 sum image
+(exact for up to 32 768 frames of 16-bit data) and, once a frame reaches the clip level, a boolean "saturated in any
+frame" map. Every sum is an exact integer, so no precision is lost to cancellation: each frame's Σ y and Σ y² and
+each pair's Σ (y_0 − y_1)² (8- and 16-bit frames: OpenCV's sums over row blocks small enough that every partial sum
+stays below 2^31, where any accumulator is exact; other types: int64), from which the sums about an integer centre
+follow (`StackAccumulator.result`). For the highpass the sum image less L times the centre is converted to float32
+(exact integers) and filtered once, its statistics scaled by 1/L
+(`uwlab.experiments.frames.nonuniformity.highpassed_variances`); only a kept mean image takes the float32 ⟨y⟩ − μ_y
+route of before.
 """
 
 from __future__ import annotations
@@ -36,9 +40,18 @@ import numpy as np
 
 from uwlab.errors import ConfigError
 from uwlab.experiments.frames.frame import CHANNELS, channel_pixels
-from uwlab.experiments.frames.nonuniformity import HIGHPASS_MARGIN, SpatialVariances, highpass, spatial_variances
+from uwlab.experiments.frames.nonuniformity import (
+    HIGHPASS_MARGIN,
+    SpatialVariances,
+    highpass,
+    highpassed_variances,
+    spatial_variances,
+)
 
 CHUNK_PIXELS = 1 << 16
+EXACT_PARTIAL = 1 << 31  # any integer accumulator (and double) adds integers below this exactly
+FLOAT32_EXACT = 1 << 24  # integers of magnitude below this are exact in float32
+_OPENCV_SUMS = (np.dtype(np.uint8), np.dtype(np.uint16))
 
 
 @dataclass(frozen=True)
@@ -75,11 +88,17 @@ class StackAccumulator:
         self.bayer = bayer
         self.origin = origin
         self._channels = {colour: StackAccumulator(clip_dn) for colour in CHANNELS} if bayer is not None else None
-        self._sum: np.ndarray | None = None
-        self._saturated: np.ndarray | None = None
+        self._shape: tuple[int, ...] = ()  # set by the first frame
+        self._first_pair: tuple[np.ndarray, np.ndarray] | None = None  # kept until a third frame needs a sum image
+        self._sum: np.ndarray | None = None  # uint32 Σ_l y_l, from the third frame on
+        self._saturated: np.ndarray | None = None  # allocated at the first frame reaching the clip level
         self._pending: np.ndarray | None = None
+        self._pending_sum = 0
+        self._pending_bound = 0
+        self._bound = 0  # the largest |y| of any frame
         self._centre = 0
-        self._squares = 0
+        self._total = 0  # Σ_l Σ y_l
+        self._squares = 0  # Σ_l Σ (y_l − c)²
         self._pair_var_sum = 0.0
         self._pairs = 0
         self._mean_diff = 0.0
@@ -90,58 +109,82 @@ class StackAccumulator:
         frame = np.asarray(frame)
         if frame.ndim != 2 or frame.dtype.kind not in "ui":
             raise ConfigError("frame", f"{frame.dtype}{frame.shape}", "expected a 2-D integer image")
-        if self._sum is None:
-            self._sum = np.zeros(frame.shape, np.uint32)
-            self._saturated = np.zeros(frame.shape, bool)
-            self._centre = int(round(float(frame.mean())))
-        elif frame.shape != self._sum.shape:
-            raise ConfigError("frame", frame.shape, f"shape differs from the first frame {self._sum.shape}")
-        if self._channels is not None:
+        if not self._shape:
+            self._shape = frame.shape
+        elif frame.shape != self._shape:
+            raise ConfigError("frame", frame.shape, f"shape differs from the first frame {self._shape}")
+        if self._channels is not None and self.bayer is not None:
             for colour, values in channel_pixels(frame, self.bayer, *self.origin).items():
                 self._channels[colour].add(values[None, :])  # one row: a channel's sites are not a rectangle
-        if self.frames == 2:  # a third frame: the first pair's Σ (y − c)² now, from its sum (`_pair_squares`)
-            self._squares = self._pair_squares(_centred_square_sum(self._sum, 2 * self._centre))
-        np.add(self._sum, frame, out=self._sum, casting="unsafe")
-        self._saturated |= frame >= self.clip_dn
+        top = int(frame.max())
+        bound = max(abs(top), abs(int(frame.min())) if frame.dtype.kind == "i" else 0)
+        self._bound = max(self._bound, bound)
+        total, squares = _sums(frame, bound)
+        n = frame.size
+        if self.frames == 0:
+            self._centre = round(total / n)  # an integer near the mean: any is exact, a near one keeps sums small
+        c = self._centre
+        self._total += total
+        self._squares += squares - 2 * c * total + n * c * c
+        if top >= self.clip_dn:
+            if self._saturated is None:
+                self._saturated = np.zeros(frame.shape, bool)
+            self._saturated |= frame >= self.clip_dn
         if self.frames >= 2:
-            self._squares += _centred_square_sum(frame, self._centre)
+            self._add_to_sum(frame)
         if self._pending is None:
-            self._pending = frame.copy()
+            self._pending, self._pending_sum, self._pending_bound = frame.copy(), total, bound
         else:
-            diff_squares, diff_sum = _pair_sums(self._pending, frame)
-            mean_diff = diff_sum / frame.size
-            self._pair_var_sum += 0.5 * (diff_squares / frame.size - mean_diff**2)  # eq. 18
+            first = self._pending
+            diff_squares = _diff_square_sum(first, frame, max(self._pending_bound, bound))
+            diff_sum = self._pending_sum - total
+            mean_diff = diff_sum / n
+            self._pair_var_sum += 0.5 * (diff_squares / n - mean_diff**2)  # eq. 18
             if self._pairs == 0:
                 self._mean_diff = mean_diff
                 self._first_diff_squares = diff_squares
+                self._first_pair = (first, frame.copy())
             self._pairs += 1
             self._pending = None
         self.frames += 1
 
-    def _pair_squares(self, sum_squares: int) -> int:
-        """Σ_l Σ (y_l − c)² of the first two frames from Σ (y_0 + y_1 − 2c)² and the pair's Σ (y_0 − y_1)²: per
-        pixel (a − c)² + (b − c)² = ((a + b − 2c)² + (a − b)²) / 2, exactly (the numerator is even). A two-frame
-        stack (every photon-transfer point) so needs no pass of squares over its frames."""
-        return (sum_squares + self._first_diff_squares) // 2
+    def _add_to_sum(self, frame: np.ndarray) -> None:
+        """Adds a frame after the first two to the uint32 sum image (made from the first pair at the third)."""
+        if self._sum is None:
+            self._sum = self._sum_image()
+            self._first_pair = None
+        np.add(self._sum, frame, out=self._sum, casting="unsafe")
 
     def result(self) -> StackStatistics:
         if self._pairs == 0:
             raise ConfigError("frames", self.frames, "need at least 2 frames for the temporal variance")
-        n, frames = self._sum.size, self.frames
-        sum_total = int(self._sum.sum(dtype=np.uint64))
+        frames, c = self.frames, self._centre
+        n = self._shape[0] * self._shape[1]
+        sum_total = self._total
         mean = sum_total / (n * frames)
         # with D = Σ_l y_l − L c per pixel (c the integer centre): eq. 65 is (Σ_l Σ (y − c)² − Σ D² / L) / ((L − 1) MN)
-        # and eq. 35 of the unfiltered mean image is (Σ D² − (Σ D)² / MN) / (L² MN)
-        d_sum = sum_total - n * frames * self._centre
-        d_squares = _centred_square_sum(self._sum, frames * self._centre)
-        squares = self._pair_squares(d_squares) if frames == 2 else self._squares
-        stack_var = (squares - d_squares / frames) / ((frames - 1) * n)
+        # and eq. 35 of the unfiltered mean image is (Σ D² − (Σ D)² / MN) / (L² MN); for L = 2, per pixel
+        # (a + b − 2c)² = 2 (a − c)² + 2 (b − c)² − (a − b)², so Σ D² needs no pass over the frames
+        d_sum = sum_total - n * frames * c
+        if frames == 2:
+            d_squares = 2 * self._squares - self._first_diff_squares
+        else:
+            d_squares = _centred_square_sum(self._sum_image(), frames * c)
+        stack_var = (self._squares - d_squares / frames) / ((frames - 1) * n)
         measured = (d_squares - d_sum * d_sum / n) / (frames**2 * n)
         temporal = self._pair_var_sum / self._pairs
-        deviation = self._deviation_image(mean)
-        spatial = None
-        if min(deviation.shape) > 2 * HIGHPASS_MARGIN + 1:
-            spatial = spatial_variances(highpass(deviation), stack_var if frames > 2 else temporal, frames)
+        split_var = stack_var if frames > 2 else temporal
+        spatial, mean_image = None, None
+        big_enough = min(self._shape) > 2 * HIGHPASS_MARGIN + 1
+        if self.keep_mean_image or frames * self._bound >= FLOAT32_EXACT:
+            deviation = self._deviation_image(mean)
+            if big_enough:
+                spatial = spatial_variances(highpass(deviation), split_var, frames)
+            if self.keep_mean_image:
+                mean_image = np.add(deviation, np.float32(mean), out=deviation)
+        elif big_enough:
+            spatial = highpassed_variances(self._offset_sum(frames * c), split_var, frames, 1.0 / frames)
+        saturated = 0 if self._saturated is None else np.count_nonzero(self._saturated)
         return StackStatistics(
             frames=frames,
             mean_dn=mean,
@@ -150,17 +193,37 @@ class StackAccumulator:
             spatial_var_dn2=measured,
             spatial=spatial,
             mean_diff_dn=self._mean_diff,
-            saturated_fraction=float(np.count_nonzero(self._saturated)) / n,
-            mean_image=np.add(deviation, np.float32(mean), out=deviation) if self.keep_mean_image else None,
+            saturated_fraction=float(saturated) / n,
+            mean_image=mean_image,
             pixels=n,
             channels=None if self._channels is None else {c: acc.result() for c, acc in self._channels.items()},
         )
 
+    def _sum_image(self) -> np.ndarray:
+        """Σ_l y_l (uint32): the sum image, or the first pair's sum."""
+        if self._sum is not None:
+            return self._sum
+        assert self._first_pair is not None  # two frames make the first pair, a third the sum image
+        a, b = self._first_pair
+        return np.add(a, b, dtype=np.uint32, casting="unsafe")
+
+    def _offset_sum(self, offset: int) -> np.ndarray:
+        """Σ_l y_l − ``offset`` as float32, exactly (every value and partial result an integer below 2^24)."""
+        if self._first_pair is not None:
+            a, b = self._first_pair
+            if a.dtype in _OPENCV_SUMS and a.dtype == b.dtype:
+                import cv2
+
+                return cv2.addWeighted(a, 1.0, b, 1.0, -float(offset), dtype=cv2.CV_32F)
+        out = self._sum_image().astype(np.float32)
+        return np.subtract(out, np.float32(offset), out=out)
+
     def _deviation_image(self, mean: float) -> np.ndarray:
         """⟨y⟩ − μ_y as float32 (computed from the exact integer sum, in row chunks)."""
-        out = np.empty(self._sum.shape, np.float32)
+        total = self._sum_image()
+        out = np.empty(total.shape, np.float32)
         scale = 1.0 / self.frames
-        for rows, target in zip(_row_chunks(self._sum), _row_chunks(out), strict=True):
+        for rows, target in zip(_row_chunks(total), _row_chunks(out), strict=True):
             np.subtract(rows * scale, mean, out=target, casting="unsafe")
         return out
 
@@ -170,6 +233,48 @@ def _row_chunks(image: np.ndarray) -> list[np.ndarray]:
     small fraction of a frame."""
     rows = max(1, min(CHUNK_PIXELS, image.size // 8) // image.shape[1])
     return [image[i : i + rows] for i in range(0, image.shape[0], rows)]
+
+
+def _exact_blocks(image: np.ndarray, bound: int) -> list[np.ndarray] | None:
+    """Row blocks of an 8- or 16-bit ``image`` with |values| ≤ ``bound`` over which every partial sum of OpenCV's
+    total and column sums of squares stays below 2^31 (exact in any accumulator), or None (another type, a single
+    row, or values too large: the int64 route)."""
+    rows, cols = image.shape
+    if image.dtype not in _OPENCV_SUMS or rows < 2:
+        return None
+    per_block = min(EXACT_PARTIAL // max(bound * bound, 1), EXACT_PARTIAL // (max(bound, 1) * cols))
+    if per_block < 1:
+        return None
+    return [image[i : i + per_block] for i in range(0, rows, per_block)]
+
+
+def _sums(image: np.ndarray, bound: int) -> tuple[int, int]:
+    """(Σ y, Σ y²) of an integer image with |y| ≤ ``bound``, exactly."""
+    blocks = _exact_blocks(image, bound)
+    if blocks is None:
+        return int(image.sum(dtype=np.int64)), _centred_square_sum(image, 0)
+    import cv2
+
+    total = 0
+    columns = np.zeros((1, image.shape[1]))
+    for block in blocks:
+        total += int(cv2.sumElems(block)[0])
+        columns += cv2.reduce(block, 0, cv2.REDUCE_SUM2, dtype=cv2.CV_64F)  # integers below 2^53: exact
+    return total, int(columns.astype(np.int64).sum())
+
+
+def _diff_square_sum(a: np.ndarray, b: np.ndarray, bound: int) -> int:
+    """Σ (a − b)² of two integer images with |values| ≤ ``bound``, exactly (|a − b| of unsigned images is exact in
+    their own type)."""
+    if a.dtype == b.dtype and a.dtype.kind == "u" and _exact_blocks(a, bound) is not None:
+        import cv2
+
+        return _sums(cv2.absdiff(a, b), bound)[1]
+    squares = 0
+    for rows_a, rows_b in zip(_row_chunks(a), _row_chunks(b), strict=True):
+        diff = np.subtract(rows_a, rows_b, dtype=np.int64).ravel()
+        squares += int(diff @ diff)
+    return squares
 
 
 def _centred_square_sum(image: np.ndarray, centre: int) -> int:
@@ -183,16 +288,6 @@ def _centred_square_sum(image: np.ndarray, centre: int) -> int:
         d -= centre
         total += int(d @ d)
     return total
-
-
-def _pair_sums(a: np.ndarray, b: np.ndarray) -> tuple[int, int]:
-    """(Σ (a − b)², Σ (a − b)) of two integer frames, exactly, accumulated in row chunks."""
-    total, squares = 0, 0
-    for rows_a, rows_b in zip(_row_chunks(a), _row_chunks(b), strict=True):
-        diff = np.subtract(rows_a, rows_b, dtype=np.int64).ravel()
-        total += int(diff.sum())
-        squares += int(diff @ diff)
-    return squares, total
 
 
 def stack_statistics(
