@@ -33,8 +33,10 @@ from __future__ import annotations
 
 import math
 import os
+import threading
 from collections.abc import Iterator
 from concurrent.futures import ThreadPoolExecutor
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from pathlib import Path, PureWindowsPath
 
@@ -43,7 +45,7 @@ import numpy as np
 from uwlab.errors import ConfigError
 from uwlab.experiments.emva.dark import DarkSeries
 from uwlab.experiments.emva.transfer import SheetInfo
-from uwlab.experiments.frames.stack import StackStatistics, stack_statistics
+from uwlab.experiments.frames.stack import StackStatistics, WorkImages, stack_statistics
 from uwlab.experiments.emva.transfer import NonuniformityStack, PhotonTransfer, SpatialSplit
 from uwlab.experiments.saturation import ClipLevel, clip_level
 
@@ -275,11 +277,33 @@ class ImageReader:
     def statistics(self, blocks: list[Block], clip_dn: float, keep_mean_image: bool = False) -> list[StackStatistics]:
         """`StackStatistics` of each block, the blocks spread over `WORKERS` threads (reading and the arithmetic
         release the GIL); each block's frames stream through its accumulator one at a time, so memory stays at
-        one accumulator and a frame per thread."""
+        one accumulator, a frame and the work images of the highpass (`WorkImages`, reused) per thread."""
         if len(blocks) < 2 or WORKERS == 1:
-            return [stack_statistics(self.frames(b), clip_dn, keep_mean_image) for b in blocks]
-        with ThreadPoolExecutor(min(WORKERS, len(blocks))) as pool:
-            return list(pool.map(lambda b: stack_statistics(self.frames(b), clip_dn, keep_mean_image), blocks))
+            work = WorkImages()
+            return [stack_statistics(self.frames(b), clip_dn, keep_mean_image, work=work) for b in blocks]
+        local = threading.local()
+
+        def one(block: Block) -> StackStatistics:
+            if not hasattr(local, "work"):
+                local.work = WorkImages()  # each thread its own, gone with the pool
+            return stack_statistics(self.frames(block), clip_dn, keep_mean_image, work=local.work)
+
+        with _opencv_single_threaded(), ThreadPoolExecutor(min(WORKERS, len(blocks))) as pool:
+            return list(pool.map(one, blocks))
+
+
+@contextmanager
+def _opencv_single_threaded() -> Iterator[None]:
+    """OpenCV's own thread pool off while the blocks are spread over threads: its workers would only wait for CPUs
+    the blocks already use (a pair's statistics took 40 ms of CPU with it, 27 ms without, on 2 cores)."""
+    import cv2
+
+    previous = cv2.getNumThreads()
+    cv2.setNumThreads(1)
+    try:
+        yield
+    finally:
+        cv2.setNumThreads(previous)
 
 
 def _read_tiff(path: Path) -> np.ndarray | None:

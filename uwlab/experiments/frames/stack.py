@@ -73,16 +73,38 @@ class StackStatistics:
     pixels: int | None = None  # pixels per frame
 
 
+class WorkImages:
+    """Float32 work images (the highpass's input and output) that one thread reuses from one stack to the next:
+    fresh 20 MB arrays at every photon-transfer point of a lab-size descriptor cost their page faults each time
+    (about 2 ms of CPU per frame). Not thread-safe: one per thread."""
+
+    def __init__(self) -> None:
+        self._images: dict[str, np.ndarray] = {}
+
+    def get(self, name: str, shape: tuple[int, ...]) -> np.ndarray:
+        image = self._images.get(name)
+        if image is None or image.shape != shape:
+            image = self._images[name] = np.empty(shape, np.float32)
+        return image
+
+
 class StackAccumulator:
     """Accumulates frames (2-D integer arrays of one shape) for `StackStatistics`; ``clip_dn`` is the camera's
     clip level (`uwlab.experiments.saturation.ClipLevel.dn`); ``keep_mean_image`` keeps ⟨y⟩ in the result (for
     the spectrograms, profiles and histograms of a nonuniformity stack); ``bayer``: the colour filter layout of a
     raw Bayer stack (its frames cropped from the mosaic at ``origin`` = (x0, y0): an odd offset shifts the phase),
-    whose channels are accumulated too (``StackStatistics.channels``, the same rules over each channel's sites)."""
+    whose channels are accumulated too (``StackStatistics.channels``, the same rules over each channel's sites);
+    ``work``: the calling thread's `WorkImages` to reuse (else fresh arrays)."""
 
     def __init__(
-        self, clip_dn: float, keep_mean_image: bool = False, bayer: str | None = None, origin: tuple[int, int] = (0, 0)
+        self,
+        clip_dn: float,
+        keep_mean_image: bool = False,
+        bayer: str | None = None,
+        origin: tuple[int, int] = (0, 0),
+        work: WorkImages | None = None,
     ):
+        self.work = work
         self.clip_dn = float(clip_dn)
         self.keep_mean_image = keep_mean_image
         self.bayer = bayer
@@ -183,7 +205,8 @@ class StackAccumulator:
             if self.keep_mean_image:
                 mean_image = np.add(deviation, np.float32(mean), out=deviation)
         elif big_enough:
-            spatial = highpassed_variances(self._offset_sum(frames * c), split_var, frames, 1.0 / frames)
+            smooth = None if self.work is None else self.work.get("smooth", self._shape)
+            spatial = highpassed_variances(self._offset_sum(frames * c), split_var, frames, 1.0 / frames, smooth)
         saturated = 0 if self._saturated is None else np.count_nonzero(self._saturated)
         return StackStatistics(
             frames=frames,
@@ -208,14 +231,19 @@ class StackAccumulator:
         return np.add(a, b, dtype=np.uint32, casting="unsafe")
 
     def _offset_sum(self, offset: int) -> np.ndarray:
-        """Σ_l y_l − ``offset`` as float32, exactly (every value and partial result an integer below 2^24)."""
-        if self._first_pair is not None:
-            a, b = self._first_pair
-            if a.dtype in _OPENCV_SUMS and a.dtype == b.dtype:
-                import cv2
-
-                return cv2.addWeighted(a, 1.0, b, 1.0, -float(offset), dtype=cv2.CV_32F)
-        out = self._sum_image().astype(np.float32)
+        """Σ_l y_l − ``offset`` as float32, exactly (every value an integer below 2^24); a pair of unsigned frames
+        whose sum fits their own type is added in it."""
+        pair = self._first_pair
+        fits = pair is not None and pair[0].dtype == pair[1].dtype and pair[0].dtype.kind == "u"
+        if pair is not None and fits and self._bound * 2 <= np.iinfo(pair[0].dtype).max:
+            total = np.add(*pair)
+        else:
+            total = self._sum_image()
+        if self.work is None:
+            out = total.astype(np.float32)
+        else:
+            out = self.work.get("sum", self._shape)
+            np.copyto(out, total, casting="unsafe")
         return np.subtract(out, np.float32(offset), out=out)
 
     def _deviation_image(self, mean: float) -> np.ndarray:
@@ -296,10 +324,11 @@ def stack_statistics(
     keep_mean_image: bool = False,
     bayer: str | None = None,
     origin: tuple[int, int] = (0, 0),
+    work: WorkImages | None = None,
 ) -> StackStatistics:
     """`StackStatistics` of an iterable of frames, consumed one at a time (a generator keeps memory flat); with
     ``bayer``, per colour channel too (`StackAccumulator`)."""
-    acc = StackAccumulator(clip_dn, keep_mean_image, bayer, origin)
+    acc = StackAccumulator(clip_dn, keep_mean_image, bayer, origin, work)
     for frame in frames:
         acc.add(frame)
     return acc.result()
