@@ -128,8 +128,9 @@ def highpassed_variances(
 ) -> SpatialVariances:
     """``spatial_variances(scale · highpass(image), temporal_var_dn2, frames)`` without keeping the highpassed image:
     OpenCV's row, column and squared sums (double accumulators) of ``image`` − its smoothing, the §8.1 filter
-    applied once. ``image`` (float32, exact integers make the best input) may be the sum of the L frames less an
-    integer offset, ``scale`` = 1/L: the highpass is linear and removes constants, so that is the mean image's.
+    applied once (in float32). ``image`` (float32, or int16 as it is: exact integers make the best input) may be
+    the sum of the L frames less an integer offset, ``scale`` = 1/L: the highpass is linear and removes constants,
+    so that is the mean image's.
     ``work``: a float32 array of the image's shape to smooth into (else a fresh one).
 
     >>> img = np.random.default_rng(1).normal(0.0, 1.0, (40, 50))
@@ -139,14 +140,17 @@ def highpassed_variances(
     """
     import cv2
 
-    image = np.asarray(image, np.float32)
+    image = np.asarray(image)
+    if image.dtype != np.int16:
+        image = np.asarray(image, np.float32)
     m = HIGHPASS_MARGIN
     if min(image.shape) <= 2 * m + 1:
         raise ValueError(f"image {image.shape} too small for the EMVA 1288 highpass (needs > {2 * m + 1} px a side)")
     kernel = smoothing_kernel().astype(np.float32)
     smooth = cv2.sepFilter2D(image, cv2.CV_32F, kernel, kernel, dst=work, borderType=cv2.BORDER_REFLECT)
     inner = (slice(m, -m), slice(m, -m))
-    y = np.subtract(image[inner], smooth[inner], out=smooth[inner])
+    y = smooth[inner]
+    cv2.subtract(image[inner], y, dst=y, dtype=cv2.CV_32F)  # element by element: in place is safe
     row_sums = cv2.reduce(y, 1, cv2.REDUCE_SUM, dtype=cv2.CV_64F).ravel() * scale
     col_sums = cv2.reduce(y, 0, cv2.REDUCE_SUM, dtype=cv2.CV_64F).ravel() * scale
     square_sum = cv2.norm(y, cv2.NORM_L2SQR) * scale * scale

@@ -74,17 +74,17 @@ class StackStatistics:
 
 
 class WorkImages:
-    """Float32 work images (the highpass's input and output) that one thread reuses from one stack to the next:
+    """Work images (the highpass's input and output) that one thread reuses from one stack to the next:
     fresh 20 MB arrays at every photon-transfer point of a lab-size descriptor cost their page faults each time
     (about 2 ms of CPU per frame). Not thread-safe: one per thread."""
 
     def __init__(self) -> None:
         self._images: dict[str, np.ndarray] = {}
 
-    def get(self, name: str, shape: tuple[int, ...]) -> np.ndarray:
+    def get(self, name: str, shape: tuple[int, ...], dtype: type = np.float32) -> np.ndarray:
         image = self._images.get(name)
-        if image is None or image.shape != shape:
-            image = self._images[name] = np.empty(shape, np.float32)
+        if image is None or image.shape != shape or image.dtype != dtype:
+            image = self._images[name] = np.empty(shape, dtype)
         return image
 
 
@@ -205,7 +205,7 @@ class StackAccumulator:
             if self.keep_mean_image:
                 mean_image = np.add(deviation, np.float32(mean), out=deviation)
         elif big_enough:
-            smooth = None if self.work is None else self.work.get("smooth", self._shape)
+            smooth = self._work("smooth", np.float32)
             spatial = highpassed_variances(self._offset_sum(frames * c), split_var, frames, 1.0 / frames, smooth)
         saturated = 0 if self._saturated is None else np.count_nonzero(self._saturated)
         return StackStatistics(
@@ -231,20 +231,26 @@ class StackAccumulator:
         return np.add(a, b, dtype=np.uint32, casting="unsafe")
 
     def _offset_sum(self, offset: int) -> np.ndarray:
-        """Σ_l y_l − ``offset`` as float32, exactly (every value an integer below 2^24); a pair of unsigned frames
-        whose sum fits their own type is added in it."""
-        pair = self._first_pair
-        fits = pair is not None and pair[0].dtype == pair[1].dtype and pair[0].dtype.kind == "u"
-        if pair is not None and fits and self._bound * 2 <= np.iinfo(pair[0].dtype).max:
-            total = np.add(*pair)
-        else:
-            total = self._sum_image()
-        if self.work is None:
-            out = total.astype(np.float32)
-        else:
-            out = self.work.get("sum", self._shape)
-            np.copyto(out, total, casting="unsafe")
+        """Σ_l y_l − ``offset``, exactly: int16 for a pair of unsigned frames whose values allow it (added in
+        uint16, the offset taken modulo 2^16: the int16 view is exact when every value lies in −2^15 … 2^15 − 1;
+        OpenCV filters int16 faster than float32 and needs no conversion), else float32 (every value an integer
+        below 2^24)."""
+        pair, top = self._first_pair, 2 * self._bound
+        if (
+            pair is not None
+            and all(f.dtype in _OPENCV_SUMS for f in pair)
+            and offset <= 1 << 15
+            and top - offset < 1 << 15
+        ):
+            total = np.add(*pair, out=self._work("pair", np.uint16), dtype=np.uint16)
+            return np.subtract(total, np.uint16(offset), out=total).view(np.int16)
+        out = self._work("sum", np.float32)
+        np.copyto(out, self._sum_image(), casting="unsafe")
         return np.subtract(out, np.float32(offset), out=out)
+
+    def _work(self, name: str, dtype: type) -> np.ndarray:
+        """A work image of the frames' shape: the thread's reused one (`WorkImages`) or a fresh one."""
+        return np.empty(self._shape, dtype) if self.work is None else self.work.get(name, self._shape, dtype)
 
     def _deviation_image(self, mean: float) -> np.ndarray:
         """⟨y⟩ − μ_y as float32 (computed from the exact integer sum, in row chunks)."""
