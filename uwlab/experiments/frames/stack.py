@@ -155,7 +155,8 @@ class StackAccumulator:
         if self.frames >= 2:
             self._add_to_sum(frame)
         if self._pending is None:
-            self._pending, self._pending_sum, self._pending_bound = frame.copy(), total, bound
+            self._pending = self._keep(frame, "first" if self.frames == 0 else "pending")
+            self._pending_sum, self._pending_bound = total, bound
         else:
             first = self._pending
             diff_squares = _diff_square_sum(first, frame, max(self._pending_bound, bound))
@@ -165,7 +166,7 @@ class StackAccumulator:
             if self._pairs == 0:
                 self._mean_diff = mean_diff
                 self._first_diff_squares = diff_squares
-                self._first_pair = (first, frame.copy())
+                self._first_pair = (first, self._keep(frame, "second"))
             self._pairs += 1
             self._pending = None
         self.frames += 1
@@ -247,6 +248,14 @@ class StackAccumulator:
         out = self._work("sum", np.float32)
         np.copyto(out, self._sum_image(), casting="unsafe")
         return np.subtract(out, np.float32(offset), out=out)
+
+    def _keep(self, frame: np.ndarray, name: str) -> np.ndarray:
+        """A copy of ``frame`` (the caller may reuse its buffer), in the work image ``name`` when reused."""
+        if self.work is None:
+            return frame.copy()
+        kept = self.work.get(name, frame.shape, frame.dtype.type)
+        np.copyto(kept, frame)
+        return kept
 
     def _work(self, name: str, dtype: type) -> np.ndarray:
         """A work image of the frames' shape: the thread's reused one (`WorkImages`) or a fresh one."""
