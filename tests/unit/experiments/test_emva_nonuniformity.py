@@ -144,14 +144,15 @@ def test_stack_statistics_closed_form():
     assert stats.spatial.total == pytest.approx(expected.total, rel=1e-5)
 
 
+@pytest.mark.parametrize("top", [4096, 65536])
 @pytest.mark.parametrize("count", [2, 3, 4, 7])
-def test_stack_variance_is_exact_for_every_stack_length(count):
-    """Eq. 65 to the last bit whatever L: a two-frame stack takes its sum of squares from the pair and the sum
-    image, longer ones also from the frames after the first two (16-bit values far from the integer centre)."""
+def test_stack_variance_is_exact_for_every_stack_length(count, top):
+    """Eq. 65 to the last bit whatever L: each pair's sums of squares from its sum (12-bit values) or from its
+    frames (16-bit values far from the integer centre), an odd last frame's alone."""
     rng = np.random.default_rng(count)
-    frames = [rng.integers(0, 65536, (33, 41), dtype=np.uint16) for _ in range(count)]
+    frames = [rng.integers(0, top, (33, 41), dtype=np.uint16) for _ in range(count)]
     stack = np.array(frames, np.float64)
-    stats = stack_statistics(iter(frames), 65535)
+    stats = stack_statistics(iter(frames), top - 1)
     assert stats.stack_var_dn2 == pytest.approx(stack.var(axis=0, ddof=1).mean(), rel=1e-12)
 
 
@@ -174,7 +175,9 @@ def test_stack_statistics_needs_a_pair():
     ("dtype", "top", "shape"),
     [
         (np.uint8, 255, (40000, 3)),
+        (np.uint8, 255, (1, 70001)),
         (np.uint16, 4095, (2048, 61)),
+        (np.uint16, 8190, (1100, 1000)),
         (np.uint16, 46340, (300, 7)),
         (np.uint16, 65535, (70, 9)),
         (np.int16, 32767, (50, 11)),
@@ -183,15 +186,18 @@ def test_stack_statistics_needs_a_pair():
 )
 def test_frame_sums_are_exact_at_their_bounds(dtype, top, shape):
     """Σ y, Σ y² and a pair's Σ (a − b)² to the last unit, the pixels at the top code (every partial sum as large
-    as the block rules allow) and random, whatever routine the type takes (OpenCV row blocks or int64)."""
-    from uwlab.experiments.frames.stack import _diff_square_sum, _sums
+    as the piece rules allow: 2^31 / 8190² = 32 rows of 2048 columns) and random, contiguous or not, whatever
+    routine the type takes (OpenCV over pieces of the image's memory, with elements left over, or int64)."""
+    from uwlab.experiments.frames.stack import _diff_square_sum, _sums, _total
 
     rng = np.random.default_rng(top)
     full = np.full(shape, top, dtype)
     noisy = rng.integers(0, top + 1, shape).astype(dtype)
-    for a, b in ((full, np.zeros(shape, dtype)), (noisy, full), (noisy, noisy[::-1].copy())):
+    pairs = ((full, np.zeros(shape, dtype)), (noisy, full), (noisy, noisy[::-1].copy()), (noisy[:, 1:], full[:, 1:]))
+    for a, b in pairs:
         x, y = a.astype(object), b.astype(object)
         assert _sums(a, top) == (int(x.sum()), int((x * x).sum()))
+        assert _total(a, top) == int(x.sum())
         assert _diff_square_sum(a, b, top) == int(((x - y) ** 2).sum())
 
 

@@ -49,6 +49,7 @@ from uwlab.experiments.frames.nonuniformity import (
 )
 
 CHUNK_PIXELS = 1 << 16
+PIECE_WIDTH = 1 << 11  # columns of the pieces OpenCV sums exactly (`_pieces`)
 EXACT_PARTIAL = 1 << 31  # any integer accumulator (and double) adds integers below this exactly
 FLOAT32_EXACT = 1 << 24  # integers of magnitude below this are exact in float32
 _OPENCV_SUMS = (np.dtype(np.uint8), np.dtype(np.uint16))
@@ -112,6 +113,7 @@ class StackAccumulator:
         self._channels = {colour: StackAccumulator(clip_dn) for colour in CHANNELS} if bayer is not None else None
         self._shape: tuple[int, ...] = ()  # set by the first frame
         self._first_pair: tuple[np.ndarray, np.ndarray] | None = None  # kept until a third frame needs a sum image
+        self._first_pair_sum: np.ndarray | None = None  # its uint16 sum, when it fits
         self._sum: np.ndarray | None = None  # uint32 Σ_l y_l, from the third frame on
         self._saturated: np.ndarray | None = None  # allocated at the first frame reaching the clip level
         self._pending: np.ndarray | None = None
@@ -141,13 +143,12 @@ class StackAccumulator:
         top = int(frame.max())
         bound = max(abs(top), abs(int(frame.min())) if frame.dtype.kind == "i" else 0)
         self._bound = max(self._bound, bound)
-        total, squares = _sums(frame, bound)
+        total = _total(frame, bound)
         n = frame.size
         if self.frames == 0:
             self._centre = round(total / n)  # an integer near the mean: any is exact, a near one keeps sums small
         c = self._centre
         self._total += total
-        self._squares += squares - 2 * c * total + n * c * c
         if top >= self.clip_dn:
             if self._saturated is None:
                 self._saturated = np.zeros(frame.shape, bool)
@@ -158,8 +159,11 @@ class StackAccumulator:
             self._pending = self._keep(frame, "first" if self.frames == 0 else "pending")
             self._pending_sum, self._pending_bound = total, bound
         else:
-            first = self._pending
-            diff_squares = _diff_square_sum(first, frame, max(self._pending_bound, bound))
+            first, pair_bound = self._pending, max(self._pending_bound, bound)
+            diff_squares = _diff_square_sum(first, frame, pair_bound)
+            pair_total = self._pending_sum + total
+            pair_squares = self._pair_square_sum(first, frame, pair_bound, diff_squares)
+            self._squares += pair_squares - 2 * c * pair_total + 2 * n * c * c  # Σ (y − c)² of both
             diff_sum = self._pending_sum - total
             mean_diff = diff_sum / n
             self._pair_var_sum += 0.5 * (diff_squares / n - mean_diff**2)  # eq. 18
@@ -189,11 +193,14 @@ class StackAccumulator:
         # and eq. 35 of the unfiltered mean image is (Σ D² − (Σ D)² / MN) / (L² MN); for L = 2, per pixel
         # (a + b − 2c)² = 2 (a − c)² + 2 (b − c)² − (a − b)², so Σ D² needs no pass over the frames
         d_sum = sum_total - n * frames * c
+        squares = self._squares
+        if self._pending is not None:  # an odd last frame, in no pair
+            squares += _square_sum(self._pending, self._pending_bound) - 2 * c * self._pending_sum + n * c * c
         if frames == 2:
-            d_squares = 2 * self._squares - self._first_diff_squares
+            d_squares = 2 * squares - self._first_diff_squares
         else:
             d_squares = _centred_square_sum(self._sum_image(), frames * c)
-        stack_var = (self._squares - d_squares / frames) / ((frames - 1) * n)
+        stack_var = (squares - d_squares / frames) / ((frames - 1) * n)
         measured = (d_squares - d_sum * d_sum / n) / (frames**2 * n)
         temporal = self._pair_var_sum / self._pairs
         split_var = stack_var if frames > 2 else temporal
@@ -236,18 +243,24 @@ class StackAccumulator:
         uint16, the offset taken modulo 2^16: the int16 view is exact when every value lies in −2^15 … 2^15 − 1;
         OpenCV filters int16 faster than float32 and needs no conversion), else float32 (every value an integer
         below 2^24)."""
-        pair, top = self._first_pair, 2 * self._bound
-        if (
-            pair is not None
-            and all(f.dtype in _OPENCV_SUMS for f in pair)
-            and offset <= 1 << 15
-            and top - offset < 1 << 15
-        ):
-            total = np.add(*pair, out=self._work("pair", np.uint16), dtype=np.uint16)
-            return np.subtract(total, np.uint16(offset), out=total).view(np.int16)
+        pair_sum, top = self._first_pair_sum, 2 * self._bound
+        if self._first_pair is not None and pair_sum is not None and offset <= 1 << 15 and top - offset < 1 << 15:
+            out = self._work("offset sum", np.uint16)
+            return np.subtract(pair_sum, np.uint16(offset), out=out).view(np.int16)
         out = self._work("sum", np.float32)
         np.copyto(out, self._sum_image(), casting="unsafe")
         return np.subtract(out, np.float32(offset), out=out)
+
+    def _pair_square_sum(self, a: np.ndarray, b: np.ndarray, bound: int, diff_squares: int) -> int:
+        """Σ a² + Σ b² of a pair, exactly: per pixel a² + b² = ((a + b)² + (a − b)²) / 2, so with Σ (a − b)² known
+        one pass over the pair's sum (uint16 when it fits, kept for the first pair's highpass) replaces two over
+        the frames."""
+        if not (a.dtype in _OPENCV_SUMS and b.dtype in _OPENCV_SUMS and 2 * bound < 1 << 16):
+            return _square_sum(a, bound) + _square_sum(b, bound)
+        pair_sum = np.add(a, b, out=self._work("pair sum", np.uint16), dtype=np.uint16)
+        if self._pairs == 0:
+            self._first_pair_sum = pair_sum
+        return (_square_sum(pair_sum, 2 * bound) + diff_squares) // 2
 
     def _keep(self, frame: np.ndarray, name: str) -> np.ndarray:
         """A copy of ``frame`` (the caller may reuse its buffer), in the work image ``name`` when reused."""
@@ -278,41 +291,60 @@ def _row_chunks(image: np.ndarray) -> list[np.ndarray]:
     return [image[i : i + rows] for i in range(0, image.shape[0], rows)]
 
 
-def _exact_blocks(image: np.ndarray, bound: int) -> list[np.ndarray] | None:
-    """Row blocks of an 8- or 16-bit ``image`` with |values| ≤ ``bound`` over which every partial sum of OpenCV's
-    total and column sums of squares stays below 2^31 (exact in any accumulator), or None (another type, a single
-    row, or values too large: the int64 route)."""
-    rows, cols = image.shape
-    if image.dtype not in _OPENCV_SUMS or rows < 2:
+def _pieces(image: np.ndarray, bound: int) -> tuple[list[np.ndarray], np.ndarray] | None:
+    """The memory of a C-contiguous 8- or 16-bit ``image`` regrouped as pieces of `PIECE_WIDTH` columns and R rows,
+    R · ``bound`` < 2^31 (``bound``: the largest term a column adds per row), so that every partial sum of OpenCV's
+    column reductions stays below 2^31, exact in any accumulator; and the elements left over (1-D). None for other
+    images (the int64 route)."""
+    rows = EXACT_PARTIAL // max(bound, 1)
+    if image.dtype not in _OPENCV_SUMS or not image.flags.c_contiguous or rows < 1:
         return None
-    per_block = min(EXACT_PARTIAL // max(bound * bound, 1), EXACT_PARTIAL // (max(bound, 1) * cols))
-    if per_block < 1:
-        return None
-    return [image[i : i + per_block] for i in range(0, rows, per_block)]
+    flat = image.reshape(-1)
+    width = min(PIECE_WIDTH, flat.size)
+    step = min(rows, flat.size // width) * width
+    body = flat.size // step * step
+    return [flat[i : i + step].reshape(-1, width) for i in range(0, body, step)], flat[body:]
+
+
+def _total(image: np.ndarray, bound: int) -> int:
+    """Σ y of an integer image with |y| ≤ ``bound``, exactly."""
+    regrouped = _pieces(image, max(bound, 1) * PIECE_WIDTH)
+    if regrouped is None:
+        return int(image.sum(dtype=np.int64))
+    import cv2
+
+    pieces, rest = regrouped
+    return sum(int(cv2.sumElems(piece)[0]) for piece in pieces) + int(rest.sum(dtype=np.int64))
+
+
+def _square_sum(image: np.ndarray, bound: int) -> int:
+    """Σ y² of an integer image with |y| ≤ ``bound``, exactly: OpenCV's column sums of squares of each piece
+    (`_pieces`; integers below 2^53 in double), or int64."""
+    regrouped = _pieces(image, bound * bound)
+    if regrouped is None:
+        return _centred_square_sum(image, 0)
+    import cv2
+
+    pieces, rest = regrouped
+    columns = np.zeros(pieces[0].shape[1] if pieces else 0)
+    for piece in pieces:
+        columns += cv2.reduce(piece, 0, cv2.REDUCE_SUM2, dtype=cv2.CV_64F).ravel()
+    left = rest.astype(np.int64)
+    return int(columns.astype(np.int64).sum()) + int(left @ left)
 
 
 def _sums(image: np.ndarray, bound: int) -> tuple[int, int]:
     """(Σ y, Σ y²) of an integer image with |y| ≤ ``bound``, exactly."""
-    blocks = _exact_blocks(image, bound)
-    if blocks is None:
-        return int(image.sum(dtype=np.int64)), _centred_square_sum(image, 0)
-    import cv2
-
-    total = 0
-    columns = np.zeros((1, image.shape[1]))
-    for block in blocks:
-        total += int(cv2.sumElems(block)[0])
-        columns += cv2.reduce(block, 0, cv2.REDUCE_SUM2, dtype=cv2.CV_64F)  # integers below 2^53: exact
-    return total, int(columns.astype(np.int64).sum())
+    return _total(image, bound), _square_sum(image, bound)
 
 
 def _diff_square_sum(a: np.ndarray, b: np.ndarray, bound: int) -> int:
     """Σ (a − b)² of two integer images with |values| ≤ ``bound``, exactly (|a − b| of unsigned images is exact in
     their own type)."""
-    if a.dtype == b.dtype and a.dtype.kind == "u" and _exact_blocks(a, bound) is not None:
+    if a.dtype == b.dtype and a.dtype in _OPENCV_SUMS:
         import cv2
 
-        return _sums(cv2.absdiff(a, b), bound)[1]
+        return _square_sum(cv2.absdiff(a, b), bound)
     squares = 0
     for rows_a, rows_b in zip(_row_chunks(a), _row_chunks(b), strict=True):
         diff = np.subtract(rows_a, rows_b, dtype=np.int64).ravel()
