@@ -33,6 +33,7 @@ route of before.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 from dataclasses import dataclass
 
@@ -149,10 +150,11 @@ class StackAccumulator:
             self._centre = round(total / n)  # an integer near the mean: any is exact, a near one keeps sums small
         c = self._centre
         self._total += total
-        if top >= self.clip_dn:
+        if top >= self.clip_dn:  # y ≥ clip ⟺ y ≥ ⌈clip⌉ for integers: compared in the frame's own type
             if self._saturated is None:
                 self._saturated = np.zeros(frame.shape, bool)
-            self._saturated |= frame >= self.clip_dn
+            threshold = max(math.ceil(self.clip_dn), int(np.iinfo(frame.dtype).min))
+            self._saturated |= frame >= frame.dtype.type(threshold)
         if self.frames >= 2:
             self._add_to_sum(frame)
         if self._pending is None:
