@@ -155,8 +155,6 @@ class StackAccumulator:
                 self._saturated = np.zeros(frame.shape, bool)
             threshold = max(math.ceil(self.clip_dn), int(np.iinfo(frame.dtype).min))
             self._saturated |= frame >= frame.dtype.type(threshold)
-        if self.frames >= 2:
-            self._add_to_sum(frame)
         if self._pending is None:
             self._pending = self._keep(frame, "first" if self.frames == 0 else "pending")
             self._pending_sum, self._pending_bound = total, bound
@@ -164,7 +162,7 @@ class StackAccumulator:
             first, pair_bound = self._pending, max(self._pending_bound, bound)
             diff_squares = _diff_square_sum(first, frame, pair_bound)
             pair_total = self._pending_sum + total
-            pair_squares = self._pair_square_sum(first, frame, pair_bound, diff_squares)
+            pair_squares, pair_sum = self._pair_square_sum(first, frame, pair_bound, diff_squares)
             self._squares += pair_squares - 2 * c * pair_total + 2 * n * c * c  # Σ (y − c)² of both
             diff_sum = self._pending_sum - total
             mean_diff = diff_sum / n
@@ -173,16 +171,22 @@ class StackAccumulator:
                 self._mean_diff = mean_diff
                 self._first_diff_squares = diff_squares
                 self._first_pair = (first, self._keep(frame, "second"))
+                self._first_pair_sum = pair_sum
+            else:
+                self._add_pair(first, frame, pair_sum)
             self._pairs += 1
             self._pending = None
         self.frames += 1
 
-    def _add_to_sum(self, frame: np.ndarray) -> None:
-        """Adds a frame after the first two to the uint32 sum image (made from the first pair at the third)."""
+    def _add_pair(self, a: np.ndarray, b: np.ndarray, pair_sum: np.ndarray | None) -> None:
+        """Adds a pair after the first to the uint32 sum image (made from the first pair at the second), by its sum
+        when it has one: one pass over the sum image per pair."""
         if self._sum is None:
-            self._sum = self._sum_image()
-            self._first_pair = None
-        np.add(self._sum, frame, out=self._sum, casting="unsafe")
+            assert self._first_pair is not None
+            self._sum = np.add(*self._first_pair, dtype=np.uint32, casting="unsafe")
+            self._first_pair = self._first_pair_sum = None
+        for addend in (a, b) if pair_sum is None else (pair_sum,):
+            np.add(self._sum, addend, out=self._sum, casting="unsafe")
 
     def result(self) -> StackStatistics:
         if self._pairs == 0:
@@ -233,12 +237,16 @@ class StackAccumulator:
         )
 
     def _sum_image(self) -> np.ndarray:
-        """Σ_l y_l (uint32): the sum image, or the first pair's sum."""
+        """Σ_l y_l (uint32): the sum image of the pairs, or the first pair's sum, with an odd last frame added in a
+        new array (the accumulator stays as it was)."""
         if self._sum is not None:
-            return self._sum
-        assert self._first_pair is not None  # two frames make the first pair, a third the sum image
-        a, b = self._first_pair
-        return np.add(a, b, dtype=np.uint32, casting="unsafe")
+            total = self._sum
+        else:
+            assert self._first_pair is not None  # the first pair is kept until a second makes the sum image
+            total = np.add(*self._first_pair, dtype=np.uint32, casting="unsafe")
+        if self._pending is not None:
+            total = np.add(total, self._pending, dtype=np.uint32, casting="unsafe")
+        return total
 
     def _offset_sum(self, offset: int) -> np.ndarray:
         """Σ_l y_l − ``offset``, exactly: int16 for a pair of unsigned frames whose values allow it (added in
@@ -246,23 +254,24 @@ class StackAccumulator:
         OpenCV filters int16 faster than float32 and needs no conversion), else float32 (every value an integer
         below 2^24)."""
         pair_sum, top = self._first_pair_sum, 2 * self._bound
-        if self._first_pair is not None and pair_sum is not None and offset <= 1 << 15 and top - offset < 1 << 15:
+        if self.frames == 2 and pair_sum is not None and offset <= 1 << 15 and top - offset < 1 << 15:
             out = self._work("offset sum", np.uint16)
             return np.subtract(pair_sum, np.uint16(offset), out=out).view(np.int16)
         out = self._work("sum", np.float32)
         np.copyto(out, self._sum_image(), casting="unsafe")
         return np.subtract(out, np.float32(offset), out=out)
 
-    def _pair_square_sum(self, a: np.ndarray, b: np.ndarray, bound: int, diff_squares: int) -> int:
-        """Σ a² + Σ b² of a pair, exactly: per pixel a² + b² = ((a + b)² + (a − b)²) / 2, so with Σ (a − b)² known
-        one pass over the pair's sum (uint16 when it fits, kept for the first pair's highpass) replaces two over
-        the frames."""
+    def _pair_square_sum(
+        self, a: np.ndarray, b: np.ndarray, bound: int, diff_squares: int
+    ) -> tuple[int, np.ndarray | None]:
+        """(Σ a² + Σ b², a + b) of a pair, exactly: per pixel a² + b² = ((a + b)² + (a − b)²) / 2, so with
+        Σ (a − b)² known one pass over the pair's sum (uint16 when it fits, else None; the first pair's highpass
+        and the sum image use it) replaces two over the frames."""
         if not (a.dtype in _OPENCV_SUMS and b.dtype in _OPENCV_SUMS and 2 * bound < 1 << 16):
-            return _square_sum(a, bound) + _square_sum(b, bound)
-        pair_sum = np.add(a, b, out=self._work("pair sum", np.uint16), dtype=np.uint16)
-        if self._pairs == 0:
-            self._first_pair_sum = pair_sum
-        return (_square_sum(pair_sum, 2 * bound) + diff_squares) // 2
+            return _square_sum(a, bound) + _square_sum(b, bound), None
+        name = "first pair sum" if self._pairs == 0 else "pair sum"
+        pair_sum = np.add(a, b, out=self._work(name, np.uint16), dtype=np.uint16)
+        return (_square_sum(pair_sum, 2 * bound) + diff_squares) // 2, pair_sum
 
     def _keep(self, frame: np.ndarray, name: str) -> np.ndarray:
         """A copy of ``frame`` (the caller may reuse its buffer), in the work image ``name`` when reused."""
