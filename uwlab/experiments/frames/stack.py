@@ -20,15 +20,18 @@ pixels:
   channel's pixels are not a rectangle, so its spatial variance is the unfiltered one (eq. 35) only: no highpass
   split (``spatial`` None).
 
-Memory is bounded by a few frames whatever L is: the frames of the current pair, and for L > 2 a uint32 sum image
-(exact for up to 32 768 frames of 16-bit data) and, once a frame reaches the clip level, a boolean "saturated in any
-frame" map. Every sum is an exact integer, so no precision is lost to cancellation: each frame's Σ y and Σ y² and
-each pair's Σ (y_0 − y_1)² (8- and 16-bit frames: OpenCV's sums over row blocks small enough that every partial sum
-stays below 2^31, where any accumulator is exact; other types: int64), from which the sums about an integer centre
-follow (`StackAccumulator.result`). For the highpass the sum image less L times the centre is converted to float32
-(exact integers) and filtered once, its statistics scaled by 1/L
+Memory is bounded by a few frames whatever L is: the first pair and the frame waiting for its partner, the first
+pair's sum, for L > 2 a uint32 sum image (exact for up to 32 768 frames of 16-bit data) and, once a frame reaches
+the clip level, a boolean "saturated in any frame" map. Every sum is an exact integer, so no precision is lost to
+cancellation: each frame's Σ y, each pair's Σ (y_0 − y_1)² and Σ (y_0 + y_1)² (so Σ y_0² + Σ y_1², one pass over
+the pair's uint16 sum instead of two over its frames), an odd last frame's Σ y²; 8- and 16-bit frames through
+OpenCV's sums over pieces of the image small enough that every partial sum stays below 2^31, where any accumulator is
+exact (`_pieces`), other types in int64. The sums about an integer centre c follow (`StackAccumulator.result`). For
+the highpass, Σ_l y_l − L c is filtered once, as int16 when its values allow (a pair of 12-bit frames) else as
+float32, both exact integers, and its statistics are scaled by 1/L
 (`uwlab.experiments.frames.nonuniformity.highpassed_variances`); only a kept mean image takes the float32 ⟨y⟩ − μ_y
-route of before.
+route. A thread that runs many stacks (a descriptor's photon-transfer points) reuses its work images
+(`WorkImages`): fresh 10–20 MB arrays at every point would each cost their page faults.
 """
 
 from __future__ import annotations
