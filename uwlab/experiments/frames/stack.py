@@ -79,9 +79,10 @@ class StackStatistics:
 
 
 class WorkImages:
-    """Work images (the highpass's input and output) that one thread reuses from one stack to the next:
-    fresh 20 MB arrays at every photon-transfer point of a lab-size descriptor cost their page faults each time
-    (about 2 ms of CPU per frame). Not thread-safe: one per thread."""
+    """Work images (a frame read, the kept pair and its sum, the highpass's input and output) that one thread
+    reuses from one stack to the next: fresh 10–20 MB arrays at every photon-transfer point of a lab-size descriptor
+    cost their page faults each time (about 2 ms of CPU per frame). One per thread, for one stack at a time: an
+    accumulator's kept frames live in them until its result."""
 
     def __init__(self) -> None:
         self._images: dict[str, np.ndarray] = {}
@@ -116,9 +117,9 @@ class StackAccumulator:
         self.origin = origin
         self._channels = {colour: StackAccumulator(clip_dn) for colour in CHANNELS} if bayer is not None else None
         self._shape: tuple[int, ...] = ()  # set by the first frame
-        self._first_pair: tuple[np.ndarray, np.ndarray] | None = None  # kept until a third frame needs a sum image
+        self._first_pair: tuple[np.ndarray, np.ndarray] | None = None  # kept until a second pair makes the sum
         self._first_pair_sum: np.ndarray | None = None  # its uint16 sum, when it fits
-        self._sum: np.ndarray | None = None  # uint32 Σ_l y_l, from the third frame on
+        self._sum: np.ndarray | None = None  # uint32 Σ_l y_l of the pairs, from the second pair on
         self._saturated: np.ndarray | None = None  # allocated at the first frame reaching the clip level
         self._pending: np.ndarray | None = None
         self._pending_sum = 0
@@ -185,7 +186,7 @@ class StackAccumulator:
         """Adds a pair after the first to the uint32 sum image (made from the first pair at the second), by its sum
         when it has one: one pass over the sum image per pair."""
         if self._sum is None:
-            assert self._first_pair is not None
+            assert self._first_pair is not None  # kept by the first pair
             self._sum = np.add(*self._first_pair, dtype=np.uint32, casting="unsafe")
             self._first_pair = self._first_pair_sum = None
         for addend in (a, b) if pair_sum is None else (pair_sum,):
