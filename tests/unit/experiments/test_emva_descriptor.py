@@ -14,6 +14,7 @@ from uwlab.experiments.emva.descriptor import (
     Block,
     Descriptor,
     format_descriptor,
+    ImageReader,
     parse_descriptor,
     photon_transfer_from_descriptor,
 )
@@ -161,3 +162,21 @@ def test_export_import_round_trip(tmp_path):
     assert "SYNTHETIC" in path.read_text()
     with pytest.raises(ConfigError, match="refusing to overwrite"):
         write_descriptor(pt, tmp_path / "desc")
+
+
+def test_reading_into_a_reused_array_checks_the_same(tmp_path):
+    """A TIFF read into the thread's reused array is that array; one of another size or type is read as it is and
+    checked as before."""
+    path = tmp_path / "d.txt"
+    path.write_text(HEAD + B1 + D1)
+    desc = parse_descriptor(path)
+    reader = ImageReader(tmp_path, desc)
+    buffer = np.empty((desc.height, desc.width), np.uint16)
+    _images(tmp_path)
+    assert reader.read("a.tif", buffer) is buffer and np.all(buffer == 100)
+    tifffile.imwrite(tmp_path / "a.tif", np.full((desc.height, desc.width), 7, np.uint8))
+    image = reader.read("a.tif", buffer)
+    assert image is not buffer and image.dtype == np.uint8 and np.all(image == 7)
+    _images(tmp_path, shape=(8, 9))
+    with pytest.raises(ConfigError, match="differs from the descriptor's n line"):
+        reader.read("a.tif", buffer)

@@ -144,14 +144,15 @@ def test_stack_statistics_closed_form():
     assert stats.spatial.total == pytest.approx(expected.total, rel=1e-5)
 
 
+@pytest.mark.parametrize("top", [4096, 65536])
 @pytest.mark.parametrize("count", [2, 3, 4, 7])
-def test_stack_variance_is_exact_for_every_stack_length(count):
-    """Eq. 65 to the last bit whatever L: a two-frame stack takes its sum of squares from the pair and the sum
-    image, longer ones also from the frames after the first two (16-bit values far from the integer centre)."""
+def test_stack_variance_is_exact_for_every_stack_length(count, top):
+    """Eq. 65 to the last bit whatever L: each pair's sums of squares from its sum (12-bit values) or from its
+    frames (16-bit values far from the integer centre), an odd last frame's alone."""
     rng = np.random.default_rng(count)
-    frames = [rng.integers(0, 65536, (33, 41), dtype=np.uint16) for _ in range(count)]
+    frames = [rng.integers(0, top, (33, 41), dtype=np.uint16) for _ in range(count)]
     stack = np.array(frames, np.float64)
-    stats = stack_statistics(iter(frames), 65535)
+    stats = stack_statistics(iter(frames), top - 1)
     assert stats.stack_var_dn2 == pytest.approx(stack.var(axis=0, ddof=1).mean(), rel=1e-12)
 
 
@@ -168,3 +169,62 @@ def test_stack_statistics_needs_a_pair():
     acc.add(np.zeros((4, 4), np.uint8))
     with pytest.raises(ConfigError, match="frames"):
         acc.result()
+
+
+@pytest.mark.parametrize(
+    ("dtype", "top", "shape"),
+    [
+        (np.uint8, 255, (40000, 3)),
+        (np.uint8, 255, (1, 70001)),
+        (np.uint16, 4095, (2048, 61)),
+        (np.uint16, 8190, (1100, 1000)),
+        (np.uint16, 46340, (300, 7)),
+        (np.uint16, 65535, (70, 9)),
+        (np.int16, 32767, (50, 11)),
+        (np.int32, 1 << 20, (20, 13)),
+    ],
+)
+def test_frame_sums_are_exact_at_their_bounds(dtype, top, shape):
+    """Σ y, Σ y² and a pair's Σ (a − b)² to the last unit, the pixels at the top code (every partial sum as large
+    as the piece rules allow: 2^31 / 8190² = 32 rows of 2048 columns) and random, contiguous or not, whatever
+    routine the type takes (OpenCV over pieces of the image's memory, with elements left over, or int64)."""
+    from uwlab.experiments.frames.stack import _diff_square_sum, _sums, _total
+
+    rng = np.random.default_rng(top)
+    full = np.full(shape, top, dtype)
+    noisy = rng.integers(0, top + 1, shape).astype(dtype)
+    pairs = ((full, np.zeros(shape, dtype)), (noisy, full), (noisy, noisy[::-1].copy()), (noisy[:, 1:], full[:, 1:]))
+    for a, b in pairs:
+        x, y = a.astype(object), b.astype(object)
+        assert _sums(a, top) == (int(x.sum()), int((x * x).sum()))
+        assert _total(a, top) == int(x.sum())
+        assert _diff_square_sum(a, b, top) == int(((x - y) ** 2).sum())
+
+
+def test_highpassed_variances_of_a_sum_image():
+    """The split of a stack's highpassed mean image, from the sum image less an integer offset (float32, exact) and
+    a scale 1/L, agrees with the highpass of the mean image itself."""
+    from uwlab.experiments.frames.nonuniformity import highpassed_variances
+
+    rng = np.random.default_rng(11)
+    frames = 3
+    total = rng.integers(3000, 9000, (64, 80)) + np.arange(80)[None, :] % 5
+    expected = spatial_variances(highpass(total / frames), 4.0, frames)
+    got = highpassed_variances((total - 18000).astype(np.float32), 4.0, frames, 1.0 / frames)
+    for name in ("measured", "total", "cav", "rav", "row", "col", "pixel"):
+        assert getattr(got, name) == pytest.approx(getattr(expected, name), rel=1e-5), name
+
+
+@pytest.mark.parametrize(
+    ("dtype", "low", "high"), [(np.uint8, 0, 256), (np.uint16, 0, 4096), (np.uint16, 50000, 65536)]
+)
+def test_pair_highpass_split_whatever_the_route(dtype, low, high):
+    """A photon-transfer pair's highpassed split (the pair's sum less 2c filtered as int16 when its values allow,
+    as float32 otherwise) agrees with the split of the highpassed mean image."""
+    rng = np.random.default_rng(high)
+    frames = [rng.integers(low, high, (45, 61)).astype(dtype) for _ in range(2)]
+    stats = stack_statistics(frames, high - 1)
+    stack = np.array(frames, np.float64)
+    expected = spatial_variances(highpass(stack.mean(axis=0)), stats.temporal_var_dn2, 2)
+    for name in ("measured", "total", "cav", "rav", "row", "col", "pixel"):
+        assert getattr(stats.spatial, name) == pytest.approx(getattr(expected, name), rel=1e-5, abs=1e-9), name

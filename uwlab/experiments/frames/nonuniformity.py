@@ -120,11 +120,61 @@ def spatial_variances(mean_image: np.ndarray, temporal_var_dn2: float, frames: i
         total_sum += float(row.sum())
         col_sums += b.sum(axis=0)
         square_sum += float(np.einsum("ij,ij->", b, b))
-    mu = shift + total_sum / y.size
-    measured = (square_sum - total_sum * total_sum / y.size) / y.size
+    return _split(total_sum, square_sum, np.concatenate(row_sums), col_sums, shift, temporal_var_dn2, frames)
+
+
+def highpassed_variances(
+    image: np.ndarray, temporal_var_dn2: float, frames: int, scale: float = 1.0, work: np.ndarray | None = None
+) -> SpatialVariances:
+    """``spatial_variances(scale · highpass(image), temporal_var_dn2, frames)`` without keeping the highpassed image:
+    OpenCV's row, column and squared sums (double accumulators) of ``image`` − its smoothing, the §8.1 filter
+    applied once (in float32). ``image`` (float32, or int16 as it is: exact integers make the best input) may be
+    the sum of the L frames less an integer offset, ``scale`` = 1/L: the highpass is linear and removes constants,
+    so that is the mean image's.
+    ``work``: a float32 array of the image's shape to smooth into (else a fresh one).
+
+    >>> img = np.random.default_rng(1).normal(0.0, 1.0, (40, 50))
+    >>> a, b = highpassed_variances(2 * img + 9, 0.5, 2, 0.5), spatial_variances(highpass(img), 0.5, 2)
+    >>> bool(np.isclose(a.total, b.total, rtol=1e-5) and np.isclose(a.row, b.row, rtol=1e-4))
+    True
+    """
+    import cv2
+
+    image = np.asarray(image)
+    if image.dtype != np.int16:
+        image = np.asarray(image, np.float32)
+    m = HIGHPASS_MARGIN
+    if min(image.shape) <= 2 * m + 1:
+        raise ValueError(f"image {image.shape} too small for the EMVA 1288 highpass (needs > {2 * m + 1} px a side)")
+    kernel = smoothing_kernel().astype(np.float32)
+    smooth = cv2.sepFilter2D(image, cv2.CV_32F, kernel, kernel, dst=work, borderType=cv2.BORDER_REFLECT)
+    inner = (slice(m, -m), slice(m, -m))
+    y = smooth[inner]
+    cv2.subtract(image[inner], y, dst=y, dtype=cv2.CV_32F)  # element by element: in place is safe
+    row_sums = cv2.reduce(y, 1, cv2.REDUCE_SUM, dtype=cv2.CV_64F).ravel() * scale
+    col_sums = cv2.reduce(y, 0, cv2.REDUCE_SUM, dtype=cv2.CV_64F).ravel() * scale
+    square_sum = cv2.norm(y, cv2.NORM_L2SQR) * scale * scale
+    return _split(float(row_sums.sum()), square_sum, row_sums, col_sums, 0.0, temporal_var_dn2, frames)
+
+
+def _split(
+    total_sum: float,
+    square_sum: float,
+    row_sums: np.ndarray,
+    col_sums: np.ndarray,
+    shift: float,
+    temporal_var_dn2: float,
+    frames: int,
+) -> SpatialVariances:
+    """Eq. 35–44 from the sums of an M×N image less ``shift``: its total, its squares, each row's and each column's
+    sum."""
+    rows, cols = row_sums.size, col_sums.size
+    size = rows * cols
+    mu = shift + total_sum / size
+    measured = (square_sum - total_sum * total_sum / size) / size
     total = measured - temporal_var_dn2 / frames
     col_means = shift + col_sums / rows
-    row_means = shift + np.concatenate(row_sums) / cols
+    row_means = shift + row_sums / cols
     cav = float(np.mean((col_means - mu) ** 2)) - temporal_var_dn2 / (frames * rows)
     rav = float(np.mean((row_means - mu) ** 2)) - temporal_var_dn2 / (frames * cols)
     m, n = rows, cols
@@ -259,24 +309,34 @@ class ImageAnalysis:
 def analyse_images(
     mean_bright: np.ndarray, mean_dark: np.ndarray, frames_bright: int, frames_dark: int
 ) -> ImageAnalysis:
-    """`ImageAnalysis` of the mean images of a bright stack near 50 % of saturation and a dark stack."""
+    """`ImageAnalysis` of the mean images of a bright stack near 50 % of saturation and a dark stack (the two
+    images analysed side by side in two threads: the FFTs and filters release the GIL)."""
+    from concurrent.futures import ThreadPoolExecutor
+
     dark = np.asarray(mean_dark, np.float32)
     prnu = np.asarray(mean_bright, np.float32) - dark
     signal = float(prnu.mean())
-    dark_hp, prnu_hp = highpass(dark), highpass(prnu)
-    frames = min(frames_bright, frames_dark)
-    directions = {"horizontal": False, "vertical": True}
+    with ThreadPoolExecutor(2) as pool:
+        prnu_job = pool.submit(_image_parts, prnu, min(frames_bright, frames_dark))
+        dsnu_spectrograms, dsnu_profiles, dsnu_histograms = _image_parts(dark, frames_dark)
+        prnu_spectrograms, prnu_profiles, prnu_histograms = prnu_job.result()
     return ImageAnalysis(
-        dsnu_spectrograms={name: spectrogram(dark_hp, v) for name, v in directions.items()},
-        prnu_spectrograms={
-            name: (f, 100.0 * p / signal) for name, v in directions.items() for f, p in [spectrogram(prnu_hp, v)]
-        },
-        dsnu_profiles={name: profiles(dark, v) for name, v in directions.items()},
-        prnu_profiles={name: profiles(prnu, v) for name, v in directions.items()},
-        dsnu_histograms={
-            "log": log_histogram(dark_hp, frames_dark),
-            "accumulated": accumulated_histogram(dark_hp, frames_dark),
-        },
-        prnu_histograms={"log": log_histogram(prnu_hp, frames), "accumulated": accumulated_histogram(prnu_hp, frames)},
+        dsnu_spectrograms=dsnu_spectrograms,
+        prnu_spectrograms={name: (f, 100.0 * p / signal) for name, (f, p) in prnu_spectrograms.items()},
+        dsnu_profiles=dsnu_profiles,
+        prnu_profiles=prnu_profiles,
+        dsnu_histograms=dsnu_histograms,
+        prnu_histograms=prnu_histograms,
         signal_dn=signal,
+    )
+
+
+def _image_parts(image: np.ndarray, frames: int) -> tuple[dict, dict, dict]:
+    """Spectrograms and histograms of the highpassed ``image``, profiles of ``image`` itself."""
+    filtered = highpass(image)
+    directions = {"horizontal": False, "vertical": True}
+    return (
+        {name: spectrogram(filtered, v) for name, v in directions.items()},
+        {name: profiles(image, v) for name, v in directions.items()},
+        {"log": log_histogram(filtered, frames), "accumulated": accumulated_histogram(filtered, frames)},
     )

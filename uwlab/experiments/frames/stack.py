@@ -22,15 +22,23 @@ pixels:
   theirs (each of its parts a variance over the sites of one plane: the offset between the two green sites is not
   in it, its total spatial variance ``spatial_var_dn2`` over both sites has it).
 
-Memory is bounded by a few frames whatever L is: a uint32 sum image (exact for up to 32 768 frames of
-16-bit data), a boolean "saturated in any frame" map and the first frame of the current pair; sums of squares of integer
-deviations from an integer centre are accumulated exactly (integers, over row chunks of at most `CHUNK_PIXELS`), so
-temporaries stay small and no precision is lost to cancellation. The highpass at the end works on a float32 copy
-of ⟨y⟩ − μ_y.
+Memory is bounded by a few frames whatever L is: the first pair and the frame waiting for its partner, the first
+pair's sum, for L > 2 a uint32 sum image (exact for up to 32 768 frames of 16-bit data) and, once a frame reaches
+the clip level, a boolean "saturated in any frame" map. Every sum is an exact integer, so no precision is lost to
+cancellation: each frame's Σ y, each pair's Σ (y_0 − y_1)² and Σ (y_0 + y_1)² (so Σ y_0² + Σ y_1², one pass over
+the pair's uint16 sum instead of two over its frames), an odd last frame's Σ y²; 8- and 16-bit frames through
+OpenCV's sums over pieces of the image small enough that every partial sum stays below 2^31, where any accumulator is
+exact (`_pieces`), other types in int64. The sums about an integer centre c follow (`StackAccumulator.result`). For
+the highpass, Σ_l y_l − L c is filtered once, as int16 when its values allow (a pair of 12-bit frames) else as
+float32, both exact integers, and its statistics are scaled by 1/L
+(`uwlab.experiments.frames.nonuniformity.highpassed_variances`); only a kept mean image takes the float32 ⟨y⟩ − μ_y
+route. A thread that runs many stacks (a descriptor's photon-transfer points) reuses its work images
+(`WorkImages`): fresh 10–20 MB arrays at every point would each cost their page faults.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 from dataclasses import dataclass, fields, replace
 
@@ -39,9 +47,19 @@ import numpy as np
 from uwlab.errors import ConfigError
 from uwlab.drivers.camera.pixels import bayer_sites
 from uwlab.experiments.frames.frame import channel_pixels
-from uwlab.experiments.frames.nonuniformity import HIGHPASS_MARGIN, SpatialVariances, highpass, spatial_variances
+from uwlab.experiments.frames.nonuniformity import (
+    HIGHPASS_MARGIN,
+    SpatialVariances,
+    highpass,
+    highpassed_variances,
+    spatial_variances,
+)
 
 CHUNK_PIXELS = 1 << 16
+PIECE_WIDTH = 1 << 11  # columns of the pieces OpenCV sums exactly (`_pieces`)
+EXACT_PARTIAL = 1 << 31  # any integer accumulator (and double) adds integers below this exactly
+FLOAT32_EXACT = 1 << 24  # integers of magnitude below this are exact in float32
+_OPENCV_SUMS = (np.dtype(np.uint8), np.dtype(np.uint16))
 
 
 @dataclass(frozen=True)
@@ -63,16 +81,39 @@ class StackStatistics:
     pixels: int | None = None  # pixels per frame
 
 
+class WorkImages:
+    """Work images (a frame read, the kept pair and its sum, the highpass's input and output) that one thread
+    reuses from one stack to the next: fresh 10–20 MB arrays at every photon-transfer point of a lab-size descriptor
+    cost their page faults each time (about 2 ms of CPU per frame). One per thread, for one stack at a time: an
+    accumulator's kept frames live in them until its result."""
+
+    def __init__(self) -> None:
+        self._images: dict[str, np.ndarray] = {}
+
+    def get(self, name: str, shape: tuple[int, ...], dtype: type = np.float32) -> np.ndarray:
+        image = self._images.get(name)
+        if image is None or image.shape != shape or image.dtype != dtype:
+            image = self._images[name] = np.empty(shape, dtype)
+        return image
+
+
 class StackAccumulator:
     """Accumulates frames (2-D integer arrays of one shape) for `StackStatistics`; ``clip_dn`` is the camera's
     clip level (`uwlab.experiments.saturation.ClipLevel.dn`); ``keep_mean_image`` keeps ⟨y⟩ in the result (for
     the spectrograms, profiles and histograms of a nonuniformity stack); ``bayer``: the colour filter layout of a
     raw Bayer stack (its frames cropped from the mosaic at ``origin`` = (x0, y0): an odd offset shifts the phase),
-    whose channels are accumulated too (``StackStatistics.channels``, the same rules over each channel's sites)."""
+    whose channels are accumulated too (``StackStatistics.channels``, the same rules over each channel's sites);
+    ``work``: the calling thread's `WorkImages` to reuse (else fresh arrays)."""
 
     def __init__(
-        self, clip_dn: float, keep_mean_image: bool = False, bayer: str | None = None, origin: tuple[int, int] = (0, 0)
+        self,
+        clip_dn: float,
+        keep_mean_image: bool = False,
+        bayer: str | None = None,
+        origin: tuple[int, int] = (0, 0),
+        work: WorkImages | None = None,
     ):
+        self.work = work
         self.clip_dn = float(clip_dn)
         self.keep_mean_image = keep_mean_image
         self.bayer = bayer
@@ -81,11 +122,18 @@ class StackAccumulator:
         self._sites = bayer_sites(bayer, *origin) if bayer is not None else {}
         self._planes = {site: StackAccumulator(clip_dn) for cells in self._sites.values() for site in cells}
         self._pooled = {colour: StackAccumulator(clip_dn) for colour, cells in self._sites.items() if len(cells) > 1}
-        self._sum: np.ndarray | None = None
-        self._saturated: np.ndarray | None = None
+        self._shape: tuple[int, ...] = ()  # set by the first frame
+        self._first_pair: tuple[np.ndarray, np.ndarray] | None = None  # kept until a second pair makes the sum
+        self._first_pair_sum: np.ndarray | None = None  # its uint16 sum, when it fits
+        self._sum: np.ndarray | None = None  # uint32 Σ_l y_l of the pairs, from the second pair on
+        self._saturated: np.ndarray | None = None  # allocated at the first frame reaching the clip level
         self._pending: np.ndarray | None = None
+        self._pending_sum = 0
+        self._pending_bound = 0
+        self._bound = 0  # the largest |y| of any frame
         self._centre = 0
-        self._squares = 0
+        self._total = 0  # Σ_l Σ y_l
+        self._squares = 0  # Σ_l Σ (y_l − c)²
         self._pair_var_sum = 0.0
         self._pairs = 0
         self._mean_diff = 0.0
@@ -96,61 +144,97 @@ class StackAccumulator:
         frame = np.asarray(frame)
         if frame.ndim != 2 or frame.dtype.kind not in "ui":
             raise ConfigError("frame", f"{frame.dtype}{frame.shape}", "expected a 2-D integer image")
-        if self._sum is None:
-            self._sum = np.zeros(frame.shape, np.uint32)
-            self._saturated = np.zeros(frame.shape, bool)
-            self._centre = int(round(float(frame.mean())))
-        elif frame.shape != self._sum.shape:
-            raise ConfigError("frame", frame.shape, f"shape differs from the first frame {self._sum.shape}")
+        if not self._shape:
+            self._shape = frame.shape
+        elif frame.shape != self._shape:
+            raise ConfigError("frame", frame.shape, f"shape differs from the first frame {self._shape}")
         for (row, col), plane in self._planes.items():
             plane.add(frame[row::2, col::2])
-        if self._pooled:
+        if self._pooled and self.bayer is not None:
             for colour, values in channel_pixels(frame, self.bayer, *self.origin).items():
                 if colour in self._pooled:
                     self._pooled[colour].add(values[None, :])  # one row: both sites are not a rectangle
-        if self.frames == 2:  # a third frame: the first pair's Σ (y − c)² now, from its sum (`_pair_squares`)
-            self._squares = self._pair_squares(_centred_square_sum(self._sum, 2 * self._centre))
-        np.add(self._sum, frame, out=self._sum, casting="unsafe")
-        self._saturated |= frame >= self.clip_dn
-        if self.frames >= 2:
-            self._squares += _centred_square_sum(frame, self._centre)
+        top = int(frame.max())
+        bound = max(abs(top), abs(int(frame.min())) if frame.dtype.kind == "i" else 0)
+        self._bound = max(self._bound, bound)
+        total = _total(frame, bound)
+        n = frame.size
+        if self.frames == 0:
+            self._centre = round(total / n)  # an integer near the mean: any is exact, a near one keeps sums small
+        c = self._centre
+        self._total += total
+        if top >= self.clip_dn:  # y ≥ clip ⟺ y ≥ ⌈clip⌉ for integers: compared in the frame's own type
+            if self._saturated is None:
+                self._saturated = np.zeros(frame.shape, bool)
+            threshold = max(math.ceil(self.clip_dn), int(np.iinfo(frame.dtype).min))
+            self._saturated |= frame >= frame.dtype.type(threshold)
         if self._pending is None:
-            self._pending = frame.copy()
+            self._pending = self._keep(frame, "first" if self.frames == 0 else "pending")
+            self._pending_sum, self._pending_bound = total, bound
         else:
-            diff_squares, diff_sum = _pair_sums(self._pending, frame)
-            mean_diff = diff_sum / frame.size
-            self._pair_var_sum += 0.5 * (diff_squares / frame.size - mean_diff**2)  # eq. 18
+            first, pair_bound = self._pending, max(self._pending_bound, bound)
+            diff_squares = _diff_square_sum(first, frame, pair_bound)
+            pair_total = self._pending_sum + total
+            pair_squares, pair_sum = self._pair_square_sum(first, frame, pair_bound, diff_squares)
+            self._squares += pair_squares - 2 * c * pair_total + 2 * n * c * c  # Σ (y − c)² of both
+            diff_sum = self._pending_sum - total
+            mean_diff = diff_sum / n
+            self._pair_var_sum += 0.5 * (diff_squares / n - mean_diff**2)  # eq. 18
             if self._pairs == 0:
                 self._mean_diff = mean_diff
                 self._first_diff_squares = diff_squares
+                self._first_pair = (first, self._keep(frame, "second"))
+                self._first_pair_sum = pair_sum
+            else:
+                self._add_pair(first, frame, pair_sum)
             self._pairs += 1
             self._pending = None
         self.frames += 1
 
-    def _pair_squares(self, sum_squares: int) -> int:
-        """Σ_l Σ (y_l − c)² of the first two frames from Σ (y_0 + y_1 − 2c)² and the pair's Σ (y_0 − y_1)²: per
-        pixel (a − c)² + (b − c)² = ((a + b − 2c)² + (a − b)²) / 2, exactly (the numerator is even). A two-frame
-        stack (every photon-transfer point) so needs no pass of squares over its frames."""
-        return (sum_squares + self._first_diff_squares) // 2
+    def _add_pair(self, a: np.ndarray, b: np.ndarray, pair_sum: np.ndarray | None) -> None:
+        """Adds a pair after the first to the uint32 sum image (made from the first pair at the second), by its sum
+        when it has one: one pass over the sum image per pair."""
+        if self._sum is None:
+            assert self._first_pair is not None  # kept by the first pair
+            self._sum = np.add(*self._first_pair, dtype=np.uint32, casting="unsafe")
+            self._first_pair = self._first_pair_sum = None
+        for addend in (a, b) if pair_sum is None else (pair_sum,):
+            np.add(self._sum, addend, out=self._sum, casting="unsafe")
 
     def result(self) -> StackStatistics:
         if self._pairs == 0:
             raise ConfigError("frames", self.frames, "need at least 2 frames for the temporal variance")
-        n, frames = self._sum.size, self.frames
-        sum_total = int(self._sum.sum(dtype=np.uint64))
+        frames, c = self.frames, self._centre
+        n = self._shape[0] * self._shape[1]
+        sum_total = self._total
         mean = sum_total / (n * frames)
         # with D = Σ_l y_l − L c per pixel (c the integer centre): eq. 65 is (Σ_l Σ (y − c)² − Σ D² / L) / ((L − 1) MN)
-        # and eq. 35 of the unfiltered mean image is (Σ D² − (Σ D)² / MN) / (L² MN)
-        d_sum = sum_total - n * frames * self._centre
-        d_squares = _centred_square_sum(self._sum, frames * self._centre)
-        squares = self._pair_squares(d_squares) if frames == 2 else self._squares
+        # and eq. 35 of the unfiltered mean image is (Σ D² − (Σ D)² / MN) / (L² MN); for L = 2, per pixel
+        # (a + b − 2c)² = 2 (a − c)² + 2 (b − c)² − (a − b)², so Σ D² needs no pass over the frames
+        d_sum = sum_total - n * frames * c
+        squares = self._squares
+        if self._pending is not None:  # an odd last frame, in no pair
+            squares += _square_sum(self._pending, self._pending_bound) - 2 * c * self._pending_sum + n * c * c
+        if frames == 2:
+            d_squares = 2 * squares - self._first_diff_squares
+        else:
+            d_squares = _centred_square_sum(self._sum_image(), frames * c)
         stack_var = (squares - d_squares / frames) / ((frames - 1) * n)
         measured = (d_squares - d_sum * d_sum / n) / (frames**2 * n)
         temporal = self._pair_var_sum / self._pairs
-        deviation = self._deviation_image(mean)
-        spatial = None
-        if min(deviation.shape) > 2 * HIGHPASS_MARGIN + 1:
-            spatial = spatial_variances(highpass(deviation), stack_var if frames > 2 else temporal, frames)
+        split_var = stack_var if frames > 2 else temporal
+        spatial, mean_image = None, None
+        big_enough = min(self._shape) > 2 * HIGHPASS_MARGIN + 1
+        if self.keep_mean_image or frames * self._bound >= FLOAT32_EXACT:
+            deviation = self._deviation_image(mean)
+            if big_enough:
+                spatial = spatial_variances(highpass(deviation), split_var, frames)
+            if self.keep_mean_image:
+                mean_image = np.add(deviation, np.float32(mean), out=deviation)
+        elif big_enough:
+            smooth = self._work("smooth", np.float32)
+            spatial = highpassed_variances(self._offset_sum(frames * c), split_var, frames, 1.0 / frames, smooth)
+        saturated = 0 if self._saturated is None else np.count_nonzero(self._saturated)
         return StackStatistics(
             frames=frames,
             mean_dn=mean,
@@ -159,8 +243,8 @@ class StackAccumulator:
             spatial_var_dn2=measured,
             spatial=spatial,
             mean_diff_dn=self._mean_diff,
-            saturated_fraction=float(np.count_nonzero(self._saturated)) / n,
-            mean_image=np.add(deviation, np.float32(mean), out=deviation) if self.keep_mean_image else None,
+            saturated_fraction=float(saturated) / n,
+            mean_image=mean_image,
             pixels=n,
             channels=self._channel_results() if self._sites else None,
         )
@@ -179,19 +263,72 @@ class StackAccumulator:
             out[colour] = replace(self._pooled[colour].result(), spatial=split)
         return out
 
+    def _sum_image(self) -> np.ndarray:
+        """Σ_l y_l (uint32): the sum image of the pairs, or the first pair's sum, with an odd last frame added in a
+        new array (the accumulator stays as it was)."""
+        if self._sum is not None:
+            total = self._sum
+        else:
+            assert self._first_pair is not None  # the first pair is kept until a second makes the sum image
+            total = np.add(*self._first_pair, dtype=np.uint32, casting="unsafe")
+        if self._pending is not None:
+            total = np.add(total, self._pending, dtype=np.uint32, casting="unsafe")
+        return total
+
+    def _offset_sum(self, offset: int) -> np.ndarray:
+        """Σ_l y_l − ``offset``, exactly: int16 for a pair of unsigned frames whose values allow it (added in
+        uint16, the offset taken modulo 2^16: the int16 view is exact when every value lies in −2^15 … 2^15 − 1;
+        OpenCV filters int16 faster than float32 and needs no conversion), else float32 (every value an integer
+        below 2^24)."""
+        pair_sum, top = self._first_pair_sum, 2 * self._bound
+        if self.frames == 2 and pair_sum is not None and offset <= 1 << 15 and top - offset < 1 << 15:
+            out = self._work("offset sum", np.uint16)
+            return np.subtract(pair_sum, np.uint16(offset), out=out).view(np.int16)
+        out = self._work("sum", np.float32)
+        np.copyto(out, self._sum_image(), casting="unsafe")
+        return np.subtract(out, np.float32(offset), out=out)
+
+    def _pair_square_sum(
+        self, a: np.ndarray, b: np.ndarray, bound: int, diff_squares: int
+    ) -> tuple[int, np.ndarray | None]:
+        """(Σ a² + Σ b², a + b) of a pair, exactly: per pixel a² + b² = ((a + b)² + (a − b)²) / 2, so with
+        Σ (a − b)² known one pass over the pair's sum (uint16 when it fits, else None; the first pair's highpass
+        and the sum image use it) replaces two over the frames."""
+        if not (a.dtype in _OPENCV_SUMS and b.dtype in _OPENCV_SUMS and 2 * bound < 1 << 16):
+            return _square_sum(a, bound) + _square_sum(b, bound), None
+        name = "first pair sum" if self._pairs == 0 else "pair sum"
+        pair_sum = np.add(a, b, out=self._work(name, np.uint16), dtype=np.uint16)
+        return (_square_sum(pair_sum, 2 * bound) + diff_squares) // 2, pair_sum
+
+    def _keep(self, frame: np.ndarray, name: str) -> np.ndarray:
+        """A copy of ``frame`` (the caller may reuse its buffer), in the work image ``name`` when reused."""
+        if self.work is None:
+            return frame.copy()
+        kept = self.work.get(name, frame.shape, frame.dtype.type)
+        np.copyto(kept, frame)
+        return kept
+
+    def _work(self, name: str, dtype: type) -> np.ndarray:
+        """A work image of the frames' shape: the thread's reused one (`WorkImages`) or a fresh one."""
+        return np.empty(self._shape, dtype) if self.work is None else self.work.get(name, self._shape, dtype)
+
     def _deviation_image(self, mean: float) -> np.ndarray:
         """⟨y⟩ − μ_y as float32 (computed from the exact integer sum, in row chunks)."""
-        out = np.empty(self._sum.shape, np.float32)
+        total = self._sum_image()
+        out = np.empty(total.shape, np.float32)
         scale = 1.0 / self.frames
-        for rows, target in zip(_row_chunks(self._sum), _row_chunks(out), strict=True):
+        for rows, target in zip(_row_chunks(total), _row_chunks(out), strict=True):
             np.subtract(rows * scale, mean, out=target, casting="unsafe")
         return out
 
 
+FLOAT_FIELDS = tuple(f.name for f in fields(SpatialVariances) if f.name not in ("rows", "cols"))
+
+
 def _mean_split(splits: list[SpatialVariances]) -> SpatialVariances:
     """The mean of the splits of equally weighted planes (the smallest plane's rows and columns)."""
-    mean = {f.name: float(np.mean([getattr(s, f.name) for s in splits])) for f in fields(SpatialVariances)}
-    return SpatialVariances(**mean | {"rows": min(s.rows for s in splits), "cols": min(s.cols for s in splits)})
+    mean = {part: float(np.mean([getattr(s, part) for s in splits])) for part in FLOAT_FIELDS}
+    return SpatialVariances(**mean, rows=min(s.rows for s in splits), cols=min(s.cols for s in splits))
 
 
 def _row_chunks(image: np.ndarray) -> list[np.ndarray]:
@@ -199,6 +336,67 @@ def _row_chunks(image: np.ndarray) -> list[np.ndarray]:
     small fraction of a frame."""
     rows = max(1, min(CHUNK_PIXELS, image.size // 8) // image.shape[1])
     return [image[i : i + rows] for i in range(0, image.shape[0], rows)]
+
+
+def _pieces(image: np.ndarray, bound: int) -> tuple[list[np.ndarray], np.ndarray] | None:
+    """The memory of a C-contiguous 8- or 16-bit ``image`` regrouped as pieces of `PIECE_WIDTH` columns and R rows,
+    R · ``bound`` < 2^31 (``bound``: the largest term a column adds per row), so that every partial sum of OpenCV's
+    column reductions stays below 2^31, exact in any accumulator; and the elements left over (1-D). None for other
+    images (the int64 route)."""
+    rows = EXACT_PARTIAL // max(bound, 1)
+    if image.dtype not in _OPENCV_SUMS or not image.flags.c_contiguous or rows < 1:
+        return None
+    flat = image.reshape(-1)
+    width = min(PIECE_WIDTH, flat.size)
+    step = min(rows, flat.size // width) * width
+    body = flat.size // step * step
+    return [flat[i : i + step].reshape(-1, width) for i in range(0, body, step)], flat[body:]
+
+
+def _total(image: np.ndarray, bound: int) -> int:
+    """Σ y of an integer image with |y| ≤ ``bound``, exactly."""
+    regrouped = _pieces(image, max(bound, 1) * PIECE_WIDTH)
+    if regrouped is None:
+        return int(image.sum(dtype=np.int64))
+    import cv2
+
+    pieces, rest = regrouped
+    return sum(int(cv2.sumElems(piece)[0]) for piece in pieces) + int(rest.sum(dtype=np.int64))
+
+
+def _square_sum(image: np.ndarray, bound: int) -> int:
+    """Σ y² of an integer image with |y| ≤ ``bound``, exactly: OpenCV's column sums of squares of each piece
+    (`_pieces`; integers below 2^53 in double), or int64."""
+    regrouped = _pieces(image, bound * bound)
+    if regrouped is None:
+        return _centred_square_sum(image, 0)
+    import cv2
+
+    pieces, rest = regrouped
+    columns = np.zeros(pieces[0].shape[1] if pieces else 0)
+    for piece in pieces:
+        columns += cv2.reduce(piece, 0, cv2.REDUCE_SUM2, dtype=cv2.CV_64F).ravel()
+    left = rest.astype(np.int64)
+    return int(columns.astype(np.int64).sum()) + int(left @ left)
+
+
+def _sums(image: np.ndarray, bound: int) -> tuple[int, int]:
+    """(Σ y, Σ y²) of an integer image with |y| ≤ ``bound``, exactly."""
+    return _total(image, bound), _square_sum(image, bound)
+
+
+def _diff_square_sum(a: np.ndarray, b: np.ndarray, bound: int) -> int:
+    """Σ (a − b)² of two integer images with |values| ≤ ``bound``, exactly (|a − b| of unsigned images is exact in
+    their own type)."""
+    if a.dtype == b.dtype and a.dtype in _OPENCV_SUMS:
+        import cv2
+
+        return _square_sum(cv2.absdiff(a, b), bound)
+    squares = 0
+    for rows_a, rows_b in zip(_row_chunks(a), _row_chunks(b), strict=True):
+        diff = np.subtract(rows_a, rows_b, dtype=np.int64).ravel()
+        squares += int(diff @ diff)
+    return squares
 
 
 def _centred_square_sum(image: np.ndarray, centre: int) -> int:
@@ -214,26 +412,17 @@ def _centred_square_sum(image: np.ndarray, centre: int) -> int:
     return total
 
 
-def _pair_sums(a: np.ndarray, b: np.ndarray) -> tuple[int, int]:
-    """(Σ (a − b)², Σ (a − b)) of two integer frames, exactly, accumulated in row chunks."""
-    total, squares = 0, 0
-    for rows_a, rows_b in zip(_row_chunks(a), _row_chunks(b), strict=True):
-        diff = np.subtract(rows_a, rows_b, dtype=np.int64).ravel()
-        total += int(diff.sum())
-        squares += int(diff @ diff)
-    return squares, total
-
-
 def stack_statistics(
     frames: Iterable[np.ndarray],
     clip_dn: float,
     keep_mean_image: bool = False,
     bayer: str | None = None,
     origin: tuple[int, int] = (0, 0),
+    work: WorkImages | None = None,
 ) -> StackStatistics:
     """`StackStatistics` of an iterable of frames, consumed one at a time (a generator keeps memory flat); with
     ``bayer``, per colour channel too (`StackAccumulator`)."""
-    acc = StackAccumulator(clip_dn, keep_mean_image, bayer, origin)
+    acc = StackAccumulator(clip_dn, keep_mean_image, bayer, origin, work)
     for frame in frames:
         acc.add(frame)
     return acc.result()
