@@ -238,7 +238,7 @@ class LineTransport:
         try:
             while time.monotonic() < give_up and (late := self._read_within(QUIET_S)):
                 self._buffer += late
-        except PORT_ERRORS:
+        except (*PORT_ERRORS, _PortLost):
             pass
 
     def _send(self, command: str) -> None:
