@@ -235,10 +235,15 @@ class SerialServer:
                 fh.write(line + "\n")
 
 
-def _child_main(factory, link: Path, command_log: Path | None, vanish_s: float, status, stop) -> None:
-    """Process entry point: build the instrument, serve until ``stop`` is set, SIGTERM arrives or the parent dies."""
+def _child_main(factory, link: Path, command_log: Path | None, vanish_s: float, status) -> None:
+    """Process entry point: build the instrument, serve until SIGTERM arrives or the parent dies.
+
+    The stop request is a signal, not a shared `multiprocessing.Event`: a simulator killed (SIGKILL, a power cut)
+    while it polled such an event would die holding the event's lock, and the parent's next ``set`` or ``is_set``
+    would wait on it for ever (a CI run hung in a fixture's teardown that way)."""
+    stopping: list[bool] = []
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    signal.signal(signal.SIGTERM, lambda *_: stopping.append(True))
     try:
         server = SerialServer(factory(), PtyPort(link), command_log, vanish_s)
     except (UwlabError, OSError) as exc:
@@ -248,7 +253,7 @@ def _child_main(factory, link: Path, command_log: Path | None, vanish_s: float, 
     parent = multiprocessing.parent_process()
     assert parent is not None  # the simulator runs in a child process
     try:
-        while not stop.is_set() and parent.is_alive():
+        while not stopping and parent.is_alive():
             server.step(0.1)
     finally:
         server.port.close()
@@ -293,10 +298,10 @@ class SimulatorProcess:
         self.link = Path(link)
         self._options = (factory, command_log, vanish_s)
         self._status, child_status = context.Pipe(duplex=False)
-        self._stop = context.Event()
+        self._stopped = False  # stop() was called
         self.process = context.Process(
             target=_child_main,
-            args=(factory, self.link, command_log, vanish_s, child_status, self._stop),
+            args=(factory, self.link, command_log, vanish_s, child_status),
             daemon=True,
         )
 
@@ -307,7 +312,7 @@ class SimulatorProcess:
     @property
     def died(self) -> bool:
         """Started, and no longer running although nobody stopped it."""
-        return self.process.pid is not None and not self._stop.is_set() and not self.process.is_alive()
+        return self.process.pid is not None and not self._stopped and not self.process.is_alive()
 
     def fresh(self) -> SimulatorProcess:
         """A new, unstarted simulator of the same instrument on the same port path."""
@@ -339,11 +344,10 @@ class SimulatorProcess:
         return self
 
     def stop(self, timeout_s: float = 10.0) -> None:
-        """Ask the process to finish, then terminate and kill it if it does not."""
-        self._stop.set()
+        """Ask the process to finish (SIGTERM: it closes its port and returns), then kill it if it does not."""
+        self._stopped = True
         if self.process.pid is None:
             return
-        self.process.join(timeout_s)
         if self.process.is_alive():
             self.process.terminate()
             self.process.join(timeout_s)
