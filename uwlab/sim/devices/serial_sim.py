@@ -235,15 +235,10 @@ class SerialServer:
                 fh.write(line + "\n")
 
 
-def _child_main(factory, link: Path, command_log: Path | None, vanish_s: float, status) -> None:
-    """Process entry point: build the instrument, serve until SIGTERM arrives or the parent dies.
-
-    The stop request is a signal, not a shared `multiprocessing.Event`: a simulator killed (SIGKILL, a power cut)
-    while it polled such an event would die holding the event's lock, and the parent's next ``set`` or ``is_set``
-    would wait on it for ever (a CI run hung in a fixture's teardown that way)."""
-    stopping: list[bool] = []
+def _child_main(factory, link: Path, command_log: Path | None, vanish_s: float, status, stop) -> None:
+    """Process entry point: build the instrument, serve until ``stop`` is set, SIGTERM arrives or the parent dies."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, lambda *_: stopping.append(True))
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
     try:
         server = SerialServer(factory(), PtyPort(link), command_log, vanish_s)
     except (UwlabError, OSError) as exc:
@@ -253,7 +248,7 @@ def _child_main(factory, link: Path, command_log: Path | None, vanish_s: float, 
     parent = multiprocessing.parent_process()
     assert parent is not None  # the simulator runs in a child process
     try:
-        while not stopping and parent.is_alive():
+        while not stop.is_set() and parent.is_alive():
             server.step(0.1)
     finally:
         server.port.close()
@@ -298,10 +293,11 @@ class SimulatorProcess:
         self.link = Path(link)
         self._options = (factory, command_log, vanish_s)
         self._status, child_status = context.Pipe(duplex=False)
+        self._stop = context.Event()  # polled by the child; see `stop` for why the parent sets it only while it runs
         self._stopped = False  # stop() was called
         self.process = context.Process(
             target=_child_main,
-            args=(factory, self.link, command_log, vanish_s, child_status),
+            args=(factory, self.link, command_log, vanish_s, child_status, self._stop),
             daemon=True,
         )
 
@@ -344,10 +340,17 @@ class SimulatorProcess:
         return self
 
     def stop(self, timeout_s: float = 10.0) -> None:
-        """Ask the process to finish (SIGTERM: it closes its port and returns), then kill it if it does not."""
+        """Ask the process to finish, then terminate and kill it if it does not.
+
+        The stop event is set only while the process runs: one killed (SIGKILL, a power cut) while it polled the
+        event may have died holding the event's lock, and setting it would then wait for ever (a CI run hung in a
+        fixture's teardown so, after the random-restart sweep)."""
         self._stopped = True
         if self.process.pid is None:
             return
+        if self.process.is_alive():
+            self._stop.set()
+        self.process.join(timeout_s)
         if self.process.is_alive():
             self.process.terminate()
             self.process.join(timeout_s)
