@@ -204,14 +204,6 @@ def _split(rows: pd.DataFrame, prefix: str) -> SpatialSplit:
     return SpatialSplit(*(_column(rows, f"{prefix}spatial_var_{part}_dn2") for part in ("row", "col", "pixel")))
 
 
-def _pixels(rows: pd.DataFrame, width: pd.Series, height: pd.Series, channel: str | None) -> int:
-    """Pixels per frame of the statistics: a channel's sites, else the ROI's (0 when not recorded)."""
-    if channel is not None:
-        sites = pd.to_numeric(rows["pixels"], errors="coerce").dropna() if "pixels" in rows else pd.Series([])
-        return int(sites.iloc[0]) if len(sites) else 0
-    return int(width.iloc[0]) * int(height.iloc[0]) if len(width) and len(height) else 0
-
-
 def sweep_channels(points: pd.DataFrame, sweep_id: str) -> tuple[str, ...]:
     """The colour channels of a sweep (`CHANNELS` when its points are raw Bayer frames with per-channel columns,
     else ())."""
@@ -323,11 +315,16 @@ def photon_transfer_from_points(
     width = rows["roi_w"].dropna() if "roi_w" in rows else pd.Series(dtype=float)
     height = rows["roi_h"].dropna() if "roi_h" in rows else pd.Series(dtype=float)
     col = lambda name: rows[name].to_numpy(float)  # noqa: E731
+    # pixels per frame of the statistics: a channel's sites, else the ROI's (0 when not recorded)
+    sites = pd.to_numeric(rows["pixels"], errors="coerce").dropna() if channel is not None else pd.Series([])
+    if channel is not None:
+        pixels = int(sites.iloc[0]) if len(sites) else 0
+    else:
+        pixels = int(width.iloc[0]) * int(height.iloc[0]) if len(width) and len(height) else 0
     notes: tuple[str, ...] = ()
     if override is not None:
         notes = ("irradiance from --irradiance (taken to be at the sensor plane)",)
     if channel is not None:
-        sites = pd.to_numeric(rows["pixels"], errors="coerce").dropna()
         layout = rows["bayer"].dropna()
         notes += (
             f"the {channel} channel of the raw Bayer mosaic"
@@ -356,7 +353,7 @@ def photon_transfer_from_points(
         sweep_id=sweep,
         width_px=int(width.iloc[0]) if len(width) else 0,
         height_px=int(height.iloc[0]) if len(height) else 0,
-        pixels=_pixels(rows, width, height, channel),
+        pixels=pixels,
         pixel_area_m2=area,
         wavelength_nm=lam,
         gain_db=float(rows["gain_db"].iloc[0]),
