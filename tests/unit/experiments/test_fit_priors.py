@@ -8,7 +8,7 @@ import pytest
 
 from uwlab.errors import ConfigError
 from uwlab.experiments.calibration.fit import split_rhat
-from uwlab.experiments.calibration.priors import HalfNormal, LogNormal, Normal, Uniform, parse_prior
+from uwlab.experiments.calibration.priors import HalfNormal, JointPrior, LogNormal, Normal, Uniform, parse_prior
 
 PHI_1 = 0.8413447460685429  # Φ(1), the standard normal CDF at one sigma
 PHI_INV_3_4 = 0.6744897501960817  # Φ⁻¹(3/4): the median of |N(0, 1)|
@@ -86,6 +86,26 @@ def test_split_rhat_detects_unmixed_chains():
     assert np.all(split_rhat(drifting) > 1.1)
 
 
+PRIORS = [
+    Normal(mean=1.0, sigma=0.5),
+    Normal(mean=0.0, sigma=1.0, lo=0.0, hi=2.0),
+    Normal(mean=0.3, sigma=2.0, hi=0.5),
+    LogNormal(median=1.2, sigma=0.4),
+    LogNormal(median=1.2, sigma=0.4, lo=0.5, hi=3.0),
+    LogNormal(median=0.8, sigma=0.2, lo=-1.0),
+    Uniform(lo=0.1, hi=4.0),
+    HalfNormal(sigma=2.0),
+    HalfNormal(sigma=2.0, hi=1.5),
+]
+
+
+def scipy_logpdf(prior, x: np.ndarray) -> np.ndarray:
+    """scipy's own (truncated) random variable's log density, −inf where it is NaN."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        expected = prior._dist.logpdf(x)
+    return np.where(np.isnan(expected), -np.inf, expected)
+
+
 @pytest.mark.parametrize(
     "prior",
     [
@@ -106,13 +126,29 @@ def test_the_log_density_is_scipys(prior):
     for bit, through the tails, at and beyond the bounds, and for NaN; a half-normal narrowed by hi, which scipy
     cannot truncate twice, included."""
     x = np.concatenate([np.linspace(-3.0, 5.0, 801), [0.0, 0.1, 0.5, 1.5, 2.0, 3.0, 4.0, np.nan, np.inf, -np.inf]])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        expected = prior._dist.logpdf(x)
-    expected = np.where(np.isnan(expected), -np.inf, expected)
+    expected = scipy_logpdf(prior, x)
     got = prior.logpdf(x)
     assert np.array_equal(np.isneginf(got), np.isneginf(expected))
     finite = np.isfinite(expected)
     assert np.array_equal(got[finite], expected[finite])  # bit for bit: a fit's numbers do not move
+
+
+@pytest.mark.parametrize("walkers", [1, 2, 9, 64])
+def test_the_joint_prior_of_every_kind_is_the_sum_of_scipys_densities(walkers):
+    """A fit's log prior (`JointPrior`: all priors, all walkers in one pass) is Σ_j of scipy's log densities, each
+    parameter its own kind and bounds: −inf as soon as one parameter is outside its support or NaN."""
+    rng = np.random.default_rng(walkers)
+    theta = np.stack([p.sample(rng, walkers) for p in PRIORS], axis=1)
+    if walkers > 1:
+        theta[0, 3] = np.nan
+        theta[-1, 1] = 2.5  # above the truncated normal's hi
+    expected = np.sum([scipy_logpdf(p, theta[:, j]) for j, p in enumerate(PRIORS)], axis=0)
+    got = JointPrior(PRIORS)(theta)
+    assert got.shape == (walkers,)
+    assert np.array_equal(np.isneginf(got), np.isneginf(expected))
+    finite = np.isfinite(expected)
+    assert finite.sum() >= walkers - 2
+    assert got[finite] == pytest.approx(expected[finite], rel=1e-14, abs=1e-14)
 
 
 def test_a_truncated_normal_is_renormalised_on_its_bounds():

@@ -46,7 +46,7 @@ from scipy import optimize
 
 from uwlab.errors import UwlabError
 from uwlab.experiments.calibration.forward import ForwardModel, build_forward_model, characterised_sensor
-from uwlab.experiments.calibration.priors import HalfNormal, LogNormal, Normal, Prior, PriorSpec
+from uwlab.experiments.calibration.priors import HalfNormal, JointPrior, LogNormal, Normal, Prior, PriorSpec
 from uwlab.model.data import read_toml
 from uwlab.model.sensor import load_sensor_profile
 from uwlab.model.schema import NonEmptyText, Schema, Seed, invalid, parse, limits
@@ -176,15 +176,11 @@ class Posterior:
 
     def __init__(self, model: ForwardModel, priors: Mapping[str, Prior]):
         self.model = model
-        self.priors = [priors[name] for name in model.names]
+        self.log_prior = JointPrior([priors[name] for name in model.names])
         self.logged = np.array([name not in LINEAR for name in model.names])
         anchors = [n for n in ANCHORS if n in model.names]
         shaped = any(n in model.names for n in SHAPE_PARAMETERS)
         self.anchor = model.names.index(anchors[0]) if anchors and shaped else None
-
-    def log_prior(self, theta: np.ndarray) -> np.ndarray:
-        theta = np.atleast_2d(theta)
-        return np.sum([prior.logpdf(theta[:, j]) for j, prior in enumerate(self.priors)], axis=0)
 
     def log_likelihood(self, theta: np.ndarray, shape: np.ndarray | None = None) -> np.ndarray:
         """ln L(θ) with the configurations' discrepancies integrated out (module docstring)."""

@@ -10,10 +10,10 @@ A prior is declared in a fit config as a table, e.g. ``{ kind = "lognormal", med
 
 Optional ``lo``/``hi`` truncate a normal, lognormal or halfnormal prior (``stats.truncate``: the density is
 renormalised on [lo, hi], 0 outside). CDFs, quantiles and draws (with the caller's generator) are scipy's. The log
-density, evaluated for every walker at every step, is each kind's closed form in numpy, vectorised over walkers,
-with the truncation's log mass taken once from scipy's CDF: scipy's distribution objects spend ≈ 60 µs a call
-checking their arguments, which was a third of a fit's time (`tests/unit/experiments/test_fit_priors.py` holds the
-closed forms to scipy's densities).
+density, evaluated for every walker at every step, is each kind's closed form in numpy (`JointPrior`: all of a fit's
+priors and walkers in one pass), with the truncation's log mass taken once from scipy's CDF: scipy's distribution
+objects spend ≈ 60 µs a call checking their arguments, which was a third of a fit's time, and one numpy pass per
+prior another sixth (`tests/unit/experiments/test_fit_priors.py` holds the closed forms to scipy's densities).
 
 >>> p = LogNormal(median=2.0, sigma=0.5)
 >>> round(p.quantile(0.5), 12), round(p.quantile(0.8413447460685429), 6)   # median, median · e^σ
@@ -25,6 +25,7 @@ closed forms to scipy's densities).
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from typing import Annotated, Any, ClassVar, Literal
 
 import numpy as np
@@ -45,9 +46,11 @@ class Prior(Schema):
     hi: StrictFloat = Field(math.inf, description="upper truncation bound")
     floor: ClassVar[float] = -math.inf  # the kind's own lower truncation of its base (0 for the half-normal)
     closed: ClassVar[bool] = False  # whether the support holds its bounds (scipy's: open, but the uniform's)
+    log_scale: ClassVar[bool] = False  # whether the closed form is a density of ln x (the lognormal's)
     _dist: Any = PrivateAttr()  # a scipy.stats random variable (untyped)
     _bounds: tuple[float, float] = PrivateAttr()  # the support, truncations applied
     _log_mass: float = PrivateAttr()  # ln of the base's probability inside the bounds (0: not truncated)
+    _alone: JointPrior = PrivateAttr()  # this prior's log density (`logpdf`)
 
     @model_validator(mode="after")
     def _random_variable(self):
@@ -61,25 +64,22 @@ class Prior(Schema):
         else:
             self._dist = stats.truncate(base, *self._bounds)
             self._log_mass = float(base.logcdf(*self._bounds).real)  # as scipy's truncation computes it
+        self._alone = JointPrior([self])
         return self
 
     def base(self):
         """The untruncated scipy.stats random variable."""
         raise NotImplementedError
 
-    def _log_density(self, x: np.ndarray) -> np.ndarray:
-        """The base's ln p(x) in closed form, operation for operation as scipy evaluates it (so that a fit's
-        numbers do not move), for x inside its support."""
+    def closed_form(self) -> tuple[float, float, float | None]:
+        """(mean, σ, constant): the base's ln p inside its support is the normal N(mean, σ²)'s at x (at ln x, less
+        ln x, for `log_scale`), or `constant` when that is not None (`JointPrior` evaluates it)."""
         raise NotImplementedError
 
     def logpdf(self, x) -> np.ndarray:
         """ln p(x), vectorised; −inf outside the (truncated) support and for NaN."""
         x = np.asarray(x, float)
-        lo, hi = self._bounds
-        inside = (x >= lo) & (x <= hi) if self.closed else (x > lo) & (x < hi)
-        out = np.full(x.shape, -np.inf)
-        out[inside] = self._log_density(x[inside]) - self._log_mass
-        return out
+        return self._alone.terms(x.reshape(1, -1))[0].reshape(x.shape)
 
     def cdf(self, x):
         return self._dist.cdf(np.asarray(x, float))
@@ -103,21 +103,21 @@ class Normal(Prior):
     def base(self):
         return stats.Normal(mu=self.mean, sigma=self.sigma)
 
-    def _log_density(self, x: np.ndarray) -> np.ndarray:
-        return _normal_log_density(x, self.mean, self.sigma)
+    def closed_form(self) -> tuple[float, float, float | None]:
+        return self.mean, self.sigma, None
 
 
 class LogNormal(Prior):
     kind: Literal["lognormal"] = "lognormal"
+    log_scale: ClassVar[bool] = True
     median: Positive = Field(description="median e^μ")
     sigma: Positive = Field(description="standard deviation of ln x")
 
     def base(self):
         return stats.exp(stats.Normal(mu=math.log(self.median), sigma=self.sigma))
 
-    def _log_density(self, x: np.ndarray) -> np.ndarray:
-        # ln p_X(ln x) + ln |d ln x / dx|, scipy's change of variables
-        return _normal_log_density(np.log(x), math.log(self.median), self.sigma) + -np.log(x)
+    def closed_form(self) -> tuple[float, float, float | None]:
+        return math.log(self.median), self.sigma, None
 
 
 class Uniform(Prior):
@@ -129,8 +129,8 @@ class Uniform(Prior):
     def base(self):
         return stats.Uniform(a=self.lo, b=self.hi)
 
-    def _log_density(self, x: np.ndarray) -> np.ndarray:
-        return np.full_like(x, -np.log(self.hi - self.lo))
+    def closed_form(self) -> tuple[float, float, float | None]:
+        return 0.0, 1.0, float(-np.log(self.hi - self.lo))
 
 
 class HalfNormal(Prior):
@@ -141,16 +141,55 @@ class HalfNormal(Prior):
     def base(self):
         return stats.Normal(mu=0.0, sigma=self.sigma)
 
-    def _log_density(self, x: np.ndarray) -> np.ndarray:
-        return _normal_log_density(x, 0.0, self.sigma)
+    def closed_form(self) -> tuple[float, float, float | None]:
+        return 0.0, self.sigma, None
 
 
 _LOG_NORMALIZATION = np.log(2 * np.pi) / 2  # ln √(2π)
 
 
-def _normal_log_density(x: np.ndarray, mean: float, sigma: float) -> np.ndarray:
-    """ln of the normal density N(mean, sigma²) at x: −(ln √(2π) + z²/2) − ln σ, z = (x − mean)/σ."""
-    return -(_LOG_NORMALIZATION + ((x - mean) / sigma) ** 2 / 2) - np.log(sigma)
+class JointPrior:
+    """ln p(θ) = Σ_j ln p_j(θ_j) for independent priors p_j, every row of θ (walkers × parameters) at once.
+
+    Each prior is a row of constants (bounds, `Prior.closed_form`, log mass), so a fit's log prior is one numpy pass
+    per operation, not one per prior. Inside its support a parameter's term is scipy's evaluation, operation for
+    operation (so that a fit's numbers do not move): the normal's −(ln √(2π) + z²/2) − ln σ with z = (y − mean)/σ,
+    y = x, or y = ln x plus the change of variables' −ln x (the lognormal), or the uniform's constant; less the
+    truncation's log mass. Outside the support, and for NaN, it is −inf.
+
+    >>> joint = JointPrior([Normal(mean=0.0, sigma=1.0), Uniform(lo=0.0, hi=2.0)])
+    >>> joint(np.array([[0.0, 1.0], [0.0, 3.0]])).round(6)   # −ln √(2π) − ln 2, and outside the uniform
+    array([-1.612086,       -inf])
+    """
+
+    def __init__(self, priors: Sequence[Prior]):
+        def column(values, dtype=float) -> np.ndarray:
+            return np.array(values, dtype)[:, None]
+
+        forms = [p.closed_form() for p in priors]
+        self.lo = column([p._bounds[0] for p in priors])
+        self.hi = column([p._bounds[1] for p in priors])
+        self.closed = column([p.closed for p in priors], bool)
+        self.log_scale = column([p.log_scale for p in priors], bool)
+        self.mean = column([m for m, _, _ in forms])
+        self.sigma = column([s for _, s, _ in forms])
+        self.log_sigma = column([np.log(s) for _, s, _ in forms])
+        self.constant = column([c is not None for _, _, c in forms], bool)
+        self.constant_value = column([0.0 if c is None else c for _, _, c in forms])
+        self.log_mass = column([p._log_mass for p in priors])
+
+    def terms(self, x: np.ndarray) -> np.ndarray:
+        """ln p_j(x_j) for x of shape (n_priors, n): row j holds prior j's values."""
+        with np.errstate(all="ignore"):
+            y = np.where(self.log_scale, np.log(x), x)
+            normal = -(_LOG_NORMALIZATION + ((y - self.mean) / self.sigma) ** 2 / 2) - self.log_sigma
+            density = np.where(self.constant, self.constant_value, np.where(self.log_scale, normal + -y, normal))
+            inside = np.where(self.closed, (x >= self.lo) & (x <= self.hi), (x > self.lo) & (x < self.hi))
+            return np.where(inside, density - self.log_mass, -np.inf)
+
+    def __call__(self, theta: np.ndarray) -> np.ndarray:
+        """Σ_j ln p_j(θ_j) for θ of shape (n, n_priors): the terms summed in the priors' order."""
+        return np.sum(np.ascontiguousarray(self.terms(np.ascontiguousarray(np.atleast_2d(theta).T))), axis=0)
 
 
 PriorSpec = Annotated[Normal | LogNormal | Uniform | HalfNormal, Field(discriminator="kind")]
