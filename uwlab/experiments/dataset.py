@@ -196,6 +196,8 @@ REQUIRED_POINT_KEYS = ("sweep_id", "point_index", "kind", "frames")
 KEY = ["sweep_id", "point_index"]
 TABLES = {"points": POINT_SCHEMA, "spectra": SPECTRA_SCHEMA}
 FLOAT_COLUMNS = tuple(f.name for f in POINT_SCHEMA if pa.types.is_floating(f.type))
+POINT_COLUMNS = tuple(POINT_SCHEMA.names)  # in order (pyarrow builds a new list at each `.names`)
+_KNOWN_COLUMNS = frozenset(POINT_COLUMNS)
 
 
 def software_versions() -> dict[str, str]:
@@ -222,7 +224,7 @@ def check_point_row(row: dict) -> dict:
     is: unknown columns, missing required ones, an unknown kind, fewer than 2 frames, or a NaN/infinite number
     (a measurement that failed is not recorded) raise `ConfigError` naming the column."""
     for key in row:
-        if key not in POINT_SCHEMA.names:
+        if key not in _KNOWN_COLUMNS:
             raise ConfigError(f"point.{key}", row[key], "unknown dataset column")
     for key in REQUIRED_POINT_KEYS:
         if row.get(key) is None:
@@ -235,7 +237,7 @@ def check_point_row(row: dict) -> dict:
         value = row.get(key)
         if value is not None and not (isinstance(value, numbers.Real) and math.isfinite(value)):
             raise ConfigError(f"point.{key}", value, "must be a finite number (null when not applicable)")
-    return {name: row.get(name) for name in POINT_SCHEMA.names}
+    return {name: row.get(name) for name in POINT_COLUMNS}
 
 
 def point_row(

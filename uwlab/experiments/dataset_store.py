@@ -214,12 +214,14 @@ def parquet_bytes(tables: list[pa.Table], schema: pa.Schema) -> bytes:
 def conform(table: pa.Table, schema: pa.Schema) -> pa.Table:
     """``table`` with exactly ``schema``'s columns: missing ones null (older writers), types cast when safe.
     Unknown columns or impossible casts raise `ValueError` naming the column."""
-    unknown = [name for name in table.column_names if name not in schema.names]
+    present, expected = table.column_names, set(schema.names)  # each a new list per access: taken once
+    unknown = [name for name in present if name not in expected]
     if unknown:
         raise ValueError(f"unknown column {unknown[0]!r}")
+    present = set(present)
     columns = []
     for schema_field in schema:
-        if schema_field.name not in table.column_names:
+        if schema_field.name not in present:
             columns.append(pa.nulls(table.num_rows, schema_field.type))
             continue
         column = table.column(schema_field.name)
