@@ -51,7 +51,6 @@ from functools import cached_property
 from pathlib import Path
 
 import numpy as np
-from scipy.interpolate import RectBivariateSpline
 
 from uwlab.sim.world import WorldSettings
 from uwlab.errors import ConfigError
@@ -362,6 +361,10 @@ class TankWorld:
             return coarse.astype(np.float32)
         if min(rows, columns) < 2:
             return np.broadcast_to(coarse, shape_yx).astype(np.float32)
+        # imported here: scipy.interpolate takes 0.3 s to import, and the serial simulators (a spawned process per
+        # instrument, per rig) import this module for the spectrometer's light and never draw an image
+        from scipy.interpolate import RectBivariateSpline
+
         return np.asarray(RectBivariateSpline(cy, cx, coarse, kx=1, ky=1)(y, x), np.float32)
 
     def centre_rate(self, design: Design, bare: bool) -> float:
