@@ -56,3 +56,22 @@ def test_unknown_verb_is_one_line_and_exit_2(capsys):
     assert exit_info.value.code == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "'desing'" in err
+
+
+def test_an_interrupt_inside_exec_still_exits_130_under_python_m(tmp_path):
+    """Ctrl-C can land inside exec() of a string (a dataclass being built while a verb imports its modules). CPython
+    then marks the KeyboardInterrupt unhandled even though `main` handled it, and `python -m` ended the process by
+    SIGINT (-2). Here the verb's work is such an exec."""
+    (tmp_path / "interrupted_in_exec.py").write_text(
+        "import argparse, sys\n"
+        "from uwlab.cli import main as cli\n"
+        "class Parser:\n"
+        "    def parse_args(self, argv):\n"
+        "        return argparse.Namespace(func=lambda args: exec('raise KeyboardInterrupt'))\n"
+        "cli.build_parser = lambda chosen: Parser()\n"
+        "sys.exit(cli.main(['design']))\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-m", "interrupted_in_exec"], cwd=tmp_path, capture_output=True, text=True, timeout=60
+    )
+    assert (done.returncode, done.stderr) == (130, "uwlab design: interrupted\n")

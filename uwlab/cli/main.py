@@ -73,6 +73,17 @@ def build_parser(chosen: str | None = None) -> argparse.ArgumentParser:
     return parser
 
 
+def _interrupt_handled() -> None:
+    """Tell the interpreter that the KeyboardInterrupt was handled.
+
+    A KeyboardInterrupt raised inside exec() of a string (dataclasses and namedtuple build their methods that way,
+    so Ctrl-C during an import can land there) leaves CPython's "unhandled KeyboardInterrupt" mark set although
+    `main` caught it, and ``python -m uwlab.cli.main`` then ends by SIGINT (exit −2) instead of 130
+    (``run_eval_code_obj`` in CPython 3.11's Python/pythonrun.c; Modules/main.c reads the mark). Every exec of a
+    string clears the mark first."""
+    exec("")
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
     chosen = chosen_command(argv)
@@ -94,6 +105,7 @@ def main(argv: list[str] | None = None) -> int:
     except (KeyboardInterrupt, UwlabError, OSError, ImportError) as exc:
         if interrupts or isinstance(exc, KeyboardInterrupt):
             print(f"{prefix}: interrupted", file=sys.stderr)
+            _interrupt_handled()
             return 130
         if isinstance(exc, BrokenPipeError):
             sys.stderr.close()
