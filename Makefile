@@ -27,12 +27,12 @@ $(VENV)/.aravis: $(VENV)/.installed
 demo: venv
 	$(VENV)/bin/uwlab demo
 
-# Everything: the in-process unit and slow tests and the doctests on two workers, then the integration tests
-# (processes, devices, ptys, GigE, Aravis, Chromium, Dask) on two workers a file at a time (a file's tests share
-# their simulators and fixtures).
+# Everything in one session on four workers, two per core: the integration tests (processes, devices, ptys, GigE,
+# Aravis, Chromium, Dask) spend much of their time waiting on restarts, timeouts and browsers, and the fits of the
+# unit and slow tests fill those waits. A file is one work unit (its tests share simulators and fixtures), taken in
+# the order given, so the longest files (tests/slow) start first and none of them starts last.
 test: $(VENV)/.aravis
-	$(PY) -m pytest -n 2 tests/unit tests/slow uwlab
-	$(PY) -m pytest -n 2 --dist loadfile tests/integration
+	$(PY) -m pytest -n 4 --dist loadfile --no-loadscope-reorder tests/slow tests/integration tests/unit uwlab
 
 # The in-process unit tests and the doctests (no devices, no subprocesses), on two workers.
 test-fast: venv
