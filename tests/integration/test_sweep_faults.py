@@ -173,7 +173,9 @@ def test_camera_outages_within_the_limit_complete_the_sweep(tmp_path, sim_rig, m
         finished_ns = time.time_ns()
     assert len(injector.trials) == 3 and all(t["t_ns"] < finished_ns for t in injector.trials)
     assert time.monotonic() - started > sum(t["down_s"] for t in injector.trials)
-    assert sim_rig.camera.stats.reconnects >= 2
+    # the camera noticed the outages (each brings it back power-cycled); outages that come while the sweep does not
+    # touch the camera (a loaded machine) are noticed as one, so how many reconnects is not fixed
+    assert 1 <= sim_rig.camera.stats.reconnects <= 3
     per_us = points["signal_dn"] / points["exposure_us"]
     assert float(per_us.std() / per_us.mean()) < 0.01
     assert truth_violations(sim_rig.serial_rig, points) == []
