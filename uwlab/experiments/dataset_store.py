@@ -214,11 +214,12 @@ def parquet_bytes(tables: list[pa.Table], schema: pa.Schema) -> bytes:
 def conform(table: pa.Table, schema: pa.Schema) -> pa.Table:
     """``table`` with exactly ``schema``'s columns: missing ones null (older writers), types cast when safe.
     Unknown columns or impossible casts raise `ValueError` naming the column."""
-    present, expected = table.column_names, set(schema.names)  # each a new list per access: taken once
-    unknown = [name for name in present if name not in expected]
+    names = table.column_names  # pyarrow builds a new list at each .column_names and .names: taken once
+    expected = set(schema.names)
+    unknown = [name for name in names if name not in expected]
     if unknown:
         raise ValueError(f"unknown column {unknown[0]!r}")
-    present = set(present)
+    present = set(names)
     columns = []
     for schema_field in schema:
         if schema_field.name not in present:

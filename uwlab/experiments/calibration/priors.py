@@ -71,7 +71,7 @@ class Prior(Schema):
         """The untruncated scipy.stats random variable."""
         raise NotImplementedError
 
-    def closed_form(self) -> tuple[float, float, float | None]:
+    def _closed_form(self) -> tuple[float, float, float | None]:
         """(mean, σ, constant): the base's ln p inside its support is the normal N(mean, σ²)'s at x (at ln x, less
         ln x, for `log_scale`), or `constant` when that is not None (`JointPrior` evaluates it)."""
         raise NotImplementedError
@@ -103,7 +103,7 @@ class Normal(Prior):
     def base(self):
         return stats.Normal(mu=self.mean, sigma=self.sigma)
 
-    def closed_form(self) -> tuple[float, float, float | None]:
+    def _closed_form(self) -> tuple[float, float, float | None]:
         return self.mean, self.sigma, None
 
 
@@ -116,7 +116,7 @@ class LogNormal(Prior):
     def base(self):
         return stats.exp(stats.Normal(mu=math.log(self.median), sigma=self.sigma))
 
-    def closed_form(self) -> tuple[float, float, float | None]:
+    def _closed_form(self) -> tuple[float, float, float | None]:
         return math.log(self.median), self.sigma, None
 
 
@@ -129,7 +129,7 @@ class Uniform(Prior):
     def base(self):
         return stats.Uniform(a=self.lo, b=self.hi)
 
-    def closed_form(self) -> tuple[float, float, float | None]:
+    def _closed_form(self) -> tuple[float, float, float | None]:
         return 0.0, 1.0, float(-np.log(self.hi - self.lo))
 
 
@@ -141,7 +141,7 @@ class HalfNormal(Prior):
     def base(self):
         return stats.Normal(mu=0.0, sigma=self.sigma)
 
-    def closed_form(self) -> tuple[float, float, float | None]:
+    def _closed_form(self) -> tuple[float, float, float | None]:
         return 0.0, self.sigma, None
 
 
@@ -151,7 +151,7 @@ _LOG_NORMALIZATION = np.log(2 * np.pi) / 2  # ln √(2π)
 class JointPrior:
     """ln p(θ) = Σ_j ln p_j(θ_j) for independent priors p_j, every row of θ (walkers × parameters) at once.
 
-    Each prior is a row of constants (bounds, `Prior.closed_form`, log mass), so a fit's log prior is one numpy pass
+    Each prior is a row of constants (bounds, `Prior._closed_form`, log mass), so a fit's log prior is one numpy pass
     per operation, not one per prior. Inside its support a parameter's term is scipy's evaluation, operation for
     operation (so that a fit's numbers do not move): the normal's −(ln √(2π) + z²/2) − ln σ with z = (y − mean)/σ,
     y = x, or y = ln x plus the change of variables' −ln x (the lognormal), or the uniform's constant; less the
@@ -166,7 +166,7 @@ class JointPrior:
         def column(values, dtype=float) -> np.ndarray:
             return np.array(values, dtype)[:, None]
 
-        forms = [p.closed_form() for p in priors]
+        forms = [p._closed_form() for p in priors]
         self.lo = column([p._bounds[0] for p in priors])
         self.hi = column([p._bounds[1] for p in priors])
         self.closed = column([p.closed for p in priors], bool)
