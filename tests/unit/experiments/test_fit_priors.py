@@ -108,17 +108,7 @@ def scipy_logpdf(prior, x: np.ndarray) -> np.ndarray:
 
 @pytest.mark.parametrize(
     "prior",
-    [
-        Normal(mean=1.0, sigma=0.5),
-        Normal(mean=0.0, sigma=1.0, lo=0.0, hi=2.0),
-        Normal(mean=0.3, sigma=2.0, hi=0.5),
-        LogNormal(median=1.2, sigma=0.4),
-        LogNormal(median=1.2, sigma=0.4, lo=0.5, hi=3.0),
-        LogNormal(median=0.8, sigma=0.2, lo=-1.0),
-        Uniform(lo=0.1, hi=4.0),
-        HalfNormal(sigma=2.0),
-        HalfNormal(sigma=2.0, hi=1.5),
-    ],
+    PRIORS,
     ids=lambda p: p.model_dump_json(),
 )
 def test_the_log_density_is_scipys(prior):
