@@ -9,6 +9,7 @@ import pytest
 
 from uwlab.cli.main import main
 
+from tests.support.cli import one_line_error
 from tests.support.paths import EXAMPLE
 from tests.support.explorer_process import Explorer
 
@@ -27,10 +28,7 @@ def test_serves_the_page_and_the_api_and_stops_on_ctrl_c():
 
 
 def run_error(capsys, *argv) -> str:
-    assert main(["explore", "--no-browser", *argv]) == 2
-    out, err = capsys.readouterr()
-    assert out == "" and err.count("\n") == 1 and "Traceback" not in err
-    return err
+    return one_line_error(capsys, ["explore", "--no-browser", *argv])
 
 
 def test_bad_inputs_are_one_line(capsys, tmp_path):

@@ -18,6 +18,7 @@ from uwlab.sim.devices.serial_sim import SerialRig, SerialSimSettings
 from uwlab.experiments.acquisition.light_calibration import load_light_calibration
 from uwlab.experiments.acquisition.spectra import irradiance_w_m2
 
+from tests.support.cli import one_line_error
 from tests.support.cli_process import read_line, uwlab
 from tests.support.paths import DATA
 
@@ -55,21 +56,14 @@ def run_json(capsys, argv: list[str]) -> dict:
     return json.loads(out)
 
 
-def run_error(capsys, argv: list[str]) -> str:
-    assert main(argv) == 2
-    captured = capsys.readouterr()
-    assert captured.out == "" and captured.err.count("\n") == 1
-    return captured.err
-
-
 def test_light_cli_sets_and_reads_back(rig, capsys):
     port = rig.ports["light"]
     state = run_json(capsys, ["light", "--port", port, "--on", "--level", "0.25", "--json"])
     assert state == {"port": port, "identity": "UWLAB,SIM-LIGHT,0001,1.0", "on": True, "level": 0.25}
     assert RigState(rig.rig_state_path).light.flux_fraction == pytest.approx(0.25**GAMMA)
     assert run_json(capsys, ["light", "--port", port, "--off", "--json"])["on"] is False
-    assert "level = 1.5" in run_error(capsys, ["light", "--port", port, "--level", "1.5"])
-    assert "--port" in run_error(capsys, ["light"])
+    assert "level = 1.5" in one_line_error(capsys, ["light", "--port", port, "--level", "1.5"])
+    assert "--port" in one_line_error(capsys, ["light"])
 
 
 def test_spectrum_cli_measures_and_writes_csv(rig, capsys, tmp_path):
@@ -94,7 +88,7 @@ def test_spectrum_cli_measures_and_writes_csv(rig, capsys, tmp_path):
     assert summary["irradiance_w_m2"] == pytest.approx(60.0, rel=0.01)
     assert len(summary["wavelength_nm"]) == len(summary["irradiance_w_m2_nm"]) == 401
     assert out.read_text().startswith("wavelength_nm,irradiance_w_m2_nm\n")
-    assert "refusing to overwrite" in run_error(
+    assert "refusing to overwrite" in one_line_error(
         capsys, ["spectrum", "--port", rig.ports["spectrometer"], "--out", str(out)]
     )
     # 500 ms: the peak (~0.2 W/m²/nm at 1e6 counts per W/m²/nm/s) exceeds the 65535-count full scale
@@ -106,7 +100,7 @@ def test_spectrum_cli_measures_and_writes_csv(rig, capsys, tmp_path):
     )
     assert main(["spectrum", "--port", rig.ports["spectrometer"], "--integration-ms", "500"]) == 0
     assert "saturated       yes" in capsys.readouterr().out
-    assert "integration_ms" in run_error(
+    assert "integration_ms" in one_line_error(
         capsys, ["spectrum", "--port", rig.ports["spectrometer"], "--integration-ms", "0.1"]
     )
 
@@ -152,12 +146,13 @@ def test_light_calibrate_curve_file_and_no_overwrite(rig, capsys, tmp_path):
     with open_light(rig.ports["light"]) as light:
         assert light.output() is True and light.level() == 0.3
     before = out.read_bytes()
-    assert "refusing to overwrite" in run_error(capsys, argv)
+    assert "refusing to overwrite" in one_line_error(capsys, argv)
     assert out.read_bytes() == before
 
 
 def test_sim_serial_bad_config_is_one_line(capsys, tmp_path):
-    assert str(tmp_path / "none.toml") in run_error(capsys, ["sim", "serial", "--config", str(tmp_path / "none.toml")])
+    missing = str(tmp_path / "none.toml")
+    assert missing in one_line_error(capsys, ["sim", "serial", "--config", missing])
 
 
 def test_sim_serial_subprocess_ports_work_and_sigterm_cleans_up():

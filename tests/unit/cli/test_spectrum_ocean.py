@@ -7,6 +7,7 @@ import json
 import numpy as np
 import pytest
 
+from tests.support.cli import one_line_error
 from tests.support.paths import DATA
 from tests.support.seabreeze_fake import (
     CC3_AREA_CM2,
@@ -35,13 +36,6 @@ def lamp(monkeypatch) -> SimulatedDevice:
 def run_json(capsys, *args: str) -> dict:
     assert main([*BASE, *args, "--json"]) == 0
     return json.loads(capsys.readouterr().out)
-
-
-def one_line_error(capsys, argv: list[str]) -> str:
-    assert main(argv) == 2
-    captured = capsys.readouterr()
-    assert captured.out == "" and captured.err.count("\n") == 1
-    return captured.err
 
 
 def test_json_reading_is_the_lamp(lamp, capsys):
