@@ -24,6 +24,26 @@ def shown(value: object) -> str:
     return text if len(text) <= MAX_SHOWN_CHARS else f"{text[:MAX_SHOWN_CHARS]}… ({len(text)} chars)"
 
 
+def said(exc: BaseException) -> str:
+    """What a library's exception says, for an error line: its message on one line; when the library packed a
+    formatted traceback into the message (pyvisa-sim re-raises a definitions file it cannot read that way), the
+    exception it was handling instead.
+
+    >>> try:
+    ...     try:
+    ...         open("/no/such.yaml")
+    ...     except OSError as exc:
+    ...         raise ValueError("Could not parse. 'Traceback (most recent call last):\\n  File ...'")
+    ... except ValueError as exc:
+    ...     said(exc)
+    "[Errno 2] No such file or directory: '/no/such.yaml'"
+    """
+    text = str(exc)
+    if "Traceback (most recent call last)" in text and exc.__context__ is not None:
+        text = str(exc.__context__)
+    return " ".join(text.split())
+
+
 class ConfigError(UwlabError, ValueError):
     """A configuration key has a wrong, missing or out-of-range value."""
 

@@ -7,6 +7,7 @@ import json
 import sys
 
 from uwlab.drivers.camera import discover
+from uwlab.errors import said
 
 
 def register(subparsers) -> None:
@@ -66,7 +67,7 @@ def _instruments(visa_library: str | None) -> tuple[list, dict[str, str]]:
     try:
         found += visa_resources(visa_library)
     except Exception as exc:  # a VISA library that does not load: reported, the rest still listed
-        missing["visa"] = f"{visa_library or '@py'}: {exc}"
+        missing["visa"] = f"{visa_library or '@py'}: {said(exc)}"
     try:
         found += serial_ports()
     except Exception as exc:

@@ -42,8 +42,14 @@ def test_one_line_each(capsys):
     assert all(line.split()[0] in ("sim", "visa", "serial", "aravis", "harvesters", "no") for line in lines)
 
 
-def test_a_visa_library_that_does_not_load_is_one_line(tmp_path, capsys):
-    assert main(["devices", "--visa-library", str(tmp_path / "no-visa.so"), "--json"]) == 0
+@pytest.mark.parametrize(
+    ("library", "cause"),
+    [("no-visa.so", "cannot open shared object file"), ("no-such.yaml@sim", "No such file or directory")],
+)
+def test_a_visa_library_that_does_not_load_is_one_line(tmp_path, capsys, library, cause):
+    """Reported in one line saying why (pyvisa-sim packs a traceback into its error: the line gives its cause)."""
+    assert main(["devices", "--visa-library", str(tmp_path / library), "--json"]) == 0
     captured = capsys.readouterr()
-    assert [line for line in captured.err.splitlines() if "visa backend unavailable" in line]
+    [line] = [line for line in captured.err.splitlines() if "visa backend unavailable" in line]
+    assert cause in line and "Traceback" not in line, line
     assert any(row["backend"] == "sim" for row in json.loads(captured.out))

@@ -17,7 +17,7 @@ from typing import Any
 
 from uwlab.drivers.instruments.definition import LightDefinition, load_light_definition
 from uwlab.drivers.serial.base import Light, check_level
-from uwlab.errors import ConfigError, DeviceError
+from uwlab.errors import ConfigError, DeviceError, said
 
 TRUE_TOKENS = ("1", "ON")
 FALSE_TOKENS = ("0", "OFF")
@@ -29,7 +29,7 @@ def _open_resource(resource: str, visa_library: str | None, definition: LightDef
     try:
         manager = pyvisa.ResourceManager(visa_library or "@py")
     except (OSError, ValueError, pyvisa.errors.Error) as exc:
-        raise ConfigError("visa-library", visa_library, f"cannot be loaded ({exc})") from None
+        raise ConfigError("visa-library", visa_library, f"cannot be loaded ({said(exc)})") from None
     try:
         handle = manager.open_resource(
             resource,
@@ -40,7 +40,7 @@ def _open_resource(resource: str, visa_library: str | None, definition: LightDef
     except (OSError, ValueError, pyvisa.errors.Error) as exc:
         if not manager.list_opened_resources():
             manager.close()
-        raise ConfigError("resource", resource, f"cannot be opened ({exc})") from None
+        raise ConfigError("resource", resource, f"cannot be opened ({said(exc)})") from None
     return manager, handle
 
 
