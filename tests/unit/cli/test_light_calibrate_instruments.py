@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 import yaml
 
+from tests.support.cli import one_line_error
 from tests.support.paths import CONFIGS, DATA
 from tests.support.seabreeze_fake import CC3_AREA_CM2, SimulatedDevice, fake_seabreeze, lamp_counts_per_s, lamp_w_m2_nm
 from tests.support.seabreeze_fake import optical
@@ -109,7 +110,5 @@ def test_rig_maximum_current_is_full_level(rig, tmp_path, capsys):
 def test_bad_input_is_one_line_nothing_opened_nothing_written(rig, tmp_path, capsys, argv, names):
     _, opened = rig
     out = tmp_path / "led.csv"
-    assert main(["light", "calibrate", *argv, "--out", str(out)]) == 2
-    captured = capsys.readouterr()
-    assert captured.err.count("\n") == 1 and names in captured.err
+    assert names in one_line_error(capsys, ["light", "calibrate", *argv, "--out", str(out)])
     assert not out.exists() and not opened

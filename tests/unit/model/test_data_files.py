@@ -9,17 +9,14 @@ import shutil
 
 import pytest
 
+from tests.support.cli import one_line_error
 from tests.support.paths import EXAMPLE
-from uwlab.cli.main import main
 from uwlab.errors import ConfigError
 from uwlab.model.data import MAX_TOML_BYTES, read_csv_columns, read_toml
 
 
 def design_error(capsys, *args: str) -> str:
-    assert main(["design", *args]) == 2
-    out, err = capsys.readouterr()
-    assert out == "" and err.count("\n") == 1 and "Traceback" not in err
-    return err
+    return one_line_error(capsys, ["design", *args])
 
 
 def test_a_fifo_as_config_is_refused_without_blocking(tmp_path, capsys):
