@@ -71,5 +71,5 @@ def _instruments(visa_library: str | None) -> tuple[list, dict[str, str]]:
     try:
         found += serial_ports()
     except Exception as exc:
-        missing["serial"] = str(exc)
+        missing["serial"] = said(exc)
     return found, missing
