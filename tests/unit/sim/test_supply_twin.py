@@ -11,7 +11,9 @@ import numpy as np
 import pytest
 
 from uwlab.sim.devices.led_load import SHORT_RESISTANCE_OHM, LedLoad, LoadState
+from tests.support.cli import one_line_error
 from uwlab.sim.devices.scpi_parser import header_pattern
+from uwlab.sim.devices.scpi_server import MAX_LINE_BYTES, LineSplitter
 from uwlab.sim.devices.supply import DIALECTS, SupplyTwin
 
 LED = LedLoad()
@@ -341,3 +343,23 @@ def test_idn_is_settable_with_four_fields():
     assert SupplyTwin("scpi", idn=idn).handle("*IDN?") == idn
     with pytest.raises(ValueError):
         SupplyTwin("scpi", idn="just one field")
+
+
+def test_an_overlong_line_is_recorded_refused_and_the_next_line_answered():
+    twin = SupplyTwin("scpi")
+    splitter = LineSplitter(twin)
+    assert splitter.feed(b"X" * (MAX_LINE_BYTES + 10)) == b""
+    assert splitter.feed(b"YYY\n*IDN?\r\n") == twin.idn.encode() + b"\n"
+    assert twin.received == [f"<line longer than {MAX_LINE_BYTES} bytes>", "*IDN?"]
+    assert twin.handle("SYST:ERR?").startswith("-223,")
+
+
+@pytest.mark.parametrize(
+    ("argv", "named"),
+    [
+        (["sim", "supply", "--tcp", "70000"], "tcp"),
+        (["sim", "supply", "--idn", "only,three,fields"], "idn"),
+    ],
+)
+def test_cli_bad_input_is_one_line(capsys, argv, named):
+    assert named in one_line_error(capsys, argv)

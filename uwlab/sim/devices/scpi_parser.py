@@ -156,7 +156,9 @@ class ErrorQueue:
 
 def split_units(line: str) -> list[str]:
     """A program message split into its units at the ``;`` outside quoted strings."""
-    units, current, quote = [], [], ""
+    units: list[str] = []
+    current: list[str] = []
+    quote = ""
     for char in line:
         if quote:
             quote = "" if char == quote else quote
