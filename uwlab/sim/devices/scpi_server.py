@@ -6,8 +6,10 @@
 - ``"pty"``: a serial line on a real pseudo-terminal (`uwlab.sim.devices.serial_sim.PtyPort`, raw mode), as an RS-232
   or USB-serial instrument is reached; VISA resource ``ASRL/dev/pts/N::INSTR`` (pyvisa-py with pyserial).
 
-Lines end with ``\\n`` (a ``\\r`` before it is ignored); a line longer than `MAX_LINE_BYTES` is dropped, recorded
-as ``<line longer than N bytes>`` and answered with nothing (the instrument queues ``-223``, too much data).
+Lines end with ``\\n``; each reaches the instrument as received, byte for byte (decoded as Latin-1, so
+``line.encode("latin-1")`` gives the bytes back; a ``\\r`` before the ``\\n`` is kept). A line longer than
+`MAX_LINE_BYTES` is dropped, recorded as ``<line longer than N bytes>`` and answered with nothing (the instrument
+queues ``-223``, too much data).
 The instrument is anything with ``handle(line) -> str | None`` (`uwlab.sim.devices.supply.SupplyTwin`).
 """
 
@@ -54,7 +56,7 @@ class LineSplitter:
                 self._skipping = False
                 self.instrument.overlong(MAX_LINE_BYTES)
                 continue
-            reply = self.instrument.handle(raw.decode("ascii", "replace").removesuffix("\r"))
+            reply = self.instrument.handle(raw.decode("latin-1"))
             if reply is not None:
                 replies.append(reply.encode("ascii", "replace") + b"\n")
         if len(self._buffer) > MAX_LINE_BYTES:

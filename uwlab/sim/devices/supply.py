@@ -51,12 +51,13 @@ give, e.g. DP832 "0.05 % + 2 mA", E36103A "0.1 % + 2 mA").
   switches the output off and queues ``-300,"Device-specific error; LED open"`` (assumed: the manual found lists
   the register bits, not this code); a compliance-limited LED sets LEDV (bit 1).
 
-**Faults and what tests see**: `SupplyTwin.set_fault` (``"open"``, ``"short"``, None), `SupplyTwin.trip`
-(``"ovp"``/``"ocp"``, a protection trip: output off, the flag latched), `SupplyTwin.voltage_limit_v` (the voltage
-setpoint of a CV/CC supply, the compliance voltage of the DC2200: a limit below the LED's forward voltage leaves it
-in CV below the requested current), all safe from another thread; `SupplyTwin.received` lists every line received
-(raw, without its ``\\n``). `serve` puts a twin on the wire (TCP on the loopback or a pseudo-terminal) and yields its
-VISA resource string.
+**Faults and what tests see**: `SupplyTwin.set_fault` (``"open"``, ``"short"``, None); `SupplyTwin.trip`
+(``"ovp"``/``"ocp"``, a protection trip: output off, the flag latched until the manual's clear command, or ``*RST``
+on the DC2200, which has none); `SupplyTwin.voltage_limit_v` (the voltage setpoint of a CV/CC supply, the
+compliance voltage of the DC2200: a limit below the LED's forward voltage leaves it in CV below the requested
+current); all safe from another thread. `SupplyTwin.received` lists every line received (raw: without its ``\\n``,
+bytes as Latin-1 characters). `serve` puts a twin on the wire (TCP on the loopback or a pseudo-terminal) and
+yields its VISA resource string.
 """
 
 from __future__ import annotations
@@ -217,7 +218,7 @@ class SupplyTwin:
                 return OperatingPoint(0.0, 0.0, "OFF")
             if self.dialect == "thorlabs-dc2200":
                 if self.dc2200_mode != "CC":
-                    return OperatingPoint(0.0, 0.0, "CV")
+                    return OperatingPoint(0.0, 0.0, "OFF")
                 if self._load.fault == "open":
                     self.output_on = False
                     self.errors.push(ScpiError(-300, "LED open"))
@@ -245,7 +246,7 @@ class SupplyTwin:
 
     # ------------------------------------------------------------------ wire
     def handle(self, line: str) -> str | None:
-        """Record ``line`` (raw, without its ``\\n``) and run it; the response line or None."""
+        """Record ``line`` (raw: without its ``\\n``, with any ``\\r``) and run it; the response line or None."""
         with self._lock:
             self.received.append(line)
             return execute(self._commands, self.errors, line.strip())

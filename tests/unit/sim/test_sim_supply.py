@@ -350,7 +350,7 @@ def test_an_overlong_line_is_recorded_refused_and_the_next_line_answered():
     splitter = LineSplitter(twin)
     assert splitter.feed(b"X" * (MAX_LINE_BYTES + 10)) == b""
     assert splitter.feed(b"YYY\n*IDN?\r\n") == twin.idn.encode() + b"\n"
-    assert twin.received == [f"<line longer than {MAX_LINE_BYTES} bytes>", "*IDN?"]
+    assert twin.received == [f"<line longer than {MAX_LINE_BYTES} bytes>", "*IDN?\r"]  # raw, as received
     assert twin.handle("SYST:ERR?").startswith("-223,")
 
 
