@@ -106,6 +106,20 @@ def test_mode_changes_at_the_forward_voltage_of_the_set_current(dialect):
         assert twin.point().mode == mode
 
 
+def test_every_operating_point_lies_on_the_led_curve_within_both_setpoints():
+    """Over a grid of setpoints: the point is on the LED's closed-form curve, within both limits, and pinned at one."""
+    twin = SupplyTwin("scpi")
+    for voltage_v in np.linspace(0.0, 4.0, 41):
+        for current_a in (0.05, 0.35, 1.0, 2.0):
+            drive(twin, round(float(voltage_v), 3), current_a)
+            point = twin.point()
+            assert point.voltage_v <= twin.voltage_set_v + 1e-9 and point.current_a <= current_a + 1e-12
+            if point.current_a > 0:
+                assert LED.voltage_v(point.current_a) == pytest.approx(point.voltage_v, abs=1e-9)
+            pinned = {"CC": point.current_a == current_a, "CV": point.voltage_v == twin.voltage_set_v}
+            assert pinned[point.mode]
+
+
 @pytest.mark.parametrize("dialect", SUPPLIES)
 def test_zero_volts_is_constant_voltage_with_no_current(dialect):
     twin = SupplyTwin(dialect)
@@ -325,6 +339,14 @@ def test_several_units_in_one_line_answer_in_one_line():
     twin = SupplyTwin("scpi")
     assert twin.handle("*RST;VOLT 5;CURR 0.5;OUTP ON;OUTP?;CURR?") == "1;5.000000E-01"
     assert twin.received == ["*RST;VOLT 5;CURR 0.5;OUTP ON;OUTP?;CURR?"]
+
+
+def test_a_unit_continues_the_previous_units_path():
+    twin = SupplyTwin("rigol-dp800")
+    twin.handle(":OUTP:OVP:VAL CH1,12;STAT CH1,ON;*CLS;VAL? CH1")
+    assert (twin.ovp_v, twin.ovp_on) == (12.0, True)
+    assert twin.handle(":OUTP:OVP:VAL? CH1;:OUTP:OVP? CH1") == "12.000;ON"
+    assert twin.handle("SYST:ERR?") == '0,"No error"'
 
 
 def test_measurements_are_seeded_and_within_a_tenth_of_a_percent():

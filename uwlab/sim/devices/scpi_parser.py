@@ -6,9 +6,11 @@ Written from SCPI-1999 Volume 1 (SCPI Consortium, "Standard Commands for Program
   a parser accepts exactly those two, in any case (``CURR``, ``curr``, ``Current``; not ``CURRE``); nodes in square
   brackets are optional; a numeric suffix of 1 may be omitted (``SOURce[1]``, ``OUTPut[1]``). A leading ``:`` names
   the root.
-- §6.2.3 (and IEEE 488.2 §7.1): several program message units in one message are separated by ``;``; each unit here
-  is parsed from the root, as if it began with ``:`` (what a sender that always writes full headers gets from any
-  parser); the responses to the queries among them are returned in one line separated by ``;``.
+- §6.2.3 (and IEEE 488.2 §7.1): several program message units in one message are separated by ``;``. A unit that
+  does not begin with ``:`` or ``*`` continues the previous unit's path (``OUTP:OVP:VAL 3;STAT ON`` sets
+  ``OUTP:OVP:STAT``); common commands (``*...``) leave the path alone. Where the path gives no known header the unit
+  is tried from the root too (lenient, as many instruments are). The responses to the queries among the units are
+  returned in one line separated by ``;``.
 - §7 "Parameters" (and IEEE 488.2 §7.7): numeric values in decimal or exponent form, with an optional unit suffix
   (``V``, ``mV``, ``A``, ``mA``), or ``MINimum``/``MAXimum``/``DEFault``; booleans ``ON``/``OFF``/``1``/``0``.
 - Volume 2 §21.8 (``SYSTem:ERRor[:NEXT]?``) and IEEE 488.2 §11.5: a first-in first-out error queue; when it is full
@@ -189,12 +191,17 @@ def execute(commands: list[Command], queue: ErrorQueue, line: str) -> str | None
     A command error (-1xx) discards the rest of the message, as IEEE 488.2 §6.1.6.1.1 has a parser do; an
     execution error (-2xx, -3xx) is queued and the next unit runs."""
     responses = []
+    path = ""
     for unit in split_units(line):
         header, arguments = split_unit(unit)
-        command = next((c for c in commands if c.pattern.match(header)), None)
+        tried = [header] if header.startswith((":", "*")) or not path else [f"{path}:{header}", header]
+        found = next(((h, c) for h in tried for c in commands if c.pattern.match(h)), None)
         try:
-            if command is None:
+            if found is None:
                 raise ScpiError(-113, header[:32])
+            matched, command = found
+            if not matched.startswith("*"):
+                path = matched.lstrip(":").rpartition(":")[0]
             response = command.handler(arguments)
         except ScpiError as error:
             queue.push(error)
