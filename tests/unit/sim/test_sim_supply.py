@@ -5,6 +5,7 @@ the manuals' command sets and status bits (cited in uwlab/sim/devices/supply.py)
 
 from __future__ import annotations
 
+import socket
 import threading
 
 import numpy as np
@@ -385,3 +386,11 @@ def test_an_overlong_line_is_recorded_refused_and_the_next_line_answered():
 )
 def test_cli_bad_input_is_one_line(capsys, argv, named):
     assert named in one_line_error(capsys, argv)
+
+
+def test_cli_busy_port_is_one_line(capsys):
+    with socket.socket() as taken:
+        taken.bind(("127.0.0.1", 0))
+        taken.listen()
+        port = taken.getsockname()[1]
+        assert f"127.0.0.1:{port}" in one_line_error(capsys, ["sim", "supply", "--tcp", str(port)])
