@@ -46,6 +46,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "report": ("uwlab.cli.report", "write the HTML validation report of a directory"),
     "demo": ("uwlab.cli.demo", "run the paper's tank campaign on the simulated rig, fit, validate, report"),
     "port": ("uwlab.cli.port", "exact port optics and focusing aids; port calibration from images"),
+    "mtf": ("uwlab.cli.mtf", "slanted-edge MTF (ISO 12233 e-SFR) of the edges in an image"),
 }
 
 

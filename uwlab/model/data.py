@@ -31,10 +31,9 @@ MAX_CSV_BYTES = 100_000_000
 MAX_ABS_VALUE = 1e15
 
 
-def read_text(path: Path, key: str, max_bytes: int, kind: str) -> str:
-    """The UTF-8 text of a regular file of at most ``max_bytes``: a directory, a device (``/dev/zero``), a FIFO
-    (which would block), an oversized or non-UTF-8 file is a `ConfigError` naming ``key`` and the file, before it is
-    read."""
+def read_bytes(path: Path, key: str, max_bytes: int, kind: str) -> bytes:
+    """The bytes of a regular file of at most ``max_bytes``: a directory, a device (``/dev/zero``), a FIFO (which
+    would block) or an oversized file is a `ConfigError` naming ``key`` and the file, before it is read."""
     path = Path(path)
     try:
         info = os.stat(path)
@@ -51,11 +50,17 @@ def read_text(path: Path, key: str, max_bytes: int, kind: str) -> str:
             key, str(path), f"{info.st_size} bytes: larger than any {kind} file uwlab reads ({max_bytes} bytes)"
         )
     try:
-        data = path.read_bytes()
+        return path.read_bytes()
     except PermissionError:
         raise ConfigError(key, str(path), "cannot be read (permission denied)") from None
     except OSError as exc:
         raise ConfigError(key, str(path), f"cannot be read ({exc.strerror})") from None
+
+
+def read_text(path: Path, key: str, max_bytes: int, kind: str) -> str:
+    """The UTF-8 text of a regular file of at most ``max_bytes`` (`read_bytes`' checks); a non-UTF-8 file is a
+    `ConfigError` naming ``key`` and the file."""
+    data = read_bytes(path, key, max_bytes, kind)
     try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
