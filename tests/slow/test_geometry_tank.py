@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from uwlab.experiments.geometry import validate_tank_geometry
+from uwlab.experiments.geometry.tank import validate_tank_geometry
 from uwlab.model import port
 from uwlab.sim.edge_chart import TankOptics
 

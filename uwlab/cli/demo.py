@@ -93,6 +93,9 @@ def run(args) -> int:
             f"  {row['sweep_id']:<18} held out: median error {100 * row['median_abs_rel_error']:.2f} %, "
             f"{100 * row['inside_95']:.0f} % inside"
         )
+    geometry = summary.get("geometry")
+    if geometry:
+        print(f"geometry: {'adequate' if geometry['adequate'] else 'NOT adequate'} ({geometry['headline']})")
     for note in summary["warnings"]:
         print(f"warning: {note}")
     print(summary["report"])

@@ -17,7 +17,10 @@
 4. Calibrate the chosen chain (``paper`` or ``extended``) against the tank sweeps, with posterior predictive checks,
    held-out configurations and the verdict (`uwlab.experiments.calibration.pipeline`); with the characterised
    sensors (``uwlab fit --sensor``) unless ``sensors = "profile"`` (the hand-written profiles, a linear response).
-5. Write ``report.html`` and ``summary.json`` (the verdict, per parameter truth, median and interval, the held-out
+5. Measure the geometry meanwhile, in a process of its own (`uwlab.experiments.geometry.tank`): a slanted edge
+   through the 12 mm F4.0 lens, focus and board distance stepped, MTF50, best focus and depth of field against the
+   model, into ``geometry/``.
+6. Write ``report.html`` and ``summary.json`` (the verdict, per parameter truth, median and interval, the held-out
    table and coverage, warnings).
 """
 
@@ -26,6 +29,8 @@ from __future__ import annotations
 import numpy as np
 import json
 from collections import Counter
+import subprocess
+import sys
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
@@ -34,7 +39,7 @@ import tomli_w
 
 from uwlab.model.config import design_sections
 from uwlab.sim.world import PRESETS, world_settings
-from uwlab.errors import ConfigError
+from uwlab.errors import ConfigError, UwlabError
 from uwlab.experiments.acquisition.plan import load_plan, resolved_rig
 from uwlab.experiments.acquisition.sim_rig import SimRig
 from uwlab.experiments.acquisition.sweep import SweepRunner
@@ -44,6 +49,7 @@ from uwlab.experiments.calibration.pipeline import assess, calibrate
 from uwlab.experiments.calibration.simulate import simulate_campaign
 from uwlab.experiments.calibration.validation import default_folds
 from uwlab.experiments.dataset import Dataset
+from uwlab.experiments.geometry import GEOMETRY_FILE
 from uwlab.experiments.report import write_report
 from uwlab.model.data import config_dir, read_toml, resolve_path
 from uwlab.model.build import build_design
@@ -73,6 +79,13 @@ def demo_summary(calibration_summary: dict, report: Path) -> dict:
         "not_separable": calibration_summary["not_separable"],
         "report": str(report),
     }
+
+
+def geometry_summary(directory: Path) -> dict:
+    """The geometry validation's verdict and figures for summary.json (`uwlab.experiments.geometry`)."""
+    doc = json.loads((directory / GEOMETRY_FILE).read_text())
+    keep = ("adequate", "headline", "lens", "worst_mtf50_error", "best_focus_measured_m", "best_focus_predicted_m")
+    return {key: doc[key] for key in (*keep, "focus_step_m", "dof_measured_m", "dof_model_m", "dof_depth_errors")}
 
 
 def target_tally(summaries: list[dict]) -> dict:
@@ -231,16 +244,35 @@ def run_demo(
         SimRig(plan.rig_path, seed=seed) as rig,
     ):
         SweepRunner(plan, dataset, rig, sweep_progress).run()
-    characterised = characterise_cameras(plan, out / "emva", seed) if sensors == "emva" else {}
-    calibration = calibrate(
-        out / "dataset",
-        None,
-        out / "fit",
-        progress=fit_progress,
-        model=model,
-        sensors=[f"{camera}={path}" for camera, path in characterised.items()],
+    # The geometry (MTF, focus, depth of field) is measured on the other core while the cameras are characterised
+    # and the fit runs: its own process (python -m), never a child re-running the caller's script.
+    geometry = subprocess.Popen(
+        [sys.executable, "-m", "uwlab.experiments.geometry.tank", "--out", str(out / "geometry")]
+        + ["--rig", str(plan.rig_path), "--seed", str(seed)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
     )
+    try:
+        characterised = characterise_cameras(plan, out / "emva", seed) if sensors == "emva" else {}
+        calibration = calibrate(
+            out / "dataset",
+            None,
+            out / "fit",
+            progress=fit_progress,
+            model=model,
+            sensors=[f"{camera}={path}" for camera, path in characterised.items()],
+        )
+        _, errors = geometry.communicate()
+    finally:
+        if geometry.poll() is None:
+            geometry.kill()
+            geometry.wait()
+    if geometry.returncode != 0:
+        last = (errors or "").strip().splitlines()[-1:] or [f"exit code {geometry.returncode}"]
+        raise UwlabError(f"the geometry validation failed: {last[0]}")
     report = write_report(out, out / "report.html")
     summary = demo_summary(calibration.summary, report)
+    summary["geometry"] = geometry_summary(out / "geometry")
     (out / "summary.json").write_text(json.dumps(summary, indent=2) + "\n")
     return summary

@@ -22,6 +22,7 @@ from jinja2 import Environment, PackageLoader, StrictUndefined
 
 from uwlab.errors import UwlabError
 from uwlab.experiments.dataset import read_metadata
+from uwlab.experiments.geometry import GEOMETRY_FIGURE, GEOMETRY_FILE
 from uwlab.experiments.figures import LABEL_PT, PALETTE, TICK_PT, Figure, figure_png, number_text, png_data_uri
 from uwlab.outputs import MANIFEST_FILE, METADATA_FILE, output_file
 from uwlab.experiments.calibration.adequacy import SWEPT_LABELS
@@ -435,6 +436,50 @@ def _emva(path: Path) -> dict:
     return {"path": str(path), "rows": rows, "images": images}
 
 
+def _geometry(path: Path) -> dict:
+    """The geometry section: `uwlab.experiments.geometry`'s verdict, its comparison table and figure."""
+    doc = json.loads((path / GEOMETRY_FILE).read_text())
+    near, far = doc["dof_measured_m"]
+    model_near, model_far = doc["dof_model_m"]
+    near_error, far_error = doc["dof_depth_errors"]
+    rows = [
+        {
+            "quantity": "MTF50, worst over both sweeps",
+            "measured": f"within {_percent(doc['worst_mtf50_error'])} of the model",
+            "model": "—",
+            "target": f"≤ {_percent(doc['tolerances']['mtf50'], 0)}",
+        },
+        {
+            "quantity": "best focus setting",
+            "measured": f"{doc['best_focus_measured_m']:.4f} m",
+            "model": f"{doc['best_focus_predicted_m']:.4f} m",
+            "target": f"within one step ({doc['focus_step_m'] * 1e3:.1f} mm)",
+        },
+        {
+            "quantity": "depth of field, near limit",
+            "measured": f"{near:.4f} m",
+            "model": f"{model_near:.4f} m",
+            "target": f"depth within {_percent(doc['tolerances']['depth'], 0)} ({near_error * 100:+.1f} %)",
+        },
+        {
+            "quantity": "depth of field, far limit",
+            "measured": f"{far:.4f} m",
+            "model": f"{model_far:.4f} m",
+            "target": f"depth within {_percent(doc['tolerances']['depth'], 0)} ({far_error * 100:+.1f} %)",
+        },
+    ]
+    figure = path / GEOMETRY_FIGURE
+    return {
+        "path": str(path),
+        "adequate": doc["adequate"],
+        "headline": doc["headline"],
+        "lens": doc["lens"],
+        "criterion": _number(doc["criterion_mtf50_cy_per_px"], 3),
+        "rows": rows,
+        "image": _img(figure) if figure.exists() else None,
+    }
+
+
 def _provenance(path: Path, metadata: dict) -> dict:
     rigs = metadata.get("rigs") or {}
     devices = [
@@ -489,7 +534,8 @@ def write_report(root: str | Path, out: str | Path, *, replace: bool = False) ->
     datasets = _find(root, METADATA_FILE, MANIFEST_FILE)
     calibrations = _find(root, "summary.json", "samples.parquet")
     emva = _find(root, "emva.json")
-    if not (datasets or calibrations or emva):
+    geometry = _find(root, GEOMETRY_FILE)
+    if not (datasets or calibrations or emva or geometry):
         raise UwlabError(f"{root}: no dataset, calibration or EMVA characterisation found; {_what_is_here(root)}")
     metadata = [(d, read_metadata(d)[0]) for d in datasets]
     environment = Environment(
@@ -507,6 +553,7 @@ def write_report(root: str | Path, out: str | Path, *, replace: bool = False) ->
         world=_world(metadata[0][1]) if metadata else None,
         bench_hints=[] if emva else [_bench_hint(d) for d, m in metadata if _has_bench(m)],
         emva=[_emva(e) for e in emva],
+        geometry=[_geometry(g) for g in geometry],
         provenance=[_provenance(d, m) for d, m in metadata],
     )
     out.write_text(html)

@@ -23,6 +23,7 @@ Electrons: the dark and bright sides give ``dark_e`` and ``bright_e``; Poisson s
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -64,13 +65,18 @@ class TankOptics:
         return 1.0 / (1.0 / self.focal_length_m - 1.0 / apparent_m)
 
 
-def _airy_radii(rng: np.random.Generator, n: int, wavelength_m: float, f_number: float) -> np.ndarray:
-    """Radii (m) drawn from the Airy pattern by inverting its encircled energy on a table out to 60 dark rings."""
+@functools.cache
+def _encircled_energy() -> tuple[np.ndarray, np.ndarray]:
+    """The Airy pattern's encircled energy 1 − J₀²(x) − J₁²(x) on x = π r/(λN) out to 60 dark rings (normalised)."""
     x = np.linspace(0.0, 200.0, 200_001)
     energy = 1.0 - j0(x) ** 2 - j1(x) ** 2
-    energy = np.maximum.accumulate(energy) / energy[-1]
-    radii_x = np.interp(rng.random(n), energy, x)
-    return radii_x * wavelength_m * f_number / np.pi
+    return x, np.maximum.accumulate(energy) / energy[-1]
+
+
+def _airy_radii(rng: np.random.Generator, n: int, wavelength_m: float, f_number: float) -> np.ndarray:
+    """Radii (m) drawn from the Airy pattern by inverting its encircled energy."""
+    x, energy = _encircled_energy()
+    return np.interp(rng.random(n), energy, x) * wavelength_m * f_number / np.pi
 
 
 def normal_displacements_px(
@@ -133,9 +139,11 @@ def render_edge(
     y = np.arange(rows)[:, None, None, None] + offsets[None, None, :, None]
     x = np.arange(cols)[None, :, None, None] + offsets[None, None, None, :]
     d = (x - cols / 2.0) * normal[0] + (y - rows / 2.0) * normal[1]
-    # The chart is bright where d + X > 0 for the point that lands here: fraction of samples with X > −d.
-    bright = 1.0 - np.searchsorted(displacement, -d.ravel(), side="right") / displacement.size
-    fraction = bright.reshape(rows, cols, SUBPIXELS * SUBPIXELS).mean(axis=2)
+    # The chart is bright where d + X > 0 for the point that lands here: the fraction of samples with X > −d,
+    # tabulated on a fine grid of d (1/64 px) and interpolated at each sub-pixel point.
+    grid = np.arange(d.min() - 1.0, d.max() + 1.0, 1.0 / 64)
+    edge_spread = 1.0 - np.searchsorted(displacement, -grid, side="right") / displacement.size
+    fraction = np.interp(d, grid, edge_spread).reshape(rows, cols, SUBPIXELS * SUBPIXELS).mean(axis=2)
     electrons = rng.poisson(dark_e + (bright_e - dark_e) * fraction).astype(np.float64)
     electrons += rng.normal(0.0, dark_noise_e, electrons.shape)
     dn = np.round(offset_dn + k_dn_per_e * electrons)
