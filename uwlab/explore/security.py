@@ -86,7 +86,7 @@ def is_loopback(host: str) -> bool:
 
 def host_name(header: str) -> str | None:
     """The host of a ``Host`` header (``host[:port]``, RFC 9110 §7.2 with RFC 3986 §3.2.2–3.2.3), lower case, an
-    IPv6 address without its brackets; None when the header is not of that form (an empty port is refused too).
+    IPv6 address without its brackets, compressed; None when the header is not of that form (an empty port is refused too).
 
     >>> host_name("LocalHost:8050"), host_name("[::1]:8050"), host_name("example.org")
     ('localhost', '::1', 'example.org')
@@ -97,9 +97,9 @@ def host_name(header: str) -> str | None:
         end = header.find("]")
         if end < 0:
             return None
-        host, port = header[1:end], header[end + 1 :]
+        port = header[end + 1 :]
         try:
-            ipaddress.IPv6Address(host)
+            host = str(ipaddress.IPv6Address(header[1:end]))
         except ValueError:
             return None
     else:
