@@ -133,8 +133,9 @@ def absolute_paths(raw: dict, base_dir: Path) -> dict:
     for dotted in FILE_KEYS:
         section, _, key = dotted.partition(".")
         body = out.get(section)
-        value = body.get(key) if isinstance(body, dict) else None
-        if isinstance(value, str) and named_file(dotted, value, base_dir) == base_dir / value != Path(value):
+        if not isinstance(body, dict) or not isinstance(value := body.get(key), str):
+            continue
+        if named_file(dotted, value, base_dir) == base_dir / value != Path(value):
             body[key] = str(base_dir / value)
     return out
 

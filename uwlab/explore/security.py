@@ -86,7 +86,8 @@ def is_loopback(host: str) -> bool:
 
 def host_name(header: str) -> str | None:
     """The host of a ``Host`` header (``host[:port]``, RFC 9110 §7.2 with RFC 3986 §3.2.2–3.2.3), lower case, an
-    IPv6 address without its brackets, compressed; None when the header is not of that form (an empty port is refused too).
+    IPv6 address without its brackets, compressed; None when the header is not of that form (an empty port, which
+    RFC 3986 allows but no client sends, is refused too).
 
     >>> host_name("LocalHost:8050"), host_name("[::1]:8050"), host_name("example.org")
     ('localhost', '::1', 'example.org')
