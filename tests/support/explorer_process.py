@@ -1,5 +1,7 @@
 """`uwlab explore` as a real process on 127.0.0.1 for the tests: started with ``--json --port 0 --no-browser``,
-its URL read from the first line, stopped with Ctrl-C (SIGINT)."""
+its URL read from the first line, stopped with Ctrl-C (SIGINT); and the hostile-request campaign run against it
+(planted secret files and the probes naming them, raw requests, held connections), shared by
+tests/integration/test_explore_hostile.py and benchmarks/hostile_requests.py."""
 
 from __future__ import annotations
 
