@@ -39,6 +39,8 @@ def test_bad_inputs_are_one_line(capsys, tmp_path):
     assert "--port" in run_error(capsys, str(EXAMPLE), "--port", "70000")
     assert "--host" in run_error(capsys, str(EXAMPLE), "--host", "no.such.host.invalid")
     assert "profile" in run_error(capsys, str(EXAMPLE), "--profile", str(EXAMPLE))
+    assert "--token" in run_error(capsys, str(EXAMPLE), "--token", "abcdefgh; Domain=evil")
+    assert "--allow-host" in run_error(capsys, str(EXAMPLE), "--allow-host", "lab-pc:80@evil.example")
 
 
 def test_a_busy_port_is_one_line(capsys):
@@ -66,3 +68,24 @@ def test_url_line(argv, capsys, monkeypatch):
         assert list(json.loads(out)) == ["url"]
     else:
         assert out.startswith("uwlab explore: ") and "http://127.0.0.1:" in out
+
+
+def test_the_url_printed_for_a_wildcard_address_answers(capsys, monkeypatch):
+    """--host 0.0.0.0 prints the loopback with the token (the wildcard is no address a browser may name), and the
+    application the server was given serves that URL."""
+    import uvicorn
+    from starlette.testclient import TestClient
+
+    served = {}
+
+    async def started_then_stopped(self, sockets):
+        served["app"] = self.config.app
+        self.started = True
+        sockets[0].close()
+
+    monkeypatch.setattr(uvicorn.Server, "serve", started_then_stopped)
+    assert main(["explore", str(EXAMPLE), "--no-browser", "--json", "--port", "0", "--host", "0.0.0.0"]) == 0
+    url = json.loads(capsys.readouterr().out)["url"]
+    assert url.startswith("http://127.0.0.1:") and "?token=" in url
+    with TestClient(served["app"], base_url=url.split("?")[0]) as client:
+        assert client.get(url).status_code == 200

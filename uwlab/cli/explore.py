@@ -85,13 +85,21 @@ def _listen(host: str, port: int) -> socket.socket:
     return sock
 
 
+def _reachable(host: str) -> str:
+    """The host of the printed URL: a wildcard address (any interface) is not one a browser may ask for, its
+    loopback is (and is always allowed, `uwlab.explore.security`); an IPv6 address in brackets."""
+    host = {"0.0.0.0": "127.0.0.1", "::": "::1"}.get(host, host)
+    return f"[{host}]" if ":" in host else host
+
+
 def run(args) -> int:
     import uvicorn
 
     from uwlab.explore.app import create_app
     from uwlab.explore.catalog import Catalog
     from uwlab.explore.inputs import load_served
-    from uwlab.explore.security import Access, is_loopback
+    from uwlab.explore.security import TOKEN, Access, host_name, is_loopback
+    from uwlab.explore.server import server_config
 
     served = load_served(args.config or config_dir() / "design" / "example.toml")
     catalog = Catalog()
@@ -101,13 +109,15 @@ def run(args) -> int:
         if not Path(folder).expanduser().is_dir():
             raise ConfigError("--data-dir", folder, "not a directory")
     served = served.with_roots(*args.profile, *args.data_dir)
-    if args.token is not None and len(args.token) < 8:
-        raise ConfigError("--token", args.token, "too short (at least 8 characters)")
+    if args.token is not None and not TOKEN.fullmatch(args.token):
+        raise ConfigError("--token", args.token, "must be 8 to 256 characters of A-Z a-z 0-9 - . _ ~")
+    for name in args.allow_host:
+        if host_name(name) is None:
+            raise ConfigError("--allow-host", name, "not a host name or address (RFC 3986)")
     access = Access.for_server(args.host, args.allow_host, args.token)
     sock = _listen(args.host, args.port)
     host, port = sock.getsockname()[:2]
-    shown = f"[{host}]" if ":" in host else host
-    url = f"http://{shown}:{port}/" + (f"?token={access.token}" if access.token else "")
+    url = f"http://{_reachable(host)}:{port}/" + (f"?token={access.token}" if access.token else "")
     if not is_loopback(args.host):
         print(
             f"uwlab explore: warning: listening on {args.host}, beyond this machine; anyone who can reach it "
@@ -115,7 +125,7 @@ def run(args) -> int:
             file=sys.stderr,
         )
     server = uvicorn.Server(
-        uvicorn.Config(create_app(served, catalog, access), log_level="warning", access_log=False, lifespan="off")
+        server_config(create_app(served, catalog, access), log_level="warning", access_log=False, lifespan="off")
     )
 
     async def serve() -> None:

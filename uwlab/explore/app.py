@@ -43,6 +43,7 @@ from uwlab.explore.security import Access, Guard
 from uwlab.explore.studies import solve_answer, sweep_answer
 from uwlab.jsonable import dumps, to_jsonable
 from uwlab.model.build import build_design
+from uwlab.model.data import resolve_path
 from uwlab.model.evaluation import evaluate
 from uwlab.model.sensor import available_profiles
 
@@ -186,8 +187,9 @@ def create_app(served: Served, catalog: Catalog | None = None, access: Access | 
     def _load(body) -> dict:
         if not isinstance(body, dict):
             raise ConfigError("request", body, "must be a JSON object")
-        raw = absolute_paths(read_toml_text(body.get("toml"), str(body.get("name", "uploaded file"))), served.base_dir)
+        raw = read_toml_text(body.get("toml"), str(body.get("name", "uploaded file")))
         check_files(raw, served)
+        raw = absolute_paths(raw, served.base_dir)
         build_design(raw, served.base_dir)
         return {"text": field_texts(raw)}
 
@@ -199,7 +201,7 @@ def create_app(served: Served, catalog: Catalog | None = None, access: Access | 
         body = await _body(request)
         if not isinstance(body, dict) or not isinstance(body.get("path"), str):
             raise ConfigError("path", body, 'give {"path": "/path/to/profile.toml"}')
-        path = served.readable(body["path"])
+        path = served.readable(resolve_path(body["path"], served.base_dir))
         if path is None:
             raise ConfigError("path", body["path"], OUTSIDE_ROOTS)
         section, preset = await run_in_threadpool(catalog.add_profile, path)

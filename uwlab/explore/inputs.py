@@ -14,10 +14,14 @@ turns a config into those texts (and a shareable URL's query). Relative file nam
 the served config's folder (an uploaded TOML has no folder of its own); files named relative to the served config
 are made absolute when it is loaded, so a saved design names the same files wherever it is saved.
 
-Files a request may name (`check_files`): only regular files of at most `MAX_FILE_BYTES` inside the explorer's
-roots — ``configs/``, the served config's folder, the ``--data-dir`` folders and the ``--profile`` files. Any
-other path is refused with the same line whether or not it exists, so a request learns nothing of the machine's
-files.
+Files a request may name (`Served.readable`, the explorer's one file boundary): only regular files of at most
+`MAX_FILE_BYTES` inside the explorer's roots — ``configs/``, the served config's folder, the ``--data-dir`` folders
+and the ``--profile`` files. Every value that names a file passes it before anything is opened: the file-valued
+keys of a design (`FILE_KEYS`, `check_files`; a sensor profile named with or without ``.toml``, as the model reads
+it, `uwlab.model.sensor.profile_path`), each value of a sweep's grid over one of them (`check_file`) and the path of
+``/api/profile``. The check is on the file the model would open (`named_file`), after links, ``.``/``..`` and
+trailing separators are resolved. Any other path is refused with the same line whether or not it exists, so a
+request learns nothing of the machine's files, and no refused file is opened, so none is quoted.
 """
 
 from __future__ import annotations
@@ -31,9 +35,10 @@ import tomli_w
 
 from uwlab.errors import ConfigError
 from uwlab.model.config import apply_override, load_raw, parse_value
-from uwlab.model.data import config_dir, resolve_path
 from uwlab.model.build import build_design
+from uwlab.model.data import config_dir, resolve_path
 from uwlab.model.design import Design
+from uwlab.model.sensor import profile_path
 from uwlab.model.spectra import NAMED_SPECTRA
 from uwlab.model.target import NAMED_REFLECTANCE
 from uwlab.model.water import WATER_TYPES
@@ -41,21 +46,35 @@ from uwlab.model.water import WATER_TYPES
 BODY_MEMBERS = ("config", "set", "text")
 MAX_FILE_BYTES = 1_000_000
 # Design keys whose string values name a file unless they are one of these names (`uwlab.model.build`); a sensor
-# profile is a file when it ends in .toml (`uwlab.model.sensor.load_sensor_profile`).
+# profile always names one (`named_file`).
 FILE_KEYS = {
     "light.spectrum": NAMED_SPECTRA,
     "water.type": WATER_TYPES,
     "target.reflectance": NAMED_REFLECTANCE,
     "lens.transmittance": (),
-    "sensor.profile": None,
+    "sensor.profile": (),
 }
 OUTSIDE_ROOTS = "not a file the explorer may read (configs/, the served config's folder, --data-dir, --profile)"
+
+
+def named_file(dotted: str, value: object, base: Path | None) -> Path | None:
+    """The file the design key ``dotted`` = ``value`` makes `uwlab.model.build.build_design` open (relative names
+    against ``base``), or None when the value names no file (a number, a named water type, spectrum or bottom).
+
+    >>> named_file("water.type", "jerlov-I", None), named_file("lens.transmittance", 0.9, None)
+    (None, None)
+    >>> named_file("light.spectrum", "led.csv", Path("/data")), named_file("sensor.profile", "../x.toml", Path("/d"))
+    (PosixPath('/data/led.csv'), PosixPath('/d/../x.toml'))
+    """
+    if not isinstance(value, str) or value in FILE_KEYS[dotted]:
+        return None
+    return profile_path(value, base) if dotted == "sensor.profile" else resolve_path(value, base)
 
 
 @dataclass(frozen=True)
 class Served:
     """The design `uwlab explore` was started with: its raw config, file and the folder relative names resolve in;
-    ``roots``: the folders and files requests may name besides ``configs/`` (`check_files`)."""
+    ``roots``: the folders and files requests may name besides ``configs/`` (`readable`)."""
 
     raw: dict
     base_dir: Path
@@ -66,37 +85,41 @@ class Served:
         """The same design with more folders or files requests may name."""
         return replace(self, roots=(*self.roots, *(Path(r).expanduser().resolve() for r in roots)))
 
-    def readable(self, value: str, base: Path | None = None) -> Path | None:
-        """The file ``value`` names (relative to ``base``, default the served folder) when requests may name it: a
-        path inside a root (links followed) that is, if it exists, a regular file of at most `MAX_FILE_BYTES`;
-        else None. A missing file inside a root is left to the loader to report, as `uwlab design` does."""
+    def readable(self, path: Path) -> Path | None:
+        """``path`` with links, ``.``/``..`` and trailing separators resolved when requests may name it: inside a
+        root and, if it exists, a regular file of at most `MAX_FILE_BYTES`; else None, whatever the reason (a
+        missing file, a name too long, a loop of links...). A missing file inside a root is left to the loader to
+        report, as `uwlab design` does. Nothing is opened."""
         try:
-            path = resolve_path(value, base or self.base_dir).resolve()
-        except (OSError, RuntimeError, ValueError):
-            return None
-        roots = (config_dir().resolve(), self.base_dir.resolve(), *self.roots)
-        if not any(path == root or path.is_relative_to(root) for root in roots):
-            return None
-        try:
+            path = path.resolve()
+            roots = (config_dir().resolve(), self.base_dir.resolve(), *self.roots)
+            if not any(path == root or path.is_relative_to(root) for root in roots):
+                return None
             info = path.stat()
         except FileNotFoundError:
             return path
-        except OSError:
+        except (OSError, RuntimeError, ValueError):
             return None
         return path if stat.S_ISREG(info.st_mode) and info.st_size <= MAX_FILE_BYTES else None
 
 
+def check_file(dotted: str, value: object, served: Served) -> None:
+    """Refuse (`ConfigError` naming the key, `OUTSIDE_ROOTS`) a value of a file-valued key (`FILE_KEYS`) naming a
+    file requests may not read (module docstring); other keys and values pass."""
+    if dotted not in FILE_KEYS:
+        return
+    path = named_file(dotted, value, served.base_dir)
+    if path is not None and served.readable(path) is None:
+        raise ConfigError(dotted, value, OUTSIDE_ROOTS)
+
+
 def check_files(raw: dict, served: Served) -> None:
-    """Refuse (`ConfigError` naming the key) any file a design names that requests may not read (module
-    docstring)."""
-    for dotted, names in FILE_KEYS.items():
+    """`check_file` on every file-valued key of a raw design config."""
+    for dotted in FILE_KEYS:
         section, _, key = dotted.partition(".")
         body = raw.get(section)
-        value = body.get(key) if isinstance(body, dict) else None
-        if not isinstance(value, str) or (value in names if names is not None else not value.lower().endswith(".toml")):
-            continue
-        if served.readable(value) is None:
-            raise ConfigError(dotted, value, OUTSIDE_ROOTS)
+        if isinstance(body, dict):
+            check_file(dotted, body.get(key), served)
 
 
 def copy_raw(raw: dict) -> dict:
@@ -104,14 +127,16 @@ def copy_raw(raw: dict) -> dict:
 
 
 def absolute_paths(raw: dict, base_dir: Path) -> dict:
-    """A copy of `raw` where each string naming an existing file relative to `base_dir` is that file's absolute
-    path (names such as ``jerlov-I`` or ``imx250m`` are not files and stay as they are)."""
+    """A copy of `raw` where each file-valued key (`FILE_KEYS`) naming a file relative to `base_dir` names it by
+    its absolute path (names such as ``jerlov-I`` or ``imx250m`` stay as they are). Nothing on disk is looked at."""
     out = copy_raw(raw)
-    for body in out.values():
-        if isinstance(body, dict):
-            for key, value in body.items():
-                if isinstance(value, str) and value and not Path(value).is_absolute() and (base_dir / value).is_file():
-                    body[key] = str((base_dir / value).resolve())
+    for dotted in FILE_KEYS:
+        section, _, key = dotted.partition(".")
+        body = out.get(section)
+        if not isinstance(body, dict) or not isinstance(value := body.get(key), str):
+            continue
+        if named_file(dotted, value, base_dir) == base_dir / value != Path(value):
+            body[key] = str(base_dir / value)
     return out
 
 

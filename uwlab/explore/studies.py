@@ -21,7 +21,7 @@ from uwlab.experiments.design.grid import DesignGrid, flatten_outputs, in_memory
 from uwlab.experiments.design.readout import output_leaves
 from uwlab.experiments.design.solve import Objective, Problem, parse_free, parse_requirement, result_dict, solve
 from uwlab.explore import figures
-from uwlab.explore.inputs import Served, design_raw
+from uwlab.explore.inputs import Served, check_file, design_raw
 from uwlab.jsonable import to_jsonable
 from uwlab.model.build import build_design
 from uwlab.model.evaluation import evaluate
@@ -55,6 +55,9 @@ def sweep_answer(body, served: Served) -> dict:
     "figure"} of a sweep body."""
     raw = design_raw(body, served, extra=("grid", "output"))
     axes = _axes(body.get("grid"))
+    for key, values in axes.items():
+        for value in values:
+            check_file(key, value, served)
     name = body.get("output")
     leaves = {leaf["name"]: leaf for leaf in output_leaves(to_jsonable(evaluate(build_design(raw, served.base_dir))))}
     if name not in leaves:

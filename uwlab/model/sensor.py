@@ -226,13 +226,19 @@ def available_profiles() -> list[str]:
     return sorted(p.stem for p in (config_dir() / "sensors").glob("*.toml"))
 
 
-def load_sensor_profile(name: str, base: Path | None = None) -> SensorProfile:
-    """A profile by name (`configs/sensors/<name>.toml`, case-insensitive) or by path to a TOML file."""
+def profile_path(name: str, base: Path | None = None) -> Path:
+    """The file a ``sensor.profile`` value names: a path to a TOML file (relative to ``base``) or, for any other
+    value, the name's file in ``configs/sensors`` (`load_sensor_profile` reads this file, and the explorer checks it
+    before, `uwlab.explore.inputs`)."""
     path = Path(name)
     if path.suffix.lower() == ".toml":
-        path = path if path.is_absolute() or base is None else base / path
-        return _load(path.resolve())
-    candidate = config_dir() / "sensors" / f"{name.lower()}.toml"
-    if not candidate.exists():
+        return path if path.is_absolute() or base is None else base / path
+    return config_dir() / "sensors" / f"{name.lower()}.toml"
+
+
+def load_sensor_profile(name: str, base: Path | None = None) -> SensorProfile:
+    """A profile by name (`configs/sensors/<name>.toml`, case-insensitive) or by path to a TOML file."""
+    path = profile_path(name, base)
+    if Path(name).suffix.lower() != ".toml" and not path.exists():
         raise ConfigError("sensor.profile", name, f"unknown profile; available: {', '.join(available_profiles())}")
-    return _load(candidate.resolve())
+    return _load(path.resolve())
