@@ -24,12 +24,14 @@ the longest integration whose raw peak stays under 80 % of full scale.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from uwlab.drivers.ocean_insight.files import is_ocean_calibration, read_ocean_calibration
 from uwlab.errors import ConfigError
-from uwlab.model.data import read_csv_columns
+from uwlab.model.data import MAX_CSV_BYTES, read_csv_columns, read_text
 
 UW_CM2_TO_W_M2 = 0.01
 """1 µW/cm² in W/m²."""
@@ -53,11 +55,29 @@ def wavelength_spread_nm(wavelength_nm) -> np.ndarray:
     return np.gradient(wavelength_nm)  # central differences (λ[i+1] − λ[i−1]) / 2, one-sided at the ends
 
 
-def read_calibration(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
-    """(wavelength_nm, C [µJ/count]) of a calibration file with columns ``wavelength_nm, uJ_per_count`` (``#``
-    comment lines allowed); `ConfigError` on ``calibration`` for missing columns, fewer than 2 rows, or factors that
-    are negative, zero or not finite (a count always stands for some energy)."""
-    columns = read_csv_columns(Path(path), CALIBRATION_COLUMNS, "calibration")
+@dataclass(frozen=True)
+class Calibration:
+    """A lamp calibration C(λ) [µJ/count], with the collection area its file states (an ``OOIIrrad.cal``'s
+    ``Fiber (micron)``; None for uwlab's CSV, which states none)."""
+
+    wavelength_nm: np.ndarray
+    uj_per_count: np.ndarray
+    area_cm2: float | None
+    source: str
+
+
+def read_calibration_file(path: str | Path) -> Calibration:
+    """A calibration file in either layout: Ocean's ``*_OOIIrrad.cal`` (suffix ``.cal`` or a ``[uJoule/count]``
+    line: `uwlab.drivers.ocean_insight.files.read_ocean_calibration`) or uwlab's CSV (columns ``wavelength_nm,
+    uJ_per_count``, ``#`` comment lines allowed). `ConfigError` on ``calibration`` for missing columns or
+    wavelength rows, fewer than 2 rows, or factors that are negative, zero or not finite (a count always stands for
+    some energy)."""
+    path = Path(path)
+    text = read_text(path, "calibration", MAX_CSV_BYTES, "calibration")
+    if is_ocean_calibration(path, text):
+        ocean = read_ocean_calibration(path, "calibration", text)
+        return Calibration(ocean.wavelength_nm, ocean.uj_per_count, ocean.area_cm2, str(path))
+    columns = read_csv_columns(path, CALIBRATION_COLUMNS, "calibration")
     wavelength_nm, factor = columns["wavelength_nm"], columns["uJ_per_count"]
     if wavelength_nm.size < 2:
         raise ConfigError("calibration", str(path), "needs at least 2 rows")
@@ -69,7 +89,13 @@ def read_calibration(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
             str(path),
             f"uJ_per_count must be positive and finite; at {wavelength_nm[i]:g} nm it is {factor[i]:g}",
         )
-    return wavelength_nm, factor
+    return Calibration(wavelength_nm, factor, None, str(path))
+
+
+def read_calibration(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """(wavelength_nm, C [µJ/count]) of a calibration file in either layout (`read_calibration_file`)."""
+    calibration = read_calibration_file(path)
+    return calibration.wavelength_nm, calibration.uj_per_count
 
 
 def calibration_on(
@@ -101,6 +127,25 @@ def irradiance_w_m2_nm(
     spread_nm = wavelength_spread_nm(wavelength_nm)
     signal = np.asarray(counts, dtype=float) - np.asarray(dark_counts, dtype=float)
     return signal * np.asarray(uj_per_count, dtype=float) / (integration_s * area_cm2 * spread_nm) * UW_CM2_TO_W_M2
+
+
+def uj_per_count_from_lamp(
+    lamp_uw_cm2_nm, signal_counts, integration_s: float, area_cm2: float, wavelength_nm
+) -> np.ndarray:
+    """C(λ) [µJ/count] = E_lamp(λ) · T · A · dλ / (S(λ) − D(λ)): OceanView's irradiance calibration, the relation
+    of the module docstring solved for C with the lamp's known irradiance.
+
+    ``lamp_uw_cm2_nm`` E_lamp [µW/cm²/nm] on the device's pixels (the ``.LMP`` interpolated), ``signal_counts``
+    S − D [counts] of the lamp reading less the dark at the same integration time, ``integration_s`` T [s],
+    ``area_cm2`` A [cm²], ``wavelength_nm`` the pixels (for dλ [nm]). Units: µW/cm²/nm · s · cm² · nm = µJ, per
+    count. Pixels with S − D ≤ 0 have no calibration (the caller refuses them).
+
+    >>> uj_per_count_from_lamp([10.0, 10.0], [1000.0, 1000.0], 0.1, 0.5, [500.0, 502.0]).tolist()
+    [0.001, 0.001]
+    """
+    spread_nm = wavelength_spread_nm(wavelength_nm)
+    energy_uj = np.asarray(lamp_uw_cm2_nm, dtype=float) * integration_s * area_cm2 * spread_nm
+    return energy_uj / np.asarray(signal_counts, dtype=float)
 
 
 def linearize(
