@@ -200,6 +200,11 @@ class OceanInsightSpectrometer(Spectrometer):
             raise
 
     @property
+    def electric_dark_pixels(self) -> list[int]:
+        """The indices of the device's optically masked (electric-dark) pixels: they never see light."""
+        return list(self._dark_indices)
+
+    @property
     def nonlinearity_corrected(self) -> bool:
         """Whether readings are corrected by the device's nonlinearity polynomial."""
         return self._coefficients is not None

@@ -36,8 +36,8 @@ CALIBRATION_MARKER = "[uJoule/count]"
 BEGIN_MARKERS = (">>>>>Begin Spectral Data<<<<<", ">>>>>Begin Processed Spectral Data<<<<<")
 END_MARKERS = (">>>>>End Spectral Data<<<<<", ">>>>>End Processed Spectral Data<<<<<")
 FIBRE_KEYS = ("Fiber (micron)", "Fibre (micron)")
-FIBRE_UM_RANGE = (1.0, 50_000.0)
-"""A collecting optic's diameter [µm] in a ``.cal``: 8 µm single-mode fibre … a 30 mm integrating-sphere port."""
+FIBRE_UM_RANGE = (5.0, 50_000.0)
+"""A collecting optic's diameter [µm] in a ``.cal``: an 8 µm single-mode fibre … a 50 mm sphere port; 3.9 is mm."""
 COSINE_CORRECTOR_DIAMETER_MM = {"CC-3": 3.9, "CC-3-UV-S": 3.9, "CC-3-UV-T": 3.9, "CC-3-DA": 7.14}
 """Diffuser diameters of Ocean's cosine correctors [mm] (Ocean Optics' CC-3 family specifications, tabulated from
 Ocean's documents by the r4photobiology ``ooacquire`` package, ``oo_calib2irrad_mult``)."""

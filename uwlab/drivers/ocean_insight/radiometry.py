@@ -148,6 +148,68 @@ def uj_per_count_from_lamp(
     return energy_uj / np.asarray(signal_counts, dtype=float)
 
 
+UNLIT_EDGE_FRACTION = 0.05
+"""In a lamp calibration, pixels without lamp signal are tolerated only within this fraction of the array at either
+end (where the optically masked pixels and the detector's unusable edges are)."""
+
+
+def lamp_calibration(
+    wavelength_nm,
+    signal_counts,
+    integration_s: float,
+    area_cm2: float,
+    lamp: tuple[np.ndarray, np.ndarray],
+    unlit_pixels=(),
+    lamp_source: str = "lamp",
+) -> np.ndarray:
+    """C(λ) [µJ/count] on every pixel from a lamp reading (`uj_per_count_from_lamp`): ``signal_counts`` S − D of
+    the lamp less the dark at ``integration_s``, ``lamp`` (wavelength_nm, E [µW/cm²/nm]) of its ``.LMP`` file,
+    interpolated linearly to the pixels.
+
+    `ConfigError` on ``lamp`` when the lamp file does not cover the pixels (no extrapolation) or is zero on one, and
+    on ``signal`` when a pixel has S − D ≤ 0 (no lamp above the dark: lamp off, shutter closed, fibre unplugged)
+    outside the device's ``unlit_pixels`` (its optically masked electric-dark pixels, which never see light) and
+    the `UNLIT_EDGE_FRACTION` of the array at either end. The pixels without signal take the factor of the nearest
+    pixel with signal, so the file covers every pixel as OceanView's does (a reading there is dark only)."""
+    wavelength_nm = np.asarray(wavelength_nm, dtype=float)
+    signal = np.asarray(signal_counts, dtype=float)
+    lamp_nm, lamp_uw = lamp
+    n = wavelength_nm.size
+    if wavelength_nm[0] < lamp_nm[0] or wavelength_nm[-1] > lamp_nm[-1]:
+        raise ConfigError(
+            "lamp",
+            lamp_source,
+            f"covers {lamp_nm[0]:g}–{lamp_nm[-1]:g} nm, the spectrometer {wavelength_nm[0]:g}–{wavelength_nm[-1]:g} nm",
+        )
+    lit = signal > 0
+    tolerated = np.zeros(n, dtype=bool)
+    tolerated[list(unlit_pixels)] = True
+    edge = int(np.floor(UNLIT_EDGE_FRACTION * n))
+    tolerated[:edge] = tolerated[n - edge :] = True
+    dead = ~lit & ~tolerated
+    if dead.any() or not lit.any():
+        i = int(np.argmax(dead)) if dead.any() else n // 2
+        raise ConfigError(
+            "signal",
+            f"{signal[i]:g} counts at {wavelength_nm[i]:g} nm",
+            f"no lamp signal above the dark at {int((~lit).sum())} of {n} pixels: is the lamp on and its light "
+            "reaching the optic?",
+        )
+    lamp_on_pixels = np.interp(wavelength_nm, lamp_nm, lamp_uw)
+    if np.any(lit & ~(lamp_on_pixels > 0)):
+        i = int(np.argmax(lit & ~(lamp_on_pixels > 0)))
+        raise ConfigError(
+            "lamp", lamp_source, f"zero irradiance at {wavelength_nm[i]:g} nm: nothing to calibrate there"
+        )
+    factor = np.empty_like(wavelength_nm)
+    signal_lit = np.where(lit, signal, 1.0)  # the factors of the pixels without signal are copied below
+    factor[lit] = uj_per_count_from_lamp(lamp_on_pixels, signal_lit, integration_s, area_cm2, wavelength_nm)[lit]
+    lit_index = np.flatnonzero(lit)
+    for i in np.flatnonzero(~lit):
+        factor[i] = factor[lit_index[np.argmin(np.abs(lit_index - i))]]
+    return factor
+
+
 def linearize(
     raw_counts, electric_dark_indices, nonlinearity_coefficients, subtract_electric_dark: bool
 ) -> tuple[np.ndarray, float]:
