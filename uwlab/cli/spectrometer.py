@@ -89,7 +89,7 @@ def run_calibrate(args) -> int:
     wavelength_nm, factor = result.pop("wavelength_nm"), result.pop("uj_per_count")
     fibre_um = 2.0 * math.sqrt(result["area_cm2"] / math.pi) * 1e4
     header = {
-        "Date": datetime.datetime.now(datetime.timezone.utc).strftime("%a %b %d %H:%M:%S UTC %Y"),
+        "Date": datetime.datetime.now(datetime.UTC).strftime("%a %b %d %H:%M:%S UTC %Y"),
         "Spectrometer": result["serial"],
         "Integration Time (sec)": f"{result['integration_ms'] / 1000.0:.6E}",
         "Fiber (micron)": f"{fibre_um:.1f}",

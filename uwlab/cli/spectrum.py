@@ -210,7 +210,9 @@ def _measure_ocean(args) -> tuple[tuple, bool, dict[str, object], DarkSpectrum |
     dark_mode: DarkMode = "electric" if dark_file is None and not args.dark_now else "measured"
     if args.calibration is None:
         raise ConfigError(
-            "calibration", None, f"{args.instrument} needs a calibration file (*_OOIIrrad.cal or CSV); or --raw"
+            "calibration",
+            None,
+            f"{args.instrument} needs a calibration file (*_OOIIrrad.cal, or a CSV wavelength_nm,uJ_per_count); or --raw",
         )
     bench = sim_bench(args)
     block, unblock = operator(bench)
@@ -288,7 +290,9 @@ def _raw_ocean(args) -> int:
         with open(args.out, "x", newline="") as fh:
             writer = csv.writer(fh)
             writer.writerow(("wavelength_nm", "counts"))
-            writer.writerows((repr(w), repr(c)) for w, c in zip(reading["wavelength_nm"], reading["counts"]))
+            writer.writerows(
+                (repr(w), repr(c)) for w, c in zip(reading["wavelength_nm"], reading["counts"], strict=True)
+            )
     if args.json:
         print(json.dumps(reading))
     else:
