@@ -212,7 +212,7 @@ def _measure_ocean(args) -> tuple[tuple, bool, dict[str, object], DarkSpectrum |
         raise ConfigError(
             "calibration",
             None,
-            f"{args.instrument} needs a calibration file (*_OOIIrrad.cal, or a CSV wavelength_nm,uJ_per_count); or --raw",
+            f"{args.instrument} needs a calibration file (*_OOIIrrad.cal, or CSV wavelength_nm,uJ_per_count) or --raw",
         )
     bench = sim_bench(args)
     block, unblock = operator(bench)
