@@ -29,7 +29,7 @@ from uwlab.drivers.ocean_insight.files import (
     write_calibration_csv,
     write_ocean_calibration,
 )
-from uwlab.drivers.ocean_insight.radiometry import lamp_calibration
+from uwlab.drivers.ocean_insight.radiometry import check_lamp_covers, lamp_calibration
 from uwlab.drivers.serial.base import check_averaging, check_integration_ms
 from uwlab.errors import ConfigError
 from uwlab.outputs import output_file
@@ -158,6 +158,7 @@ def _measure(args, lamp) -> dict:
         dark_mode="measured",
         spectrometer_class=None if bench is None else bench.spectrometer_class(),
     ) as spectrometer:
+        check_lamp_covers(spectrometer.wavelength_nm, lamp[0], args.lamp)
         if averaging is not None:
             spectrometer.set_averaging(averaging)
         if args.auto_integration:

@@ -153,6 +153,16 @@ UNLIT_EDGE_FRACTION = 0.05
 end (where the optically masked pixels and the detector's unusable edges are)."""
 
 
+def check_lamp_covers(wavelength_nm, lamp_nm, lamp_source: str = "lamp") -> None:
+    """`ConfigError` on ``lamp`` unless the lamp file's wavelengths cover the pixels' (no extrapolation)."""
+    if wavelength_nm[0] < lamp_nm[0] or wavelength_nm[-1] > lamp_nm[-1]:
+        raise ConfigError(
+            "lamp",
+            lamp_source,
+            f"covers {lamp_nm[0]:g}–{lamp_nm[-1]:g} nm, the spectrometer {wavelength_nm[0]:g}–{wavelength_nm[-1]:g} nm",
+        )
+
+
 def lamp_calibration(
     wavelength_nm,
     signal_counts,
@@ -175,12 +185,7 @@ def lamp_calibration(
     signal = np.asarray(signal_counts, dtype=float)
     lamp_nm, lamp_uw = lamp
     n = wavelength_nm.size
-    if wavelength_nm[0] < lamp_nm[0] or wavelength_nm[-1] > lamp_nm[-1]:
-        raise ConfigError(
-            "lamp",
-            lamp_source,
-            f"covers {lamp_nm[0]:g}–{lamp_nm[-1]:g} nm, the spectrometer {wavelength_nm[0]:g}–{wavelength_nm[-1]:g} nm",
-        )
+    check_lamp_covers(wavelength_nm, lamp_nm, lamp_source)
     lit = signal > 0
     tolerated = np.zeros(n, dtype=bool)
     tolerated[list(unlit_pixels)] = True
