@@ -9,8 +9,10 @@ Installation & Operation Manual, "Irradiance Calibrations") turns a pixel's coun
 - S(λ) the counts of the pixel at λ (linearised: `linearize`), D(λ) the dark counts (the device's electric dark,
   or a dark spectrum at the same integration time with the light blocked);
 - C(λ) [µJ/count] the lamp calibration: the energy one count stands for, from the user's calibration file
-  (columns ``wavelength_nm, uJ_per_count``: OceanView's export) interpolated linearly to the device's pixels
-  (`calibration_on`), refused where the file does not cover them;
+  (OceanView's ``*_OOIIrrad.cal``, or uwlab's CSV with columns ``wavelength_nm, uJ_per_count``:
+  `read_calibration_file`) interpolated linearly to the device's pixels (`calibration_on`), refused where the file
+  does not cover them; OceanView's irradiance calibration finds it from a lamp of known irradiance by the same
+  relation solved for C (`uj_per_count_from_lamp`, `lamp_calibration`);
 - T [s] the integration time; A [cm²] the collection area of the cosine corrector or bare fibre;
 - dλ [nm] the wavelength spread of the pixel: the mean distance to its two neighbours, one-sided at the ends
   (`wavelength_spread_nm`).
