@@ -166,6 +166,7 @@ CAL_HEADER = "Spectrometer:\tFLMS01234\nIntegration Time (sec):\t1.000000E-2\nFi
     "name, text, option, expected",
     [
         ("empty_OOIIrrad.cal", CAL_HEADER + "[uJoule/count]\n", "calibration", "no wavelength rows"),
+        ("bare_OOIIrrad.cal", CAL_HEADER + "[uJoule/count]\n1e-7\n2e-7\n3e-7\n", "calibration", "no wavelengths"),
         ("twice_OOIIrrad.cal", CAL_HEADER + "[uJoule/count]\n400\t1e-7\n400\t2e-7\n", "calibration", "repeats"),
         ("negative.LMP", "300\t10\n700\t-1\n1100\t10\n", "lamp", "negative irradiance -1 µW/cm²/nm at 700 nm"),
         ("backwards.LMP", "300\t10\n1100\t10\n700\t10\n", "lamp", "wavelength 700 nm is below the previous"),

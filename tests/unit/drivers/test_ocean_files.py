@@ -37,6 +37,22 @@ def test_ocean_calibration_is_the_instruments_response():
     assert cal.fibre_um == 3900 and cal.area_cm2 == pytest.approx(CC3_AREA_CM2, rel=1e-12)
 
 
+def test_uncalibrated_ends_are_outside_the_calibration(tmp_path):
+    """Ocean's files write 0 where the lamp did not calibrate: the calibration spans the factors between."""
+    path = tmp_path / "ends_OOIIrrad.cal"
+    path.write_text(CAL_HEADER + "[uJoule/count]\n250\t0\n300\t1e-7\n700\t2e-7\n900\t0\n950\t0\n")
+    cal = read_ocean_calibration(path)
+    assert cal.wavelength_nm.tolist() == [300, 700] and cal.uj_per_count.tolist() == [1e-7, 2e-7]
+
+
+def test_header_keys_with_or_without_colon(tmp_path):
+    path = tmp_path / "x.IrradCal"  # SpectraSuite's name for the same layout: found by its marker line
+    path.write_text("Date:\tMon Jan 05 10:21:07 CET 2026\nFiber (micron)\t600\n[uJoule/count]\n400\t1e-7\n500\t1e-7\n")
+    cal = read_calibration_file(path)
+    assert cal.area_cm2 == pytest.approx(2.82743e-3, rel=1e-5)  # a 600 µm core
+    assert read_ocean_calibration(path).header["Date"] == "Mon Jan 05 10:21:07 CET 2026"
+
+
 def test_either_layout_through_one_reader():
     ocean, csv = read_calibration_file(OCEAN_CAL), read_calibration_file(DATA / "ocean_insight_calibration_3100k.csv")
     assert ocean.area_cm2 == pytest.approx(CC3_AREA_CM2) and csv.area_cm2 is None
@@ -119,7 +135,10 @@ CAL_HEADER = "Spectrometer:\tFLMS01234\nIntegration Time (sec):\t1.000000E-2\nFi
         (read_ocean_calibration, CAL_HEADER + "400\t1e-7\n500\t1e-7\n", "no [uJoule/count] line"),
         (read_ocean_calibration, CAL_HEADER + "[uJoule/count]\n400\t1e-7\n400\t1e-7\n", "400 nm repeats"),
         (read_ocean_calibration, CAL_HEADER + "[uJoule/count]\n500\t1e-7\n400\t1e-7\n", "400 nm is below the"),
-        (read_ocean_calibration, CAL_HEADER + "[uJoule/count]\n400\t1e-7\n500\t0\n", "at 500 nm it is 0"),
+        (read_ocean_calibration, CAL_HEADER + "[uJoule/count]\n1e-7\n2e-7\n", "no wavelengths: its 2 rows hold one"),
+        (read_ocean_calibration, CAL_HEADER + "[uJoule/count]\n400\t1e-7\n450\t0\n500\t1e-7\n", "at 450 nm it is 0"),
+        (read_ocean_calibration, CAL_HEADER + "[uJoule/count]\n400\t1e-7\n450\t-1e-7\n", "at 450 nm it is -1e-07"),
+        (read_ocean_calibration, CAL_HEADER + "[uJoule/count]\n400\t0\n450\t0\n", "every µJ/count factor is 0"),
         (read_ocean_calibration, "Fiber (micron):\t3.9\n[uJoule/count]\n400\t1e-7\n500\t1e-7\n", "diameter in µm"),
         (read_lamp, "400\t10.0\n500\t-0.5\n", "negative irradiance -0.5 µW/cm²/nm at 500 nm"),
         (read_lamp, "400\t10.0\nabc\t1\n", "line 2: 'abc\\t1' is not a wavelength"),

@@ -1,8 +1,9 @@
 """Ocean Insight's own files, read as they are shipped and written in Ocean's layout (docs/spectrometers.md).
 
-- **Irradiance calibration** ``*_OOIIrrad.cal`` (OceanView's absolute-irradiance wizard, SpectraSuite before it):
-  ``Key:<TAB>value`` header lines (``Date:``, ``Spectrometer:``, ``Integration Time (sec):``, ``Fiber (micron):``
-  …), then a line ``[uJoule/count]`` and one ``wavelength<TAB>factor`` row per pixel: C(λ) in µJ/count
+- **Irradiance calibration** ``*_OOIIrrad.cal`` (OceanView's absolute-irradiance wizard, SpectraSuite before it,
+  whose ``.IrradCal`` has the same layout): ``Key:<TAB>value`` header lines (``Date:``, ``Spectrometer:``,
+  ``Integration Time (sec):``, ``Fiber (micron):`` …), then a line ``[uJoule/count]`` and one
+  ``wavelength<TAB>factor`` row per pixel: C(λ) in µJ/count, 0 where it was not calibrated
   (`read_ocean_calibration`, `write_ocean_calibration`). ``Fiber (micron)`` is the diameter of the collecting optic
   the calibration was made with — the bare fibre's core, or the diffuser of a cosine corrector (3900 for a CC-3) —
   and gives the collection area A = π (d/2)² (`area_cm2_of_diameter_um`).
@@ -149,10 +150,16 @@ def is_ocean_calibration(path: str | Path, text: str) -> bool:
 
 
 def read_ocean_calibration(path: str | Path, key: str = "calibration", text: str | None = None) -> OceanCalibration:
-    """An ``OOIIrrad.cal`` (module docstring): header, then ``[uJoule/count]``, then wavelength/factor rows.
-    `ConfigError` on ``key`` without the marker, without wavelength rows, with wavelengths that do not strictly
-    increase, with a factor that is not positive (a count always stands for some energy) or a ``Fiber (micron)``
-    that is not a diameter in µm."""
+    """An ``OOIIrrad.cal`` (or SpectraSuite's ``.IrradCal``, the same layout; module docstring): header, then
+    ``[uJoule/count]``, then wavelength/factor rows.
+
+    Ocean's files mark the wavelengths they were not calibrated at — outside the lamp file's range — with a factor
+    of 0: leading and trailing zero factors are dropped, so the calibration covers the span between them (a
+    reading beyond it is refused, as for any calibration that does not cover the device). `ConfigError` on ``key``
+    without the marker; without wavelengths (no rows, or rows of one value each: coefficients without their
+    wavelengths); with wavelengths that do not strictly increase; with a factor that is negative, or zero between
+    calibrated ones (a count always stands for some energy); or with a ``Fiber (micron)`` that is not a diameter
+    in µm."""
     path = Path(path)
     text = read_text(path, key, MAX_CSV_BYTES, "calibration") if text is None else text
     lines = text.splitlines()
@@ -160,9 +167,22 @@ def read_ocean_calibration(path: str | Path, key: str = "calibration", text: str
     if marker is None:
         raise ConfigError(key, str(path), f"no {CALIBRATION_MARKER} line: not an Ocean irradiance calibration")
     header = dict(_header_entry(line) for line in lines[:marker] if line.strip())
-    if not any(line.strip() for line in lines[marker + 1 :]):
+    rows = [line for line in lines[marker + 1 :] if line.strip()]
+    if not rows:
         raise ConfigError(key, str(path), f"no wavelength rows after {CALIBRATION_MARKER}")
+    if all(len(line.split()) == 1 for line in rows):
+        raise ConfigError(
+            key,
+            str(path),
+            f"no wavelengths: its {len(rows)} rows hold one value each (factors without their wavelengths); "
+            "give the calibration whose rows are wavelength<TAB>µJ/count",
+        )
     wavelength_nm, factor = _rows(lines[marker + 1 :], marker + 2, key, path, "µJ/count factor")
+    calibrated = np.flatnonzero(factor != 0)
+    if calibrated.size < 2:
+        raise ConfigError(key, str(path), "every µJ/count factor is 0: nothing is calibrated")
+    span = slice(calibrated[0], calibrated[-1] + 1)
+    wavelength_nm, factor = wavelength_nm[span], factor[span]
     if np.any(factor <= 0):
         i = int(np.argmax(factor <= 0))
         raise ConfigError(key, str(path), f"µJ/count must be positive; at {wavelength_nm[i]:g} nm it is {factor[i]:g}")
