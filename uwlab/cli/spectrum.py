@@ -287,12 +287,17 @@ def _raw_ocean(args) -> int:
             "model": spectrometer.model,
         }
     if args.out is not None:
-        with open(args.out, "x", newline="") as fh:
-            writer = csv.writer(fh)
-            writer.writerow(("wavelength_nm", "counts"))
-            writer.writerows(
-                (repr(w), repr(c)) for w, c in zip(reading["wavelength_nm"], reading["counts"], strict=True)
-            )
+        try:
+            with open(args.out, "x", newline="") as fh:
+                writer = csv.writer(fh)
+                writer.writerow(("wavelength_nm", "counts"))
+                writer.writerows(
+                    (repr(w), repr(c)) for w, c in zip(reading["wavelength_nm"], reading["counts"], strict=True)
+                )
+        except FileExistsError:
+            raise ConfigError("out", args.out, "file exists; refusing to overwrite it") from None
+        except OSError as exc:
+            raise ConfigError("out", args.out, f"cannot write ({exc.strerror})") from None
     if args.json:
         print(json.dumps(reading))
     else:
