@@ -38,6 +38,7 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
     "grab": ("uwlab.cli.grab", "acquire frames from a camera and report statistics"),
     "light": ("uwlab.cli.light", "switch and dim the light, or calibrate it"),
     "spectrum": ("uwlab.cli.spectrum", "measure or import a spectrum and derive lux, W/m², photons, CCT"),
+    "spectrometer": ("uwlab.cli.spectrometer", "calibrate an Ocean Insight spectrometer against a lamp file (.LMP)"),
     "sim": ("uwlab.cli.sim", "run simulated instruments until Ctrl-C; render simulated image sets"),
     "sweep": ("uwlab.cli.sweep", "run an exposure/aperture/gain/light-level/dark sweep plan"),
     "dataset": ("uwlab.cli.dataset", "inspect, check and repair sweep datasets"),

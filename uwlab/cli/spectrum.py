@@ -2,26 +2,44 @@
 
 Sources: ``--port`` (the serial spectrometer, already calibrated), ``--instrument NAME`` (an instrument definition
 of ``configs/instruments/``: Ocean Insight through python-seabreeze, raw counts turned into W/m²/nm by the
-calibration file, collection area and dark; docs/spectrometers.md) or ``--import`` (a Sekonic C-7000 CSV).
+calibration file — Ocean's ``*_OOIIrrad.cal`` or uwlab's CSV — collection area and dark; ``--raw`` prints the
+counts instead; ``--sim`` reads the simulated spectrometer on its bench, `uwlab.sim.devices.ocean_insight`;
+docs/spectrometers.md) or ``--import`` (a Sekonic C-7000 CSV).
 Every input is checked before a device is opened, and nothing is written unless the reading succeeded.
 """
 
 from __future__ import annotations
 
+import csv
 import json
 import sys
+from collections.abc import Callable
 
 from uwlab.api.instruments import open_spectrometer
-from uwlab.drivers.ocean_insight import read_dark, write_dark
+from uwlab.drivers.ocean_insight import open_instrument, read_dark, write_dark
 from uwlab.drivers.ocean_insight.definition import BACKENDS
 from uwlab.drivers.ocean_insight.device import DarkMode, DarkSpectrum
+from uwlab.drivers.ocean_insight.files import COSINE_CORRECTOR_DIAMETER_MM, read_lamp
 from uwlab.drivers.serial import PROTOCOLS
 from uwlab.drivers.serial.base import check_averaging, check_integration_ms
 from uwlab.errors import ConfigError
 from uwlab.experiments.acquisition.spectra import read_sekonic_csv, spectrum_summary, write_spectrum_csv
 from uwlab.outputs import output_file
 
-OCEAN_ONLY = ("resource", "calibration", "area_cm2", "dark", "dark_now", "save_dark", "auto_integration", "backend")
+OCEAN_ONLY = (
+    "resource",
+    "calibration",
+    "area_cm2",
+    "cosine_corrector",
+    "dark",
+    "dark_now",
+    "save_dark",
+    "auto_integration",
+    "backend",
+    "raw",
+    "sim",
+    "sim_lamp",
+)
 
 
 def register(subparsers) -> None:
@@ -43,14 +61,15 @@ def register(subparsers) -> None:
     ocean.add_argument("--backend", choices=BACKENDS, help="python-seabreeze backend (default: the definition's)")
     ocean.add_argument(
         "--calibration",
-        metavar="FILE.csv",
-        help="absolute irradiance calibration: columns wavelength_nm, uJ_per_count (OceanView)",
+        metavar="FILE",
+        help="absolute irradiance calibration [µJ/count]: OceanView's *_OOIIrrad.cal, or a CSV with columns "
+        "wavelength_nm, uJ_per_count",
     )
+    add_area_options(ocean)
     ocean.add_argument(
-        "--area-cm2",
-        type=float,
-        help="collection area of the cosine corrector or fibre [cm²] (default: the definition's)",
+        "--raw", action="store_true", help="print the raw counts per pixel (no dark, no correction, no calibration)"
     )
+    add_sim_options(ocean)
     dark = ocean.add_mutually_exclusive_group()
     dark.add_argument(
         "--dark",
@@ -73,6 +92,53 @@ def register(subparsers) -> None:
     p.set_defaults(func=run)
 
 
+def add_area_options(group) -> None:
+    """``--area-cm2`` and ``--cosine-corrector`` (`uwlab.drivers.ocean_insight.device.collection_area_cm2`)."""
+    group.add_argument(
+        "--area-cm2",
+        type=float,
+        help="collection area of the cosine corrector or fibre [cm²] (default: the calibration file's Fiber "
+        "(micron), else the definition's)",
+    )
+    group.add_argument(
+        "--cosine-corrector",
+        metavar="NAME",
+        help=f"the cosine corrector on the fibre, for its diffuser's area ({', '.join(COSINE_CORRECTOR_DIAMETER_MM)})",
+    )
+
+
+def add_sim_options(group) -> None:
+    group.add_argument(
+        "--sim",
+        action="store_true",
+        help="the simulated Ocean Insight spectrometer (a Flame on a bench lit by a 3100 K calibration lamp)",
+    )
+    group.add_argument(
+        "--sim-lamp", metavar="FILE.LMP", help="with --sim: light the simulated bench with this lamp file instead"
+    )
+
+
+def sim_bench(args):
+    """The simulated bench of ``--sim`` (lit by ``--sim-lamp`` when given), or None."""
+    if not args.sim:
+        if args.sim_lamp is not None:
+            raise ConfigError("sim-lamp", args.sim_lamp, "needs --sim")
+        return None
+    from uwlab.sim.devices.ocean_insight import SimBench
+
+    bench = SimBench()
+    if args.sim_lamp is not None:
+        bench.light_from_table(*read_lamp(args.sim_lamp, "sim-lamp"))
+    return bench
+
+
+def operator(bench) -> tuple[Callable[[], None], Callable[[], None]]:
+    """(block the light, unblock it): the simulated bench does it itself; a real bench asks the operator."""
+    if bench is not None:
+        return bench.block, bench.unblock
+    return (lambda: _confirm("block the light to the spectrometer")), (lambda: _confirm("unblock the light"))
+
+
 def run(args) -> int:
     if args.out is not None:
         output_file(args.out, "--out")
@@ -88,6 +154,8 @@ def run(args) -> int:
         if args.integration_ms is not None or args.average is not None:
             raise ConfigError("import", args.import_path, "--integration-ms and --average need --port")
         (wavelength_nm, irradiance), saturated = read_sekonic_csv(args.import_path), None
+    elif args.instrument is not None and args.raw:
+        return _raw_ocean(args)
     elif args.instrument is not None:
         (wavelength_nm, irradiance), saturated, details, dark = _measure_ocean(args)
     else:
@@ -140,14 +208,24 @@ def _measure_ocean(args) -> tuple[tuple, bool, dict[str, object], DarkSpectrum |
             "dark", args.dark, "a dark file fixes the integration time; use --dark-now with --auto-integration"
         )
     dark_mode: DarkMode = "electric" if dark_file is None and not args.dark_now else "measured"
-    with open_spectrometer(
+    if args.calibration is None:
+        raise ConfigError(
+            "calibration",
+            None,
+            f"{args.instrument} needs a calibration file (*_OOIIrrad.cal, or CSV wavelength_nm,uJ_per_count) or --raw",
+        )
+    bench = sim_bench(args)
+    block, unblock = operator(bench)
+    with open_instrument(
+        args.instrument,
         args.resource,
-        instrument=args.instrument,
-        calibration=args.calibration,
-        area_cm2=args.area_cm2,
+        args.calibration,
+        args.area_cm2,
+        cosine_corrector=args.cosine_corrector,
         backend=args.backend,
         integration_ms=args.integration_ms,
         dark_mode=dark_mode,
+        spectrometer_class=None if bench is None else bench.spectrometer_class(),
     ) as spectrometer:
         if averaging is not None:
             spectrometer.set_averaging(averaging)
@@ -157,10 +235,10 @@ def _measure_ocean(args) -> tuple[tuple, bool, dict[str, object], DarkSpectrum |
         if dark_file is not None:
             spectrometer.use_dark(dark_file, args.dark)
         elif args.dark_now:
-            _confirm("block the light to the spectrometer")
+            block()
             dark = spectrometer.measure_dark()
             spectrometer.use_dark(dark, "--dark-now")
-            _confirm("unblock the light")
+            unblock()
         spectrum = spectrometer.read_spectrum()
         details = {
             "integration_ms": spectrometer.integration_ms(),
@@ -173,6 +251,70 @@ def _measure_ocean(args) -> tuple[tuple, bool, dict[str, object], DarkSpectrum |
             "calibration": args.calibration,
         }
         return spectrum, spectrometer.last_saturated, details, dark
+
+
+def _raw_ocean(args) -> int:
+    """``--raw``: the raw counts per pixel, averaged (no electric dark, nonlinearity, dark or calibration)."""
+    for name in ("calibration", "dark", "dark_now", "save_dark", "area_cm2", "cosine_corrector"):
+        if getattr(args, name) not in (None, False):
+            raise ConfigError(name.replace("_", "-"), getattr(args, name), "not used with --raw (counts only)")
+    if args.integration_ms is not None:
+        check_integration_ms(args.integration_ms)
+    averaging = None if args.average is None else check_averaging(args.average)
+    bench = sim_bench(args)
+    with open_instrument(
+        args.instrument,
+        args.resource,
+        None,
+        backend=args.backend,
+        integration_ms=args.integration_ms,
+        dark_mode="none",
+        spectrometer_class=None if bench is None else bench.spectrometer_class(),
+    ) as spectrometer:
+        if averaging is not None:
+            spectrometer.set_averaging(averaging)
+        if args.auto_integration:
+            spectrometer.auto_integration()
+        counts, saturated = spectrometer.read_raw()
+        reading = {
+            "wavelength_nm": spectrometer.wavelength_nm.tolist(),
+            "counts": counts.tolist(),
+            "saturated": saturated,
+            "max_intensity": spectrometer.max_intensity,
+            "integration_ms": spectrometer.integration_ms(),
+            "averaging": spectrometer.averaging(),
+            "serial": spectrometer.serial,
+            "model": spectrometer.model,
+        }
+    if args.out is not None:
+        try:
+            with open(args.out, "x", newline="") as fh:
+                writer = csv.writer(fh)
+                writer.writerow(("wavelength_nm", "counts"))
+                writer.writerows(
+                    (repr(w), repr(c)) for w, c in zip(reading["wavelength_nm"], reading["counts"], strict=True)
+                )
+        except FileExistsError:
+            raise ConfigError("out", args.out, "file exists; refusing to overwrite it") from None
+        except OSError as exc:
+            raise ConfigError("out", args.out, f"cannot write ({exc.strerror})") from None
+    if args.json:
+        print(json.dumps(reading))
+    else:
+        peak = max(range(len(counts)), key=lambda i: counts[i])
+        print(f"raw counts: {len(counts)} pixels, {reading['wavelength_nm'][0]:g}–{reading['wavelength_nm'][-1]:g} nm")
+        print(
+            f"peak            {counts[peak]:.6g} counts at {reading['wavelength_nm'][peak]:g} nm "
+            f"({100 * counts[peak] / spectrometer.max_intensity:.1f} % of full scale {spectrometer.max_intensity:g})"
+        )
+        print(f"lowest          {counts.min():.6g} counts")
+        print(
+            f"spectrometer    {reading['model']} {reading['serial']}, {reading['integration_ms']:g} ms x "
+            f"{reading['averaging']}"
+        )
+        if saturated:
+            print("saturated       yes: the readings are clipped; reduce --integration-ms (or --auto-integration)")
+    return 0
 
 
 def _print_summary(summary: dict) -> None:

@@ -1,5 +1,6 @@
 """Ocean Insight (Ocean Optics) spectrometers through python-seabreeze, with OceanView's absolute-irradiance
-calibration (`radiometry`), instrument definitions (`definition`) and the driver (`device`); docs/spectrometers.md.
+calibration (`radiometry`), Ocean's own files (`files`: ``*_OOIIrrad.cal``, ``.LMP``, OceanView exports),
+instrument definitions (`definition`) and the driver (`device`); docs/spectrometers.md.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ from uwlab.drivers.ocean_insight.device import (
     read_dark,
     write_dark,
 )
+from uwlab.drivers.ocean_insight.files import read_lamp, read_ocean_calibration, read_oceanview_spectrum
 from uwlab.drivers.ocean_insight.radiometry import read_calibration
 
 __all__ = [
@@ -23,6 +25,9 @@ __all__ = [
     "open_instrument",
     "open_ocean_insight",
     "read_calibration",
+    "read_lamp",
+    "read_ocean_calibration",
+    "read_oceanview_spectrum",
     "read_dark",
     "write_dark",
 ]

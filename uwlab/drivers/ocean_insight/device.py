@@ -43,7 +43,8 @@ from uwlab.drivers.ocean_insight.radiometry import (
     saturated,
 )
 from uwlab.drivers.ocean_insight.definition import CollectionAreaCm2, load_definition
-from uwlab.drivers.ocean_insight.radiometry import read_calibration
+from uwlab.drivers.ocean_insight.files import cosine_corrector_area_cm2
+from uwlab.drivers.ocean_insight.radiometry import Calibration, read_calibration_file
 from uwlab.drivers.serial.base import Spectrometer, check_averaging, check_integration_ms
 from uwlab.errors import ConfigError, DeviceError
 from uwlab.model.data import read_csv_columns
@@ -51,6 +52,8 @@ from uwlab.model.schema import check
 
 DarkMode = Literal["electric", "measured", "none", "auto"]
 AUTO_STEPS = 12
+AREA_MATCH = 0.01
+"""A collection area given with a calibration that states its own must agree with it within 1 %."""
 DARK_COLUMNS = ("wavelength_nm", "dark_counts", "integration_ms")
 WAVELENGTH_MATCH_NM = 1e-6
 _backend_in_use: str | None = None
@@ -132,15 +135,16 @@ class OceanInsightSpectrometer(Spectrometer):
     """An open Ocean Insight spectrometer (a seabreeze ``Spectrometer`` ``device``) returning W/m²/nm.
 
     ``calibration`` is (wavelength_nm, C [µJ/count]) of the lamp calibration, interpolated to the device's pixels
-    here (refused where it does not cover them); ``area_cm2`` the collection area A [cm²]; ``dark_mode`` the dark
-    D (module docstring; "electric" needs the device's electric-dark pixels); ``nonlinearity`` applies the device's
+    here (refused where it does not cover them; None: counts only — `read_counts`, `read_raw` — as for
+    calibrating); ``area_cm2`` the collection area A [cm²]; ``dark_mode`` the dark D (module docstring;
+    "electric" needs the device's electric-dark pixels); ``nonlinearity`` applies the device's
     nonlinearity polynomial where it has one (`nonlinearity_corrected` says whether it does).
     """
 
     def __init__(
         self,
         device: Any,
-        calibration: tuple[np.ndarray, np.ndarray],
+        calibration: tuple[np.ndarray, np.ndarray] | None,
         area_cm2: float,
         *,
         dark_mode: DarkMode = "electric",
@@ -178,7 +182,9 @@ class OceanInsightSpectrometer(Spectrometer):
         self._averaging = 1
         self._integration_us = 0
         try:
-            self.uj_per_count = calibration_on(*calibration, self.wavelength_nm, calibration_source)
+            self.uj_per_count = (
+                None if calibration is None else calibration_on(*calibration, self.wavelength_nm, calibration_source)
+            )
             if dark_mode == "auto":
                 self.dark_mode = "electric" if self._dark_indices else "none"
             elif dark_mode == "electric" and not self._dark_indices:
@@ -192,6 +198,11 @@ class OceanInsightSpectrometer(Spectrometer):
         except BaseException:
             self.close()
             raise
+
+    @property
+    def electric_dark_pixels(self) -> list[int]:
+        """The indices of the device's optically masked (electric-dark) pixels: they never see light."""
+        return list(self._dark_indices)
 
     @property
     def nonlinearity_corrected(self) -> bool:
@@ -317,8 +328,22 @@ class OceanInsightSpectrometer(Spectrometer):
             return counts - self.dark.counts, is_saturated
         return self._averaged_counts(subtract_electric_dark=self.dark_mode == "electric")
 
+    def read_raw(self) -> tuple[np.ndarray, bool]:
+        """(raw counts per pixel as the device gives them — no electric dark, nonlinearity or dark subtracted —
+        averaged over `averaging` acquisitions, saturated); sets `last_saturated`."""
+        total = np.zeros_like(self.wavelength_nm)
+        any_saturated = False
+        for _ in range(self._averaging):
+            raw, is_saturated = self._acquire()
+            total += raw
+            any_saturated |= is_saturated
+        self.last_saturated = any_saturated
+        return total / self._averaging, any_saturated
+
     def read_spectrum(self) -> tuple[np.ndarray, np.ndarray]:
         """One (averaged) reading: (wavelength_nm, spectral irradiance [W/m²/nm]); sets `last_saturated`."""
+        if self.uj_per_count is None:
+            raise ConfigError("calibration", None, "irradiance needs a calibration file (µJ/count)")
         counts, self.last_saturated = self.read_counts()
         irradiance = irradiance_w_m2_nm(
             counts, 0.0, self.uj_per_count, self.integration_ms() / 1000.0, self.area_cm2, self.wavelength_nm
@@ -361,15 +386,19 @@ class OceanInsightSpectrometer(Spectrometer):
 
 def open_ocean_insight(
     resource: str | None,
-    calibration: tuple[np.ndarray, np.ndarray],
+    calibration: tuple[np.ndarray, np.ndarray] | None,
     area_cm2: float,
     *,
     backend: str = "auto",
+    spectrometer_class: Any = None,
     **options,
 ) -> OceanInsightSpectrometer:
     """Open the spectrometer with serial number ``resource`` (None: the first one found) on the python-seabreeze
-    ``backend``; ``options`` go to `OceanInsightSpectrometer`. `DeviceError` when no such device is attached."""
-    spectrometer_class = seabreeze_spectrometer_class(backend)
+    ``backend``; ``options`` go to `OceanInsightSpectrometer`. `DeviceError` when no such device is attached.
+    ``spectrometer_class`` replaces seabreeze's ``Spectrometer`` class (a class with its API and its
+    ``from_serial_number``, e.g. a simulated spectrometer chosen by the caller; the driver itself knows none)."""
+    if spectrometer_class is None:
+        spectrometer_class = seabreeze_spectrometer_class(backend)
     errors: tuple[type[BaseException], ...] = (*_seabreeze_errors(), ValueError)
     try:
         device = spectrometer_class.from_serial_number(resource)
@@ -381,30 +410,66 @@ def open_ocean_insight(
     return OceanInsightSpectrometer(device, calibration, area_cm2, **options)
 
 
+def collection_area_cm2(
+    definition_area_cm2: float,
+    calibration: Calibration | None,
+    area_cm2: float | None = None,
+    cosine_corrector: str | None = None,
+) -> float:
+    """The collection area A [cm²] a reading uses: ``area_cm2`` (``--area-cm2``) or ``cosine_corrector``'s
+    (``--cosine-corrector CC-3``: its diffuser's area) when given, else the calibration file's own (an
+    ``OOIIrrad.cal``'s ``Fiber (micron)`` diameter d: π (d/2)²), else the definition's. A calibration belongs to the
+    optic it was made with: an area given that differs from the one the file states by more than `AREA_MATCH` is a
+    `ConfigError`, as is giving both ``area_cm2`` and ``cosine_corrector``."""
+    if area_cm2 is not None and cosine_corrector is not None:
+        raise ConfigError("cosine-corrector", cosine_corrector, "give --area-cm2 or --cosine-corrector, not both")
+    given, option = None, ""
+    if area_cm2 is not None:
+        given, option = check(CollectionAreaCm2, area_cm2, "area_cm2"), f"--area-cm2 {area_cm2:g}"
+    elif cosine_corrector is not None:
+        given, option = cosine_corrector_area_cm2(cosine_corrector), f"--cosine-corrector {cosine_corrector}"
+    stated = None if calibration is None else calibration.area_cm2
+    if given is not None and calibration is not None and stated is not None and abs(given / stated - 1) > AREA_MATCH:
+        raise ConfigError(
+            "area_cm2",
+            given,
+            f"the calibration {calibration.source} was made with a {stated:.5g} cm² optic (its Fiber (micron)); "
+            f"{option} differs: a calibration belongs to its optic",
+        )
+    if given is not None:
+        return given
+    return stated if stated is not None else definition_area_cm2
+
+
 def open_instrument(
     name: str,
     resource: str | None,
-    calibration: str | Path,
+    calibration: str | Path | None,
     area_cm2: float | None = None,
     *,
+    cosine_corrector: str | None = None,
     backend: str | None = None,
     integration_ms: float | None = None,
     dark_mode: DarkMode = "electric",
+    spectrometer_class: Any = None,
 ) -> OceanInsightSpectrometer:
     """Open the spectrometer of instrument definition ``name`` (``configs/instruments/<name>.toml``) with the
-    calibration file ``calibration``; ``area_cm2``, ``backend`` and ``integration_ms`` default to the definition's.
-    The definition, the calibration file and the values are checked before the device is opened."""
+    calibration file ``calibration`` (``*_OOIIrrad.cal`` or uwlab's CSV; None: counts only); the collection area is
+    `collection_area_cm2`'s; ``backend`` and ``integration_ms`` default to the definition's;
+    ``spectrometer_class`` as in `open_ocean_insight`. The definition, the calibration file and the values are
+    checked before the device is opened."""
     definition = load_definition(name)
-    uj_per_count = read_calibration(calibration)
-    area_cm2 = definition.collection_area_cm2 if area_cm2 is None else check(CollectionAreaCm2, area_cm2, "area_cm2")
+    loaded = None if calibration is None else read_calibration_file(calibration)
+    area = collection_area_cm2(definition.collection_area_cm2, loaded, area_cm2, cosine_corrector)
     integration_ms = (
         definition.default_integration_ms if integration_ms is None else check_integration_ms(integration_ms)
     )
     return open_ocean_insight(
         resource,
-        uj_per_count,
-        area_cm2,
+        None if loaded is None else (loaded.wavelength_nm, loaded.uj_per_count),
+        area,
         backend=backend or definition.backend,
+        spectrometer_class=spectrometer_class,
         dark_mode=dark_mode,
         nonlinearity=definition.nonlinearity_correction,
         integration_ms=integration_ms,

@@ -9,8 +9,10 @@ Installation & Operation Manual, "Irradiance Calibrations") turns a pixel's coun
 - S(λ) the counts of the pixel at λ (linearised: `linearize`), D(λ) the dark counts (the device's electric dark,
   or a dark spectrum at the same integration time with the light blocked);
 - C(λ) [µJ/count] the lamp calibration: the energy one count stands for, from the user's calibration file
-  (columns ``wavelength_nm, uJ_per_count``: OceanView's export) interpolated linearly to the device's pixels
-  (`calibration_on`), refused where the file does not cover them;
+  (OceanView's ``*_OOIIrrad.cal``, or uwlab's CSV with columns ``wavelength_nm, uJ_per_count``:
+  `read_calibration_file`) interpolated linearly to the device's pixels (`calibration_on`), refused where the file
+  does not cover them; OceanView's irradiance calibration finds it from a lamp of known irradiance by the same
+  relation solved for C (`uj_per_count_from_lamp`, `lamp_calibration`);
 - T [s] the integration time; A [cm²] the collection area of the cosine corrector or bare fibre;
 - dλ [nm] the wavelength spread of the pixel: the mean distance to its two neighbours, one-sided at the ends
   (`wavelength_spread_nm`).
@@ -24,12 +26,14 @@ the longest integration whose raw peak stays under 80 % of full scale.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from uwlab.drivers.ocean_insight.files import is_ocean_calibration, read_ocean_calibration
 from uwlab.errors import ConfigError
-from uwlab.model.data import read_csv_columns
+from uwlab.model.data import MAX_CSV_BYTES, read_csv_columns, read_text
 
 UW_CM2_TO_W_M2 = 0.01
 """1 µW/cm² in W/m²."""
@@ -53,11 +57,29 @@ def wavelength_spread_nm(wavelength_nm) -> np.ndarray:
     return np.gradient(wavelength_nm)  # central differences (λ[i+1] − λ[i−1]) / 2, one-sided at the ends
 
 
-def read_calibration(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
-    """(wavelength_nm, C [µJ/count]) of a calibration file with columns ``wavelength_nm, uJ_per_count`` (``#``
-    comment lines allowed); `ConfigError` on ``calibration`` for missing columns, fewer than 2 rows, or factors that
-    are negative, zero or not finite (a count always stands for some energy)."""
-    columns = read_csv_columns(Path(path), CALIBRATION_COLUMNS, "calibration")
+@dataclass(frozen=True)
+class Calibration:
+    """A lamp calibration C(λ) [µJ/count], with the collection area its file states (an ``OOIIrrad.cal``'s
+    ``Fiber (micron)``; None for uwlab's CSV, which states none)."""
+
+    wavelength_nm: np.ndarray
+    uj_per_count: np.ndarray
+    area_cm2: float | None
+    source: str
+
+
+def read_calibration_file(path: str | Path) -> Calibration:
+    """A calibration file in either layout: Ocean's ``*_OOIIrrad.cal`` (suffix ``.cal`` or a ``[uJoule/count]``
+    line: `uwlab.drivers.ocean_insight.files.read_ocean_calibration`) or uwlab's CSV (columns ``wavelength_nm,
+    uJ_per_count``, ``#`` comment lines allowed). `ConfigError` on ``calibration`` for missing columns or
+    wavelength rows, fewer than 2 rows, or factors that are negative, zero or not finite (a count always stands for
+    some energy)."""
+    path = Path(path)
+    text = read_text(path, "calibration", MAX_CSV_BYTES, "calibration")
+    if is_ocean_calibration(path, text):
+        ocean = read_ocean_calibration(path, "calibration", text)
+        return Calibration(ocean.wavelength_nm, ocean.uj_per_count, ocean.area_cm2, str(path))
+    columns = read_csv_columns(path, CALIBRATION_COLUMNS, "calibration")
     wavelength_nm, factor = columns["wavelength_nm"], columns["uJ_per_count"]
     if wavelength_nm.size < 2:
         raise ConfigError("calibration", str(path), "needs at least 2 rows")
@@ -69,7 +91,13 @@ def read_calibration(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
             str(path),
             f"uJ_per_count must be positive and finite; at {wavelength_nm[i]:g} nm it is {factor[i]:g}",
         )
-    return wavelength_nm, factor
+    return Calibration(wavelength_nm, factor, None, str(path))
+
+
+def read_calibration(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
+    """(wavelength_nm, C [µJ/count]) of a calibration file in either layout (`read_calibration_file`)."""
+    calibration = read_calibration_file(path)
+    return calibration.wavelength_nm, calibration.uj_per_count
 
 
 def calibration_on(
@@ -101,6 +129,92 @@ def irradiance_w_m2_nm(
     spread_nm = wavelength_spread_nm(wavelength_nm)
     signal = np.asarray(counts, dtype=float) - np.asarray(dark_counts, dtype=float)
     return signal * np.asarray(uj_per_count, dtype=float) / (integration_s * area_cm2 * spread_nm) * UW_CM2_TO_W_M2
+
+
+def uj_per_count_from_lamp(
+    lamp_uw_cm2_nm, signal_counts, integration_s: float, area_cm2: float, wavelength_nm
+) -> np.ndarray:
+    """C(λ) [µJ/count] = E_lamp(λ) · T · A · dλ / (S(λ) − D(λ)): OceanView's irradiance calibration, the relation
+    of the module docstring solved for C with the lamp's known irradiance.
+
+    ``lamp_uw_cm2_nm`` E_lamp [µW/cm²/nm] on the device's pixels (the ``.LMP`` interpolated), ``signal_counts``
+    S − D [counts] of the lamp reading less the dark at the same integration time, ``integration_s`` T [s],
+    ``area_cm2`` A [cm²], ``wavelength_nm`` the pixels (for dλ [nm]). Units: µW/cm²/nm · s · cm² · nm = µJ, per
+    count. Pixels with S − D ≤ 0 have no calibration (the caller refuses them).
+
+    >>> uj_per_count_from_lamp([10.0, 10.0], [1000.0, 1000.0], 0.1, 0.5, [500.0, 502.0]).tolist()
+    [0.001, 0.001]
+    """
+    spread_nm = wavelength_spread_nm(wavelength_nm)
+    energy_uj = np.asarray(lamp_uw_cm2_nm, dtype=float) * integration_s * area_cm2 * spread_nm
+    return energy_uj / np.asarray(signal_counts, dtype=float)
+
+
+UNLIT_EDGE_FRACTION = 0.05
+"""In a lamp calibration, pixels without lamp signal are tolerated only within this fraction of the array at either
+end (where the optically masked pixels and the detector's unusable edges are)."""
+
+
+def check_lamp_covers(wavelength_nm, lamp_nm, lamp_source: str = "lamp") -> None:
+    """`ConfigError` on ``lamp`` unless the lamp file's wavelengths cover the pixels' (no extrapolation)."""
+    if wavelength_nm[0] < lamp_nm[0] or wavelength_nm[-1] > lamp_nm[-1]:
+        raise ConfigError(
+            "lamp",
+            lamp_source,
+            f"covers {lamp_nm[0]:g}–{lamp_nm[-1]:g} nm, the spectrometer {wavelength_nm[0]:g}–{wavelength_nm[-1]:g} nm",
+        )
+
+
+def lamp_calibration(
+    wavelength_nm,
+    signal_counts,
+    integration_s: float,
+    area_cm2: float,
+    lamp: tuple[np.ndarray, np.ndarray],
+    unlit_pixels=(),
+    lamp_source: str = "lamp",
+) -> np.ndarray:
+    """C(λ) [µJ/count] on every pixel from a lamp reading (`uj_per_count_from_lamp`): ``signal_counts`` S − D of
+    the lamp less the dark at ``integration_s``, ``lamp`` (wavelength_nm, E [µW/cm²/nm]) of its ``.LMP`` file,
+    interpolated linearly to the pixels.
+
+    `ConfigError` on ``lamp`` when the lamp file does not cover the pixels (no extrapolation) or is zero on one, and
+    on ``signal`` when a pixel has S − D ≤ 0 (no lamp above the dark: lamp off, shutter closed, fibre unplugged)
+    outside the device's ``unlit_pixels`` (its optically masked electric-dark pixels, which never see light) and
+    the `UNLIT_EDGE_FRACTION` of the array at either end. The pixels without signal take the factor of the nearest
+    pixel with signal, so the file covers every pixel as OceanView's does (a reading there is dark only)."""
+    wavelength_nm = np.asarray(wavelength_nm, dtype=float)
+    signal = np.asarray(signal_counts, dtype=float)
+    lamp_nm, lamp_uw = lamp
+    n = wavelength_nm.size
+    check_lamp_covers(wavelength_nm, lamp_nm, lamp_source)
+    lit = signal > 0
+    tolerated = np.zeros(n, dtype=bool)
+    tolerated[list(unlit_pixels)] = True
+    edge = int(np.floor(UNLIT_EDGE_FRACTION * n))
+    tolerated[:edge] = tolerated[n - edge :] = True
+    dead = ~lit & ~tolerated
+    if dead.any() or not lit.any():
+        i = int(np.argmax(dead)) if dead.any() else n // 2
+        raise ConfigError(
+            "signal",
+            f"{signal[i]:g} counts at {wavelength_nm[i]:g} nm",
+            f"no lamp signal above the dark at {int((~lit).sum())} of {n} pixels: is the lamp on and its light "
+            "reaching the optic?",
+        )
+    lamp_on_pixels = np.interp(wavelength_nm, lamp_nm, lamp_uw)
+    if np.any(lit & ~(lamp_on_pixels > 0)):
+        i = int(np.argmax(lit & ~(lamp_on_pixels > 0)))
+        raise ConfigError(
+            "lamp", lamp_source, f"zero irradiance at {wavelength_nm[i]:g} nm: nothing to calibrate there"
+        )
+    factor = np.empty_like(wavelength_nm)
+    signal_lit = np.where(lit, signal, 1.0)  # the factors of the pixels without signal are copied below
+    factor[lit] = uj_per_count_from_lamp(lamp_on_pixels, signal_lit, integration_s, area_cm2, wavelength_nm)[lit]
+    lit_index = np.flatnonzero(lit)
+    for i in np.flatnonzero(~lit):
+        factor[i] = factor[lit_index[np.argmin(np.abs(lit_index - i))]]
+    return factor
 
 
 def linearize(
