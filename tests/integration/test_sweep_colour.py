@@ -93,6 +93,7 @@ def test_a_bare_colour_sensor_reads_each_channel_through_its_own_qe(tmp_path, si
     design = plan.sweeps[0].design
     for channel in CHANNEL_NAMES.values():
         predicted = efficiency * model_signal_dn(design, channel, 100.0 * flux)  # at full light it would saturate
+        print(channel, f"{100 * (getattr(point, f'{channel}_signal_dn') / predicted - 1):+.2f} %")
         assert getattr(point, f"{channel}_signal_dn") / predicted == pytest.approx(1.0, abs=0.02), channel
 
 
