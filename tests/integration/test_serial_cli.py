@@ -150,6 +150,27 @@ def test_light_calibrate_curve_file_and_no_overwrite(rig, capsys, tmp_path):
     assert out.read_bytes() == before
 
 
+def test_light_calibrate_refuses_a_light_that_does_not_reach_the_spectrometer(rig, capsys, tmp_path):
+    """The spectrometer capped (``SIM:BLOCK ON``): the same dark at every level is no calibration; nothing is
+    written and the light is back as it was."""
+    run_json(capsys, ["light", "--port", rig.ports["light"], "--on", "--level", "0.3", "--json"])
+    out = tmp_path / "cal.csv"
+    argv = ["light", "calibrate", "--light", rig.ports["light"], "--spectrometer", rig.ports["spectrometer"]]
+    with open_spectrometer(rig.ports["spectrometer"]) as spectrometer:
+        spectrometer.transport.command("SIM:BLOCK ON")
+    try:
+        error = one_line_error(capsys, [*argv, "--levels", "3", "--out", str(out)])
+    finally:
+        with open_spectrometer(rig.ports["spectrometer"]) as spectrometer:
+            spectrometer.transport.command("SIM:BLOCK OFF")
+    assert "level 1 reads" in error and "and level 0" in error and "no response above the dark's noise" in error
+    assert not out.exists()
+    with open_light(rig.ports["light"]) as light:
+        assert light.output() is True and light.level() == 0.3
+    assert main([*argv, "--levels", "3", "--out", str(out)]) == 0  # unblocked, the same light is a calibration
+    assert load_light_calibration(out).irradiance_w_m2[-1] == pytest.approx(60.0, rel=0.01)
+
+
 def test_sim_serial_bad_config_is_one_line(capsys, tmp_path):
     missing = str(tmp_path / "none.toml")
     assert missing in one_line_error(capsys, ["sim", "serial", "--config", missing])

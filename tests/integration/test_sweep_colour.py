@@ -81,6 +81,22 @@ def test_each_channel_signal_is_the_models_per_channel_prediction(colour_sweep):
         np.testing.assert_allclose(measured, predicted, rtol=0.02)
 
 
+def test_a_bare_colour_sensor_reads_each_channel_through_its_own_qe(tmp_path, sim_rig):
+    """No lens: each channel's signal is the model's per-channel prediction too (a bare sensor rendered with the
+    combined QE read red +73 %, green −27 %, blue +39 %)."""
+    bare = {**COLOUR, "id": "bare", "lens": "none", "values": [100.0], "light_level": 0.2}
+    plan = load_plan(write_plan(tmp_path / "plan.toml", "bare", [bare], defaults={"black_level_dn": 32}))
+    data = record(plan, tmp_path / "data", sim_rig)
+    (point,) = data.points().itertuples()
+    efficiency = data.metadata["sim_truth"]["bare"]["light_efficiency"]
+    flux = 0.2 ** data.metadata["sim_truth"]["bare"]["light_gamma"]
+    design = plan.sweeps[0].design
+    for channel in CHANNEL_NAMES.values():
+        predicted = efficiency * model_signal_dn(design, channel, 100.0 * flux)  # at full light it would saturate
+        print(channel, f"{100 * (getattr(point, f'{channel}_signal_dn') / predicted - 1):+.2f} %")
+        assert getattr(point, f"{channel}_signal_dn") / predicted == pytest.approx(1.0, abs=0.02), channel
+
+
 def test_each_channel_follows_the_photon_transfer_of_the_one_system_gain(colour_sweep):
     """EMVA 1288 Release 4.0 Linear eq. 6 per channel: σ²_y − σ²_y.dark = K (μ_y − μ_y.dark), one K for all three
     (the colour filters change the photons, not the pixel's conversion)."""

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from uwlab.drivers.camera.pixels import bayer_sites
+from uwlab.drivers.camera.pixels import bayer_mosaic
 from uwlab.sim.rig_state import RigState, WarmUp
 from uwlab.sim.settings import SimSettings
 from uwlab.errors import ConfigError
@@ -70,12 +70,11 @@ class BenchScene:
         relative = self.design.relative_irradiance(np.hypot(x[None, :], y[:, None]))
         if not self.sensor.color:
             return (self.on_axis_rate_e_per_s(flux_fraction) * relative).astype(np.float32)
-        out = np.empty(shape_yx, np.float32)
-        for colour, channel in (("R", "red"), ("G", "green"), ("B", "blue")):
-            rate = self.design.on_axis_rate_e_per_s(flux_fraction, channel)
-            for row, col in bayer_sites(self.sensor.bayer)[colour]:
-                out[row::2, col::2] = rate * relative[row::2, col::2]
-        return out
+        planes = {
+            colour: (self.design.on_axis_rate_e_per_s(flux_fraction, channel) * relative).astype(np.float32)
+            for colour, channel in (("R", "red"), ("G", "green"), ("B", "blue"))
+        }
+        return bayer_mosaic(self.sensor.bayer, planes)
 
     def board_roi(self, shape_yx: tuple[int, int]) -> tuple[int, int, int, int]:
         """The whole image: the bench has no target board."""

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from uwlab.drivers.camera.pixels import bayer_sites
+from uwlab.drivers.camera.pixels import bayer_mosaic
 from uwlab.model.bench import is_bench
 from uwlab.sim.bench import BenchScene
 from uwlab.sim.rig_state import RigState, WarmUp
@@ -178,16 +178,14 @@ class RigScene:
         """A colour sensor's raw image: each pixel's rate through its own filter (the sensor's ``red``, ``green``
         or ``blue`` QE) on the sensor's Bayer layout (`SensorProfile.bayer`), as a raw Bayer camera delivers it."""
         design = self.design
-        out = np.empty(shape_yx, np.float32)
+        planes = {}
         try:
             for colour, channel in (("R", "red"), ("G", "green"), ("B", "blue")):
                 self.design = design.with_values(**{"sensor.channel": channel})
-                full = self._render(shape_yx)
-                for row, col in bayer_sites(self.sensor.bayer)[colour]:
-                    out[row::2, col::2] = full[row::2, col::2]
+                planes[colour] = self._render(shape_yx)
         finally:
             self.design = design
-        return out
+        return bayer_mosaic(self.sensor.bayer, planes)
 
     def board_roi(self, shape_yx: tuple[int, int]) -> tuple[int, int, int, int]:
         """The board's footprint in an image of `shape_yx` as (x, y, width, height) pixels."""

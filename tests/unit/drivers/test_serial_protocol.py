@@ -142,3 +142,20 @@ def test_sim_spectrometer_limits_and_block():
     block = spectrometer.handle("SPEC:READ?")
     count, saturated = parse_block_header(block[0])
     assert count == len(block) - 2 == 401 and block[-1] == "END" and not saturated
+
+
+def test_sim_spectrometer_blocked_reads_the_dark_until_unblocked():
+    """1 W/m²/nm at full light; blocked (through a reset too) it reads the dark's residual, 2 % of the 1002-count dark
+    at 10 ms over 10⁴ counts per W/m²/nm (2.0e-3 W/m²/nm), within its noise."""
+    spectrometer = SimSpectrometer(RigState(), lambda position, f: (np.array([300.0, 900.0]), np.full(2, f)), seed=0)
+
+    def mean_read() -> float:
+        return float(np.mean([float(line.split()[1]) for line in spectrometer.handle("SPEC:READ?")[1:-1]]))
+
+    assert spectrometer.handle("SPEC:INT 10") == ["OK"] and mean_read() == pytest.approx(1.0, rel=0.01)
+    assert spectrometer.handle("SIM:BLOCK ON") == ["OK"] and spectrometer.handle("SIM:BLOCK?") == ["ON"]
+    spectrometer.power_on()
+    assert spectrometer.handle("SIM:BLOCK?") == ["ON"] and spectrometer.handle("SPEC:INT 10") == ["OK"]
+    assert mean_read() == pytest.approx(2.004e-3, abs=2e-4)
+    assert spectrometer.handle("SIM:BLOCK maybe")[0].startswith("ERR 101")
+    assert spectrometer.handle("SIM:BLOCK OFF") == ["OK"] and mean_read() == pytest.approx(1.0, rel=0.01)

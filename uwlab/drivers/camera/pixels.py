@@ -149,6 +149,21 @@ def bayer_sites(layout: str, x0: int = 0, y0: int = 0) -> dict[str, tuple[tuple[
     return {colour: tuple(sorted(cells)) for colour, cells in sites.items()}
 
 
+def bayer_mosaic(layout: str, planes: dict[str, np.ndarray]) -> np.ndarray:
+    """The raw frame of a ``layout`` colour filter array: each site taken from its colour's plane (``planes`` maps
+    ``"R"``, ``"G"`` and ``"B"`` to full frames of one shape, e.g. what each filter would pass at every pixel).
+
+    >>> bayer_mosaic("RG", {c: np.full((2, 4), v) for c, v in zip("RGB", (1, 2, 3))})
+    array([[1, 2, 1, 2],
+           [2, 3, 2, 3]])
+    """
+    out = np.empty_like(planes["G"])
+    for colour, cells in bayer_sites(layout).items():
+        for row, col in cells:
+            out[row::2, col::2] = planes[colour][row::2, col::2]
+    return out
+
+
 def _whole_groups(raw: np.ndarray, group_bytes: int, n_pixels: int, pixels_per_group: int) -> tuple[np.ndarray, int]:
     """The payload and its number of groups, a partial last group padded with zeros (a copy only then)."""
     n_groups = -(-n_pixels // pixels_per_group)

@@ -5,6 +5,13 @@ spectrometer reads one spectrum. If the spectrometer saturates, its integration 
 reading repeated (down to the instrument minimum). The light's output state and level are restored
 afterwards, whatever happens.
 
+What is not a calibration is refused (`NotACalibration`, nothing written), by the noise of the readings themselves:
+each spectrum's integrated noise σ is estimated from its bin-to-bin scatter (`integrated_noise_w_m2`). Refused:
+a highest level no more than `NOISE_SIGMAS` σ of the zero level's (dark) noise above the zero level (no response:
+the light does not reach the spectrometer), a zero level reading more than `NOISE_SIGMAS` σ and more than
+`DARK_FRACTION` of the response (not dark: stray light, or a light that stays on at level 0), and a curve that falls
+between two levels by more than `NOISE_SIGMAS` times their combined noise (not monotonic).
+
 File format (CSV, docs/serial-protocol.md "Light calibration file"): ``#`` comment lines (provenance),
 then a header ``level,irradiance_w_m2,illuminance_lux,irradiance_w_m2_nm_<λ>,...`` with one column per
 wavelength [nm], and one row per level in increasing order. `load_light_calibration` reads it back.
@@ -21,14 +28,22 @@ import numpy as np
 import pandas as pd
 
 from uwlab.drivers.serial.base import Light, Spectrometer
-from uwlab.errors import ConfigError, DeviceError
+from uwlab.errors import ConfigError, DeviceError, UwlabError
 from uwlab.experiments.acquisition.spectra import illuminance_lux, irradiance_w_m2
 
 SPECTRAL_PREFIX = "irradiance_w_m2_nm_"
 CURVE_COLUMNS = ("level", "irradiance_w_m2", "illuminance_lux")
 MAX_LEVELS = 1000
+NOISE_SIGMAS = 5.0
+DARK_FRACTION = 0.01
+NOISE_WINDOW_BINS = 31
 
 Progress = Callable[[int, int], None]
+
+
+class NotACalibration(UwlabError):
+    """The measured curve is not a light calibration (no response, a zero level that is not dark, or not
+    monotonic); the message names the levels."""
 
 
 @dataclass(frozen=True)
@@ -68,7 +83,59 @@ def calibrate_light(
     finally:
         light.set_level(initial_level)
         light.set_output(initial_output)
-    return _calibration(np.asarray(levels, dtype=float), spectra[0][0], np.array([e for _, e in spectra]))
+    calibration = _calibration(np.asarray(levels, dtype=float), spectra[0][0], np.array([e for _, e in spectra]))
+    check_calibration(calibration)
+    return calibration
+
+
+def integrated_noise_w_m2(wavelength_nm: np.ndarray, irradiance_w_m2_nm: np.ndarray) -> float:
+    """The standard deviation [W/m²] of ∫E dλ (trapezoid, as `irradiance_w_m2`) from one spectrum's own scatter.
+
+    Independent bins of standard deviation σᵢ give σ² = Σ wᵢ² σᵢ² with the trapezoid weights wᵢ. σᵢ is the
+    local scale of the second differences dᵢ = (Eᵢ₋₁ − 2Eᵢ + Eᵢ₊₁)/√6 (σ each for noise that varies slowly with
+    wavelength, and blind to the spectrum's own slope): 1.4826 × their median |d| over `NOISE_WINDOW_BINS` bins
+    (the median absolute deviation, which an edge or a line barely moves). Where a spectrum curves more per bin than
+    its noise (a narrow line on a coarse grid) this is an upper bound, which only makes the checks more lenient."""
+    wavelength_nm = np.asarray(wavelength_nm, dtype=float)
+    spectrum = np.asarray(irradiance_w_m2_nm, dtype=float)
+    steps = np.diff(wavelength_nm)
+    weights = np.zeros_like(wavelength_nm)
+    weights[:-1] += steps / 2
+    weights[1:] += steps / 2
+    scatter = np.abs(np.diff(spectrum, 2)) / np.sqrt(6)
+    half = NOISE_WINDOW_BINS // 2
+    padded = np.pad(scatter, (half + 1, half + 1), mode="edge")
+    windows = np.lib.stride_tricks.sliding_window_view(padded, NOISE_WINDOW_BINS)[: len(spectrum)]
+    sigma = 1.4826 * np.median(windows, axis=1)
+    return float(np.sqrt(np.sum((weights * sigma) ** 2)))
+
+
+def check_calibration(calibration: LightCalibration) -> None:
+    """Refuse (`NotACalibration`) a curve with no response above the dark's noise, a zero level that is not
+    dark, or a fall between levels beyond the noise (the module docstring gives the rules)."""
+    level, irradiance = calibration.level, calibration.irradiance_w_m2
+    noise = np.array([integrated_noise_w_m2(calibration.wavelength_nm, e) for e in calibration.irradiance_w_m2_nm])
+    dark, full, response = irradiance[0], irradiance[-1], irradiance[-1] - irradiance[0]
+    if response <= NOISE_SIGMAS * noise[0]:
+        raise NotACalibration(
+            f"not a light calibration: level {level[-1]:g} reads {full:.4g} W/m² and level {level[0]:g} "
+            f"{dark:.4g} W/m², no response above the dark's noise ({NOISE_SIGMAS:g} σ = "
+            f"{NOISE_SIGMAS * noise[0]:.2g} W/m²): is the light reaching the spectrometer?"
+        )
+    if level[0] == 0 and abs(dark) > max(NOISE_SIGMAS * noise[0], DARK_FRACTION * response):
+        raise NotACalibration(
+            f"not a light calibration: level 0 reads {dark:.4g} W/m², {abs(dark) / response:.1%} of the response "
+            f"at level {level[-1]:g} ({full:.4g} W/m²): the zero level is not dark (stray light, or a light that "
+            "stays on at level 0?)"
+        )
+    falls = irradiance[:-1] - irradiance[1:] > NOISE_SIGMAS * np.hypot(noise[:-1], noise[1:])
+    if np.any(falls):
+        i = int(np.argmax(falls))
+        raise NotACalibration(
+            f"not a light calibration: the irradiance falls from {irradiance[i]:.4g} W/m² at level {level[i]:g} "
+            f"to {irradiance[i + 1]:.4g} W/m² at level {level[i + 1]:g}, beyond the noise: the curve must rise "
+            "with the level"
+        )
 
 
 def measure_unsaturated(spectrometer: Spectrometer) -> tuple[np.ndarray, np.ndarray]:

@@ -14,9 +14,11 @@ sensor under a diffuse disk source, the spectrometer at the sensor plane).
   are replaced by the serial light (the first) or left out.
 
 Apertures are set directly (`RigScene.set_lens` and a re-render); the spectrometer is moved between the
-target and the camera with the simulator's ``SIM:POS`` command. "No lens" gives a uniform field (a bare
-sensor sees the whole hemisphere; see `uwlab.model.optics`). The simulated board carries no printed
-markers, so an ``aruco`` ROI is the board's footprint from the scene (what the detector would report).
+target and the camera with the simulator's ``SIM:POS`` command. Every configuration is the scene's rendering
+(`RigScene.electron_rate_map`), a colour sensor's each Bayer site through its own channel's QE; "no lens" gives a
+uniform field (per channel: a bare sensor sees the whole hemisphere; see `uwlab.model.optics`). The simulated
+board carries no printed markers, so an ``aruco`` ROI is the board's footprint from the scene (what the detector
+would report).
 The spectrometer simulator models the rig file's geometry; per-sweep geometry overrides change the images only.
 
 The rig's temporary folder (``uwlab-simrig-*`` in the system's temporary directory: pseudo-terminal links, the
@@ -48,7 +50,7 @@ from uwlab.experiments.saturation import sensor_clip_dn
 from uwlab.lockfile import OwnerLock, is_stale, read_holder
 from uwlab.model.chain import beam_half_angle_rad
 from uwlab.sim.bench import BenchScene
-from uwlab.sim.devices.camera import RateMap, SimFaults, SimSensor, SimTruth, flat_rate_map
+from uwlab.sim.devices.camera import SimFaults, SimSensor, SimTruth
 from uwlab.sim.devices.serial_sim import SerialRig, SerialSimSettings
 from uwlab.sim.rig_state import RigState
 from uwlab.sim.scene import RigScene, load_scene
@@ -150,9 +152,7 @@ class SimRig:
         scene.use(sweep.design, sweep.lens.bare)
         truth = SimTruth.from_sensor_profile(scene.sensor, **scene.sensor_realism())
         self._scene, self._sweep = scene, sweep
-        self._sensor = SimSensor(
-            truth, _rate_map(scene, sweep.lens.bare), scene.flux_fraction, seed=scene.sim.seed + self.seed
-        )
+        self._sensor = SimSensor(truth, scene.electron_rate_map, scene.flux_fraction, seed=scene.sim.seed + self.seed)
         self.camera = open_camera("sim", "sim0", policy=sweep.camera.policy(), sensor=self._sensor, faults=self.faults)
         return self.camera
 
@@ -164,9 +164,9 @@ class SimRig:
 
     def set_aperture(self, sweep: SweepSpec, f_number: float) -> None:
         """Set the simulated lens's f-number directly and re-render the scene."""
-        scene, sensor, open_sweep = self._open()
+        scene, sensor, _ = self._open()
         scene.set_lens(f_number=f_number)
-        sensor.set_rate_map(_rate_map(scene, open_sweep.lens.bare))
+        sensor.set_rate_map(scene.electron_rate_map)
 
     def place_spectrometer(self, position: str) -> None:
         """Move the simulated spectrometer (the simulator's ``SIM:POS`` command on its serial line)."""
@@ -226,14 +226,6 @@ class SimRig:
         rate = sensor.rate_e_per_s
         bh, bv = s.binning
         return rate[s.offset_y * bv : (s.offset_y + s.height) * bv, s.offset_x * bh : (s.offset_x + s.width) * bh]
-
-
-def _rate_map(scene: RigScene | BenchScene, bare: bool) -> RateMap:
-    """The electron-rate map of the scene: uniform for a bare sensor in the tank (it sees the whole hemisphere),
-    else the scene's rendering."""
-    if bare and not isinstance(scene, BenchScene):
-        return flat_rate_map(scene.on_axis_rate_e_per_s())
-    return lambda shape: scene.electron_rate_map(shape, 1.0)
 
 
 class MirroredLight(Light):

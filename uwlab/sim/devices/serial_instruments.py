@@ -17,7 +17,9 @@ count model per pixel and frame (e.g. Janesick, *Photon Transfer*, SPIE 2007):
 ``counts = bias + k·t·E + dark_rate·t + N(0, √(k·t·E + dark_rate·t)) + N(0, read_noise)``, clipped to
 [0, full_scale] (saturation). Frames are averaged; the instrument then subtracts its stored dark
 reference, which is off by ``dark_error`` (a relative error), and divides by ``k·t``. Integration time
-1–10000 ms, averaging 1–100; an acquisition takes integration × averaging of real time.
+1–10000 ms, averaging 1–100; an acquisition takes integration × averaging of real time. ``SIM:BLOCK ON`` puts
+something between the light and the spectrometer (a capped fibre, a light aimed elsewhere): it then reads the dark
+whatever the light does, until ``SIM:BLOCK OFF``; a reset of the instrument does not move it.
 """
 
 from __future__ import annotations
@@ -243,6 +245,7 @@ class SimSpectrometer(SimInstrument):
         self.detector = detector
         self.wavelength_nm = DEFAULT_GRID.nm
         self.rng = np.random.default_rng(seed)
+        self.blocked = False
         super().__init__(serial_number, state_log)
 
     def set_power_on_state(self) -> None:
@@ -250,7 +253,12 @@ class SimSpectrometer(SimInstrument):
         self.averaging = 1
 
     def state(self) -> dict:
-        return {"integration_ms": self.integration_ms, "averaging": self.averaging, "position": self.position}
+        return {
+            "integration_ms": self.integration_ms,
+            "averaging": self.averaging,
+            "position": self.position,
+            "blocked": self.blocked,
+        }
 
     def dispatch(self, header: str, argument: str) -> list[str]:
         if header == "SPEC:INT":
@@ -269,6 +277,12 @@ class SimSpectrometer(SimInstrument):
             raise CommandError(ERR_BAD_ARGUMENT, f"position must be one of {', '.join(SPECTROMETER_POSITIONS)}")
         elif header == "SIM:POS?":
             return [self.position]
+        elif header == "SIM:BLOCK" and argument.upper() in ("ON", "OFF"):
+            self.blocked = argument.upper() == "ON"
+        elif header == "SIM:BLOCK":
+            raise CommandError(ERR_BAD_ARGUMENT, "expected SIM:BLOCK ON|OFF")
+        elif header == "SIM:BLOCK?":
+            return ["ON" if self.blocked else "OFF"]
         else:
             return super().dispatch(header, argument)
         self.record("command")
@@ -284,7 +298,7 @@ class SimSpectrometer(SimInstrument):
         time.sleep(integration_s * self.averaging)
         light = self.rig_state.light
         self.record("read", light_on=light.on, light_level=light.level, flux_fraction=light.effective_fraction)
-        irradiance = self.true_irradiance(light.effective_fraction)
+        irradiance = self.true_irradiance(0.0 if self.blocked else light.effective_fraction)
         measured, saturated = self.detector.measure(irradiance, integration_s, self.averaging, self.rng)
         rows = [f"{format_float(w)} {value:.6e}" for w, value in zip(self.wavelength_nm, measured, strict=True)]
         return [f"{BLOCK_BEGIN} {len(rows)} {int(saturated)}", *rows, BLOCK_END]
