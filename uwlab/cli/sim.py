@@ -11,6 +11,7 @@ import time
 
 from uwlab.cli.sim_camera import add_sim_camera_parser
 from uwlab.cli.sim_charuco import add_sim_charuco_parser
+from uwlab.cli.sim_supply import add_sim_supply_parser
 from uwlab.model.evaluation import SPECTROMETER_POSITIONS
 from uwlab.sim.devices.serial_sim import SerialRig, SerialSimSettings
 from uwlab.errors import DeviceError
@@ -29,6 +30,7 @@ def register(subparsers) -> None:
     register_serial(sub)
     add_sim_camera_parser(sub)
     add_sim_charuco_parser(sub)
+    add_sim_supply_parser(sub)
 
 
 def register_serial(sub) -> None:
