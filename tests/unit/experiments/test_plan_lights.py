@@ -80,13 +80,13 @@ def test_the_sweep_cli_prints_the_notice_once(tmp_path, capsys):
 
 
 def test_the_tank_rig_opens_lights_by_definition_and_leaves_them_dark(tmp_path):
-    p = plan(tmp_path, light(name="led", max_current_a=1.0), light(name="fill", level=0.25))
+    p = plan(tmp_path, light(name="led", max_current_a=0.6), light(name="fill", level=0.25))
     with HardwareRig(p) as rig:
         assert list(rig.lights) == ["led", "fill"] and rig.light is rig.lights["led"]
         assert rig.hold_levels == {"led": 1.0, "fill": 0.25}
-        rig.light.set_output(True)
-        rig.light.set_level(1.0)
-        assert rig.light.state()["current_a"] == pytest.approx(1.0)  # the rig's 1 A, not the supply's 2 A
+        rig.light.set_level(0.5)
+        rig.light.set_output(True)  # the pyvisa-sim twin's LED draws 0.3 A: delivered in CC
+        assert rig.light.state()["current_a"] == pytest.approx(0.3)  # half the rig's 0.6 A, not of the 2 A rating
     assert rig.safe_states == {"led": True, "fill": True}
 
 

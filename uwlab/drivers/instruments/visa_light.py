@@ -288,7 +288,7 @@ class VisaLight(Light):
         voltage = state.get("measured_voltage_v")
         at = "" if voltage is None else f" at {voltage:.2f} V"
         if measured < current_set - allowed:
-            limit = "?" if self.voltage_limit_v is None else f" {self.voltage_limit_v:.1f} V?"
+            limit = f" {state['voltage_limit_v']:.1f} V?" if "voltage_limit_v" in state else "?"
             found = f"measured {_amps(measured)} A{at} for {_amps(current_set)} A set"
             return f"{found}: open circuit or voltage limit{limit}"
         if measured > current_set + allowed:
@@ -334,7 +334,7 @@ class VisaLight(Light):
         if cc is not None:
             if cc.measure_voltage is not None:
                 state["measured_voltage_v"] = self._number(cc.measure_voltage)
-            state["voltage_limit_v"] = self.voltage_limit_v
+            state["voltage_limit_v"] = self._number(cc.query_voltage)
             state["mode"] = self.mode()
             state["delivery"] = self.delivery(state) if cc.check else "unchecked"
         return state
