@@ -1,6 +1,8 @@
 """The malformed-definition campaign of issue 36: every shipped VISA light definition, and every malformed variant of
 each, driven through ``uwlab light`` (in process) against its twin while the bytes the twin receives are recorded;
-a drive above the limit in any of them is counted, as is any traceback. Used by
+a drive above the limit in any of them is counted, as is any traceback. Two twins: the CV/CC supply twin with an
+LED load (``physics``: `uwlab.sim.devices.supply`, over TCP through pyvisa-py, which records every line it receives)
+and the pyvisa-sim devices of configs/instruments/sim/ (``pyvisa-sim``: the bytes PyVISA writes are recorded). Used by
 tests/unit/drivers/test_light_definition_safety.py and benchmarks/malformed_definitions.py.
 
 Malformed variants (`MALFORMED`): a second command smuggled into every command string, token and termination (a
@@ -25,6 +27,8 @@ from tests.support.paths import CONFIGS
 from uwlab.cli.main import main
 
 SIM = CONFIGS / "instruments" / "sim"
+DIALECTS = {"keysight-e36100": "keysight-e36100", "rigol-dp800": "rigol-dp800", "scpi-dc-supply": "scpi"}
+DIALECTS["thorlabs-dc2200"] = "thorlabs-dc2200"
 NUMBER = re.compile(r"(?<![A-Za-z0-9_])[-+]?(\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?")
 LEVELS = (0.5, 0.9, 1.0)
 
@@ -205,47 +209,63 @@ class Run:
     over: list[str]
 
 
-def _run(argv: list[str], current_limit_a: float, voltage_limit_v: float | None, label: str) -> Run:
+def _run(
+    argv: list[str], current_limit_a: float, voltage_limit_v: float | None, label: str, received: list[str]
+) -> Run:
+    """``uwlab ARGV`` in process: its exit code, stderr, whether a traceback escaped, and the commands over the limit
+    in what PyVISA wrote and in what the twin says it received (``received``, appended to while it runs)."""
     err = io.StringIO()
     code: int | None
     traceback = False
+    before = len(received)
     with recording() as wire, contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
         try:
             code = main(argv)
         except BaseException:  # anything escaping the CLI is a traceback for the user
             code, traceback = None, True
     text = err.getvalue()
+    seen = wire.sent + [line.encode("latin-1") for line in received[before:]]
     return Run(
-        label,
-        argv,
-        code,
-        text,
-        traceback or "Traceback" in text,
-        over_limit(wire.sent, current_limit_a, voltage_limit_v),
+        label, argv, code, text, traceback or "Traceback" in text, over_limit(seen, current_limit_a, voltage_limit_v)
     )
 
 
-def campaign(folder: Path) -> list[Run]:
+@contextlib.contextmanager
+def _twin(name: str, kind: str) -> Iterator[tuple[str, str, list[str]]]:
+    """The twin of the definition ``name``: its resource, PyVISA library and the lines it received (the physics
+    twin's own record; empty for pyvisa-sim, whose input is PyVISA's recorded writes)."""
+    if kind == "pyvisa-sim":
+        yield (*twin(name), [])
+        return
+    from uwlab.sim.devices.supply import SupplyTwin, serve
+
+    supply = SupplyTwin(DIALECTS[name], seed=0)
+    with serve(supply, transport="tcp") as resource:
+        yield resource, "@py", supply.received
+
+
+def campaign(folder: Path, kind: str = "physics") -> list[Run]:
     """Every shipped definition and every variant of each (`MALFORMED`, `ROUNDING`), written to ``folder`` and
-    driven by ``uwlab light --on --level L --json`` on its twin; the runs, each with what went over the limit."""
+    driven by ``uwlab light --on --level L --json`` on its twin (``kind``: ``physics``, the CV/CC supply twin, or
+    ``pyvisa-sim``); the runs, each with what went over the limit."""
     runs = []
     for name in shipped():
         text = (CONFIGS / "instruments" / f"{name}.toml").read_text()
         data = tomllib.loads(text)
-        resource, library = twin(name)
         rating_v = data.get("constant_current", {}).get("voltage_rating_v")
         cases = [(label, edit, None, (1.0,)) for label, edit in MALFORMED.items()]
         cases += [(label, edit, rig, LEVELS) for label, (edit, rig) in ROUNDING.items()]
-        for label, edit, rig, levels in cases:
-            path = folder / f"{name}-{re.sub(r'[^a-z0-9]+', '-', label.lower())}.toml"
-            path.write_text(edit(text, data))
-            intended = tomllib.loads(path.read_text())
-            limit = min(intended.get("max_drive", data["max_drive"]), data["max_drive"], rig or float("inf"))
-            for level in levels:
-                argv = ["light", "--instrument", str(path), "--resource", resource, "--visa-library", library]
-                argv += [] if rig is None else ["--max-current-a", repr(rig)]
-                argv += ["--on", "--level", repr(level), "--json"]
-                runs.append(_run(argv, limit, rating_v, f"{name}: {label} @ {level}"))
+        with _twin(name, kind) as (resource, library, received):
+            for label, edit, rig, levels in cases:
+                path = folder / f"{kind}-{name}-{re.sub(r'[^a-z0-9]+', '-', label.lower())}.toml"
+                path.write_text(edit(text, data))
+                intended = tomllib.loads(path.read_text())
+                limit = min(intended.get("max_drive", data["max_drive"]), data["max_drive"], rig or float("inf"))
+                for level in levels:
+                    argv = ["light", "--instrument", str(path), "--resource", resource, "--visa-library", library]
+                    argv += [] if rig is None else ["--max-current-a", repr(rig)]
+                    argv += ["--on", "--level", repr(level), "--json"]
+                    runs.append(_run(argv, limit, rating_v, f"{kind} {name}: {label} @ {level}", received))
     return runs
 
 

@@ -26,8 +26,9 @@ def test_the_wire_check_sees_a_smuggled_current():
     assert over_limit([b":OUTP:OVP:VAL CH1,40.000\n"], 1.0, 30.0) == [":OUTP:OVP:VAL CH1,40.000"]
 
 
-def test_no_definition_sends_a_drive_above_its_limit(tmp_path):
-    runs = campaign(tmp_path)
+@pytest.mark.parametrize("kind", ["physics", "pyvisa-sim"])
+def test_no_definition_sends_a_drive_above_its_limit(tmp_path, kind):
+    runs = campaign(tmp_path, kind)
     summary = counts(runs)
     assert summary["runs"] == len(shipped()) * (len(MALFORMED) + 6 * 3)
     assert summary["over_limit_set_points"] == 0, [(r.label, r.over) for r in runs if r.over]

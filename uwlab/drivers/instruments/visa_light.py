@@ -103,6 +103,8 @@ class VisaLight(Light):
             raise ConfigError("instrument", name, f"{port} answers *IDN? {self._identity!r}, not {' '.join(missing)}")
         for command in definition.commands.setup:
             self._set(command)
+        if self.drive() > self.max_drive and self.output():  # left on above this rig's limit (an earlier run's)
+            self.set_output(False)
         if definition.constant_current is not None:
             self._constant_current(forward_voltage_v)
 
@@ -222,7 +224,10 @@ class VisaLight(Light):
         command = d.commands.set_output.format(state=d.on_token if on else d.off_token)
         self._set(command)
         if self.output() != on:
-            raise DeviceError(f"{self.name} on {self.port}: output set {'on' if on else 'off'} reads back otherwise")
+            tripped = " (a protection trip latched? clear it on the instrument)" if on else ""
+            raise DeviceError(
+                f"{self.name} on {self.port}: output set {'on' if on else 'off'} reads back otherwise{tripped}"
+            )
         if on:
             self._check_delivery()
 
