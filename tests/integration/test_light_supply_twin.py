@@ -74,6 +74,24 @@ def test_an_open_a_short_and_a_low_voltage_limit_are_refused_with_the_output_off
         assert not twin.output_on and light.output() is False
 
 
+@pytest.mark.parametrize("transport", ["tcp", "pty"])
+def test_the_led_driver_and_a_supply_on_a_serial_line_deliver_too(transport):
+    # the DC2200 (an LED driver: no voltage limit to set, it reports an open LED itself) over TCP; a generic SCPI
+    # supply on a serial line (pyvisa-py ASRL on the twin's pseudo-terminal)
+    name, dialect = ("thorlabs-dc2200", "thorlabs-dc2200") if transport == "tcp" else ("scpi-dc-supply", "scpi")
+    twin = SupplyTwin(dialect, seed=5)
+    with serve(twin, transport=transport) as resource, open_visa_light(name, resource, "@py", max_drive=0.7) as light:
+        light.set_level(0.5)
+        light.set_output(True)
+        assert twin.point().current_a == pytest.approx(0.35, rel=0.01)
+        assert light.state()["measured_current_a"] == pytest.approx(0.35, rel=0.01)
+        twin.set_fault("open")
+        with pytest.raises(DeviceError, match="LED open" if dialect == "thorlabs-dc2200" else "open circuit"):
+            light.set_level(0.6)
+            light.set_output(True)
+        assert not twin.output_on
+
+
 def test_a_fault_after_switching_on_is_caught_at_the_next_set(bench):
     name, twin, resource = bench
     with open_visa_light(name, resource, "@py", max_drive=RIG_MAX_A) as light:

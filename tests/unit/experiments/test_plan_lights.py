@@ -147,3 +147,24 @@ def test_a_light_without_its_placement_is_refused(tmp_path, names, lights, key, 
     with pytest.raises(ConfigError) as error:
         plan(tmp_path, *lights, rig=placed_rig(tmp_path, *names))
     assert error.value.key == key and says in str(error.value)
+
+
+@pytest.mark.parametrize(
+    ("extra", "key"),
+    [
+        ({"instrument": "thorlabs-dc2200", "forward_voltage_v": 3.4}, "lights[0].forward_voltage_v"),
+        ({"forward_voltage_v": 19.5}, "forward_voltage_v"),  # + 1 V margin above the E36103A's 20 V
+        ({"max_current_a": 2.5}, "lights[0].max_current_a"),
+        ({"identity_contains": ["MY99999999"]}, "instrument"),  # the rig pins another supply
+    ],
+)
+def test_a_lights_rig_keys_are_checked_before_anything_is_driven(tmp_path, extra, key):
+    with pytest.raises(ConfigError) as refused:
+        with HardwareRig(plan(tmp_path, light(**extra))) as rig:
+            rig.light.set_level(0.1)
+    assert refused.value.key == key
+
+
+def test_a_lights_rig_keys_reach_the_supply(tmp_path):
+    with HardwareRig(plan(tmp_path, light(forward_voltage_v=3.0, identity_contains=["MY00000001"]))) as rig:
+        assert rig.light.state()["voltage_limit_v"] == pytest.approx(4.0)  # 3 V + the 1 V margin, read back

@@ -85,7 +85,7 @@ def _readbacks(
             problems.append(
                 f"{name} reads back on={got['on']} level={got['level']:g}, want on={want.on} level={want.level:g}"
             )
-        elif got.get("delivery", "ok") not in ("ok", "off"):  # a supply not delivering its set current in CC
+        elif got.get("delivery", "ok") not in ("ok", "off", "unchecked"):  # a supply not delivering in CC
             problems.append(f"{name}: {got['delivery']}")
     if camera is not None:
         camera.verify_settings()
