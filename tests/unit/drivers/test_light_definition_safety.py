@@ -130,7 +130,7 @@ def test_the_generic_definition_takes_any_ieee_488_2_instrument_and_a_rig_pins_i
         .replace("Keysight Technologies,E36103A,MY00000001,1.0.3-1.0.3", "Keysight E36103A MY00000001")
     )
     err = one_line_error(capsys, [*argv[:-1], f"{three}@sim"])
-    assert "maker,model,serial,fw" in err
+    assert "not IEEE 488.2's maker,model,serial,firmware" in err
 
 
 def test_vendor_definitions_keep_their_strict_identity(capsys):

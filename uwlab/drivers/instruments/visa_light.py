@@ -96,7 +96,11 @@ class VisaLight(Light):
         if not self._identity:
             raise ConfigError("resource", port, f"does not answer {definition.commands.identity}")
         if not ieee488_fields(self._identity):
-            raise ConfigError("instrument", name, f"{port} answers *IDN? {self._identity!r}, not maker,model,serial,fw")
+            raise ConfigError(
+                "instrument",
+                name,
+                f"{port} answers *IDN? {self._identity!r}, not IEEE 488.2's maker,model,serial,firmware",
+            )
         words = [*definition.identity_contains, *identity_contains]
         missing = [word for word in words if word.lower() not in self._identity.lower()]
         if missing:
