@@ -74,6 +74,9 @@ def register(subparsers) -> None:
     light.add_argument(
         "--max-current-a", type=float, help="the rig's maximum drive [A]: full level (default: the definition's)"
     )
+    light.add_argument(
+        "--forward-voltage-v", type=float, help="the LED's maximum forward voltage [V]: a supply's voltage limit"
+    )
     spectrometer = c.add_argument_group("the spectrometer (one of)")
     spectrometer.add_argument("--spectrometer", metavar="PORT", help="serial port of a uwlab-ascii spectrometer")
     spectrometer.add_argument(
@@ -228,7 +231,8 @@ def _calibration_light(args) -> tuple[dict, str]:
     if (args.light is None) == (args.instrument is None):
         raise ConfigError("light", args.light or args.instrument, "give either --light PORT or --instrument NAME")
     if args.light is not None:
-        extra = next((k for k in ("resource", "visa_library", "max_current_a") if getattr(args, k) is not None), None)
+        keys = ("resource", "visa_library", "max_current_a", "forward_voltage_v")
+        extra = next((k for k in keys if getattr(args, k) is not None), None)
         if extra is not None:
             raise ConfigError(extra.replace("_", "-"), getattr(args, extra), "needs --instrument (not --light)")
         return {"port": args.light, "protocol": args.protocol}, args.light
@@ -238,6 +242,7 @@ def _calibration_light(args) -> tuple[dict, str]:
         "instrument": args.instrument,
         "visa_library": args.visa_library,
         "max_current_a": args.max_current_a,
+        "forward_voltage_v": args.forward_voltage_v,
     }
     return options, f"{args.instrument} on {args.resource}"
 

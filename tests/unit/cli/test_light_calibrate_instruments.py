@@ -114,3 +114,34 @@ def test_bad_input_is_one_line_nothing_opened_nothing_written(rig, tmp_path, cap
     out = tmp_path / "led.csv"
     assert names in one_line_error(capsys, ["light", "calibrate", *argv, "--out", str(out)])
     assert not out.exists() and not opened
+
+
+@dataclass
+class TwinLitFlame(SimulatedDevice):
+    """The Flame under the LED on the CV/CC supply twin: the lamp's counts times the current the twin's load truly
+    draws over its full scale (what the driver reads back plays no part)."""
+
+    full_counts_per_s: np.ndarray | None = None
+    twin: object = None
+    full_scale_a: float = 0.5
+
+    def raw(self) -> np.ndarray:
+        self.signal_counts_per_s = self.full_counts_per_s * (self.twin.point().current_a / self.full_scale_a)
+        return super().raw()
+
+
+def test_calibrating_an_led_on_a_cv_cc_supply_twin(monkeypatch, tmp_path, capsys):
+    from uwlab.sim.devices.supply import SupplyTwin, serve
+
+    twin = SupplyTwin("keysight-e36100", seed=6)
+    flame = TwinLitFlame(twin=twin)
+    flame.full_counts_per_s = lamp_counts_per_s(flame)
+    monkeypatch.setattr(ocean_device, "seabreeze_spectrometer_class", lambda backend: fake_seabreeze(flame))
+    out = tmp_path / "led.csv"
+    with serve(twin, transport="tcp") as resource:
+        light = ["--instrument", "keysight-e36100", "--resource", resource, "--visa-library", "@py"]
+        light += ["--max-current-a", "0.5", "--forward-voltage-v", "3.4"]
+        assert main(["light", "calibrate", *light, *SPECTROMETER, "--levels", "3", "--out", str(out)]) == 0
+        assert twin.voltage_set_v == pytest.approx(4.4) and not twin.output_on  # compliance set; dark at the end
+    curve = load_light_calibration(out)
+    assert curve.irradiance_w_m2 / curve.irradiance_w_m2[-1] == pytest.approx([0.0, 0.5, 1.0], abs=2e-3)

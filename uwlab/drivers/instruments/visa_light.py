@@ -13,10 +13,11 @@ switches it off).
 A CV/CC supply (a definition with ``[constant_current]``, `ConstantCurrent`) is put in constant-current mode when
 it is opened: its voltage limit set to the compliance voltage (the LED's maximum forward voltage plus the margin,
 never above the supply's rating), over-voltage and over-current protection where it has them, each read back or
-error-checked. After every set and switch-on with the output on it must then deliver: the mode is CC, the measured
-current within tolerance of the set current, the measured voltage not that of a short (`VisaLight.delivery`);
-otherwise the output is switched off and the set refused in one line (``measured 0.000 A for 0.300 A set: open
-circuit or voltage limit 5.0 V?``).
+error-checked. A drive found set above the rig's limit when the light is opened (a supply's reset state is often
+its full current) is set to 0 with the output off first. After every set and switch-on with the output on it must
+then deliver: the mode is CC, the measured current within tolerance of the set current, the measured voltage not
+that of a short (`VisaLight.delivery`); otherwise the output is switched off and the set refused in one line
+(``measured 0.000 A for 0.300 A set: open circuit or voltage limit 5.0 V?``).
 """
 
 from __future__ import annotations
@@ -107,8 +108,10 @@ class VisaLight(Light):
             raise ConfigError("instrument", name, f"{port} answers *IDN? {self._identity!r}, not {' '.join(missing)}")
         for command in definition.commands.setup:
             self._set(command)
-        if self.drive() > self.max_drive and self.output():  # left on above this rig's limit (an earlier run's)
-            self.set_output(False)
+        if self.drive() > self.max_drive:  # set above this rig's limit (a reset state, an earlier run's): to 0 A, off
+            if self.output():
+                self.set_output(False)
+            self.set_drive(0.0)
         if definition.constant_current is not None:
             self._constant_current(forward_voltage_v)
 
