@@ -1,4 +1,5 @@
-"""A sweep on the simulated rig with its light on pyvisa-sim (a plan's [[lights]], the Keysight E36100 definition):
+"""A sweep on the simulated rig with its light on pyvisa-sim (a plan's [[lights]], the Thorlabs DC2200 definition, an
+LED driver: the CV/CC supplies' constant-current check needs a twin whose current follows the set one):
 the same points as with the serial simulator's light, the light's read-back and measured current in every point,
 the safe state recorded, a read-back that disagrees never recorded, several lights (one swept, the others hold)."""
 
@@ -16,7 +17,7 @@ from uwlab.experiments.acquisition.plan import load_plan
 from uwlab.experiments.acquisition.session import run_session
 from uwlab.experiments.dataset import CLOCK_COLUMNS, Dataset
 
-KEYSIGHT_YAML = CONFIGS / "instruments" / "sim" / "keysight-e36100.yaml"
+KEYSIGHT_YAML = CONFIGS / "instruments" / "sim" / "thorlabs-dc2200.yaml"
 KEYSIGHT_RESOURCE = next(iter(yaml.safe_load(KEYSIGHT_YAML.read_text())["resources"]))
 RIGOL_YAML = CONFIGS / "instruments" / "sim" / "rigol-dp800.yaml"
 RIGOL_RESOURCE = next(iter(yaml.safe_load(RIGOL_YAML.read_text())["resources"]))
@@ -28,7 +29,7 @@ LIGHT_COLUMNS = ("light_current_a_readback", "light_measured_current_a", "lights
 def keysight(**extra) -> dict:
     return {
         "name": "led",
-        "instrument": "keysight-e36100",
+        "instrument": "thorlabs-dc2200",
         "resource": KEYSIGHT_RESOURCE,
         "visa_library": f"{KEYSIGHT_YAML}@sim",
         **extra,
@@ -50,12 +51,12 @@ def test_a_pyvisa_sim_light_records_the_serial_simulators_points(tmp_path):
     assert a[same].equals(b[same])  # equal seeds, the same light state: the same frames, the same numbers
     assert a[list(LIGHT_COLUMNS[:2])].isna().all().all()  # the serial light has no drive to read back
     assert [json.loads(t)["light"]["level"] for t in a["lights_readback"]] == LEVELS
-    # the VISA light's read-back in every point: the current is level x the rig's 1 A maximum (not the 2 A rating)
+    # the VISA light's read-back in every point: the current is level x the rig's 1 A maximum
     assert b["light_current_a_readback"].tolist() == pytest.approx([0.25, 0.5, 1.0], abs=1e-3)
     assert b["light_measured_current_a"].tolist() == pytest.approx([0.499] * 3)  # what the simulator measures
     states = [json.loads(text) for text in b["lights_readback"]]
     assert [s["led"]["on"] for s in states] == [True] * 3
-    assert visa.metadata["devices"]["l"]["light"].startswith("Keysight Technologies,E36103A")
+    assert visa.metadata["devices"]["l"]["light"].startswith("Thorlabs,DC2200")
     assert visa.metadata["lights_safe_state"]["led"]["off"] is True
     assert serial.metadata["lights_safe_state"]["light"]["off"] is True
 
@@ -66,13 +67,15 @@ def test_several_lights_one_swept_the_others_hold(tmp_path):
         "instrument": "rigol-dp800",
         "resource": RIGOL_RESOURCE,
         "visa_library": f"{RIGOL_YAML}@sim",
+        "max_current_a": 0.6,
         "level": 0.5,
     }
     plan, data = sweep(tmp_path, "two", {**SWEEP, "light": "led"}, lights=[keysight(), rigol])
     states = [json.loads(text) for text in data.points()["lights_readback"]]
     assert [s["led"]["level"] for s in states] == pytest.approx(LEVELS)
     assert [s["fill"]["level"] for s in states] == pytest.approx([0.5] * 3)  # held while the other is swept
-    assert [s["fill"]["current_a"] for s in states] == pytest.approx([1.5] * 3)  # 0.5 x the DP832's 3 A
+    assert [s["fill"]["current_a"] for s in states] == pytest.approx([0.3] * 3)  # 0.5 x the rig's 0.6 A
+    assert [s["fill"]["mode"] for s in states] == ["CC"] * 3  # the supply delivering in constant current
     assert set(data.metadata["lights_safe_state"]) == {"led", "fill"}
     assert all(entry["off"] for entry in data.metadata["lights_safe_state"].values())
 

@@ -51,13 +51,18 @@ def open_light(
     instrument: str | None = None,
     visa_library: str | None = None,
     max_current_a: float | None = None,
+    forward_voltage_v: float | None = None,
+    identity_contains: tuple[str, ...] = (),
     **options: Any,
 ) -> Light:
     """Open a light. With `instrument` (a definition in configs/instruments/ or a file, docs/instruments.md),
     `port` is its resource (a VISA resource, or a serial port for ``uwlab-ascii``), `visa_library` PyVISA's
-    (``@py`` by default, ``PATH.yaml@sim`` for pyvisa-sim) and `max_current_a` the rig's maximum drive
-    (`uwlab.drivers.instruments.open_light_instrument`): every set is error-checked and read back, the output off on
-    exit. Without it, the ``uwlab-ascii`` controller on a serial `port` (`uwlab.drivers.serial.open_light`;
+    (``@py`` by default, ``PATH.yaml@sim`` for pyvisa-sim), `max_current_a` the rig's LED rating (the full level:
+    a level above it is refused before anything is sent), `forward_voltage_v` its LED's maximum forward voltage (a
+    CV/CC supply's compliance voltage: this plus the definition's margin) and `identity_contains` words its
+    ``*IDN?`` must contain (`uwlab.drivers.instruments.LightRig`, `open_light_instrument`): every set is checked as
+    sent, error-checked and read back, a CV/CC supply must deliver the set current in CC, the output off on exit.
+    Without it, the ``uwlab-ascii`` controller on a serial `port` (`uwlab.drivers.serial.open_light`;
     `protocol` default the drivers' first). Returns the `Light` (a context manager).
 
     Examples
@@ -66,11 +71,13 @@ def open_light(
     >>> from uwlab.model.data import config_dir
     >>> sim = config_dir() / "instruments" / "sim" / "keysight-e36100.yaml"
     >>> resource = "USB0::0x2A8D::0x0702::MY00000001::INSTR"
-    >>> with uwlab.open_light(resource, instrument="keysight-e36100", visa_library=f"{sim}@sim") as light:
-    ...     light.set_output(True)
-    ...     light.set_level(0.25)
-    ...     light.state()["current_a"]  # 0.25 of the E36103A's 2 A
-    0.5
+    >>> with uwlab.open_light(
+    ...     resource, instrument="keysight-e36100", visa_library=f"{sim}@sim", max_current_a=0.6
+    ... ) as light:
+    ...     light.set_level(0.5)
+    ...     light.set_output(True)  # in CC, delivering the set current (the simulator's LED draws 0.3 A)
+    ...     light.state()["current_a"]  # 0.5 of the rig's 0.6 A
+    0.3
     >>> light.safe_state_reached
     True
     >>> with uwlab.open_light("/dev/ttyUSB0") as light:  # doctest: +SKIP
@@ -79,7 +86,9 @@ def open_light(
     if instrument is not None:
         from uwlab.drivers.instruments import open_light_instrument
 
-        return open_light_instrument(instrument, port, visa_library, max_current_a)
+        return open_light_instrument(
+            instrument, port, visa_library, max_current_a, forward_voltage_v, tuple(identity_contains)
+        )
     from uwlab.drivers import serial
 
     return serial.open_light(port, protocol, **options) if protocol else serial.open_light(port, **options)

@@ -8,11 +8,13 @@ from datetime import datetime, UTC
 from uwlab.progress import bar
 
 from uwlab.api.instruments import open_light, open_spectrometer
+from uwlab.drivers.instruments.definition import LightRig, MaxCurrentA, VoltageV, load_light_rig
 from uwlab.drivers.ocean_insight import read_dark
 from uwlab.drivers.serial import PROTOCOLS
 from uwlab.drivers.serial.base import check_integration_ms, check_level
 from uwlab.errors import ConfigError
 from uwlab.experiments.acquisition.light_calibration import calibrate_light, calibration_levels, save_light_calibration
+from uwlab.model.schema import check
 from uwlab.outputs import output_file
 
 DEFAULT_CALIBRATION = "light-calibration.csv"
@@ -36,7 +38,24 @@ def register(subparsers) -> None:
     output = p.add_mutually_exclusive_group()
     output.add_argument("--on", dest="output", action="store_const", const=True, help="switch the output on")
     output.add_argument("--off", dest="output", action="store_const", const=False, help="switch the output off")
-    p.add_argument("--level", type=float, help="light level in [0, 1]")
+    p.add_argument("--level", type=float, help="light level in [0, 1] (of --max-current-a)")
+    p.add_argument(
+        "--max-current-a",
+        type=float,
+        metavar="A",
+        help="the LED's rated current: level 1; above it refused before anything is sent (default: the definition's)",
+    )
+    p.add_argument(
+        "--forward-voltage-v",
+        type=float,
+        metavar="V",
+        help="the LED's maximum forward voltage: a supply's voltage limit is this plus the definition's margin",
+    )
+    p.add_argument(
+        "--rig",
+        metavar="FILE.toml",
+        help="the light's rig file: max_current_a, forward_voltage_v, identity_contains (the options override it)",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
     sub = p.add_subparsers(dest="light_command", metavar="calibrate")
@@ -54,6 +73,9 @@ def register(subparsers) -> None:
     light.add_argument("--visa-library", metavar="LIB", help="PyVISA library: @py (default), PATH.yaml@sim, a vendor's")
     light.add_argument(
         "--max-current-a", type=float, help="the rig's maximum drive [A]: full level (default: the definition's)"
+    )
+    light.add_argument(
+        "--forward-voltage-v", type=float, help="the LED's maximum forward voltage [V]: a supply's voltage limit"
     )
     spectrometer = c.add_argument_group("the spectrometer (one of)")
     spectrometer.add_argument("--spectrometer", metavar="PORT", help="serial port of a uwlab-ascii spectrometer")
@@ -90,6 +112,9 @@ def run(args) -> int:
         return run_instrument(args)
     if args.resource is not None or args.visa_library is not None:
         raise ConfigError("resource", args.resource or args.visa_library, "needs --instrument")
+    extra = next((k for k in ("max_current_a", "forward_voltage_v", "rig") if getattr(args, k) is not None), None)
+    if extra is not None:
+        raise ConfigError(extra.replace("_", "-"), getattr(args, extra), "needs --instrument (a supply's definition)")
     if args.port is None:
         raise ConfigError("port", None, "--port or --instrument is required (or use 'uwlab light calibrate')")
     if args.level is not None:
@@ -114,7 +139,15 @@ def run_instrument(args) -> int:
     _require_resource(args)
     if args.level is not None:
         check_level(args.level)
-    with open_light(args.resource, instrument=args.instrument, visa_library=args.visa_library) as light:
+    rig = _light_rig(args)
+    with open_light(
+        args.resource,
+        instrument=args.instrument,
+        visa_library=args.visa_library,
+        max_current_a=rig.max_current_a,
+        forward_voltage_v=rig.forward_voltage_v,
+        identity_contains=tuple(rig.identity_contains),
+    ) as light:
         if args.level is not None:
             light.set_level(args.level)
         if args.output is not None:
@@ -171,6 +204,22 @@ def run_calibrate(args) -> int:
     return 0
 
 
+def _light_rig(args) -> LightRig:
+    """The light's rig (`LightRig`): ``--rig FILE`` with ``--max-current-a`` (the lower of the two rules) and
+    ``--forward-voltage-v`` over it, each checked against its plausible range before anything is opened."""
+    rig = LightRig() if args.rig is None else load_light_rig(args.rig)
+    limit = check(MaxCurrentA, args.max_current_a, "max-current-a") if args.max_current_a is not None else None
+    given = args.forward_voltage_v
+    forward = check(VoltageV, given, "forward-voltage-v") if given is not None else None
+    limits = [v for v in (rig.max_current_a, limit) if v is not None]
+    return rig.model_copy(
+        update={
+            "max_current_a": min(limits) if limits else None,
+            "forward_voltage_v": forward if forward is not None else rig.forward_voltage_v,
+        }
+    )
+
+
 def _require_resource(args) -> None:
     """--instrument names a definition; the device it drives is --resource."""
     if args.resource is None:
@@ -182,7 +231,8 @@ def _calibration_light(args) -> tuple[dict, str]:
     if (args.light is None) == (args.instrument is None):
         raise ConfigError("light", args.light or args.instrument, "give either --light PORT or --instrument NAME")
     if args.light is not None:
-        extra = next((k for k in ("resource", "visa_library", "max_current_a") if getattr(args, k) is not None), None)
+        keys = ("resource", "visa_library", "max_current_a", "forward_voltage_v")
+        extra = next((k for k in keys if getattr(args, k) is not None), None)
         if extra is not None:
             raise ConfigError(extra.replace("_", "-"), getattr(args, extra), "needs --instrument (not --light)")
         return {"port": args.light, "protocol": args.protocol}, args.light
@@ -192,6 +242,7 @@ def _calibration_light(args) -> tuple[dict, str]:
         "instrument": args.instrument,
         "visa_library": args.visa_library,
         "max_current_a": args.max_current_a,
+        "forward_voltage_v": args.forward_voltage_v,
     }
     return options, f"{args.instrument} on {args.resource}"
 

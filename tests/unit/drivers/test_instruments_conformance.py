@@ -43,10 +43,13 @@ class Wire:
         return self._query(text, *args, **kwargs)
 
 
+ON_LEVEL, RIG_MAX_A = 0.5, 0.6  # the pyvisa-sim twins' load draws 0.300 A: the only current delivered when on
+
+
 @pytest.fixture(params=DEFINITIONS)
 def opened(request):
     _, resource, library = simulator(request.param)
-    with open_visa_light(request.param, resource, library) as light:
+    with open_visa_light(request.param, resource, library, max_drive=RIG_MAX_A) as light:
         yield light
 
 
@@ -58,11 +61,18 @@ def test_the_simulator_answers_the_definitions_own_strings(name):
     c = definition.commands
     header = path.read_text().splitlines()[0]
     assert f"configs/instruments/{name}.toml" in header  # each simulator says which definition it twins
-    for query in [c.identity, c.query_output, c.query_drive, c.measure, c.error, *c.setup]:
+    cc = definition.constant_current
+    more = [] if cc is None else [cc.query_voltage, cc.measure_voltage, cc.query_mode, *cc.protection_setup]
+    for query in [c.identity, c.query_output, c.query_drive, c.measure, c.error, *c.setup, *more]:
         if query is not None:
             assert f'"{query}"' in text or f'"{query.split()[0]} ' in text, query
     assert f'"{c.set_output.split("{state}")[0]}' in text
     assert f'"{c.set_drive.replace("{value}", "{:" + definition.drive_format + "}")}"' in text
+    if cc is not None:
+        for command in (cc.set_voltage, cc.set_ovp):
+            assert command is None or f'"{command.replace("{value}", "{:" + cc.voltage_format + "}")}"' in text
+        if cc.set_ocp is not None:
+            assert f'"{cc.set_ocp.replace("{value}", "{:" + definition.drive_format + "}")}"' in text
     assert definition.manual and "max_drive" in definition.provenance
 
 
@@ -82,14 +92,10 @@ def test_refused_values_never_reach_the_wire(opened):
 
 
 def test_a_rig_maximum_is_enforced_before_sending(opened):
-    name = opened.name
-    _, resource, library = simulator(name)
-    opened.close()
-    with open_visa_light(name, resource, library, max_drive=opened.definition.max_drive / 2) as light:
-        wire = Wire(light._resource)
-        with pytest.raises(ConfigError, match=light.definition.drive):
-            light.set_drive(light.definition.max_drive * 0.75)
-        assert wire.sent == []
+    wire = Wire(opened._resource)
+    with pytest.raises(ConfigError, match=opened.definition.drive):
+        opened.set_drive(RIG_MAX_A * 1.25)
+    assert wire.sent == []
 
 
 def test_the_instruments_own_refusal_comes_from_its_error_queue(opened):
@@ -102,8 +108,9 @@ def test_the_instruments_own_refusal_comes_from_its_error_queue(opened):
 
 
 def test_setup_and_sets_leave_the_error_queue_empty(opened):
-    opened.set_output(True)
     opened.set_level(0.7)
+    opened.set_level(ON_LEVEL)
+    opened.set_output(True)
     answer = opened._query(opened.definition.commands.error)
     assert int(float(answer.split(",")[0])) == 0, answer
 

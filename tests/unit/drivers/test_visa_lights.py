@@ -32,22 +32,27 @@ def test_every_visa_definition_has_its_simulator():
         assert (CONFIGS / "instruments" / "sim" / f"{name}.yaml").is_file(), name
 
 
+RIG_MAX_A = 0.6  # level 0.5: the 0.300 A the pyvisa-sim twins' load draws (the only current delivered when on)
+
+
 @pytest.fixture(params=DEFINITIONS)
 def light(request):
     resource, library = sim(request.param)
-    with open_visa_light(request.param, resource, library) as opened:
+    with open_visa_light(request.param, resource, library, max_drive=RIG_MAX_A) as opened:
         yield opened
 
 
 def test_set_and_read_back(light):
     definition = light.definition
     assert all(word.lower() in light.identity().lower() for word in definition.identity_contains)
-    light.set_output(True)
     light.set_level(0.4)
+    assert light.state()[definition.drive] == pytest.approx(0.4 * RIG_MAX_A, abs=definition.tolerance(0.24))
+    light.set_level(0.5)
+    light.set_output(True)
     state = light.state()
     assert state["on"] is True
-    assert state[definition.drive] == pytest.approx(0.4 * definition.max_drive, abs=definition.readback_tolerance)
-    assert state["level"] == pytest.approx(0.4, abs=definition.readback_tolerance / definition.max_drive)
+    assert state[definition.drive] == pytest.approx(0.3, abs=definition.tolerance(0.3))
+    assert state["level"] == pytest.approx(0.5, abs=definition.tolerance(0.3) / RIG_MAX_A)
     assert isinstance(state[definition.measured_key], float)
     light.set_output(False)
     assert light.output() is False
@@ -81,8 +86,8 @@ def test_an_instrument_error_is_refused_with_its_message(light):
 
 
 def test_the_light_goes_dark_on_any_exit(light):
-    light.set_output(True)
     light.set_level(0.5)
+    light.set_output(True)
     light.close()
     assert light.safe_state_reached is True
 
@@ -90,7 +95,8 @@ def test_the_light_goes_dark_on_any_exit(light):
 def test_an_error_inside_the_block_switches_it_off_even_when_asked_to_keep_it():
     name = DEFINITIONS[0]
     resource, library = sim(name)
-    with pytest.raises(RuntimeError), open_visa_light(name, resource, library) as light:
+    with pytest.raises(RuntimeError), open_visa_light(name, resource, library, max_drive=RIG_MAX_A) as light:
+        light.set_level(0.5)
         light.set_output(True)
         light.keep_output = True
         raise RuntimeError("camera lost")
@@ -107,13 +113,13 @@ def test_a_silent_instrument_times_out_with_one_line(light):
 def test_cli_json_read_back(name, capsys):
     resource, library = sim(name)
     argv = ["light", "--instrument", name, "--resource", resource, "--visa-library", library]
-    assert main([*argv, "--on", "--level", "0.5", "--json"]) == 0
+    assert main([*argv, "--max-current-a", str(RIG_MAX_A), "--on", "--level", "0.5", "--json"]) == 0
     import json
 
     state = json.loads(capsys.readouterr().out)
     definition = load_light_definition(name)
     assert state["on"] is True and state["level"] == pytest.approx(0.5)
-    assert state[definition.drive] == pytest.approx(0.5 * definition.max_drive, abs=definition.readback_tolerance)
+    assert state[definition.drive] == pytest.approx(0.5 * RIG_MAX_A, abs=definition.tolerance(0.3))
 
 
 @pytest.mark.parametrize(

@@ -80,13 +80,13 @@ def test_the_sweep_cli_prints_the_notice_once(tmp_path, capsys):
 
 
 def test_the_tank_rig_opens_lights_by_definition_and_leaves_them_dark(tmp_path):
-    p = plan(tmp_path, light(name="led", max_current_a=1.0), light(name="fill", level=0.25))
+    p = plan(tmp_path, light(name="led", max_current_a=0.6), light(name="fill", level=0.25))
     with HardwareRig(p) as rig:
         assert list(rig.lights) == ["led", "fill"] and rig.light is rig.lights["led"]
         assert rig.hold_levels == {"led": 1.0, "fill": 0.25}
-        rig.light.set_output(True)
-        rig.light.set_level(1.0)
-        assert rig.light.state()["current_a"] == pytest.approx(1.0)  # the rig's 1 A, not the supply's 2 A
+        rig.light.set_level(0.5)
+        rig.light.set_output(True)  # the pyvisa-sim twin's LED draws 0.3 A: delivered in CC
+        assert rig.light.state()["current_a"] == pytest.approx(0.3)  # half the rig's 0.6 A, not of the 2 A rating
     assert rig.safe_states == {"led": True, "fill": True}
 
 
@@ -147,3 +147,24 @@ def test_a_light_without_its_placement_is_refused(tmp_path, names, lights, key, 
     with pytest.raises(ConfigError) as error:
         plan(tmp_path, *lights, rig=placed_rig(tmp_path, *names))
     assert error.value.key == key and says in str(error.value)
+
+
+@pytest.mark.parametrize(
+    ("extra", "key"),
+    [
+        ({"instrument": "thorlabs-dc2200", "forward_voltage_v": 3.4}, "lights[0].forward_voltage_v"),
+        ({"forward_voltage_v": 19.5}, "forward_voltage_v"),  # + 1 V margin above the E36103A's 20 V
+        ({"max_current_a": 2.5}, "lights[0].max_current_a"),
+        ({"identity_contains": ["MY99999999"]}, "instrument"),  # the rig pins another supply
+    ],
+)
+def test_a_lights_rig_keys_are_checked_before_anything_is_driven(tmp_path, extra, key):
+    with pytest.raises(ConfigError) as refused:
+        with HardwareRig(plan(tmp_path, light(**extra))) as rig:
+            rig.light.set_level(0.1)
+    assert refused.value.key == key
+
+
+def test_a_lights_rig_keys_reach_the_supply(tmp_path):
+    with HardwareRig(plan(tmp_path, light(forward_voltage_v=3.0, identity_contains=["MY00000001"]))) as rig:
+        assert rig.light.state()["voltage_limit_v"] == pytest.approx(4.0)  # 3 V + the 1 V margin, read back

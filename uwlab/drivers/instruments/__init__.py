@@ -12,9 +12,11 @@ from __future__ import annotations
 
 from uwlab.drivers.instruments.definition import (
     LightDefinition,
+    LightRig,
     SerialLightDefinition,
     load_any_light_definition,
     load_light_definition,
+    load_light_rig,
 )
 from uwlab.drivers.instruments.lights import open_light_instrument
 from uwlab.drivers.instruments.serial_light import SerialLight
@@ -22,11 +24,13 @@ from uwlab.drivers.instruments.visa_light import VisaLight, open_visa_light
 
 __all__ = [
     "LightDefinition",
+    "LightRig",
     "SerialLight",
     "SerialLightDefinition",
     "VisaLight",
     "load_any_light_definition",
     "load_light_definition",
+    "load_light_rig",
     "open_light_instrument",
     "open_visa_light",
 ]

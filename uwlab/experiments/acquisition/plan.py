@@ -57,7 +57,7 @@ from pydantic_core import PydanticCustomError
 from uwlab.drivers.camera import BACKENDS, Policy
 from uwlab.drivers.camera.pixels import PIXEL_FORMATS, BayerLayout
 from uwlab.drivers.instruments import load_any_light_definition
-from uwlab.drivers.instruments.definition import SerialLightDefinition
+from uwlab.drivers.instruments.definition import LightRig, SerialLightDefinition
 from uwlab.drivers.ocean_insight.definition import CollectionAreaCm2
 from uwlab.drivers.serial import PROTOCOLS
 from uwlab.drivers.serial.base import Averaging, IntegrationMs
@@ -108,7 +108,6 @@ TimeoutS = Annotated[float, limits(0.0, 600.0, "s", lo_open=True)]
 OutageS = Annotated[float, limits(0.0, 86400.0, "s", lo_open=True)]
 Attempts = Annotated[int, limits(0, 1000, "attempts", hint="", integer=True)]
 ReopenS = Annotated[float, limits(0.0, 3600.0, "s")]
-MaxDrive = Annotated[float, limits(0.0, 100.0, "A", lo_open=True, hint="amperes, not mA")]
 LEGACY_LIGHT_KEYS = ("light_port", "protocol")
 DigitalNumber = Annotated[float, limits(0.0, 2.0**32, "DN", hint="")]
 PointCount = Annotated[int, limits(1, MAX_POINTS, "points", hint="", integer=True)]
@@ -189,14 +188,14 @@ class InstrumentsSection(Schema):
         return at_most_one(self, "spectrometer_port", "seabreeze_spectrometer")
 
 
-class LightTable(Schema):
-    """A ``[[lights]]`` table: one light, its instrument definition and VISA resource."""
+class LightTable(LightRig):
+    """A ``[[lights]]`` table: one light, its instrument definition and VISA resource, and what the rig says of its
+    LED (`LightRig`: ``max_current_a``, ``forward_voltage_v``, ``identity_contains``)."""
 
     name: NonEmptyText | None = Field(None, description="the light's name (default light<i>)")
     instrument: NonEmptyText = Field(description="instrument definition: a name in configs/instruments/ or a file")
     resource: NonEmptyText = Field(description="VISA resource (uwlab devices lists them)")
     visa_library: NonEmptyText | None = Field(None, description="PyVISA library: @py (default), PATH.yaml@sim")
-    max_current_a: MaxDrive | None = Field(None, description="the rig's maximum drive [A] (or [V]), refused beyond")
     level: Fraction = Field(1.0, description="the level it holds while a sweep dims another light")
 
 
@@ -389,6 +388,8 @@ class LightSpec:
     max_current_a: float | None
     level: float
     placement: int | None = None  # the rig's [[lights]] placement it drives (None: the rig places none)
+    forward_voltage_v: float | None = None  # its LED's maximum forward voltage (a CV/CC supply's compliance)
+    identity_contains: tuple[str, ...] = ()  # words its *IDN? must contain besides the definition's
 
 
 @dataclass(frozen=True)
@@ -466,7 +467,18 @@ def _lights(plan: PlanFile, plan_dir: Path) -> tuple[LightSpec, ...]:
         name = table.name or f"light{index}"
         if name in {light.name for light in lights}:
             raise ConfigError(f"lights[{index}].name", name, "light names must be unique within the plan")
-        lights.append(LightSpec(name, table.instrument, table.resource, library, table.max_current_a, table.level))
+        lights.append(
+            LightSpec(
+                name,
+                table.instrument,
+                table.resource,
+                library,
+                table.max_current_a,
+                table.level,
+                forward_voltage_v=table.forward_voltage_v,
+                identity_contains=tuple(table.identity_contains),
+            )
+        )
     return tuple(lights)
 
 
@@ -511,6 +523,15 @@ def _check_light_instrument(index: int, table: LightTable) -> None:
     limit = table.max_current_a
     if table.visa_library is not None and definition.adapter != "visa":
         raise ConfigError(f"lights[{index}].visa_library", table.visa_library, f"{table.instrument} is not on VISA")
+    supply = not isinstance(definition, SerialLightDefinition) and definition.constant_current is not None
+    if table.forward_voltage_v is not None and not supply:
+        raise ConfigError(
+            f"lights[{index}].forward_voltage_v",
+            table.forward_voltage_v,
+            f"{table.instrument} sets no voltage limit (no [constant_current] section)",
+        )
+    if table.identity_contains and isinstance(definition, SerialLightDefinition):
+        raise ConfigError(f"lights[{index}].identity_contains", table.identity_contains, "applies to a VISA light")
     if limit is None:
         return
     if isinstance(definition, SerialLightDefinition) or definition.drive != "current_a":

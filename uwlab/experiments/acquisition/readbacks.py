@@ -5,7 +5,9 @@ a *window* bracketed by read-backs (docs/sweeps.md, "What a point guarantees"):
 
 1. ``prepare()`` applies the settings (camera, aperture, lights), then the read-backs are checked: every light's
    output and level against the values wanted (within the light's own ``level_tolerance``: a VISA light's drive
-   reads back to the definition's ``readback_tolerance``), the camera's settings read from the device against those it
+   reads back to the definition's tolerance, absolute and relative), a CV/CC supply's delivery (its ``delivery``
+   read-back: in CC, the measured current within tolerance of the set one, not a short), the camera's settings
+   read from the device against those it
    reported when they were set (`Camera.verify_settings`: a camera whose settings changed behind our back is
    reconnected and its settings restored and verified, which counts as a reconnect);
 2. the recovery counters are noted: each serial instrument's `recoveries` (resets and reopens after which its
@@ -83,6 +85,8 @@ def _readbacks(
             problems.append(
                 f"{name} reads back on={got['on']} level={got['level']:g}, want on={want.on} level={want.level:g}"
             )
+        elif got.get("delivery", "ok") not in ("ok", "off", "unchecked"):  # a supply not delivering in CC
+            problems.append(f"{name}: {got['delivery']}")
     if camera is not None:
         camera.verify_settings()
     return states, problems

@@ -68,15 +68,21 @@ def to_safe_state(lights: dict[str, Light]) -> dict[str, bool]:
 
 
 def open_plan_lights(plan: Plan) -> dict[str, Light]:
-    """The plan's [[lights]] opened by instrument definition (``max_current_a`` the rig's maximum drive); any that
-    fails closes those already open (each goes to its safe state)."""
+    """The plan's [[lights]] opened by instrument definition (``max_current_a`` the rig's maximum drive,
+    ``forward_voltage_v`` and ``identity_contains`` as the rig gives them); any that fails closes those already open
+    (each goes to its safe state)."""
     from uwlab.drivers.instruments import open_light_instrument
 
     lights: dict[str, Light] = {}
     try:
         for spec in plan.lights:
             lights[spec.name] = open_light_instrument(
-                spec.instrument, spec.resource, spec.visa_library, spec.max_current_a
+                spec.instrument,
+                spec.resource,
+                spec.visa_library,
+                spec.max_current_a,
+                spec.forward_voltage_v,
+                spec.identity_contains,
             )
     except BaseException:
         to_safe_state(lights)
