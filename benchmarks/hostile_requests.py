@@ -38,7 +38,7 @@ HELD = 100
 LIMIT_S = 60.0
 
 
-def main() -> None:
+def main() -> dict:
     explorer = Explorer(str(EXAMPLE), "--token", TOKEN)
     statuses: dict[int, int] = {}
     failures: list[str] = []
@@ -83,30 +83,25 @@ def main() -> None:
             held = held_connections(port, HELD, LIMIT_S, probe)
     finally:
         code, err = explorer.stop()
-    print(
-        json.dumps(
-            {
-                "benchmark": "hostile_requests",
-                "requests_tried": tried,
-                "answers_500": sum(n for s, n in statuses.items() if s >= 500),
-                "file_contents_leaked": leaked,
-                "offsite_redirects": redirected,
-                "foreign_cookies": cookies,
-                "statuses": {str(s): n for s, n in sorted(statuses.items())},
-                "held_connections": held["held"],
-                "held_connections_closed": held["closed"],
-                "worst_close_s": held["worst_close_s"],
-                "normal_requests": held["probes"],
-                "normal_requests_failed": held["probes_failed"],
-                "worst_normal_latency_s": held["worst_probe_s"],
-                "failures": failures,
-                "server_exit": code,
-                "server_tracebacks": err.count("Traceback"),
-            },
-            indent=1,
-        )
-    )
+    return {
+        "benchmark": "hostile_requests",
+        "requests_tried": tried,
+        "answers_500": sum(n for s, n in statuses.items() if s >= 500),
+        "file_contents_leaked": leaked,
+        "offsite_redirects": redirected,
+        "foreign_cookies": cookies,
+        "statuses": {str(s): n for s, n in sorted(statuses.items())},
+        "held_connections": held["held"],
+        "held_connections_closed": held["closed"],
+        "worst_close_s": held["worst_close_s"],
+        "normal_requests": held["probes"],
+        "normal_requests_failed": held["probes_failed"],
+        "worst_normal_latency_s": held["worst_probe_s"],
+        "failures": failures,
+        "server_exit": code,
+        "server_tracebacks": err.count("Traceback"),
+    }
 
 
 if __name__ == "__main__":
-    main()
+    print(json.dumps(main(), indent=1))
