@@ -5,9 +5,9 @@ Recorded: uwlab's version and git commit ("unknown" outside a git checkout of uw
 has uncommitted changes to tracked files), Python, the versions of the packages the numbers depend on
 (`PACKAGES`), the BLAS numpy calls with its thread count (threadpoolctl's view of the loaded library; without
 threadpoolctl the BLAS numpy was built against, from ``numpy.show_config``, and the thread count only when an
-environment variable sets it), the CPU model (``/proc/cpuinfo``) and count, and the platform. Two machines with the
-same record and the same seed give the same numbers; README "Reproducibility" says what agrees between different
-ones.
+environment variable sets it), the CPU model (``/proc/cpuinfo``) and count, and the platform. One machine and one
+seed give the same numbers every time; what agrees between machines, and to what tolerance, the README says beside
+the demo's numbers (tests/integration/test_demo_report.py checks them against the demo).
 """
 
 from __future__ import annotations
