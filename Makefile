@@ -8,6 +8,7 @@ UV_VERSION := 0.13.9
 # uv, pinned, in a venv of its own (only python3.11 and pip are needed to start); it installs .venv from uv.lock.
 TOOLS := .tools
 UV := $(TOOLS)/bin/uv
+UV_STAMP := $(TOOLS)/.uv-$(UV_VERSION)
 # Exactly the locked versions (--frozen: uv.lock as committed, never re-resolved, each file checked against its
 # hash), uwlab itself editable; the interpreter is $(PYTHON), never one uv would download.
 export UV_PYTHON_DOWNLOADS := never
@@ -15,25 +16,26 @@ SYNC := $(UV) sync --frozen --python $(PYTHON)
 
 .PHONY: demo test test-fast lint typecheck check venv system-deps lock-check
 
-$(UV):
+$(UV_STAMP):
 	$(PYTHON) -m venv $(TOOLS)
 	$(TOOLS)/bin/python -m pip install --quiet "uv==$(UV_VERSION)"
+	touch $@
 
 # What the demo needs and nothing more: uwlab's own dependencies. --inexact: a .venv made by `make venv` or
 # `make test` keeps its tools.
-$(VENV)/.demo: pyproject.toml uv.lock | $(UV)
+$(VENV)/.demo: pyproject.toml uv.lock | $(UV_STAMP)
 	$(SYNC) --inexact
 	touch $@
 
 # Everything but the Aravis bindings: the test and dev extras.
-$(VENV)/.installed: pyproject.toml uv.lock | $(UV)
+$(VENV)/.installed: pyproject.toml uv.lock | $(UV_STAMP)
 	$(SYNC) --extra test --extra dev
 	touch $@
 
 venv: $(VENV)/.installed
 
 # CI fails when uv.lock no longer matches pyproject.toml (CONTRIBUTING.md: "Dependencies and the lock").
-lock-check: | $(UV)
+lock-check: | $(UV_STAMP)
 	$(UV) lock --check
 
 system-deps:
