@@ -5,7 +5,9 @@ Recorded: uwlab's version and git commit ("unknown" outside a git checkout of uw
 has uncommitted changes to tracked files), Python, the versions of the packages the numbers depend on
 (`PACKAGES`), the BLAS numpy calls with its thread count (threadpoolctl's view of the loaded library; without
 threadpoolctl the BLAS numpy was built against, from ``numpy.show_config``, and the thread count only when an
-environment variable sets it), the CPU model (``/proc/cpuinfo``) and count, and the platform. One machine and one
+environment variable sets it), the CPU model (``/proc/cpuinfo``) and count, the SIMD extensions numpy dispatches
+to on it (``numpy_simd``, as ``numpy.show_runtime`` lists them: an AVX-512 machine's fit differs in the last bits
+from an AVX2 machine's), and the platform. One machine and one
 seed give the same numbers every time; what agrees between machines, and to what tolerance, the README says beside
 the demo's numbers (tests/integration/test_demo_report.py checks them against the demo).
 """
@@ -13,6 +15,7 @@ the demo's numbers (tests/integration/test_demo_report.py checks them against th
 from __future__ import annotations
 
 import functools
+import importlib
 import os
 import platform
 import subprocess
@@ -47,7 +50,7 @@ THREAD_VARIABLES = ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS")
 def provenance() -> dict[str, Any]:
     """The record of this process's software and machine (module docstring), JSON-able:
     ``{"uwlab", "commit", "modified", "python", "packages", "blas": {"library", "version", "threads"}, "cpu",
-    "cpus", "platform"}``."""
+    "cpus", "numpy_simd", "platform"}``."""
     commit, modified = _commit()
     return {
         "uwlab": __version__,
@@ -58,6 +61,7 @@ def provenance() -> dict[str, Any]:
         "blas": _blas(),
         "cpu": _cpu_model(),
         "cpus": os.cpu_count(),
+        "numpy_simd": _numpy_simd(),
         "platform": platform.platform(),
     }
 
@@ -83,7 +87,9 @@ def provenance_line(record: dict[str, Any]) -> str:
         f"BLAS {blas.get('library', UNKNOWN)} {blas.get('version', UNKNOWN)} on "
         f"{threads if threads is not None else 'an unknown number of'} threads"
     )
-    parts.append(f"CPU {record.get('cpu', UNKNOWN)} ({record.get('cpus') or '?'} cores)")
+    simd = record.get("numpy_simd")
+    cores = f"{record.get('cpus') or '?'} cores" + (f"; numpy SIMD {' '.join(simd)}" if simd else "")
+    parts.append(f"CPU {record.get('cpu', UNKNOWN)} ({cores})")
     return ", ".join(parts)
 
 
@@ -146,6 +152,19 @@ def _blas() -> dict[str, Any]:
         "version": pool.get("version") or UNKNOWN,
         "threads": pool.get("num_threads"),
     }
+
+
+def _numpy_simd() -> list[str] | None:
+    """The SIMD targets numpy dispatches to on this CPU (its build's dispatch list, those the CPU has and the
+    environment has not disabled); None where numpy does not say (its private module, as ``numpy.show_runtime``)."""
+    try:
+        umath = importlib.import_module("numpy._core._multiarray_umath")
+    except ImportError:
+        return None
+    dispatch, features = getattr(umath, "__cpu_dispatch__", None), getattr(umath, "__cpu_features__", None)
+    if dispatch is None or features is None:
+        return None
+    return [str(target) for target in dispatch if features.get(target)]
 
 
 @functools.cache
