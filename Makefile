@@ -4,27 +4,52 @@ VENV := .venv
 PY := $(VENV)/bin/python
 APT_PACKAGES := gir1.2-aravis-0.8 aravis-tools-cli libgirepository1.0-dev libcairo2-dev pkg-config chromium chromium-driver
 
-.PHONY: demo test test-fast lint typecheck check venv system-deps
+UV_VERSION := 0.13.9
+# uv, pinned, in a venv of its own (only python3.11 and pip are needed to start); it installs .venv from uv.lock.
+TOOLS := .tools
+UV := $(TOOLS)/bin/uv
+UV_STAMP := $(TOOLS)/.uv-$(UV_VERSION)
+# Exactly the locked versions (--frozen: uv.lock as committed, never re-resolved, each file checked against its
+# hash), uwlab itself editable; the interpreter is $(PYTHON), never one uv would download.
+export UV_PYTHON_DOWNLOADS := never
+SYNC := $(UV) sync --frozen --python $(PYTHON)
 
-$(VENV)/.installed: pyproject.toml
-	$(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e ".[test,dev]"
+.PHONY: demo test test-fast lint typecheck check venv system-deps lock-check
+
+$(UV_STAMP):
+	$(PYTHON) -m venv $(TOOLS)
+	$(TOOLS)/bin/python -m pip install --quiet "uv==$(UV_VERSION)"
+	touch $@
+
+# What the demo needs and nothing more: uwlab's own dependencies. --inexact: a .venv made by `make venv` or
+# `make test` keeps its tools.
+$(VENV)/.demo: pyproject.toml uv.lock | $(UV_STAMP)
+	$(SYNC) --inexact
+	touch $@
+
+# Everything but the Aravis bindings: the test and dev extras.
+$(VENV)/.installed: pyproject.toml uv.lock | $(UV_STAMP)
+	$(SYNC) --extra test --extra dev
 	touch $@
 
 venv: $(VENV)/.installed
+
+# CI fails when uv.lock no longer matches pyproject.toml (CONTRIBUTING.md: "Dependencies and the lock").
+lock-check: | $(UV_STAMP)
+	$(UV) lock --check
 
 system-deps:
 	@if ! dpkg -s $(APT_PACKAGES) >/dev/null 2>&1; then \
 		apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $(APT_PACKAGES); \
 	fi
 
+# PyGObject builds against Debian's GObject introspection and cairo headers (system-deps).
 $(VENV)/.aravis: $(VENV)/.installed
 	$(MAKE) system-deps
-	$(PY) -m pip install --quiet "PyGObject<3.51"
+	$(SYNC) --extra test --extra dev --extra aravis
 	touch $@
 
-demo: venv
+demo: $(VENV)/.demo
 	$(VENV)/bin/uwlab demo
 
 # Everything in one session on four workers, two per core: the integration tests (processes, devices, ptys, GigE,
@@ -47,4 +72,4 @@ lint: venv
 typecheck: venv
 	$(VENV)/bin/mypy
 
-check: lint typecheck test
+check: lock-check lint typecheck test

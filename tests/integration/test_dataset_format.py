@@ -4,15 +4,20 @@ file modes, the writer lock, refusal to overwrite, disk full, raw frames."""
 import errno
 import json
 import os
+import platform
 import socket
 import stat
 import subprocess
 import sys
+from pathlib import Path
 
+import cv2
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
+import scipy
 
+import uwlab
 from uwlab.errors import ConfigError
 from uwlab.experiments import dataset_store
 from uwlab.experiments.dataset import (
@@ -63,7 +68,13 @@ def test_create_append_open_round_trip(tmp_path):
     assert again.completed() == {("a", 0), ("a", 1)}
     meta = json.loads((tmp_path / "d" / "metadata.json").read_text())
     assert meta["plan"] == PLAN and meta["plan_sha256"] == "abc" and meta["finished_utc"] is None
-    assert meta["devices"]["a"]["camera"]["model"] == "m" and "numpy" in meta["software"]
+    assert meta["devices"]["a"]["camera"]["model"] == "m"
+    made_with = meta["provenance"]  # the versions and the machine, as their own sources give them
+    assert made_with["packages"]["numpy"] == np.__version__ and made_with["packages"]["scipy"] == scipy.__version__
+    assert made_with["packages"]["opencv-contrib-python-headless"].startswith(cv2.__version__)
+    assert made_with["python"].startswith(platform.python_version()) and made_with["uwlab"] == uwlab.__version__
+    if Path("/proc/cpuinfo").exists():
+        assert made_with["cpu"] in Path("/proc/cpuinfo").read_text() and made_with["cpus"] == os.cpu_count()
     manifest = json.loads((tmp_path / "d" / MANIFEST_FILE).read_text())
     assert [p["tables"]["points"]["rows"] for p in manifest["parts"]] == [1, 1]
     first = tmp_path / "d" / manifest["parts"][0]["tables"]["points"]["file"]

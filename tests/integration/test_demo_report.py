@@ -2,9 +2,17 @@
 commands on its outputs."""
 
 import json
+import re
+from html import escape as html_escape
 
+import cv2
+import emcee
+import numpy as np
+import pyarrow
 import pytest
+import scipy
 
+import uwlab
 from uwlab.cli.main import main
 from uwlab.experiments.dataset import Dataset
 from tests.support.paths import ROOT
@@ -166,3 +174,129 @@ def test_the_report_and_the_datasheet_at_1400_px_keep_every_figure_inside_and_le
             browser.save_screenshot(str(tmp_path / f"{page.stem}.png"))
     finally:
         browser.quit()
+
+
+def test_the_report_names_the_versions_and_the_cpu(demo):
+    html = (demo / "report.html").read_text()
+    made_with = html[html.index("<h2>Provenance</h2>") :]
+    for what in ("this report", f"dataset {demo / 'dataset'}", f"fit {demo / 'fit'}", "EMVA 1288 characterisation"):
+        assert what in made_with
+    metadata = Dataset.open(demo / "dataset").metadata["provenance"]
+    for named in (
+        f"uwlab {uwlab.__version__}",
+        f"numpy {np.__version__}",
+        f"scipy {scipy.__version__}",
+        f"emcee {emcee.__version__}",
+        f"pyarrow {pyarrow.__version__}",
+        f"OpenCV {cv2.__version__}",
+        f"CPU {html_escape(metadata['cpu'])}",
+        "BLAS ",
+    ):
+        assert named in made_with, named
+
+
+# README: "equal seeds give equal numbers" on one machine; across machines with the locked versions the fit's
+# numbers agree within the Monte Carlo error of the posterior. A README number and the demo's may each be off by
+# their Monte Carlo error (so √2 of it between them); MC_SIGMAS of those, plus half the last printed digit.
+MC_SIGMAS = 4
+
+
+def readme_demo_block() -> list[str]:
+    """The lines of the README's ``` block after "equal seeds give equal numbers" (`uwlab demo`'s output)."""
+    text = (ROOT / "README.md").read_text()
+    after = text[text.index("equal seeds give equal numbers") :]
+    start = after.index("```\n") + 4
+    return after[start : after.index("```", start)].splitlines()
+
+
+def half_digit(text: str) -> float:
+    """Half a unit in the last printed digit of the number `text` ("0.8058" → 0.00005, "1.64" → 0.005)."""
+    decimals = len(text.split(".")[1]) if "." in text else 0
+    return 0.5 * 10.0**-decimals
+
+
+def parse_readme_summary(lines: list[str]) -> dict:
+    parameter = re.compile(r"^(\S+)\s+(\S+)\s+(\S+)\s+\[(\S+), (\S+)\]$")
+    coverage = re.compile(
+        r"^held-out points inside their 95 % bands: (\d+) % "
+        r"\(median half-width ±(\S+) % for median errors of (\S+) %\)$"
+    )
+    held_out = re.compile(r"^\s+(\S+)\s+held out: median error (\S+) %, (\d+) % inside$")
+    found: dict = {"verdict": lines[0], "parameters": {}, "held_out": {}}
+    for line in lines[2:]:
+        if m := parameter.match(line):
+            found["parameters"][m[1]] = {"truth": m[2], "median": m[3], "p2_5": m[4], "p97_5": m[5]}
+        elif m := coverage.match(line):
+            found["coverage"] = {"inside": m[1], "half_width": m[2], "error": m[3]}
+        elif m := held_out.match(line):
+            found["held_out"][m[1]] = {"error": m[2], "inside": m[3]}
+        elif line.startswith("converged: "):
+            found["converged"] = line.removeprefix("converged: ")
+    return found
+
+
+def test_the_readme_demo_numbers_agree_with_the_demo_within_their_monte_carlo_error(demo):
+    import arviz as az
+    import pandas as pd
+
+    from uwlab.experiments.calibration.validation import MAX_PREDICTIVE_SAMPLES
+
+    readme = parse_readme_summary(readme_demo_block())
+    summary = json.loads((demo / "summary.json").read_text())
+    verdict = "adequate" if summary["model_adequate"] else "NOT adequate"
+    assert readme["verdict"] == f"{summary['model']} model in the {summary['world']} world: {verdict}"
+    assert readme["converged"] == str(summary["converged"])
+
+    # the parameters: arviz's Monte Carlo standard errors of the median and of the 2.5 and 97.5 % quantiles
+    posterior = az.from_netcdf(demo / "fit" / "posterior.nc")
+    mcse = {
+        "median": az.mcse(posterior, method="median"),
+        "p2_5": az.mcse(posterior, method="quantile", prob=0.025),
+        "p97_5": az.mcse(posterior, method="quantile", prob=0.975),
+    }
+    assert set(readme["parameters"]) == set(summary["parameters"])
+    for name, printed in readme["parameters"].items():
+        fitted = summary["parameters"][name]
+        truth = fitted["truth"]
+        assert printed["truth"] == ("—" if truth is None else f"{truth:.4g}"), name
+        for key, mc in mcse.items():
+            tolerance = MC_SIGMAS * np.sqrt(2) * float(mc[name]) + half_digit(printed[key])
+            assert abs(float(printed[key]) - fitted[key]) <= tolerance, (
+                name,
+                key,
+                printed[key],
+                fitted[key],
+                tolerance,
+            )
+
+    # the held-out predictions: the median of ≤ MAX_PREDICTIVE_SAMPLES draws from a fold's posterior (itself a
+    # chain of about the main fit's effective size) moves a configuration's predicted level by 1.2533·σ·√(1/n + 1/ESS)
+    # (the median's standard error, σ from the predicted 95 % band); a band edge (a 2.5 or 97.5 % quantile) by
+    # 2.67·σ·√(…) (√(p(1−p))/φ(1.96))
+    ess = float(az.ess(posterior, method="bulk").to_array().min())
+    root_n = np.sqrt(1 / MAX_PREDICTIVE_SAMPLES + 1 / ess)
+    points = pd.read_parquet(demo / "fit" / "heldout.parquet")
+    level_sigma = (points["predicted_p97_5"] - points["predicted_p2_5"]) / 3.92 / points["predicted_median"]
+    edge_sigma = (points["observed_p97_5"] - points["observed_p2_5"]) / 3.92 / points["predicted_median"]
+    level_mc = MC_SIGMAS * np.sqrt(2) * 1.2533 * level_sigma * root_n  # relative
+    edge_mc = MC_SIGMAS * np.sqrt(2) * 2.67 * edge_sigma * root_n * points["predicted_median"]  # DN
+    near_edge = (np.abs(points["measured_dn"] - points["observed_p2_5"]) <= edge_mc) | (
+        np.abs(points["measured_dn"] - points["observed_p97_5"]) <= edge_mc
+    )
+    rows = {row["sweep_id"]: row for row in summary["cross_configuration"]}
+    assert list(readme["held_out"]) == list(rows)
+    for sweep_id, printed in readme["held_out"].items():
+        mine = points["sweep_id"] == sweep_id
+        tolerance = 100 * level_mc[mine].max() + half_digit(printed["error"])
+        error = 100 * rows[sweep_id]["median_abs_rel_error"]
+        assert abs(float(printed["error"]) - error) <= tolerance, (sweep_id, printed["error"], error, tolerance)
+        flips = 100 * (near_edge[mine].sum() + 0.5) / mine.sum()  # a point within MC error of an edge may flip
+        assert abs(float(printed["inside"]) - 100 * rows[sweep_id]["inside_95"]) <= flips, sweep_id
+    coverage = summary["predictive_coverage"]
+    flips = 100 * (near_edge.sum() + 0.5) / len(points)
+    assert abs(float(readme["coverage"]["inside"]) - 100 * coverage["held_out_inside_95"]) <= flips
+    half_width_mc = 100 * (edge_mc / points["predicted_median"]).max()
+    for key, value in (("half_width", "held_out_half_width_percent"), ("error", "held_out_error_percent")):
+        printed = readme["coverage"][key]
+        tolerance = (half_width_mc if key == "half_width" else 100 * level_mc.max()) + half_digit(printed)
+        assert abs(float(printed) - coverage[value]) <= tolerance, (key, printed, coverage[value], tolerance)

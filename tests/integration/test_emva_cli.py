@@ -9,7 +9,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import scipy
 
+import uwlab
 from uwlab.cli.main import main
 from uwlab.sim.devices.camera import SimTruth
 from uwlab.experiments.dataset import Dataset
@@ -184,6 +186,21 @@ def test_xml_has_the_reference_names_and_our_values(dataset, tmp_path, capsys):
     assert float(value("spatial", "PRNU1288")) == doc["prnu_percent"]
     assert value("spatial", "sigma_2_y_stack") == "nan"  # no stacks in a sweep dataset
     assert root.find("sensitivity/K/Unit").text == "$DN/e^-$"
+
+
+def test_every_output_names_the_versions_and_the_cpu(dataset, tmp_path, capsys):
+    out = tmp_path / "out"
+    doc = run_json(capsys, "emva", "characterize", str(dataset), "--out", str(out), "--json", "--name", "cam")
+    cpu = doc["provenance"]["cpu"]
+    if Path("/proc/cpuinfo").exists():
+        assert cpu in Path("/proc/cpuinfo").read_text()
+    assert json.loads((out / "emva.json").read_text())["provenance"]["packages"]["numpy"] == np.__version__
+    numpy_named = f"numpy {np.__version__}"
+    for text in ((out / "datasheet.html").read_text(), (out / "cam.toml").read_text()):
+        assert numpy_named in text and f"scipy {scipy.__version__}" in text and f"CPU {cpu}" in text
+    made_with = ET.parse(out / "emva1288.xml").getroot().find("provenance")
+    assert made_with.find("package[@name='numpy']").text == np.__version__ and made_with.find("cpu").text == cpu
+    assert made_with.find("uwlab").text == uwlab.__version__
 
 
 def test_general_model(dataset, tmp_path, capsys):

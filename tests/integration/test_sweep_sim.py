@@ -139,9 +139,14 @@ def test_disk_full_keeps_the_points_and_resume_completes(tmp_path, sim_rig, monk
     monkeypatch.undo()
     data.close()
     assert Dataset.open(tmp_path / "d").completed() == {("e", 0), ("e", 1)}
+    started_with = Dataset.open(tmp_path / "d").metadata["provenance"]
     with open_for_resume(tmp_path / "d", plan, sim=True) as resumed:
         SweepRunner(plan, resumed, sim_rig).run()
     assert sorted(Dataset.open(tmp_path / "d").points()["point_index"]) == [0, 1, 2, 3]
+    # the machine and versions that started it stay; the resuming session's are added beside them
+    metadata = Dataset.open(tmp_path / "d").metadata
+    assert metadata["provenance"] == started_with and len(metadata["resumed"]) == 1
+    assert metadata["resumed"][0]["provenance"]["packages"]["numpy"] == np.__version__
 
 
 def test_foreign_dataset_is_refused(tmp_path, sim_rig):

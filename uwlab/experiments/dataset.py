@@ -7,7 +7,9 @@ Layout (docs/sweeps.md, "Dataset contract"):
 - the ``spectra`` table: long format, one row per wavelength of each spectrometer reading (`SPECTRA_SCHEMA`);
 - both stored append-only as Parquet parts listed by ``manifest.json`` (`uwlab.experiments.dataset_store`:
   checksums, crash safety, flat cost per point);
-- ``metadata.json``: the plan and its hash, device identities, resolved rigs, host, times, software versions;
+- ``metadata.json``: the plan and its hash, device identities, resolved rigs, host, times, and the software and
+  machine that recorded it (``provenance``, `uwlab.provenance`; a resumed sweep adds each resuming session's to
+  ``resumed``);
 - ``frames/``: the raw frames of plans with ``save_frames`` (`uwlab.experiments.dataset_frames`);
 - ``lock``: names the one writer (`uwlab.lockfile`); ``quarantine/``: what ``uwlab dataset check --repair`` set
   aside (`uwlab.experiments.acquisition.dataset_check`).
@@ -25,11 +27,9 @@ import json
 import math
 import numbers
 import os
-import platform
 import shutil
 import socket
 from datetime import datetime, UTC
-from importlib import metadata as importlib_metadata
 from pathlib import Path
 from typing import Any, Literal, get_args
 
@@ -65,6 +65,7 @@ from uwlab.experiments.saturation import POINT_SATURATED_FRACTION, ClipLevel, po
 from uwlab.jsonable import dumps
 from uwlab.lockfile import LockHeld, OwnerLock
 from uwlab.outputs import METADATA_FILE
+from uwlab.provenance import provenance
 
 LOCK_FILE = "lock"
 QUARANTINE_DIR = "quarantine"
@@ -80,19 +81,6 @@ DATASET_ENTRIES = (
 # What a sweep steps, the kind of each point row.
 SweepKind = Literal["exposure", "aperture", "gain", "light-level", "dark"]
 KINDS: tuple[str, ...] = get_args(SweepKind)
-SOFTWARE_PACKAGES = (
-    "numpy",
-    "scipy",
-    "pandas",
-    "pyarrow",
-    "colour-science",
-    "opencv-contrib-python-headless",
-    "harvesters",
-    "genicam",
-    "pyserial",
-    "tifffile",
-    "emcee",
-)
 
 # The per-channel columns of a raw Bayer point, ``<channel>_<statistic>`` with the design model's channel names
 # (``sensor.channel``: red, green, blue); null for a monochrome point (`point_row`).
@@ -198,17 +186,6 @@ TABLES = {"points": POINT_SCHEMA, "spectra": SPECTRA_SCHEMA}
 FLOAT_COLUMNS = tuple(f.name for f in POINT_SCHEMA if pa.types.is_floating(f.type))
 POINT_COLUMNS = tuple(POINT_SCHEMA.names)  # in order (pyarrow builds a new list at each `.names`)
 _KNOWN_COLUMNS = frozenset(POINT_COLUMNS)
-
-
-def software_versions() -> dict[str, str]:
-    """Versions of Python and of the installed packages uwlab depends on (absent ones omitted)."""
-    versions = {"python": platform.python_version()}
-    for name in SOFTWARE_PACKAGES:
-        try:
-            versions[name] = importlib_metadata.version(name)
-        except importlib_metadata.PackageNotFoundError:
-            continue
-    return versions
 
 
 def utc_now() -> str:
@@ -449,7 +426,7 @@ class Dataset:
                 "host": socket.gethostname(),
                 "started_utc": utc_now(),
                 "finished_utc": None,
-                "software": software_versions(),
+                "provenance": provenance(),
                 "sim": bool(sim),
                 "sim_truth": sim_truth or {},
             }

@@ -7,7 +7,9 @@ calibrations (``summary.json`` + ``samples.parquet`` from `uwlab fit`) and EMVA 
 likely causes, `uwlab.experiments.calibration.adequacy`), then the set-up in words, per calibration its checks,
 the measured against predicted response per configuration with residuals in per cent and the fitted and held-out
 95 % bands, the held-out table, the posterior beside the simulated truth, the posterior predictive checks per
-configuration and the spectra; the EMVA summary; the provenance of every dataset.
+configuration and the spectra; the EMVA summary; the provenance: what made the report and each dataset, fit and
+characterisation (uwlab and its commit, Python, the numerical packages, the BLAS and its threads, the CPU:
+`uwlab.provenance`), and every dataset's plan, host, times and devices.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from uwlab.experiments.dataset import read_metadata
 from uwlab.experiments.geometry import GEOMETRY_FIGURE, GEOMETRY_FILE
 from uwlab.experiments.figures import LABEL_PT, PALETTE, TICK_PT, Figure, figure_png, number_text, png_data_uri
 from uwlab.outputs import MANIFEST_FILE, METADATA_FILE, output_file
+from uwlab.provenance import provenance, provenance_line
 from uwlab.experiments.calibration.adequacy import SWEPT_LABELS
 from uwlab.experiments.calibration.forward import PERCENT_PARAMETERS, parameter_label
 from uwlab.experiments.calibration.output import configuration_label
@@ -318,6 +321,7 @@ def _calibration(path: Path) -> dict:
     spectra = path / "spectra.parquet"
     return {
         "path": str(path),
+        "made_with": [(f"fit {path}", _made_with(summary.get("provenance")))],
         "dataset": summary.get("dataset") or "—",
         "adequate": bool(summary.get("model_adequate")),
         "model_name": model_name,
@@ -428,12 +432,33 @@ def _emva(path: Path) -> dict:
         "prnu_percent",
     )
     rows = [{"quantity": k, "value": _number(doc.get(k)), "std": _number(doc.get(f"{k}_std"))} for k in keys]
+    made_with = [(f"EMVA 1288 characterisation {path}", _made_with(doc.get("provenance")))]
     images = [
         _img(path / n)
         for n in ("photon_transfer.png", "snr.png", "linearity.png", "dark_current.png")
         if (path / n).exists()
     ]
-    return {"path": str(path), "rows": rows, "images": images}
+    return {"path": str(path), "rows": rows, "images": images, "made_with": made_with}
+
+
+def _made_with(record: dict | None) -> str:
+    """A `uwlab.provenance.provenance` record in one line, or why there is none."""
+    return provenance_line(record) if record else "not recorded (written by a uwlab that did not record it)"
+
+
+def _dataset_made_with(path: Path, metadata: dict) -> list[tuple[str, str]]:
+    """(what, made with) of a dataset: the session that started it, then each that resumed it."""
+    started = metadata.get("provenance")
+    if started is None and metadata.get("software"):  # before provenance: the package versions only
+        line = ", ".join(f"{k} {v}" for k, v in metadata["software"].items())
+    else:
+        line = _made_with(started)
+    rows = [(f"dataset {path}", line)]
+    rows += [
+        (f"dataset {path}, resumed {r.get('utc', '—')} on {r.get('host', '—')}", _made_with(r.get("provenance")))
+        for r in metadata.get("resumed") or []
+    ]
+    return rows
 
 
 def _geometry(path: Path) -> dict:
@@ -477,6 +502,7 @@ def _geometry(path: Path) -> dict:
         "criterion": _number(doc["criterion_mtf50_cy_per_px"], 3),
         "rows": rows,
         "image": _img(figure) if figure.exists() else None,
+        "made_with": [(f"geometry {path}", _made_with(doc.get("provenance")))],
     }
 
 
@@ -502,7 +528,7 @@ def _provenance(path: Path, metadata: dict) -> dict:
         "finished": metadata.get("finished_utc") or "—",
         "kind": "simulated rig" if metadata.get("sim") else "tank",
         "devices": devices,
-        "software": ", ".join(f"{k} {v}" for k, v in (metadata.get("software") or {}).items()),
+        "made_with": _dataset_made_with(path, metadata),
     }
 
 
@@ -538,6 +564,13 @@ def write_report(root: str | Path, out: str | Path, *, replace: bool = False) ->
     if not (datasets or calibrations or emva or geometry):
         raise UwlabError(f"{root}: no dataset, calibration or EMVA characterisation found; {_what_is_here(root)}")
     metadata = [(d, read_metadata(d)[0]) for d in datasets]
+    calibration_parts = [_calibration(c) for c in calibrations]
+    emva_parts = [_emva(e) for e in emva]
+    dataset_parts = [_provenance(d, m) for d, m in metadata]
+    geometry_parts = [_geometry(g) for g in geometry]
+    made_with = [("this report", provenance_line(provenance()))]
+    for part in (*dataset_parts, *calibration_parts, *emva_parts, *geometry_parts):
+        made_with += part["made_with"]
     environment = Environment(
         loader=PackageLoader("uwlab.experiments", "templates"),
         autoescape=True,
@@ -548,13 +581,14 @@ def write_report(root: str | Path, out: str | Path, *, replace: bool = False) ->
     html = environment.get_template("report.html.j2").render(
         root=str(root.resolve()),
         written=time.strftime("%Y-%m-%d %H:%M"),
-        calibrations=[_calibration(c) for c in calibrations],
+        calibrations=calibration_parts,
         setup=_setup(metadata[0][1]) if metadata else [],
         world=_world(metadata[0][1]) if metadata else None,
         bench_hints=[] if emva else [_bench_hint(d) for d, m in metadata if _has_bench(m)],
-        emva=[_emva(e) for e in emva],
-        geometry=[_geometry(g) for g in geometry],
-        provenance=[_provenance(d, m) for d, m in metadata],
+        emva=emva_parts,
+        geometry=geometry_parts,
+        provenance=dataset_parts,
+        made_with=made_with,
     )
     out.write_text(html)
     return out

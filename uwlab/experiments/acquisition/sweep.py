@@ -42,6 +42,7 @@ again; a failed write raises `DatasetWriteError` with the dataset intact.
 from __future__ import annotations
 
 import json
+import socket
 import time
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
@@ -54,7 +55,7 @@ from uwlab.drivers.camera import Camera, Frame, Settings
 from uwlab.drivers.camera.pixels import pixel_format
 from uwlab.drivers.serial.base import AVERAGING_RANGE, LightReadback, Spectrometer, SpectrometerReadback
 from uwlab.errors import ConfigError
-from uwlab.experiments.dataset import Dataset, FrameRecorder, point_row, spectra_frame
+from uwlab.experiments.dataset import Dataset, FrameRecorder, point_row, spectra_frame, utc_now
 from uwlab.experiments.acquisition.dataset_check import check
 from uwlab.experiments.acquisition.light_calibration import measure_unsaturated
 from uwlab.experiments.acquisition.plan import Plan, Point, SweepSpec, resolved_rig, sweep_tables
@@ -64,6 +65,7 @@ from uwlab.experiments.acquisition.roi import Rect, check_inside
 from uwlab.experiments.acquisition.spectra import irradiance_w_m2
 from uwlab.experiments.frames.stack import StackAccumulator, StackStatistics
 from uwlab.experiments.saturation import ClipLevel, frame_clip_level
+from uwlab.provenance import provenance
 
 DARK_AVERAGING = 16
 
@@ -544,7 +546,9 @@ def open_for_resume(root: str | Path, plan: Plan, sim: bool, purpose: str = "res
     """The dataset at ``root`` open for writing, to complete with ``plan``: its lock taken (refused while another
     writer holds it), recorded from the same plan on the same kind of rig (`check_resumable`), passing its check
     (`uwlab.experiments.acquisition.dataset_check.check`; a damaged one is refused, naming the repair), the leftovers of
-    interrupted writes removed and its finish time cleared."""
+    interrupted writes removed and its finish time cleared. The session that resumes is added to ``resumed`` (its
+    time, host and `uwlab.provenance.provenance`): ``provenance`` stays the one that started the dataset, so a
+    sweep completed on another machine or with other versions says so."""
     dataset = Dataset.open_for_writing(root, purpose)
     try:
         check_resumable(dataset, plan, sim)
@@ -559,7 +563,8 @@ def open_for_resume(root: str | Path, plan: Plan, sim: bool, purpose: str = "res
                 "--resume measures them again",
             )
         dataset.remove_strays()
-        dataset.update_metadata(finished_utc=None)
+        session = {"utc": utc_now(), "host": socket.gethostname(), "provenance": provenance()}
+        dataset.update_metadata(finished_utc=None, resumed=[*dataset.metadata.get("resumed", []), session])
     except BaseException:
         dataset.close()
         raise

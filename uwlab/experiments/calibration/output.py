@@ -4,7 +4,8 @@ Files in the output directory: ``samples.parquet`` (posterior samples, one colum
 ``posterior.nc`` (the same samples per walker as an ArviZ ``InferenceData`` in NetCDF: ``arviz.from_netcdf``,
 ``arviz.summary`` and ``arviz.plot_trace`` work on it),
 ``summary.json`` (per parameter median, 2.5/16/84/97.5th percentiles, τ, R-hat; acceptance, converged flag,
-parameters that cannot be separated), ``predictions.parquet`` (measured vs predicted with bands at every point),
+parameters that cannot be separated; ``provenance``: the software and machine that fitted, `uwlab.provenance`),
+``predictions.parquet`` (measured vs predicted with bands at every point),
 ``dense.parquet`` (bands along dense sweeps), ``heldout.parquet`` (predictions of each configuration from a fit
 that did not see it), ``corner.png``, ``traces.png``, ``response.png`` (measured vs predicted per configuration,
 saturated points marked, and residuals in per cent with the fitted and held-out 95 % bands): the `Figure` objects
@@ -29,6 +30,7 @@ from uwlab.experiments.calibration.inference import POSTERIOR_NAME, write_infere
 from uwlab.experiments.calibration.validation import dense_sweeps, point_predictions
 from uwlab.jsonable import dumps
 from uwlab.outputs import output_dir
+from uwlab.provenance import provenance
 
 OUTPUT_FILES = (
     "samples.parquet",
@@ -272,6 +274,7 @@ def write_fit(
         for name, entry in summary["parameters"].items():
             entry["truth"] = truth.get(name)
     summary.update(extra or {})
+    summary["provenance"] = provenance()
     pd.DataFrame(result.samples, columns=list(result.names)).to_parquet(out / "samples.parquet", index=False)
     write_inference_data(result, out)
     predictions = point_predictions(result)

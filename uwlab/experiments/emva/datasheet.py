@@ -5,8 +5,9 @@ Structure (EMVA 1288 Release 4.0 Linear §10.2 and the summary-sheet template of
 with vendor, model, serial number and the date of the measurement; the operation point; the summary — the photon
 transfer curve (general model: the characteristic curve) and the SNR curve beside a one-column table of every
 quantity of Table 2 in the table's units (the general model's version of Table 2: K and η "N/A", every other quantity
-in photons); then the verdicts and notes; then the detailed results (every other figure); and the provenance. No
-EMVA logo: a licence is needed to claim compliance (Preface), and this page says what it is instead.
+in photons); then the verdicts and notes; then the detailed results (every other figure); and the provenance (the
+source, and the software and machine that computed the page: `uwlab.provenance`). No EMVA logo: a licence is needed
+to claim compliance (Preface), and this page says what it is instead.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ from uwlab.experiments.emva.analysis import EmvaResult
 from uwlab.experiments.emva.linear import linear_model_holds
 from uwlab.experiments.emva.transfer import CHANNEL_NO_SPLIT, SheetInfo
 from uwlab.experiments.figures import number_text, png_data_uri
+from uwlab.provenance import provenance, provenance_line
 
 TEMPLATE = "datasheet.html.j2"
 SUMMARY_FIGURES = {"linear": ("photon_transfer", "snr"), "general": ("characteristic", "snr")}
@@ -265,9 +267,11 @@ def operation_point(values: dict, curves: dict) -> list[tuple[str, str]]:
     ]
 
 
-def datasheet_html(result: EmvaResult, figures: dict[str, bytes], info: SheetInfo) -> str:
+def datasheet_html(
+    result: EmvaResult, figures: dict[str, bytes], info: SheetInfo, made_with: dict | None = None
+) -> str:
     """The datasheet page of ``result`` with its ``figures`` as PNG by name (`uwlab.experiments.emva.plots`'
-    `figure_pngs`)."""
+    `figure_pngs`); ``made_with``: the `uwlab.provenance.provenance` record to show (default this process's)."""
     from jinja2 import Environment, PackageLoader, select_autoescape
 
     env = Environment(
@@ -288,10 +292,13 @@ def datasheet_html(result: EmvaResult, figures: dict[str, bytes], info: SheetInf
         summary=summary,
         details=details,
         version=__version__,
+        made_with=provenance_line(made_with or provenance()),
         generated=datetime.now(UTC).isoformat(timespec="seconds"),
     )
 
 
-def write_datasheet(result: EmvaResult, figures: dict[str, bytes], path: Path, info: SheetInfo) -> Path:
-    path.write_text(datasheet_html(result, figures, info), encoding="utf-8")
+def write_datasheet(
+    result: EmvaResult, figures: dict[str, bytes], path: Path, info: SheetInfo, made_with: dict | None = None
+) -> Path:
+    path.write_text(datasheet_html(result, figures, info, made_with), encoding="utf-8")
     return path

@@ -1,6 +1,7 @@
 """Writing an EMVA 1288 characterisation to disk, as `uwlab.experiments.calibration.output` does for a fit.
 
-Files in the output directory: ``emva.json`` (the parameters, their uncertainties, notes and the list of files),
+Files in the output directory: ``emva.json`` (the parameters, their uncertainties, notes, the list of files and the
+software and machine that computed them, `uwlab.provenance`, which the datasheet, the XML and the profile name too),
 ``datasheet.html`` (`uwlab.experiments.emva.datasheet`), ``emva1288.xml`` (`uwlab.experiments.emva.results_xml`), the
 figures of `uwlab.experiments.emva.plots`, and — for the linear model when the pixel size is known — a sensor
 profile ``<name>.toml`` with its flat QE curve ``<name>_qe.csv`` (`uwlab.experiments.emva.profile`) that
@@ -20,6 +21,7 @@ from uwlab.experiments.emva.analysis import EmvaResult
 from uwlab.experiments.emva.transfer import PhotonTransfer
 from uwlab.jsonable import dumps, to_jsonable
 from uwlab.outputs import output_dir
+from uwlab.provenance import provenance
 
 if TYPE_CHECKING:
     from uwlab.model.sensor import SensorProfile
@@ -74,8 +76,9 @@ def output_paths(out: Path, result: EmvaResult, name: str, with_profile: bool) -
 
 
 def result_document(result: EmvaResult) -> dict:
-    """The JSON document of a characterisation (``emva.json``, ``uwlab emva characterize --json``)."""
-    return to_jsonable(result.values)
+    """The JSON document of a characterisation (``emva.json``, ``uwlab emva characterize --json``): its values and
+    ``provenance`` (`uwlab.provenance.provenance`)."""
+    return {**to_jsonable(result.values), "provenance": provenance()}
 
 
 def write_characterization(
@@ -110,8 +113,8 @@ def write_characterization(
         figures = figure_pngs(result)
         for path in paths.plots:
             path.write_bytes(figures[path.stem])
-        write_datasheet(result, figures, paths.datasheet, info or SheetInfo())
-        write_results_xml(result, paths.xml)
+        write_datasheet(result, figures, paths.datasheet, info or SheetInfo(), document["provenance"])
+        write_results_xml(result, paths.xml, document["provenance"])
         if paths.profile is not None:
             exposure_us = (float(np.min(pt.exposure_s) * 1e6), float(np.max(pt.exposure_s) * 1e6))
             toml_text, csv_text = profile_documents(
@@ -122,6 +125,7 @@ def write_characterization(
                 exposure_range_us=exposure_us,
                 pixel_size_um=pixel_size_um,
                 base=base,
+                made_with=document["provenance"],
             )
             paths.profile[0].write_text(toml_text)
             paths.profile[1].write_text(csv_text)

@@ -16,6 +16,7 @@ import math
 
 from uwlab.errors import ConfigError
 from uwlab.model.sensor import SensorProfile
+from uwlab.provenance import provenance as current_provenance, provenance_line
 
 QE_RANGE_NM = (300.0, 1100.0)
 
@@ -45,9 +46,11 @@ def profile_documents(
     exposure_range_us: tuple,
     pixel_size_um: float | None,
     base: SensorProfile | None = None,
+    made_with: dict | None = None,
 ) -> tuple[str, str]:
     """(profile TOML text, QE CSV text) for the characterisation ``values`` (`EmvaResult.values`); the CSV is
-    to be written as ``<name>_qe.csv`` beside the TOML."""
+    to be written as ``<name>_qe.csv`` beside the TOML. The TOML's header names the software and machine that
+    measured it (``made_with``, a `uwlab.provenance.provenance` record; default this process's)."""
     size_um = pixel_size_um or (base.pixel_size_um if base else None)
     if not size_um:
         raise ConfigError("--pixel-size-um", None, "needed for a sensor profile (no sensor profile in the data)")
@@ -104,6 +107,7 @@ def profile_documents(
     lines = [
         f"# Sensor profile measured by uwlab: {measured}.",
         "# Values at 0 dB gain; the QE curve is flat at the measured eta (see [provenance], [flags]).",
+        f"# Made with {provenance_line(made_with or current_provenance())}.",
         "",
     ]
     lines += [f"{k} = {_toml_value(v)}" for k, v in keys.items()]

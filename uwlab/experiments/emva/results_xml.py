@@ -8,7 +8,9 @@ Release 3.1 ones for μ_p.min (eq. 26), the highpass of the spatial variances (�
 variance (divided by K², where the reference divides by K twice after a first division): the names are shared, the
 methods are those of the standard's text. An extra ``LE`` gives the Release 4.0 linearity error (eq. 63) beside the
 reference's ``LE_min``/``LE_max``. Values that cannot be computed (the general model's K and η, a missing stack)
-are written as ``nan``, as the reference implementation does; QE is in percent, as there.
+are written as ``nan``, as the reference implementation does; QE is in percent, as there. A last section,
+``provenance`` (not the reference's), names the software and machine that computed the values (`uwlab.provenance`):
+``uwlab`` (with a ``commit`` attribute), ``python``, one ``package`` per version, ``blas`` and ``cpu``.
 """
 
 from __future__ import annotations
@@ -20,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from uwlab.experiments.emva.analysis import EmvaResult
+from uwlab.provenance import provenance
 
 _S2 = "spatial_variances"
 
@@ -332,8 +335,9 @@ def _array(values) -> str:
     return " ".join(_text(float(x)) for x in np.asarray(values, float).ravel())
 
 
-def results_element(result: EmvaResult) -> ET.Element:
-    """The ``<results>`` tree of a characterisation."""
+def results_element(result: EmvaResult, made_with: dict | None = None) -> ET.Element:
+    """The ``<results>`` tree of a characterisation; ``made_with``: its `uwlab.provenance.provenance` record
+    (default this process's)."""
     v = result.values
     linear = v["model"] == "linear"
     root = ET.Element("results")
@@ -361,18 +365,32 @@ def results_element(result: EmvaResult) -> ET.Element:
             if hist.model is not None:
                 ET.SubElement(data, "model").text = _array(hist.model)
         ET.SubElement(element, "Unit").text = ""
+    root.append(_provenance_element(made_with or provenance()))
     return root
 
 
-def results_xml(result: EmvaResult) -> str:
+def _provenance_element(record: dict) -> ET.Element:
+    element = ET.Element("provenance")
+    uwlab = ET.SubElement(element, "uwlab", commit=str(record["commit"]), modified=str(record["modified"]))
+    uwlab.text = record["uwlab"]
+    ET.SubElement(element, "python").text = record["python"]
+    for name, version in record["packages"].items():
+        ET.SubElement(element, "package", name=name).text = version
+    blas = record["blas"]
+    ET.SubElement(element, "blas", version=str(blas["version"]), threads=str(blas["threads"])).text = blas["library"]
+    ET.SubElement(element, "cpu", cores=str(record["cpus"])).text = record["cpu"]
+    return element
+
+
+def results_xml(result: EmvaResult, made_with: dict | None = None) -> str:
     """The XML document (UTF-8 text, indented)."""
-    tree = ET.ElementTree(results_element(result))
+    tree = ET.ElementTree(results_element(result, made_with))
     ET.indent(tree)
     root = tree.getroot()
     assert root is not None  # the tree was built from its root
     return ET.tostring(root, encoding="unicode", xml_declaration=True) + "\n"
 
 
-def write_results_xml(result: EmvaResult, path: Path) -> Path:
-    path.write_text(results_xml(result), encoding="utf-8")
+def write_results_xml(result: EmvaResult, path: Path, made_with: dict | None = None) -> Path:
+    path.write_text(results_xml(result, made_with), encoding="utf-8")
     return path

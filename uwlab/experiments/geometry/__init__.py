@@ -34,6 +34,7 @@ import numpy as np
 from uwlab.experiments.figures import LABEL_PT, PALETTE, TICK_PT, Figure, save_figure
 from uwlab.jsonable import to_jsonable
 from uwlab.outputs import output_dir
+from uwlab.provenance import provenance
 
 EDGE_ANGLE_DEG = 5.0
 MTF50_TOLERANCE = 0.05
@@ -191,6 +192,7 @@ def write_geometry(result: GeometryValidation, out: Path) -> Path:
     """``geometry.json`` and ``geometry.png`` into the directory ``out`` (created; its parent must exist)."""
     out = output_dir(out, "--out", empty=True)
     out.mkdir(exist_ok=True)
-    (out / GEOMETRY_FILE).write_text(json.dumps(to_jsonable(result.to_json()), indent=2) + "\n")
+    record = {**result.to_json(), "provenance": provenance()}
+    (out / GEOMETRY_FILE).write_text(json.dumps(to_jsonable(record), indent=2) + "\n")
     save_figure(plot_geometry(result), out / GEOMETRY_FIGURE)
     return out
