@@ -8,11 +8,13 @@ lines (their provenance header); read with the standard library's `csv` (no pand
 from __future__ import annotations
 
 import csv
+import json
 import math
 import os
 import stat
 import tomllib
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -31,10 +33,15 @@ MAX_CSV_BYTES = 100_000_000
 MAX_ABS_VALUE = 1e15
 
 
-def read_text(path: Path, key: str, max_bytes: int, kind: str) -> str:
-    """The UTF-8 text of a regular file of at most ``max_bytes``: a directory, a device (``/dev/zero``), a FIFO
-    (which would block), an oversized or non-UTF-8 file is a `ConfigError` naming ``key`` and the file, before it is
-    read."""
+MAX_IMAGE_BYTES = 2_000_000_000  # a 16-bit frame of 1e9 px: beyond any camera uwlab drives
+MAX_JSON_BYTES = 100_000_000
+
+
+def check_input_file(path: str | os.PathLike[str], key: str, max_bytes: int, kind: str) -> Path:
+    """``path``, checked as every input file uwlab reads is: it exists and is a regular file of at most
+    ``max_bytes``. A directory, a device (``/dev/zero``), a FIFO (opening it would block) or an oversized file is a
+    `ConfigError` naming ``key`` and the file, found by ``stat`` without opening it. For a path handed to a library
+    that opens it itself (OpenCV, tifffile); uwlab's own reads go through `read_bytes`."""
     path = Path(path)
     try:
         info = os.stat(path)
@@ -42,6 +49,11 @@ def read_text(path: Path, key: str, max_bytes: int, kind: str) -> str:
         raise ConfigError(key, str(path), "file not found") from None
     except OSError as exc:
         raise ConfigError(key, str(path), f"cannot be read ({exc.strerror})") from None
+    _check_stat(info, path, key, max_bytes, kind)
+    return path
+
+
+def _check_stat(info: os.stat_result, path: Path, key: str, max_bytes: int, kind: str) -> None:
     if stat.S_ISDIR(info.st_mode):
         raise ConfigError(key, str(path), f"is a directory, not a {kind} file")
     if not stat.S_ISREG(info.st_mode):
@@ -50,17 +62,53 @@ def read_text(path: Path, key: str, max_bytes: int, kind: str) -> str:
         raise ConfigError(
             key, str(path), f"{info.st_size} bytes: larger than any {kind} file uwlab reads ({max_bytes} bytes)"
         )
+
+
+def read_bytes(path: str | os.PathLike[str], key: str, max_bytes: int, kind: str) -> bytes:
+    """The bytes of a regular file of at most ``max_bytes`` (`check_input_file`'s rule). The file is opened
+    non-blocking and checked again on the open descriptor (a path swapped for a FIFO or device between the two is
+    refused, not waited on), and at most ``max_bytes`` are read whatever its size claims."""
+    path = check_input_file(path, key, max_bytes, kind)
     try:
-        data = path.read_bytes()
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
     except PermissionError:
         raise ConfigError(key, str(path), "cannot be read (permission denied)") from None
     except OSError as exc:
         raise ConfigError(key, str(path), f"cannot be read ({exc.strerror})") from None
     try:
+        _check_stat(os.fstat(fd), path, key, max_bytes, kind)
+        chunks, size = [], 0
+        while size <= max_bytes and (chunk := os.read(fd, min(1 << 24, max_bytes + 1 - size))):
+            chunks.append(chunk)
+            size += len(chunk)
+    except OSError as exc:
+        raise ConfigError(key, str(path), f"cannot be read ({exc.strerror})") from None
+    finally:
+        os.close(fd)
+    if size > max_bytes:
+        raise ConfigError(key, str(path), f"grew beyond {max_bytes} bytes while read: larger than any {kind} file")
+    return b"".join(chunks)
+
+
+def read_text(path: str | os.PathLike[str], key: str, max_bytes: int, kind: str) -> str:
+    """The UTF-8 text of a regular file of at most ``max_bytes`` (`read_bytes`); a file that is not UTF-8 is a
+    `ConfigError` naming ``key`` and the file."""
+    data = read_bytes(path, key, max_bytes, kind)
+    try:
         return data.decode("utf-8-sig")
     except UnicodeDecodeError as exc:
         bom = " (a UTF-16 byte-order mark: save it as UTF-8)" if data[:2] in (b"\xff\xfe", b"\xfe\xff") else ""
         raise ConfigError(key, str(path), f"not UTF-8 text: byte {exc.start} is {data[exc.start]:#04x}{bom}") from None
+
+
+def read_json(path: str | os.PathLike[str], key: str, kind: str = "JSON") -> Any:
+    """A JSON document (`read_text`'s checks first); `ConfigError` naming ``key`` and the file when it does not
+    parse."""
+    text = read_text(path, key, MAX_JSON_BYTES, kind)
+    try:
+        return json.loads(text)
+    except ValueError as exc:
+        raise ConfigError(key, str(path), f"invalid JSON ({exc})") from None
 
 
 def read_toml(path: Path, key: str = "config") -> dict:
