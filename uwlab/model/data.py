@@ -33,7 +33,8 @@ MAX_CSV_BYTES = 100_000_000
 MAX_ABS_VALUE = 1e15
 
 
-MAX_IMAGE_BYTES = 2_000_000_000  # a 16-bit frame of 1e9 px: beyond any camera uwlab drives
+# Images and Parquet tables: a 16-bit frame of 1e9 px is beyond any camera uwlab drives
+MAX_BINARY_BYTES = 2_000_000_000
 MAX_JSON_BYTES = 100_000_000
 
 
@@ -54,10 +55,11 @@ def check_input_file(path: str | os.PathLike[str], key: str, max_bytes: int, kin
 
 
 def _check_stat(info: os.stat_result, path: Path, key: str, max_bytes: int, kind: str) -> None:
+    article = "an" if kind[:1].lower() in "aeio" else "a"
     if stat.S_ISDIR(info.st_mode):
-        raise ConfigError(key, str(path), f"is a directory, not a {kind} file")
+        raise ConfigError(key, str(path), f"is a directory, not {article} {kind} file")
     if not stat.S_ISREG(info.st_mode):
-        raise ConfigError(key, str(path), f"not a regular file (a device or pipe), not a {kind} file")
+        raise ConfigError(key, str(path), f"not a regular file (a device or pipe), not {article} {kind} file")
     if info.st_size > max_bytes:
         raise ConfigError(
             key, str(path), f"{info.st_size} bytes: larger than any {kind} file uwlab reads ({max_bytes} bytes)"

@@ -67,7 +67,7 @@ from uwlab.experiments.dataset import SweepKind
 from uwlab.experiments.saturation import POINT_SATURATED_FRACTION
 from uwlab.jsonable import to_jsonable
 from uwlab.model.config import apply_override
-from uwlab.model.data import read_toml, resolve_path
+from uwlab.model.data import MAX_TOML_BYTES, read_bytes, read_toml, resolve_path
 from uwlab.model.bench import Bench, build_bench, is_bench
 from uwlab.model.build import build_design
 from uwlab.model.design import Design
@@ -408,7 +408,7 @@ class Plan:
 
 
 def plan_sha256(path: str | Path) -> str:
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    return hashlib.sha256(read_bytes(path, "plan", MAX_TOML_BYTES, "TOML")).hexdigest()
 
 
 def load_plan(path: str | Path) -> Plan:

@@ -48,7 +48,7 @@ from uwlab.experiments.emva.transfer import SheetInfo
 from uwlab.experiments.frames.stack import StackStatistics, WorkImages, stack_statistics
 from uwlab.experiments.emva.transfer import NonuniformityStack, PhotonTransfer, SpatialSplit
 from uwlab.experiments.saturation import ClipLevel, clip_level
-from uwlab.model.data import MAX_IMAGE_BYTES, check_input_file, read_text
+from uwlab.model.data import MAX_BINARY_BYTES, check_input_file, read_text
 
 DESCRIPTOR_NAME = "EMVA1288descriptor.txt"
 SUPPORTED_BITS = (8, 10, 12, 14, 16)
@@ -245,7 +245,7 @@ class ImageReader:
     def read(self, name: str, out: np.ndarray | None = None) -> np.ndarray:
         """The image ``name``, checked; ``out``: an array of the expected shape and type to read a TIFF into (the
         result may be ``out`` itself: the caller reuses it)."""
-        path = check_input_file(self.path(name), "image", MAX_IMAGE_BYTES, "image")
+        path = check_input_file(self.path(name), "image", MAX_BINARY_BYTES, "image")
         image = None
         if path.suffix.lower() in (".tif", ".tiff"):
             image = _read_tiff(path, out)
