@@ -122,8 +122,10 @@ def read_toml(path: Path, key: str = "config") -> dict:
         raise ConfigError(key, str(path), f"invalid TOML ({exc})") from None
 
 
-def _csv_rows(path: Path, key: str) -> tuple[list[str], list[tuple[int, list[str]]]]:
-    """The header and the (line number, stripped fields) of each row of a CSV (`read_csv_table`'s rules)."""
+def csv_rows(path: Path, key: str) -> tuple[list[str], list[tuple[int, list[str]]]]:
+    """The header and the (line number, stripped fields) of each row of a CSV. Text from ``#`` to the end of a line
+    is a comment; blank lines are skipped; the first other line names the columns; every row has one field per
+    column."""
     text = read_text(path, key, MAX_CSV_BYTES, "CSV")
     lines = [(number, line.split("#", 1)[0]) for number, line in enumerate(text.splitlines(), 1)]
     lines = [(number, line) for number, line in lines if line.strip()]
@@ -139,18 +141,12 @@ def _csv_rows(path: Path, key: str) -> tuple[list[str], list[tuple[int, list[str
     return header, out
 
 
-def read_csv_table(path: Path, key: str) -> dict[str, list[str]]:
-    """The columns of a CSV file by name, as lists of stripped strings. Text from ``#`` to the end of a line is a
-    comment; blank lines are skipped; the first other line names the columns; every row has one field per column."""
-    header, rows = _csv_rows(path, key)
-    return {name: [row[i] for _, row in rows] for i, name in enumerate(header)}
-
-
 def read_csv_columns(path: Path, columns: tuple[str, ...], key: str) -> dict[str, np.ndarray]:
-    """Read named numeric columns of a CSV, sorted by the first, duplicate first-column values dropped (the first
-    kept). Every value must be a finite number of magnitude at most `MAX_ABS_VALUE`; a `ConfigError` names the
-    file, the line and the column of the first that is not."""
-    header, rows = _csv_rows(path, key)
+    """Read named numeric columns of a CSV, sorted by the first. Every value must be a finite number of magnitude
+    at most `MAX_ABS_VALUE`; a `ConfigError` names the file, the line and the column of the first that is not. A
+    first-column value (a wavelength) given twice with different values is refused (`sorted_unique`); a row
+    repeated exactly is read once."""
+    header, rows = csv_rows(path, key)
     missing = [c for c in columns if c not in header]
     if missing:
         raise ConfigError(key, str(path), f"missing column(s) {', '.join(missing)}; has {', '.join(header)}")
@@ -174,10 +170,28 @@ def read_csv_columns(path: Path, columns: tuple[str, ...], key: str) -> dict[str
                     f"magnitude ≤ {MAX_ABS_VALUE:g} — is the unit right?",
                 )
             values[r, j] = value
+    values = sorted_unique(values, [number for number, _ in rows], path, key, columns)
+    return {c: values[:, j] for j, c in enumerate(columns)}
+
+
+def sorted_unique(values: np.ndarray, lines: list[int], path: Path, key: str, columns: tuple[str, ...]) -> np.ndarray:
+    """The rows of ``values`` (one per line of ``path``, numbered ``lines``) sorted by the first column, a row
+    repeated exactly kept once. A first-column value (a wavelength) on two lines with different values in the
+    other columns is a `ConfigError` naming the file, the value and both lines: which of the two is meant cannot
+    be known, and taking either silently would hide a mistake in the file."""
     order = np.argsort(values[:, 0], kind="stable")
-    first = values[order, 0]
-    keep = order[np.concatenate([[True], first[1:] != first[:-1]])] if first.size else order
-    return {c: values[keep, j] for j, c in enumerate(columns)}
+    values = values[order]
+    same_first = values[1:, 0] == values[:-1, 0]
+    conflict = np.flatnonzero(same_first & np.any(values[1:] != values[:-1], axis=1))
+    if conflict.size:
+        i = int(conflict[0])
+        first, second = sorted((lines[order[i]], lines[order[i + 1]]))
+        raise ConfigError(
+            key,
+            str(path),
+            f"{columns[0]} = {values[i, 0]:g} is given twice with different values (lines {first} and {second})",
+        )
+    return values[np.concatenate([[True], ~same_first])] if len(values) else values
 
 
 def resolve_path(value: str, base: Path | None) -> Path:
