@@ -104,8 +104,8 @@ MAX_POINTS = 10000
 # Pixel coordinates of a window or ROI: offsets from 0, sizes from 2 (a variance needs two pixels).
 OffsetPx = Annotated[int, limits(0, 100000, "px", hint="", integer=True)]
 SizePx = Annotated[int, limits(2, 100000, "px", hint="", integer=True)]
-TimeoutS = Annotated[float, limits(0.0, 600.0, "s", lo_open=True)]
-OutageS = Annotated[float, limits(0.0, 86400.0, "s", lo_open=True)]
+TimeoutS = Annotated[float, limits(0.01, 600.0, "s")]
+OutageS = Annotated[float, limits(0.1, 86400.0, "s")]
 Attempts = Annotated[int, limits(0, 1000, "attempts", hint="", integer=True)]
 ReopenS = Annotated[float, limits(0.0, 3600.0, "s")]
 MaxDrive = Annotated[float, limits(0.0, 100.0, "A", lo_open=True, hint="amperes, not mA")]
