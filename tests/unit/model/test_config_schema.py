@@ -284,6 +284,13 @@ def test_frame_count_refuses_before_allocating():
         (["design", str(EXAMPLE), "--grid", "lens.focal_length_mm=0:inf:1"], "lens.focal_length_mm"),
         (["design", str(EXAMPLE), "--grid", "lens.focal_length_mm=10,0.03"], "lens.focal_length_mm = 0.03"),
         (["emva", "characterize", "DS", "--wavelength-nm", "0.55"], "--wavelength-nm = 0.55"),
+        # numeric flags through the same named quantities: a negative seed was a numpy traceback, 1e9 frames or
+        # poses a run without end
+        (["grab", "--frames", "1000000000"], "frames = 1000000000"),
+        (["sim", "camera", "--gige", "--seed", "-1"], "--seed = -1"),
+        (["sim", "charuco", str(EXAMPLE), "--medium", "water", "--out", "unused", "--seed", "-1"], "--seed = -1"),
+        (["sim", "charuco", str(EXAMPLE), "--medium", "water", "--out", "unused", "--poses", "100000000"], "--poses"),
+        (["demo", "--seed", "-5", "--out", "unused"], "--seed = -5"),
         (["emva", "characterize", "DS", "--pixel-size-um", "3450"], "--pixel-size-um = 3450.0"),
     ],
 )
