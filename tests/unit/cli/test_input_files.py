@@ -116,3 +116,24 @@ def test_the_reader_reads_no_more_than_its_cap_whatever_the_size_says(tmp_path):
     assert check_input_file(path, "k", len(data), "CSV") == path
     with pytest.raises(ConfigError, match="file not found"):
         check_input_file(tmp_path / "missing.tif", "image", 10, "image")
+
+
+@pytest.mark.timeout(60)
+def test_a_fifo_given_as_a_gentl_producer_is_refused(tmp_path):
+    from uwlab.drivers.camera.harvesters_backend import cti_files
+
+    fifo = _fifo(tmp_path / "producer.cti")
+    with pytest.raises(ConfigError, match="not a regular file"):
+        cti_files([str(fifo)])
+    (tmp_path / "real.cti").write_bytes(b"\0")  # a folder gives its regular *.cti files only
+    assert cti_files([str(tmp_path)]) == [tmp_path / "real.cti"]
+
+
+@pytest.mark.timeout(60)
+def test_a_fifo_as_the_shared_light_state_is_not_waited_on(tmp_path):
+    """`uwlab sim camera --rig-state FILE` reads the light state at every frame: a FIFO there is refused (the state
+    held in memory is used), never opened."""
+    from uwlab.sim.rig_state import LightState, RigState
+
+    state = RigState(_fifo(tmp_path / "state.json"))
+    assert state.light == LightState()
