@@ -21,7 +21,8 @@ it to the table's schema (columns a part predates read as null); a file that fai
 
 The JSON documents (the manifest here, ``metadata.json`` in `uwlab.experiments.dataset`) are sealed: each carries
 the SHA-256 of its own canonical JSON (key `SEAL_KEY`) and is written twice, the file and its backup copy
-(`backup_path`: ``manifest.backup.json``), each atomically. `read_sealed` takes the first copy whose seal holds, so
+(`backup_path`: ``manifest.backup.json``), each atomically. `read_sealed` reads both and takes the first copy whose
+seal holds, reporting a damaged or missing other copy (`uwlab dataset check` names it, --repair rewrites it), so
 any single damaged byte of either copy is either repaired from the other or (both damaged) refused — never read as
 another value. A dataset written before seals (no backup copies) is read as it is.
 Files are created with the user's umask (lab data is shared). A failed write (disk full, read-only) raises
@@ -42,7 +43,7 @@ import pyarrow as pa
 import pyarrow.parquet as pq
 
 from uwlab.errors import ConfigError, UwlabError
-from uwlab.model.data import MAX_JSON_BYTES, read_bytes
+from uwlab.model.data import MAX_BINARY_BYTES, MAX_JSON_BYTES, read_bytes
 from uwlab.outputs import MANIFEST_FILE
 
 FORMAT = "uwlab-dataset-parts/1"
@@ -331,7 +332,13 @@ class PartStore:
         entry = part.tables.get(name)
         if entry is None:
             return schema.empty_table()
-        data = (self.root / entry.file).read_bytes()
+        path = self.root / entry.file
+        try:
+            data = read_bytes(path, entry.file, MAX_BINARY_BYTES, "Parquet")
+        except ConfigError as exc:
+            if not os.path.lexists(path):
+                raise FileNotFoundError(errno.ENOENT, "no such file", str(path)) from None
+            raise PartDamaged(self.root, entry.file, exc.reason) from None
         if hashlib.sha256(data).hexdigest() != entry.sha256:
             raise PartDamaged(self.root, entry.file, "SHA-256 differs from the manifest")
         try:

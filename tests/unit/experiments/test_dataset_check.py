@@ -218,3 +218,14 @@ def test_a_damaged_backup_copy_is_named_by_check_and_rewritten_by_repair(tmp_pat
     assert f"rewrote {name}" in out and ": ok;" in out, out
     assert backup.read_bytes() == original
     assert main(["dataset", "check", str(root)]) == 0
+
+
+@pytest.mark.timeout(60)
+def test_a_part_file_replaced_by_a_fifo_is_damaged_not_waited_on(tmp_path):
+    root = dataset(tmp_path / "ds", points=3)
+    part = sorted((root / "parts").glob("*.points.parquet"))[0]
+    part.unlink()
+    os.mkfifo(part)
+    report = check(Dataset.open(root))
+    problem = report.problems[0]
+    assert not report.ok and problem.where == f"parts/{part.name}" and "not a regular file" in problem.what, problem
