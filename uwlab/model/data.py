@@ -3,6 +3,11 @@
 The configuration directory is `$UWLAB_CONFIG_DIR` if set, else the `configs/` folder beside the package.
 Relative paths in a config file are resolved against that file's folder. CSV files may start with `#` comment
 lines (their provenance header); read with the standard library's `csv` (no pandas: the design path stays light).
+
+This is also the one file boundary of every input uwlab reads (configs, plans, spectra, descriptors, calibration
+files, dataset documents, images): `read_bytes` (and `read_text`, `read_json`, `read_toml` on it) reads regular files
+only, bounded; `check_input_file` applies the same rule to a path a library opens itself (OpenCV, tifffile,
+pyarrow). A FIFO, a device or an over-size file is a one-line `ConfigError`, never waited on or read.
 """
 
 from __future__ import annotations
