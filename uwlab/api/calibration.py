@@ -8,7 +8,6 @@ A fit directory holds, beside the outputs of ``uwlab fit``, ``posterior.nc``: th
 
 from __future__ import annotations
 
-import json
 import os
 from dataclasses import dataclass
 from functools import cached_property
@@ -86,14 +85,16 @@ class Fit:
         from uwlab.errors import ConfigError
 
         fit = cls(directory)
-        if not (fit.directory / "summary.json").is_file():
+        if not (fit.directory / "summary.json").exists():
             raise ConfigError("fit", str(directory), "no summary.json here (not a `uwlab fit` output directory)")
         return fit
 
     @cached_property
     def summary(self) -> dict[str, Any]:
         """``summary.json`` (the fit, its checks, the held-out table, the verdict)."""
-        summary: dict[str, Any] = json.loads((self.directory / "summary.json").read_text())
+        from uwlab.model.data import read_json
+
+        summary: dict[str, Any] = read_json(self.directory / "summary.json", "fit")
         return summary
 
     @property

@@ -49,7 +49,9 @@ def register(subparsers) -> None:
 
 def run(args) -> int:
     from uwlab.experiments.demo import run_demo
+    from uwlab.model.schema import Seed, check
 
+    check(Seed, args.seed, "--seed")
     if args.out is None:
         Path("out").mkdir(exist_ok=True)
     out = Path(args.out) if args.out else Path("out") / time.strftime("demo-%Y%m%d-%H%M%S")

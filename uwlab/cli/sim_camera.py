@@ -10,6 +10,7 @@ import threading
 from uwlab.sim.devices.camera import sensor_from_rig
 from uwlab.sim.devices.gige import GVCP_PORT, GigeCameraServer, GigeFaults
 from uwlab.errors import ConfigError
+from uwlab.model.schema import Seed, check
 
 LOOPBACK = ipaddress.IPv4Network("127.0.0.0/8")
 
@@ -59,6 +60,7 @@ def run_sim_camera(args) -> int:
     address = loopback_address(args.address)
     if args.incomplete_every < 0:
         raise ConfigError("incomplete-every", args.incomplete_every, "must be >= 0")
+    check(Seed, args.seed, "--seed")
     sensor = sensor_from_rig(args.config, args.seed, rig_state=args.rig_state)
     stop = threading.Event()
     previous = signal.signal(signal.SIGTERM, lambda *_: stop.set())

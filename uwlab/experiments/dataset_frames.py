@@ -30,6 +30,7 @@ from urllib.parse import quote, unquote
 import numpy as np
 
 from uwlab.experiments.dataset_store import fsync_directory, write_durable
+from uwlab.model.data import MAX_BINARY_BYTES, check_input_file
 
 FRAMES_DIR = "frames"
 ROLES = ("bright", "dark")
@@ -84,7 +85,7 @@ def read_frame(path: str | os.PathLike) -> tuple[np.ndarray, dict]:
     """(image, metadata) of a stored frame."""
     import tifffile
 
-    with tifffile.TiffFile(path) as tif:
+    with tifffile.TiffFile(check_input_file(path, "frame", MAX_BINARY_BYTES, "TIFF")) as tif:
         metadata = dict(tif.shaped_metadata[0]) if tif.shaped_metadata else {}
         metadata.pop("shape", None)
         return tif.asarray(), metadata

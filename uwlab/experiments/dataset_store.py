@@ -21,7 +21,8 @@ it to the table's schema (columns a part predates read as null); a file that fai
 
 The JSON documents (the manifest here, ``metadata.json`` in `uwlab.experiments.dataset`) are sealed: each carries
 the SHA-256 of its own canonical JSON (key `SEAL_KEY`) and is written twice, the file and its backup copy
-(`backup_path`: ``manifest.backup.json``), each atomically. `read_sealed` takes the first copy whose seal holds, so
+(`backup_path`: ``manifest.backup.json``), each atomically. `read_sealed` reads both and takes the first copy whose
+seal holds, reporting a damaged or missing other copy (`uwlab dataset check` names it, --repair rewrites it), so
 any single damaged byte of either copy is either repaired from the other or (both damaged) refused — never read as
 another value. A dataset written before seals (no backup copies) is read as it is.
 Files are created with the user's umask (lab data is shared). A failed write (disk full, read-only) raises
@@ -30,6 +31,7 @@ Files are created with the user's umask (lab data is shared). A failed write (di
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import json
 import os
@@ -40,7 +42,8 @@ from pathlib import Path
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from uwlab.errors import UwlabError
+from uwlab.errors import ConfigError, UwlabError
+from uwlab.model.data import MAX_BINARY_BYTES, MAX_JSON_BYTES, read_bytes
 from uwlab.outputs import MANIFEST_FILE
 
 FORMAT = "uwlab-dataset-parts/1"
@@ -96,24 +99,28 @@ def write_sealed(path: Path, document: dict, indent: int | None = None) -> None:
     write_atomic(backup_path(path), data)
 
 
-def _read_copy(path: Path, sealed: bool) -> dict:
-    """One copy of a sealed document; `ValueError` saying why it cannot be trusted (`FileNotFoundError` if none)."""
-    document = json.loads(path.read_bytes().decode("utf-8"))
+def _read_copy(path: Path) -> tuple[dict, bool]:
+    """One copy of a sealed document and whether it carries a seal; `ValueError` saying why it cannot be trusted
+    (`FileNotFoundError` if it does not exist). Read as every input is (`uwlab.model.data.read_bytes`: a regular
+    file, bounded)."""
+    if not os.path.lexists(path):
+        raise FileNotFoundError(errno.ENOENT, "no such file", str(path))
+    try:
+        data = read_bytes(path, path.name, MAX_JSON_BYTES, "JSON")
+    except ConfigError as exc:
+        raise ValueError(exc.reason) from None
+    document = json.loads(data.decode("utf-8"))
     if not isinstance(document, dict):
         raise ValueError("not a JSON object")
     seal = document.pop(SEAL_KEY, None)
-    if seal is None:
-        if sealed:
-            raise ValueError("its checksum is missing")
-        return document
-    if seal != _digest(document):
+    if seal is not None and seal != _digest(document):
         raise ValueError("its content differs from its checksum")
-    return document
+    return document, seal is not None
 
 
 @dataclass(frozen=True)
 class SealedRead:
-    """A sealed document as read: the ``document``, the copy it came from and what was wrong with the others."""
+    """A sealed document as read: the ``document``, the copy it came from and what is wrong with the copies."""
 
     document: dict
     source: Path
@@ -121,25 +128,39 @@ class SealedRead:
 
 
 def read_sealed(path: Path) -> SealedRead:
-    """The document at ``path`` from the first of its copies whose seal holds (`write_sealed`); an unsealed file
-    without a backup copy is a document written before seals and is taken as it is. `FileNotFoundError` when
-    neither copy exists; `ValueError` naming both problems when neither can be trusted."""
+    """The document at ``path`` from the first of its copies whose seal holds (`write_sealed`), and what is wrong
+    with either copy: both are read every time, so a damaged or missing backup is reported while the file still
+    holds (and a repair can rewrite it). An unsealed file without a backup copy is a document written before seals
+    and is taken as it is. `FileNotFoundError` when neither copy exists; `ValueError` naming both problems when
+    neither can be trusted."""
     backup = backup_path(path)
-    sealed = backup.exists()
-    problems = []
+    problems: list[str] = []
+    found: list[tuple[Path, dict, bool]] = []
+    missing = []
     for copy in (path, backup):
         try:
-            document = _read_copy(copy, sealed)
+            document, sealed = _read_copy(copy)
         except FileNotFoundError:
-            if copy == path and not sealed:
-                raise
-            problems.append(f"{copy.name} is missing")
+            missing.append(copy)
             continue
         except (OSError, ValueError) as exc:
             problems.append(f"{copy.name} is damaged ({exc})")
             continue
-        return SealedRead(document, copy, tuple(problems))
-    raise ValueError("; ".join(problems))
+        if copy == backup and not sealed:
+            problems.append(f"{copy.name} is damaged (its checksum is missing)")
+            continue
+        found.append((copy, document, sealed))
+    if len(missing) == 2:
+        raise FileNotFoundError(errno.ENOENT, "no such file", str(path))
+    if found and found[0][0] == path and backup in missing and not found[0][2]:
+        return SealedRead(found[0][1], path)  # written before seals: one unsealed copy
+    if found and found[0][0] == path and not found[0][2]:
+        problems.insert(0, f"{path.name} is damaged (its checksum is missing)")
+        found = found[1:]
+    problems[len(problems) :] = [f"{copy.name} is missing" for copy in missing]
+    if not found:
+        raise ValueError("; ".join(problems))
+    return SealedRead(found[0][1], found[0][0], tuple(problems))
 
 
 @dataclass(frozen=True)
@@ -311,7 +332,13 @@ class PartStore:
         entry = part.tables.get(name)
         if entry is None:
             return schema.empty_table()
-        data = (self.root / entry.file).read_bytes()
+        path = self.root / entry.file
+        try:
+            data = read_bytes(path, entry.file, MAX_BINARY_BYTES, "Parquet")
+        except ConfigError as exc:
+            if not os.path.lexists(path):
+                raise FileNotFoundError(errno.ENOENT, "no such file", str(path)) from None
+            raise PartDamaged(self.root, entry.file, exc.reason) from None
         if hashlib.sha256(data).hexdigest() != entry.sha256:
             raise PartDamaged(self.root, entry.file, "SHA-256 differs from the manifest")
         try:

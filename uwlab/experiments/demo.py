@@ -51,7 +51,7 @@ from uwlab.experiments.calibration.validation import default_folds
 from uwlab.experiments.dataset import Dataset
 from uwlab.experiments.geometry import GEOMETRY_FILE
 from uwlab.experiments.report import write_report
-from uwlab.model.data import config_dir, read_toml, resolve_path
+from uwlab.model.data import config_dir, read_json, read_toml, resolve_path
 from uwlab.model.build import build_design
 from uwlab.model.sensor import load_sensor_profile
 from uwlab.outputs import output_dir
@@ -83,7 +83,7 @@ def demo_summary(calibration_summary: dict, report: Path) -> dict:
 
 def geometry_summary(directory: Path) -> dict:
     """The geometry validation's verdict and figures for summary.json (`uwlab.experiments.geometry`)."""
-    doc = json.loads((directory / GEOMETRY_FILE).read_text())
+    doc = read_json(directory / GEOMETRY_FILE, "geometry")
     keep = ("adequate", "headline", "lens", "worst_mtf50_error", "best_focus_measured_m", "best_focus_predicted_m")
     return {key: doc[key] for key in (*keep, "focus_step_m", "dof_measured_m", "dof_model_m", "dof_depth_errors")}
 

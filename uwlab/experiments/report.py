@@ -14,7 +14,6 @@ characterisation (uwlab and its commit, Python, the numerical packages, the BLAS
 
 from __future__ import annotations
 
-import json
 import time
 from pathlib import Path
 
@@ -22,7 +21,7 @@ import numpy as np
 import pandas as pd
 from jinja2 import Environment, PackageLoader, StrictUndefined
 
-from uwlab.errors import UwlabError
+from uwlab.errors import ConfigError, UwlabError
 from uwlab.experiments.dataset import read_metadata
 from uwlab.experiments.geometry import GEOMETRY_FIGURE, GEOMETRY_FILE
 from uwlab.experiments.figures import LABEL_PT, PALETTE, TICK_PT, Figure, figure_png, number_text, png_data_uri
@@ -32,6 +31,7 @@ from uwlab.experiments.calibration.adequacy import SWEPT_LABELS
 from uwlab.experiments.calibration.forward import PERCENT_PARAMETERS, parameter_label
 from uwlab.experiments.calibration.output import configuration_label
 from uwlab.model.bench import is_bench
+from uwlab.model.data import MAX_BINARY_BYTES, MAX_TOML_BYTES, check_input_file, read_bytes, read_json, read_text
 from uwlab.model.optics import BARE_SENSOR_F_NUMBER
 
 EFFECT_NAMES = {
@@ -54,7 +54,12 @@ def _find(root: Path, marker: str, also: str | None = None) -> list[Path]:
 
 
 def _img(path: Path) -> str:
-    return png_data_uri(path.read_bytes())
+    return png_data_uri(read_bytes(path, "report", MAX_BINARY_BYTES, "PNG"))
+
+
+def _table(path: Path) -> pd.DataFrame:
+    """A Parquet table of a fit directory, the path checked as every input is (a regular file, bounded)."""
+    return pd.read_parquet(check_input_file(path, "report", MAX_BINARY_BYTES, "Parquet"))
 
 
 def _number(value, digits: int = 4) -> str:
@@ -260,8 +265,8 @@ def _headline(summary: dict) -> str:
 
 
 def _calibration(path: Path) -> dict:
-    summary = json.loads((path / "summary.json").read_text())
-    points = pd.read_parquet(path / "predictions.parquet")
+    summary = read_json(path / "summary.json", "report")
+    points = _table(path / "predictions.parquet")
     metadata = {}
     if summary.get("dataset") and (Path(summary["dataset"]) / METADATA_FILE).exists():
         metadata = read_metadata(Path(summary["dataset"]))[0]
@@ -349,7 +354,7 @@ def _calibration(path: Path) -> dict:
         "corner_png": _img(path / "corner.png"),
         "traces_png": _img(path / "traces.png"),
         "spectra_png": (
-            png_data_uri(figure_png(plot_spectra(pd.read_parquet(spectra), label), dpi=90, tight_bbox=True))
+            png_data_uri(figure_png(plot_spectra(_table(spectra), label), dpi=90, tight_bbox=True))
             if spectra.exists()
             else None
         ),
@@ -418,7 +423,7 @@ def plot_spectra(frame: pd.DataFrame, label) -> Figure:
 
 
 def _emva(path: Path) -> dict:
-    doc = json.loads((path / "emva.json").read_text())
+    doc = read_json(path / "emva.json", "report")
     keys = (
         "K_dn_per_e",
         "quantum_efficiency",
@@ -463,7 +468,7 @@ def _dataset_made_with(path: Path, metadata: dict) -> list[tuple[str, str]]:
 
 def _geometry(path: Path) -> dict:
     """The geometry section: `uwlab.experiments.geometry`'s verdict, its comparison table and figure."""
-    doc = json.loads((path / GEOMETRY_FILE).read_text())
+    doc = read_json(path / GEOMETRY_FILE, "report")
     near, far = doc["dof_measured_m"]
     model_near, model_far = doc["dof_model_m"]
     near_error, far_error = doc["dof_depth_errors"]
@@ -532,12 +537,20 @@ def _provenance(path: Path, metadata: dict) -> dict:
     }
 
 
+def _toml_text(path: Path) -> str:
+    """A TOML file's text, or "" when it is not one uwlab reads (`uwlab.model.data.read_text`'s rule)."""
+    try:
+        return read_text(path, "report", MAX_TOML_BYTES, "TOML")
+    except ConfigError:
+        return ""
+
+
 def _what_is_here(root: Path) -> str:
     """What a folder with nothing to report holds, and the command that takes it (one clause)."""
     files = [p for p in root.rglob("*") if p.is_file()][:10000]
     suffixes = {p.suffix.lower() for p in files}
     names = {p.name for p in files}
-    if any(p.suffix.lower() == ".toml" and "[[sweep]]" in p.read_text(errors="replace")[:100000] for p in files):
+    if any(p.suffix.lower() == ".toml" and "[[sweep]]" in _toml_text(p) for p in files):
         return "it holds a sweep plan: run it with `uwlab sweep PLAN.toml` (add --sim for the simulated rig)"
     if suffixes & {".tif", ".tiff"}:
         if any(p.suffix.lower() in (".txt", ".ini") for p in files):

@@ -42,9 +42,9 @@ from uwlab.model.sensor import SensorProfile, load_sensor_profile
 
 ALLOWED_SECTIONS = ("bench", "sensor", "sim", "lens", "operation")
 # A light source's band: the standard asks for less than 50 nm FWHM (§6.2); above 200 nm it is not a band.
-BandwidthNm = Annotated[float, limits(0.0, 200.0, "nm", lo_open=True)]
+BandwidthNm = Annotated[float, limits(0.1, 200.0, "nm")]
 # Radiance of the source: an integrating sphere gives 1e-3–1e3 W m⁻² sr⁻¹; 1e6 is the sun's disk in W/m²/sr order.
-RadianceWM2Sr = Annotated[float, limits(0.0, 1e6, "W/m²/sr", lo_open=True)]
+RadianceWM2Sr = Annotated[float, limits(1e-9, 1e6, "W/m²/sr")]
 
 
 class BenchTable(Schema):

@@ -107,13 +107,15 @@ def spatial_fov_m(fov_rad, distance_m):
 
 
 def dof_in_air(s_m, focal_length_m, f_number, coc_m):
-    """(near, far) limits of acceptable focus for a thin lens in air focused at s_m (far = inf past H)."""
+    """(near, far) limits of acceptable focus for a thin lens in air focused at s_m (far = inf past H); near = far =
+    s_m where s_m ≤ f (an object within the focal length forms no real image: nothing is in focus)."""
     s = np.asarray(s_m, float)
     f = np.asarray(focal_length_m, float)
     a = f**2 / (np.asarray(f_number, float) * np.asarray(coc_m, float))
-    near = s * a / (a + s - f)
+    focusable = s > f
+    near = np.where(focusable, s * a / (a + s - f), s)
     with np.errstate(divide="ignore"):
-        far = np.where(a + f - s > 0, s * a / (a + f - s), np.inf)
+        far = np.where(focusable, np.where(a + f - s > 0, s * a / (a + f - s), np.inf), s)
     return near, far
 
 
@@ -138,17 +140,20 @@ def dof_underwater(s_m, focal_length_m, f_number, coc_m, port, water_index, dome
 
 
 def min_f_number_in_air(s_m, focal_length_m, coc_m, dof_m):
-    """Smallest N giving a total depth of field dof_m for a thin lens in air focused at s_m (closed form)."""
+    """Smallest N giving a total depth of field dof_m for a thin lens in air focused at s_m (closed form); inf
+    where s_m ≤ f: an object within the focal length forms no real image, and no aperture brings it into focus
+    (the closed form would give a negative N there)."""
     s = np.asarray(s_m, float)
     f = np.asarray(focal_length_m, float)
     d = np.asarray(dof_m, float)
     a = (s - f) * (s + np.sqrt(s**2 + d**2)) / d
-    return f**2 / (np.asarray(coc_m, float) * a)
+    with np.errstate(divide="ignore"):
+        return np.where(s > f, f**2 / (np.asarray(coc_m, float) * a), np.inf)
 
 
 def min_f_number(s_m, focal_length_m, coc_m, dof_m, port, water_index, dome=None, iterations=60, flat=(0.0, 0.0, 1.0)):
     """Smallest N whose underwater depth of field (far − near) reaches dof_m (a flat port maps distances
-    affinely, v = offset + s / n_w, so depths shrink by n_w)."""
+    affinely, v = offset + s / n_w, so depths shrink by n_w); inf where none does."""
     if port != "dome":
         n = np.asarray(water_index, float)
         apparent = port_model.flat_apparent_distance(s_m, n, *flat)
@@ -156,10 +161,12 @@ def min_f_number(s_m, focal_length_m, coc_m, dof_m, port, water_index, dome=None
     shape = np.broadcast_shapes(*(np.shape(x) for x in (s_m, focal_length_m, coc_m, dof_m, water_index, *dome)))
     lo = np.full(shape, np.log(0.05))
     hi = np.full(shape, np.log(1.0e4))
+    reached = np.zeros(shape, bool)
     for _ in range(iterations):
         mid = 0.5 * (lo + hi)
         near, far = dof_underwater(s_m, focal_length_m, np.exp(mid), coc_m, port, water_index, dome)
         enough = (far - near) >= dof_m
+        reached |= enough
         hi = np.where(enough, mid, hi)
         lo = np.where(enough, lo, mid)
-    return np.exp(hi)
+    return np.where(reached, np.exp(hi), np.inf)  # inf: not even N = 1e4 reaches it (e.g. a target within f)

@@ -23,18 +23,20 @@ Plausibility limits of the named quantities (a value outside is refused; the rea
 - `FNumber` 0.5–128: 0.5 is the aplanatic limit in air (the bare sensor's N, `uwlab.model.optics`), 128 the
   smallest apertures of large-format lenses; an aperture diameter or an f-stop index falls outside.
 - `PixelSizeUm` 0.5–50 µm: smallest phone pixels to large scientific pixels; 3450 (nm) gave η > 1.
-- `DistanceM` (0, 12000] m (altitude, light distance, depth of field): the deepest ocean; 1e308 is outside.
-- `LuminousFluxLm` (0, 1e7] lm: the brightest subsea lights give ~1e5 lm; `IrradianceWM2` (0, 1e5] W/m²: 100
-  suns.
+- `DistanceM` 1 mm–12 km (altitude, light distance, depth of field): closer than any lens focuses to the deepest
+  ocean; 1e308 is outside, and so is 1e-308 (a unit error that gave a minimum f-number of −4087).
+- `LuminousFluxLm` 1 mlm–1e7 lm: an indicator LED to ~100 subsea lights (the brightest give ~1e5 lm);
+  `IrradianceWM2` 1e-9–1e5 W/m²: a dim dark-room level to 100 suns.
 - `ExposureS` 1 µs–1 h (`ExposureUs` the same in µs): the shortest global-shutter exposure to long dark frames.
 - `GainDb` −20–80 dB: cameras span 0–48 dB; a linear factor (1000) or centi-dB is outside.
-- `HalfAngleDeg` (0, 90), `IncidenceDeg` [0, 90) deg: only the impossible (radians cannot be told apart).
-- `RefractiveIndex` 1–4: vacuum to germanium. `Fraction` [0, 1], `Transmittance` (0, 1]: a percentage (90) is
-  outside.
+- `HalfAngleDeg` [0.1, 90), `IncidenceDeg` [0, 90) deg: a collimated beam to the hemisphere (radians cannot be
+  told apart).
+- `RefractiveIndex` 1–4: vacuum to germanium. `Fraction` [0, 1], `Transmittance` 1e-6–1 (an ND 6 filter to
+  clear): a percentage (90) is outside, and so is a transmittance that leaves nothing to measure.
 - `SpeedMS` 0–50 m/s: the fastest underwater vehicles; km/h or mm/s beyond.
 - `HousingMm` 0.5–1000 mm (port and dome sizes): a size in m (0.1) is below, in µm above.
 - `CircleOfConfusionMm` 1e-4–1 mm: typically 0.002–0.03 mm (a pixel or two); a value in µm is above.
-- `BlurPx` (0, 1000] px; `BitDepth` 1–32 bit; `DurationS` 0–1 h (settling times).
+- `BlurPx` 0.01–1000 px; `BitDepth` 1–32 bit; `DurationS` 0–1 h (settling times).
 - `PositionM` −100–100 m: a light's or instrument's position relative to the camera on a vehicle or in a tank; a
   position in mm is outside. `ScatteringPerM` 0–100 1/m: clear ocean ~0.002 (pure water), harbours ~2, the
   muddiest estuaries tens; a value in 1/km or 1/cm is outside.
@@ -271,21 +273,21 @@ SpectralStepNm = Annotated[float, limits(0.01, 100.0, "nm")]
 FocalLengthMm = Annotated[float, limits(1.0, 2000.0, "mm")]
 FNumber = Annotated[float, limits(0.5, 128.0, "")]
 PixelSizeUm = Annotated[float, limits(0.5, 50.0, "µm")]
-DistanceM = Annotated[float, limits(0.0, 12000.0, "m", lo_open=True)]
-IrradianceWM2 = Annotated[float, limits(0.0, 1e5, "W/m²", lo_open=True)]
-LuminousFluxLm = Annotated[float, limits(0.0, 1e7, "lm", lo_open=True)]
+DistanceM = Annotated[float, limits(1e-3, 12000.0, "m")]
+IrradianceWM2 = Annotated[float, limits(1e-9, 1e5, "W/m²")]
+LuminousFluxLm = Annotated[float, limits(1e-3, 1e7, "lm")]
 ExposureS = Annotated[float, limits(1e-6, 3600.0, "s")]
 ExposureUs = Annotated[float, limits(1.0, 3.6e9, "µs")]
 GainDb = Annotated[float, limits(-20.0, 80.0, "dB")]
-HalfAngleDeg = Annotated[float, limits(0.0, 90.0, "deg", hint="", lo_open=True, hi_open=True)]
+HalfAngleDeg = Annotated[float, limits(0.1, 90.0, "deg", hint="", hi_open=True)]
 IncidenceDeg = Annotated[float, limits(0.0, 90.0, "deg", hint="", hi_open=True)]
 RefractiveIndex = Annotated[float, limits(1.0, 4.0, "")]
 Fraction = Annotated[float, limits(0.0, 1.0, "", hint="a fraction, not a percentage")]
-Transmittance = Annotated[float, limits(0.0, 1.0, "", hint="a fraction, not a percentage", lo_open=True)]
+Transmittance = Annotated[float, limits(1e-6, 1.0, "", hint="a fraction, not a percentage")]
 SpeedMS = Annotated[float, limits(0.0, 50.0, "m/s")]
 HousingMm = Annotated[float, limits(0.5, 1000.0, "mm")]
 CircleOfConfusionMm = Annotated[float, limits(1e-4, 1.0, "mm")]
-BlurPx = Annotated[float, limits(0.0, 1000.0, "px", hint="", lo_open=True)]
+BlurPx = Annotated[float, limits(0.01, 1000.0, "px", hint="")]
 BitDepth = Annotated[int, limits(1, 32, "bit", hint="", integer=True)]
 FrameCount = Annotated[int, limits(2, 10000, "frames", hint="", integer=True)]
 DurationS = Annotated[float, limits(0.0, 3600.0, "s")]

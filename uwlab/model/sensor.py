@@ -35,7 +35,7 @@ from uwlab.model.schema import (
 
 # Limits of the profile's EMVA 1288 quantities, wide enough for any area-scan sensor: outside them a value is in
 # another unit (K in e⁻/DN or at another bit depth by orders of magnitude, σ_d in DN, …) or a typing error.
-SystemGain = Annotated[float, limits(0.0, 100.0, "DN/e-", lo_open=True)]
+SystemGain = Annotated[float, limits(1e-4, 100.0, "DN/e-")]
 Electrons = Annotated[float, limits(0.0, 1e8, "e-", hint="")]
 ResolutionPx = Annotated[int, limits(1, 100000, "px", hint="", integer=True)]
 DarkOffsetDn = Annotated[float, limits(0.0, 2.0**32, "DN", hint="")]

@@ -32,7 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from uwlab.errors import ConfigError
-from uwlab.model.data import config_dir, read_csv_columns, read_csv_table
+from uwlab.model.data import config_dir, csv_rows, read_csv_columns, sorted_unique
 from uwlab.model.grid import WavelengthGrid
 
 JERLOV_TYPES = ("I", "II", "III", "1C", "3C", "5C", "7C", "9C")
@@ -103,14 +103,22 @@ def pure_water_absorption(nm: np.ndarray) -> np.ndarray:
 @lru_cache(maxsize=4)
 def _jerlov_table(root: Path, name: str = "jerlov.csv") -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Water type → (wavelength_nm, a_per_m, b_per_m) of ``configs/water/<name>``, sorted by wavelength."""
-    table = read_csv_table(root / "water" / name, "water.type")
+    header, rows_read = csv_rows(root / "water" / name, "water.type")
+    table = {column: [row[i] for _, row in rows_read] for i, column in enumerate(header)}
+    lines = [number for number, _ in rows_read]
     types = np.array(table["water_type"])
     columns = [np.array(table[c], dtype=float) for c in ("wavelength_nm", "a_per_m", "b_per_m")]
     out = {}
     for water_type in dict.fromkeys(table["water_type"]):
         rows = np.flatnonzero(types == water_type)
-        rows = rows[np.argsort(columns[0][rows], kind="stable")]
-        out[water_type] = (columns[0][rows], columns[1][rows], columns[2][rows])
+        values = sorted_unique(
+            np.column_stack([c[rows] for c in columns]),
+            [lines[r] for r in rows],
+            root / "water" / name,
+            "water.type",
+            ("wavelength_nm", "a_per_m", "b_per_m"),
+        )
+        out[water_type] = (values[:, 0], values[:, 1], values[:, 2])
     return out
 
 

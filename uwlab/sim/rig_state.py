@@ -21,6 +21,8 @@ import tempfile
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
+from uwlab.model.data import read_json
+
 
 @dataclass(frozen=True)
 class LightState:
@@ -55,8 +57,8 @@ class RigState:
         if self.path is None:
             return self._light
         try:
-            return LightState(**json.loads(self.path.read_text()))
-        except (OSError, ValueError, TypeError):
+            return LightState(**read_json(self.path, "--rig-state"))
+        except (OSError, ValueError, TypeError):  # ConfigError is a ValueError: a file not (yet) readable
             return self._light
 
     def set_light(self, state: LightState) -> None:

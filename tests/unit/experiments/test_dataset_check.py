@@ -1,6 +1,7 @@
 """`dataset_check`: every kind of damage found and named (bit flips, duplicates, NaN, points outside the plan, missing
 frames, a wrong finish time), repair sets aside without deleting, resume refuses a dataset that fails its check."""
 
+import os
 import random
 from pathlib import Path
 
@@ -188,3 +189,43 @@ def test_points_of_save_frames_sweeps_need_their_frames(tmp_path):
         repair(writer)
     assert Dataset.open(tmp_path).completed() == {("a", 0)}
     assert list((tmp_path / "quarantine").rglob("bright-001.tiff"))  # the remaining frame set aside with it
+
+
+@pytest.mark.parametrize("name", ["manifest.backup.json", "metadata.backup.json"])
+@pytest.mark.parametrize("damage", ["bit flip", "truncation", "deletion", "fifo"])
+def test_a_damaged_backup_copy_is_named_by_check_and_rewritten_by_repair(tmp_path, capsys, name, damage):
+    """The second copy is checked too: damage to it alone fails `uwlab dataset check` naming it (the dataset still
+    reads from the intact file), and --repair writes it again, byte for byte the copy it was."""
+    from uwlab.cli.main import main
+
+    root = dataset(tmp_path / "ds")
+    backup = root / name
+    original = backup.read_bytes()
+    if damage == "bit flip":
+        flip(backup, 8 * (len(original) // 2) + 3)
+    elif damage == "truncation":
+        backup.write_bytes(original[: len(original) // 3])
+    else:
+        backup.unlink()
+        if damage == "fifo":
+            os.mkfifo(backup)
+    assert Dataset.open(root).metadata["plan_sha256"] == "abc"
+    assert main(["dataset", "check", str(root)]) == 1
+    out = capsys.readouterr().out
+    assert f"problem: {name}: is {'missing' if damage == 'deletion' else 'damaged'}" in out, out
+    assert main(["dataset", "check", str(root), "--repair"]) == 0
+    out = capsys.readouterr().out
+    assert f"rewrote {name}" in out and ": ok;" in out, out
+    assert backup.read_bytes() == original
+    assert main(["dataset", "check", str(root)]) == 0
+
+
+@pytest.mark.timeout(60)
+def test_a_part_file_replaced_by_a_fifo_is_damaged_not_waited_on(tmp_path):
+    root = dataset(tmp_path / "ds", points=3)
+    part = sorted((root / "parts").glob("*.points.parquet"))[0]
+    part.unlink()
+    os.mkfifo(part)
+    report = check(Dataset.open(root))
+    problem = report.problems[0]
+    assert not report.ok and problem.where == f"parts/{part.name}" and "not a regular file" in problem.what, problem

@@ -192,7 +192,7 @@ SWEEP = '[[sweep]]\nid = "a"\nkind = "exposure"\nvalues = [100]\n'
         (SWEEP + "exposure_us = 0.5", "sweep.a.exposure_us", 0.5, UNIT),  # seconds or ms as µs
         (SWEEP + "lens = {focal_length_mm = 0.03, f_number = 2.0}", "sweep.a.lens.focal_length_mm", 0.03, UNIT),
         (SWEEP + "spectrometer_integration_ms = 0.01", "sweep.a.spectrometer_integration_ms", 0.01, "[1, 10000] ms"),
-        (SWEEP + "camera = {timeout_s = 0}", "sweep.a.camera.timeout_s", 0, "(0, 600] s"),
+        (SWEEP + "camera = {timeout_s = 0}", "sweep.a.camera.timeout_s", 0, "[0.01, 600] s"),
         (SWEEP + 'roi = "auto"', "sweep.a.roi", "auto", '"aruco"'),
         (SWEEP + 'lens = "nonee"', "sweep.a.lens", "nonee", '"none"'),
         (SWEEP + 'spectrometer = ["camera", "camera"]', "sweep.a.spectrometer", ["camera", "camera"], "distinct"),
@@ -272,9 +272,25 @@ def test_frame_count_refuses_before_allocating():
     [
         (["design", str(EXAMPLE), "--set", "lens.focal_length_mm=0.03"], "lens.focal_length_mm = 0.03"),
         (["design", str(EXAMPLE), "--set", "operation.altitude_m=1e308"], "operation.altitude_m = 1e+308"),
+        # the probe: exit 0 with a minimum f-number of −4087 before the lower limit
+        (["design", str(EXAMPLE), "--set", "operation.altitude_m=1e-308"], "operation.altitude_m = 1e-308"),
+        (["design", str(EXAMPLE), "--set", "light.distance_m=1e-6"], "light.distance_m = 1e-06"),
+        (["design", str(EXAMPLE), "--set", "light.luminous_flux_lm=1e-300"], "light.luminous_flux_lm = 1e-300"),
+        (["design", str(EXAMPLE), "--set", "lens.transmittance=1e-300"], "lens.transmittance = 1e-300"),
+        (["design", str(EXAMPLE), "--set", "housing.port_transmittance=1e-300"], "housing.port_transmittance"),
+        (["design", str(EXAMPLE), "--set", "light.beam_half_angle_deg=1e-300"], "light.beam_half_angle_deg"),
+        (["design", str(EXAMPLE), "--set", "operation.max_blur_px=1e-300"], "operation.max_blur_px = 1e-300"),
+        (["design", str(EXAMPLE), "--grid", "operation.altitude_m=1e-308,2"], "operation.altitude_m = 1e-308"),
         (["design", str(EXAMPLE), "--grid", "lens.focal_length_mm=0:inf:1"], "lens.focal_length_mm"),
         (["design", str(EXAMPLE), "--grid", "lens.focal_length_mm=10,0.03"], "lens.focal_length_mm = 0.03"),
         (["emva", "characterize", "DS", "--wavelength-nm", "0.55"], "--wavelength-nm = 0.55"),
+        # numeric flags through the same named quantities: a negative seed was a numpy traceback, 1e9 frames or
+        # poses a run without end
+        (["grab", "--frames", "1000000000"], "frames = 1000000000"),
+        (["sim", "camera", "--gige", "--seed", "-1"], "--seed = -1"),
+        (["sim", "charuco", str(EXAMPLE), "--medium", "water", "--out", "unused", "--seed", "-1"], "--seed = -1"),
+        (["sim", "charuco", str(EXAMPLE), "--medium", "water", "--out", "unused", "--poses", "100000000"], "--poses"),
+        (["demo", "--seed", "-5", "--out", "unused"], "--seed = -5"),
         (["emva", "characterize", "DS", "--pixel-size-um", "3450"], "--pixel-size-um = 3450.0"),
     ],
 )

@@ -80,6 +80,35 @@ def test_a_light_spectrum_of_1e308_is_refused_by_the_design(tmp_path, capsys):
 
 def test_good_tables_read_as_before(tmp_path):
     path = tmp_path / "t.csv"
-    path.write_text("x,y\n3,30\n1,10\n2,20\n1,99\n")
+    path.write_text("x,y\n3,30\n1,10\n2,20\n1,10\n")  # a row repeated exactly is read once
     table = read_csv_columns(path, ("x", "y"), "k")
     assert table["x"].tolist() == [1.0, 2.0, 3.0] and table["y"].tolist() == [10.0, 20.0, 30.0]
+
+
+def test_a_wavelength_given_twice_with_two_values_is_refused(tmp_path):
+    path = tmp_path / "spectrum.csv"
+    path.write_text("# a spectrum\nwavelength_nm,relative\n600,0.3\n400,0.1\n500,0.2\n400,0.7\n")
+    with pytest.raises(ConfigError) as caught:
+        read_csv_columns(path, ("wavelength_nm", "relative"), "light.spectrum")
+    message = str(caught.value)
+    assert str(path) in message and "wavelength_nm = 400 is given twice" in message and "lines 4 and 6" in message
+
+
+def test_a_duplicate_wavelength_in_a_design_spectrum_is_refused_in_one_line(tmp_path, capsys):
+    config = tmp_path / "design.toml"
+    shutil.copy(EXAMPLE, config)
+    (tmp_path / "twice.csv").write_text("wavelength_nm,relative\n400,1\n500,0.5\n500,0.9\n600,1\n")
+    err = design_error(capsys, str(config), "--set", "light.spectrum=twice.csv")
+    assert "light.spectrum" in err and "twice.csv" in err and "wavelength_nm = 500 is given twice" in err, err
+
+
+def test_a_duplicate_wavelength_in_a_jerlov_table_names_the_file_and_lines(tmp_path, monkeypatch):
+    """The Jerlov table holds one spectrum per water type: a wavelength twice within one type is refused."""
+    from uwlab.model.water import _jerlov_table
+
+    (tmp_path / "water").mkdir()
+    (tmp_path / "water" / "t.csv").write_text(
+        "water_type,wavelength_nm,a_per_m,b_per_m\nI,400,0.1,0.2\nII,400,0.3,0.4\nI,500,0.1,0.2\nI,400,0.2,0.2\n"
+    )
+    with pytest.raises(ConfigError, match=r"wavelength_nm = 400 is given twice .*lines 2 and 5"):
+        _jerlov_table(tmp_path, "t.csv")

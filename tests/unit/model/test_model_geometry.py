@@ -69,6 +69,23 @@ def test_min_f_number_round_trip(port_kind):
     assert np.all(far - near < dof)
 
 
+@pytest.mark.parametrize("port_kind", ["flat", "dome"])
+def test_a_target_within_the_focal_length_has_no_depth_of_field_and_no_f_number(port_kind):
+    """An object closer than f forms no real image (1/v = 1/f − 1/s < 0): no aperture focuses it. The closed form
+    would give a negative f-number there (−4087 for an altitude of 1e-308 m); it is inf, and the depth of field
+    empty, while just beyond f both are finite and positive."""
+    dome = (0.1, 0.01, 1.49) if port_kind == "dome" else None
+    f, c = 0.012, 4.6e-6
+    n_min = optics.min_f_number(np.array([1e-3, 5e-3]), f, c, 0.3, port_kind, 1.333, dome)
+    assert np.all(np.isinf(n_min))
+    near, far = optics.dof_underwater(np.array([1e-3, 5e-3]), f, 2.8, c, port_kind, 1.333, dome)
+    assert np.all(far - near == 0)
+    assert optics.min_f_number_in_air(0.005, f, c, 0.3) == np.inf
+    beyond = optics.min_f_number_in_air(2 * f, f, c, 1e-3)
+    near, far = optics.dof_in_air(2 * f, f, beyond, c)
+    assert 0 < beyond < np.inf and far - near == pytest.approx(1e-3, rel=1e-9)
+
+
 def test_flat_port_dof_is_apparent_distance_mapping():
     near_air, far_air = optics.dof_in_air(1.5 / 1.333, 0.01, 2.8, 5e-6)
     near, far = optics.dof_underwater(1.5, 0.01, 2.8, 5e-6, "flat", 1.333)

@@ -33,6 +33,7 @@ import numpy as np
 
 from uwlab.drivers.camera.interface import DeviceEntry, DeviceLost, FrameTimeout, RawFrame, unknown_device
 from uwlab.errors import ConfigError, DeviceError
+from uwlab.model.data import MAX_BINARY_BYTES, check_input_file
 
 try:
     import genicam
@@ -67,11 +68,11 @@ def cti_files(cti: list[str] | tuple[str, ...] | None = None, fake: bool = False
     files: list[Path] = []
     for root in roots:
         if root.is_dir():
-            files.extend(sorted(root.glob("*.cti")))
+            files.extend(sorted(path for path in root.glob("*.cti") if path.is_file()))  # no FIFO or device
+        elif cti:  # an explicit file: checked as every input is (a FIFO would block the library's open)
+            files.append(check_input_file(root, "cti", MAX_BINARY_BYTES, "GenTL producer"))
         elif root.is_file():
             files.append(root)
-        elif cti:
-            raise ConfigError("cti", str(root), "no such GenTL producer file or folder")
     if fake:
         files.extend(path for path in bundled_producers() if path.resolve() not in {f.resolve() for f in files})
     if not files:

@@ -11,12 +11,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 from uwlab.drivers.camera import Camera, Frame, Policy, open_camera
 from uwlab.errors import ConfigError
 from uwlab.experiments.frames.frame import frame_statistics
+from uwlab.model.schema import check, limits
 from uwlab.model.sensor import SensorProfile, load_sensor_profile
+
+# Frames of one grab: 100 000 is ~20 min at 100 fps; a larger count is a typo, refused before the camera opens.
+GrabFrames = Annotated[int, limits(1, 100_000, "frames", hint="", integer=True)]
 
 if TYPE_CHECKING:
     import numpy as np
@@ -158,8 +162,7 @@ def grab_frames(
     """Open the camera, apply `settings`, acquire `frames` frames and compute their statistics; the camera is
     closed on any exit. `fake`: the backend's test camera (`uwlab.drivers.camera.open_camera`). `keep_frames` False
     keeps only the statistics (long grabs); `save_dir` (an existing folder) receives each frame as TIFF."""
-    if frames < 1:
-        raise ConfigError("frames", frames, "must be >= 1")
+    frames = check(GrabFrames, frames, "frames")
     settings = settings or Settings()
     settings.check()
     options: dict[str, Any] = {"fake": fake}

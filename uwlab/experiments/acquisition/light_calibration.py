@@ -20,6 +20,7 @@ wavelength [nm], and one row per level in increasing order. `load_light_calibrat
 from __future__ import annotations
 
 import csv
+import io
 from dataclasses import dataclass
 from pathlib import Path
 from collections.abc import Callable, Sequence
@@ -30,6 +31,7 @@ import pandas as pd
 from uwlab.drivers.serial.base import Light, Spectrometer
 from uwlab.errors import ConfigError, DeviceError, UwlabError
 from uwlab.experiments.acquisition.spectra import illuminance_lux, irradiance_w_m2
+from uwlab.model.data import MAX_CSV_BYTES, read_text
 
 SPECTRAL_PREFIX = "irradiance_w_m2_nm_"
 CURVE_COLUMNS = ("level", "irradiance_w_m2", "illuminance_lux")
@@ -182,9 +184,10 @@ def save_light_calibration(path: str | Path, calibration: LightCalibration, comm
 
 def load_light_calibration(path: str | Path) -> LightCalibration:
     """Read a file written by `save_light_calibration`."""
+    text = read_text(path, "light_calibration", MAX_CSV_BYTES, "CSV")
     try:
-        table = pd.read_csv(path, comment="#")
-    except (OSError, ValueError) as exc:
+        table = pd.read_csv(io.StringIO(text), comment="#")
+    except ValueError as exc:
         raise ConfigError("light_calibration", str(path), f"cannot read ({exc})") from None
     spectral = [c for c in table.columns if c.startswith(SPECTRAL_PREFIX)]
     missing = [c for c in CURVE_COLUMNS if c not in table.columns]

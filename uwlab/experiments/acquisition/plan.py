@@ -67,7 +67,7 @@ from uwlab.experiments.dataset import SweepKind
 from uwlab.experiments.saturation import POINT_SATURATED_FRACTION
 from uwlab.jsonable import to_jsonable
 from uwlab.model.config import apply_override
-from uwlab.model.data import read_toml, resolve_path
+from uwlab.model.data import MAX_TOML_BYTES, read_bytes, read_toml, resolve_path
 from uwlab.model.bench import Bench, build_bench, is_bench
 from uwlab.model.build import build_design
 from uwlab.model.design import Design
@@ -104,8 +104,8 @@ MAX_POINTS = 10000
 # Pixel coordinates of a window or ROI: offsets from 0, sizes from 2 (a variance needs two pixels).
 OffsetPx = Annotated[int, limits(0, 100000, "px", hint="", integer=True)]
 SizePx = Annotated[int, limits(2, 100000, "px", hint="", integer=True)]
-TimeoutS = Annotated[float, limits(0.0, 600.0, "s", lo_open=True)]
-OutageS = Annotated[float, limits(0.0, 86400.0, "s", lo_open=True)]
+TimeoutS = Annotated[float, limits(0.01, 600.0, "s")]
+OutageS = Annotated[float, limits(0.1, 86400.0, "s")]
 Attempts = Annotated[int, limits(0, 1000, "attempts", hint="", integer=True)]
 ReopenS = Annotated[float, limits(0.0, 3600.0, "s")]
 LEGACY_LIGHT_KEYS = ("light_port", "protocol")
@@ -409,7 +409,7 @@ class Plan:
 
 
 def plan_sha256(path: str | Path) -> str:
-    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+    return hashlib.sha256(read_bytes(path, "plan", MAX_TOML_BYTES, "TOML")).hexdigest()
 
 
 def load_plan(path: str | Path) -> Plan:

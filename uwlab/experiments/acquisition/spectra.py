@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from uwlab.errors import ConfigError
+from uwlab.model.data import MAX_CSV_BYTES, read_bytes
 from uwlab.model.photometry import K_M_LM_PER_W, photon_flux, photopic_v_at
 
 SEKONIC_ROW = re.compile(r"\s*Spectral Data\s+(\S+?)\s*\[nm\]\s*")
@@ -108,10 +109,7 @@ def read_sekonic_csv(path: str | Path) -> tuple[np.ndarray, np.ndarray]:
     """(wavelength_nm, irradiance_w_m2_nm) from a Sekonic C-7000 CSV export, validated (see the module docstring);
     `ConfigError` on ``import`` naming the offending line."""
     path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise ConfigError("import", str(path), f"cannot read ({exc.strerror})") from None
+    raw = read_bytes(path, "import", MAX_CSV_BYTES, "CSV")
     text = raw.decode("utf-8-sig") if _is_utf8(raw) else raw.decode("latin-1")
     data_lines = [line for line in text.splitlines() if line.lstrip().startswith("Spectral Data")]
     delimiter = ";" if data_lines and ";" in data_lines[0] else ","

@@ -14,7 +14,6 @@ of `plot_corner`, `plot_traces` and `plot_response`, written with `PNG_OPTIONS`.
 
 from __future__ import annotations
 
-import json
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -29,6 +28,7 @@ from uwlab.experiments.calibration.fit import FitResult
 from uwlab.experiments.calibration.inference import POSTERIOR_NAME, write_inference_data
 from uwlab.experiments.calibration.validation import dense_sweeps, point_predictions
 from uwlab.jsonable import dumps
+from uwlab.model.data import MAX_BINARY_BYTES, check_input_file, read_json
 from uwlab.outputs import output_dir
 from uwlab.provenance import provenance
 
@@ -243,18 +243,23 @@ def fit_dir_figures(fit_dir: Path) -> dict[str, Figure]:
     ``samples.parquet`` and the truth in ``summary.json``) and ``response`` (from ``predictions.parquet``,
     ``dense.parquet`` and ``heldout.parquet``) — with `PNG_OPTIONS`, the very ``corner.png`` and ``response.png``.
     The traces are not among them: a fit directory keeps the samples after burn-in, not the whole chain."""
-    summary = json.loads((fit_dir / "summary.json").read_text())
-    samples = pd.read_parquet(fit_dir / "samples.parquet")
+    summary = read_json(fit_dir / "summary.json", "fit")
+    samples = _table(fit_dir / "samples.parquet")
     truth = {name: p["truth"] for name, p in summary["parameters"].items() if "truth" in p}
     held_out = fit_dir / "heldout.parquet"
     return {
         "corner": plot_corner(samples.to_numpy(), list(samples.columns), truth or None),
         "response": plot_response(
-            pd.read_parquet(fit_dir / "predictions.parquet"),
-            pd.read_parquet(fit_dir / "dense.parquet"),
-            pd.read_parquet(held_out) if held_out.is_file() else None,
+            _table(fit_dir / "predictions.parquet"),
+            _table(fit_dir / "dense.parquet"),
+            _table(held_out) if held_out.exists() else None,
         ),
     }
+
+
+def _table(path: Path) -> pd.DataFrame:
+    """A Parquet table of a fit directory, the path checked as every input is (a regular file, bounded)."""
+    return pd.read_parquet(check_input_file(path, "fit", MAX_BINARY_BYTES, "Parquet"))
 
 
 def write_fit(

@@ -48,10 +48,12 @@ from uwlab.experiments.emva.transfer import SheetInfo
 from uwlab.experiments.frames.stack import StackStatistics, WorkImages, stack_statistics
 from uwlab.experiments.emva.transfer import NonuniformityStack, PhotonTransfer, SpatialSplit
 from uwlab.experiments.saturation import ClipLevel, clip_level
+from uwlab.model.data import MAX_BINARY_BYTES, check_input_file, read_text
 
 DESCRIPTOR_NAME = "EMVA1288descriptor.txt"
 SUPPORTED_BITS = (8, 10, 12, 14, 16)
 MAX_SIZE_PX = 1 << 16
+MAX_DESCRIPTOR_BYTES = 10_000_000  # a descriptor names its images: 10 MB is ~100 000 frames
 WORKERS = os.cpu_count() or 1
 
 
@@ -106,10 +108,7 @@ def parse_descriptor(path: str | Path) -> Descriptor:
     """Parse and check a descriptor file; `ConfigError` names the file and line of any problem (module
     docstring)."""
     path = Path(path)
-    try:
-        lines = path.read_text(encoding="utf-8").splitlines()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError("--descriptor", str(path), f"unreadable ({exc})") from None
+    lines = read_text(path, "--descriptor", MAX_DESCRIPTOR_BYTES, "descriptor").splitlines()
     version, fmt, blocks, variables = None, None, [], {}
     current: list | None = None
     for lineno, raw in enumerate(lines, 1):
@@ -246,9 +245,7 @@ class ImageReader:
     def read(self, name: str, out: np.ndarray | None = None) -> np.ndarray:
         """The image ``name``, checked; ``out``: an array of the expected shape and type to read a TIFF into (the
         result may be ``out`` itself: the caller reuses it)."""
-        path = self.path(name)
-        if not path.is_file():
-            raise ConfigError("image", str(path), "file not found")
+        path = check_input_file(self.path(name), "image", MAX_BINARY_BYTES, "image")
         image = None
         if path.suffix.lower() in (".tif", ".tiff"):
             image = _read_tiff(path, out)

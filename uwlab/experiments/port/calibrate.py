@@ -41,6 +41,7 @@ from scipy.spatial.transform import Rotation
 from uwlab.errors import ConfigError, UwlabError
 from uwlab.experiments.port.board import CharucoBoard, Detection, detect
 from uwlab.model.lens import BrownLens
+from uwlab.model.data import MAX_BINARY_BYTES, check_input_file
 from uwlab.model.port_field import focal_ratio, port_distortion
 from uwlab.model.raytrace import DomePort, FlatPort, Port
 
@@ -77,7 +78,7 @@ def read_views(board: CharucoBoard, folder: str | Path, option: str) -> tuple[li
     views: list[Detection] = []
     size: tuple[int, int] | None = None
     for file in files:
-        image = cv2.imread(str(file), cv2.IMREAD_UNCHANGED)
+        image = cv2.imread(str(check_input_file(file, option, MAX_BINARY_BYTES, "image")), cv2.IMREAD_UNCHANGED)
         if image is None:
             raise ConfigError(option, str(file), "is not a readable image")
         shape = (image.shape[1], image.shape[0])

@@ -19,6 +19,7 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
+from typing import Annotated
 
 import cv2
 import numpy as np
@@ -32,7 +33,11 @@ from uwlab.jsonable import to_jsonable
 from uwlab.model.lens import BrownLens
 from uwlab.model.port_field import exact_fov_rad, port_of
 from uwlab.model.raytrace import DomePort, FlatPort, Port
+from uwlab.model.schema import Seed, check, limits
 from uwlab.outputs import output_dir
+
+# Images of one simulated set: a calibration uses 10–50; more than 1000 is a typo (each pose is a render).
+PoseCount = Annotated[int, limits(1, 1000, "poses", hint="", integer=True)]
 
 MEDIA = ("air", "water")
 SIDECAR = "charuco.json"
@@ -141,8 +146,8 @@ def simulate_charuco(
 ) -> dict:
     """Render `count` images of `board` seen through the design's port in `medium` into the new folder `out`;
     returns the sidecar record (also written as charuco.json)."""
-    if count < 1:
-        raise ConfigError("--poses", count, "must be >= 1")
+    count = check(PoseCount, count, "--poses")
+    seed = check(Seed, seed, "--seed")
     if not 0 < white_fraction <= 1:
         raise ConfigError("white_fraction", white_fraction, "must be in (0, 1]")
     port = port_in(design, medium)
