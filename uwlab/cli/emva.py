@@ -155,17 +155,8 @@ def _check_out(out: str | None) -> None:
 
 def _override(args):
     from uwlab.experiments.emva.from_dataset import IrradianceOverride
-    from uwlab.model.schema import IrradianceWM2, check
 
-    if args.irradiance is None:
-        return None
-    try:
-        value = float(args.irradiance)
-    except ValueError:
-        return IrradianceOverride.from_csv(args.irradiance)
-    return IrradianceOverride(
-        irradiance_w_m2=check(IrradianceWM2, value, "--irradiance"), wavelength_nm=args.wavelength_nm
-    )
+    return IrradianceOverride.given(args.irradiance, args.wavelength_nm)
 
 
 def _dataset_options(args) -> dict:

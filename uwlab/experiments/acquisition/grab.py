@@ -9,6 +9,7 @@ their settings in the metadata (`save_tiff`; never overwriting a file).
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -17,6 +18,7 @@ from uwlab.drivers.camera import Camera, Frame, Policy, open_camera
 from uwlab.errors import ConfigError
 from uwlab.experiments.frames.frame import frame_statistics
 from uwlab.model.sensor import SensorProfile, load_sensor_profile
+from uwlab.outputs import output_dir
 
 if TYPE_CHECKING:
     import numpy as np
@@ -141,8 +143,20 @@ def sensor_for(backend: str, sensor: str | None, config: str | None) -> SensorPr
     return None
 
 
+def chosen_backend(backend: str | None, fake: bool) -> str:
+    """The camera backend a grab uses: `backend`, else the fake cameras' (Aravis, whose ``Fake_1`` is the default
+    device there) when `fake`, else the simulated camera.
+
+    >>> chosen_backend(None, False), chosen_backend(None, True), chosen_backend("harvesters", True)
+    ('sim', 'aravis', 'harvesters')
+    """
+    if backend is not None:
+        return backend
+    return "aravis" if fake else "sim"
+
+
 def grab_frames(
-    backend: str = "sim",
+    backend: str | None = None,
     device_id: str | None = None,
     *,
     frames: int = 1,
@@ -153,15 +167,21 @@ def grab_frames(
     fake: bool = False,
     timeout_s: float = 5.0,
     keep_frames: bool = True,
-    save_dir: Path | None = None,
+    save_dir: str | os.PathLike[str] | None = None,
 ) -> Grabbed:
     """Open the camera, apply `settings`, acquire `frames` frames and compute their statistics; the camera is
-    closed on any exit. `fake`: the backend's test camera (`uwlab.drivers.camera.open_camera`). `keep_frames` False
-    keeps only the statistics (long grabs); `save_dir` (an existing folder) receives each frame as TIFF."""
+    closed on any exit. `backend` None: `chosen_backend`. `fake`: the backend's test camera
+    (`uwlab.drivers.camera.open_camera`). `keep_frames` False keeps only the statistics (long grabs); `save_dir` (a
+    folder, created if its parent exists: `uwlab.outputs.output_dir`) receives each frame as TIFF. Everything is
+    checked before the camera opens."""
+    backend = chosen_backend(backend, fake)
     if frames < 1:
         raise ConfigError("frames", frames, "must be >= 1")
     settings = settings or Settings()
     settings.check()
+    folder = output_dir(save_dir, "--save") if save_dir is not None else None
+    if folder is not None:
+        folder.mkdir(exist_ok=True)
     options: dict[str, Any] = {"fake": fake}
     if backend == "harvesters":
         options["cti"] = list(cti or [])
@@ -175,7 +195,7 @@ def grab_frames(
             result.rows.append(frame_statistics(frame, profile))
             if keep_frames:
                 result.frames.append(frame)
-            if save_dir is not None:
-                result.saved.append(save_tiff(save_dir, frame, result.device))
+            if folder is not None:
+                result.saved.append(save_tiff(folder, frame, result.device))
         result.device["discarded_frames"] = cam.stats.discarded
     return result
