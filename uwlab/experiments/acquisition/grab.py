@@ -48,7 +48,7 @@ class Settings:
     gain_db: float | None = None
     pixel_format: str | None = None
     roi: tuple[int, int, int, int] | None = None
-    bayer: str | None = None  # the colour filter layout the camera must deliver (refused otherwise)
+    bayer: str | None = None  # the colour filter layout the camera must deliver (refused when it offers none)
 
     def check(self) -> None:
         """Plausibility limits (`uwlab.model.schema`) before anything is sent to a camera."""
@@ -60,9 +60,13 @@ class Settings:
             check(GainDb, self.gain_db, "--gain-db")
 
     def apply(self, cam: Camera) -> None:
-        """Write the settings (the camera reads each back and refuses a value it did not take)."""
-        if self.pixel_format:
-            cam.pixel_format = self.pixel_format
+        """Write the settings (the camera reads each back and refuses a value it did not take). With `bayer` and
+        no `pixel_format`, the device's own format delivering that layout (`Camera.bayer_format`)."""
+        chosen = self.pixel_format
+        if not chosen and self.bayer is not None:
+            chosen = cam.bayer_format(self.bayer)
+        if chosen and chosen != cam.pixel_format:
+            cam.pixel_format = chosen
         if self.roi:
             cam.set_roi(*self.roi)
         if self.exposure_us is not None:
