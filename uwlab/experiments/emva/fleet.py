@@ -79,6 +79,10 @@ class FleetRow:
         values = self.values or {}
         row |= {key: values.get(key) for key, _, _ in COLUMNS}
         row |= {"model": values.get("model"), "notes": values.get("notes", [])}
+        if values:
+            from uwlab.experiments.emva.datasheet import missing_figures
+
+            row["missing"] = missing_figures(values)
         return row
 
 
