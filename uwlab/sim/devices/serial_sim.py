@@ -350,6 +350,9 @@ class SimulatorProcess:
             os.close(status_write)
             status_write = -1
             status = self._handshake(payload, status_read, timeout_s)
+        except BaseException:  # Ctrl-C while it starts, say: the process must not outlive the attempt
+            self.stop()
+            raise
         finally:
             os.close(status_read)
             if status_write >= 0:
