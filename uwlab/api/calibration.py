@@ -234,7 +234,7 @@ def fit(
         calibration = calibrate(
             dataset_path(dataset),
             None if config is None else config_file(config, "config"),
-            out,
+            None if out is None else Path(out),
             None if train is None else list(train),
             progress=update,
             model=model,

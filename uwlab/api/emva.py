@@ -311,7 +311,7 @@ def characterize_on_bench(plan: Plan | str | os.PathLike[str], *, seed: int = 0)
     from uwlab.experiments.acquisition.plan import Plan
     from uwlab.experiments.demo import bench_characterisations, bench_sheet_info
 
-    loaded = plan if isinstance(plan, Plan) else load_plan(plan)
+    loaded = plan if isinstance(plan, Plan) else load_plan(os.fspath(plan))
     return {
         name: EmvaResult(analysis, pt, camera=name, base=profile, info=bench_sheet_info(profile))
         for name, (analysis, pt, profile) in bench_characterisations(loaded, seed).items()

@@ -29,6 +29,7 @@ from collections import Counter
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import tomli_w
 
@@ -47,8 +48,11 @@ from uwlab.experiments.dataset import Dataset
 from uwlab.experiments.report import write_report
 from uwlab.model.data import config_dir, read_toml, resolve_path
 from uwlab.model.build import build_design
-from uwlab.model.sensor import load_sensor_profile
+from uwlab.model.sensor import SensorProfile, load_sensor_profile
 from uwlab.outputs import output_dir
+
+if TYPE_CHECKING:
+    from uwlab.experiments.emva.datasheet import SheetInfo
 
 DEMO_PLAN = "plans/tank-exposure-sweep.toml"
 SENSOR_SOURCES = ("emva", "profile")
@@ -163,8 +167,8 @@ def bench_characterisations(plan, seed: int = 0) -> dict:
     return found
 
 
-def bench_sheet_info(profile):
-    """The datasheet header (`SheetInfo`) of a camera characterised on the simulated bench."""
+def bench_sheet_info(profile: SensorProfile) -> SheetInfo:
+    """The datasheet header of a camera characterised on the simulated bench."""
     from uwlab.experiments.emva.datasheet import SheetInfo
 
     return SheetInfo(vendor="uwlab (simulated)", model=f"sim {profile.name}", measured="simulated EMVA bench")

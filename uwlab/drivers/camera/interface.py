@@ -445,7 +445,7 @@ class Camera:
         except ConfigError:
             bits = None
         same_depth = [name for name in offered if pixel_format(name).bits == bits]
-        return (same_depth or offered or [None])[0]
+        return next(iter(same_depth or offered), None)
 
     def check_bayer(self, layout: str) -> None:
         """Refuse (`ConfigError`) when the device's pixel format does not deliver the colour filter ``layout``
