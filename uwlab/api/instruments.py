@@ -158,7 +158,8 @@ def grab(
     Parameters
     ----------
     backend, device_id, cti, config, fake
-        The camera (`open_camera`; `fake`: the backend's test camera, e.g. Aravis's ``Fake_1``). `backend` None:
+        The camera (`open_camera`; `fake`: the backend's test camera, e.g. Aravis's ``Fake_1``; `config`: the
+        simulated camera's rig, a bundled one by name: ``"rigs/sim-tank.toml"``). `backend` None:
         the simulated camera, or with `fake` Aravis (``uwlab grab``'s defaults).
     exposure_us, gain_db, pixel_format, roi
         Settings applied first (checked against plausibility limits, read back); None leaves the camera's.
@@ -183,7 +184,7 @@ def grab(
     >>> len(shots.images), shots.images[0].shape, shots.stats["exposure_us"].tolist()
     (2, (48, 64), [2000.0, 2000.0])
     """
-    from uwlab.api.paths import python_names
+    from uwlab.api.paths import config_file, python_names
     from uwlab.experiments.acquisition.grab import Settings, grab_frames
 
     settings = Settings(exposure_us=exposure_us, gain_db=gain_db, pixel_format=pixel_format, roi=roi, bayer=bayer)
@@ -193,7 +194,7 @@ def grab(
             device_id,
             frames=frames,
             sensor=sensor,
-            config=config,
+            config=None if config is None else str(config_file(config, "config")),
             cti=cti,
             fake=fake,
             timeout_s=timeout_s,
