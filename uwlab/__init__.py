@@ -6,7 +6,8 @@ equivalent):
 - design: `load_design`, `evaluate` (→ `Evaluation`), `design_figures` (→ matplotlib Figures), `grid`
   (→ DataFrame; ``.to_xarray()``), `solve` (→ DataFrame, the Pareto front);
 - campaigns: `load_plan`, `sweep` (→ `Dataset`), `Dataset.open` (``.points``, ``.spectra``);
-- camera characterisation: `characterize` (→ `EmvaResult`; ``.figures()``);
+- camera characterisation: `characterize` (→ `EmvaResult`; ``.figures()``), `characterize_on_bench` (the
+  simulated EMVA 1288 bench);
 - calibration: `fit` (→ `Fit`: ``.posterior`` an ``arviz.InferenceData``, ``.verdict``, ``.predict(design)``,
   ``.figures()``), `report`;
 - instruments: `open_camera`, `open_light`, `open_spectrometer`, `grab`;
@@ -41,6 +42,7 @@ _EXPORTS: dict[str, str] = {
     "sweep": "uwlab.api.campaign",
     "Dataset": "uwlab.api.campaign",
     "characterize": "uwlab.api.emva",
+    "characterize_on_bench": "uwlab.api.emva",
     "EmvaResult": "uwlab.api.emva",
     "fit": "uwlab.api.calibration",
     "Fit": "uwlab.api.calibration",

@@ -17,6 +17,7 @@ from uwlab.api.design import load_design as load_design
 from uwlab.api.design import solve as solve
 from uwlab.api.emva import EmvaResult as EmvaResult
 from uwlab.api.emva import characterize as characterize
+from uwlab.api.emva import characterize_on_bench as characterize_on_bench
 from uwlab.api.instruments import Grab as Grab
 from uwlab.api.instruments import grab as grab
 from uwlab.api.instruments import open_camera as open_camera

@@ -168,3 +168,26 @@ def test_sweep_on_fake_1_through_the_hardware_rig(tmp_path, capsys):
     assert main(["emva", "characterize", str(tmp_path / "ds"), "--out", str(tmp_path / "emva")]) == 2
     err = capsys.readouterr().err.strip()
     assert "\n" not in err and "no dark frames" in err
+
+
+def test_grab_fake_without_a_backend_grabs_fake_1_not_the_simulated_camera(capsys):
+    doc = run_json(capsys, ["grab", "--fake", "--pixel-format", "Mono8", "--json"])
+    assert (doc["device"]["backend"], doc["device"]["device_id"]) == ("aravis", "Fake_1")
+    row = doc["frames"][0]
+    assert row["mean"] == pytest.approx(float(fake_ramp(row["frame_id"], 512, 512, 10000.0, 0).mean()), abs=1e-9)
+
+
+@pytest.mark.parametrize("layout,own_format", [("RG", "BayerBG8"), ("BG", "BayerRG8"), ("GB", "BayerGB8")])
+def test_a_bayer_layout_is_grabbed_in_the_fake_cameras_own_format(capsys, layout, own_format):
+    """Fake_1 starts in Mono8; asked for a layout, it is switched to the format that delivers it on this device (its
+    profile records that its BayerRG8 and BayerBG8 carry each other's mosaic), with statistics per channel."""
+    doc = run_json(capsys, ["grab", "--fake", "--bayer", layout, "--json"])
+    row = doc["frames"][0]
+    assert row["pixel_format"] == own_format and set(row["channels"]) == {"R", "G", "B"}
+    with open_camera("aravis", fake=True, policy=FAST) as cam:
+        assert cam.profile.bayer_layout(own_format) == layout
+
+
+def test_an_explicit_pixel_format_is_kept_and_a_layout_it_lacks_refused(capsys):
+    assert main(["grab", "--fake", "--bayer", "RG", "--pixel-format", "Mono8"]) == 2
+    assert "bayer = 'RG': the device's PixelFormat Mono8 is monochrome" in capsys.readouterr().err

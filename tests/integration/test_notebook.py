@@ -1,5 +1,5 @@
 """examples/tank-campaign.ipynb runs top to bottom on the simulated rig in a Jupyter kernel (nbclient), shows the
-API's figures inline, and is kept in git without outputs."""
+API's figures inline, ends with an adequate model (as `uwlab demo` does), and is kept in git without outputs."""
 
 import ast
 import base64
@@ -32,16 +32,20 @@ def test_the_notebook_runs_on_the_simulated_rig(tmp_path, monkeypatch):
         nb, kernel_name="python3", timeout=600, resources={"metadata": {"path": str(tmp_path)}}
     )
     client.execute()
-    outputs, images = {}, {}
+    outputs, images, printed = {}, {}, []
     for cell in nb.cells:
         for output in cell.get("outputs", []):
             assert output.output_type != "error", output
+            if output.output_type == "stream" and output.name == "stdout":
+                printed.append(output.text)
             if output.output_type == "execute_result":
                 outputs[cell.source.splitlines()[-1]] = output.data["text/plain"]
                 images[cell.source.splitlines()[-1].split("  #")[0]] = output.data.get("image/png")
     # the API's figures show inline as images, though the notebook never imports pyplot
     for shown in ('figures["dof"]', 'camera.figures()["snr"]', 'fit.figures()["response"]'):
         assert images[shown] and base64.b64decode(images[shown]).startswith(b"\x89PNG"), shown
+    # it ends as `uwlab demo` does: the cameras characterised on the bench make the extended model adequate
+    assert "extended model: adequate\n" in "".join(printed)
     answer = ast.literal_eval(outputs[' "probability": float(calibrated["probability"].iloc[0])}'])
     assert answer["probability"] >= 0.9
     # the simulated light gives 80 % of its rated flux: the calibrated design needs more light than the nominal

@@ -9,6 +9,7 @@ A fit directory holds, beside the outputs of ``uwlab fit``, ``posterior.nc``: th
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -21,6 +22,10 @@ if TYPE_CHECKING:
     from uwlab.api.campaign import Dataset
     from uwlab.experiments.figures import Figure
     from uwlab.model.design import Design
+
+
+# `fit`'s sensor=: {camera: FROM}, the ``[CAMERA=]FROM`` values of ``uwlab fit --sensor``, or one FROM.
+Sensors = Mapping[str, str | os.PathLike[str]] | Sequence[str | os.PathLike[str]] | str | os.PathLike[str]
 
 
 @dataclass(frozen=True)
@@ -164,30 +169,42 @@ class Fit:
 
 def fit(
     dataset: Dataset | str | os.PathLike[str],
-    model: str | None = "extended",
+    model: str | None = None,
     out: str | os.PathLike[str] | None = None,
     *,
     config: str | os.PathLike[str] | None = None,
-    train: list[str] | None = None,
+    train: Sequence[str] | None = None,
+    sensor: Mapping[str, str | os.PathLike[str]]
+    | Sequence[str | os.PathLike[str]]
+    | str
+    | os.PathLike[str]
+    | None = None,
     channel: str | None = None,
     progress: bool = True,
     **sampler: int,
 ) -> Fit:
-    """Calibrate the model against a dataset with emcee, check it and judge it (``uwlab fit``).
+    """Calibrate the model against a dataset with emcee, check it and judge it (``uwlab fit``: each option is an
+    argument of the same name and default).
 
     Parameters
     ----------
     dataset
         A `Dataset` or its directory.
     model
-        The chain fitted: ``"extended"``, ``"paper"``, or None for the rigs' own ``[model] kind``.
+        The chain fitted: ``"extended"``, ``"paper"``, or None (``uwlab fit``'s default) for the rigs' own
+        ``[model] kind`` (the tank plan's rig: extended).
     out
         The fit directory (default ``DATASET/fit``; ``uwlab fit --out``).
     config
         A fit config TOML (priors, sampler, held-out sweeps; default: ``configs/fit/default.toml``'s choices for
-        the dataset's cameras).
+        the dataset's cameras; a bundled one by name: ``"fit/default.toml"``).
     train
-        The sweeps the held-out check fits (it predicts the others).
+        The sweeps the held-out check fits (it predicts the others; default: two folds of the sweeps).
+    sensor
+        The cameras as characterised by ``uwlab emva characterize`` or `EmvaResult.write` (``uwlab fit
+        --sensor``): {camera: its profile TOML or output folder}, or ``"CAMERA=FROM"`` strings as on the command
+        line (a bare FROM when the dataset has one camera). The measured response curve, with its uncertainty,
+        enters the model. Default: the sensor profiles (a linear response).
     channel
         ``"red"``, ``"green"`` or ``"blue"``: fit that colour channel of a Bayer dataset with the profile's QE of
         that channel (``uwlab fit --channel``); None: the whole mosaic with its combined QE.
@@ -204,30 +221,40 @@ def fit(
     Examples
     --------
     >>> import uwlab
-    >>> result = uwlab.fit("out/tank", max_steps=2000)  # doctest: +SKIP
+    >>> result = uwlab.fit("tank", sensor={"imx250m": "emva-imx250m", "icx285alm": "emva-icx285alm"})  # doctest: +SKIP
     >>> print(result.verdict)  # doctest: +SKIP
     extended model: adequate
     """
-    from uwlab.experiments.calibration.pipeline import calibrate
     from uwlab.api.campaign import dataset_path
-    from uwlab.outputs import FIT_FOLDER
+    from uwlab.api.paths import config_file, python_names
+    from uwlab.experiments.calibration.pipeline import calibrate
     from uwlab.progress import tau_bar
 
-    root = dataset_path(dataset)
-    target = Path(out) if out is not None else root / FIT_FOLDER
     shown, update = tau_bar("sampling", enabled=progress)
-    with shown:
-        calibrate(
-            root,
-            None if config is None else Path(config),
-            target,
-            train,
+    with python_names(), shown:
+        calibration = calibrate(
+            dataset_path(dataset),
+            None if config is None else config_file(config, "config"),
+            None if out is None else Path(out),
+            None if train is None else list(train),
             progress=update,
             model=model,
             sampler=dict(sampler) or None,
+            sensors=_sensor_values(sensor),
             channel=channel,
         )
-    return Fit.open(target)
+    return Fit.open(calibration.out)
+
+
+def _sensor_values(sensor: Sensors | None) -> list[str] | None:
+    """`fit`'s `sensor` as the values of ``uwlab fit --sensor`` (``[CAMERA=]FROM``)."""
+    if sensor is None:
+        return None
+    if isinstance(sensor, Mapping):
+        return [f"{camera}={os.fspath(source)}" for camera, source in sensor.items()]
+    if isinstance(sensor, (str, os.PathLike)):
+        return [os.fspath(sensor)]
+    return [os.fspath(value) for value in sensor]
 
 
 def report(
@@ -262,4 +289,7 @@ def report(
         from uwlab.api.campaign import dataset_path
 
         root = dataset_path(source)
-    return write_report(root, Path(out) if out is not None else root / REPORT_FILE, replace=force)
+    from uwlab.api.paths import python_names
+
+    with python_names():
+        return write_report(root, Path(out) if out is not None else root / REPORT_FILE, replace=force)

@@ -24,7 +24,8 @@ if TYPE_CHECKING:
 
 
 def load_plan(path: str | Path) -> Plan:
-    """Read and validate a sweep plan (``docs/sweeps.md``; `uwlab.errors.ConfigError` names a bad key).
+    """Read and validate a sweep plan (``docs/sweeps.md``; `uwlab.errors.ConfigError` names a bad key). A relative
+    path that is not a file here names a bundled plan (``"plans/tank-exposure-sweep.toml"``; `config_file`).
 
     Examples
     --------
@@ -33,9 +34,10 @@ def load_plan(path: str | Path) -> Plan:
     >>> [(s.table.id, s.table.kind, len(s.values)) for s in plan.sweeps]
     [('photon-transfer', 'exposure', 60), ('dark-current', 'dark', 6)]
     """
+    from uwlab.api.paths import config_file
     from uwlab.experiments.acquisition.plan import load_plan as load
 
-    return load(path)
+    return load(config_file(path, "plan"))
 
 
 def dataset_path(source: Dataset | str | os.PathLike[str]) -> Path:
@@ -120,10 +122,11 @@ def sweep(
     Parameters
     ----------
     plan
-        A plan (`load_plan`) or its file.
+        A plan (`load_plan`) or its file (a bundled plan by name: ``"plans/tank-exposure-sweep.toml"``).
     out
-        The new dataset directory (default ``<plan name>-dataset``); with `resume`, the unfinished dataset to
-        complete (same plan; its points are skipped).
+        The new dataset directory (default ``<plan name>-dataset``), made as ``uwlab sweep --out`` makes it
+        (`uwlab.outputs`: its parent directory must exist); with `resume`, the unfinished dataset to complete
+        (same plan; its points are skipped).
     sim
         Run on the simulated rig (cameras, light and spectrometer simulated, their noise seeded from `seed`);
         else on the plan's devices.
@@ -144,16 +147,16 @@ def sweep(
     Examples
     --------
     >>> import tempfile, uwlab
-    >>> data = uwlab.sweep(uwlab.config_path("plans/tank-exposure-sweep.toml"), tempfile.mkdtemp() + "/tank",
-    ...                    sim=True)  # doctest: +SKIP
+    >>> data = uwlab.sweep("plans/tank-exposure-sweep.toml", tempfile.mkdtemp() + "/tank", sim=True)  # doctest: +SKIP
     >>> data.summary["points_done"]  # doctest: +SKIP
     72
     """
+    from uwlab.api.paths import python_names
     from uwlab.experiments.acquisition.session import progress_text, run_session
     from uwlab.progress import bar
 
     loaded = plan if isinstance(plan, Plan) else load_plan(plan)
-    with bar(desc="sweep", unit="point", enabled=progress) as shown:
+    with python_names(), bar(desc="sweep", unit="point", enabled=progress) as shown:
 
         def report(event: Progress) -> None:
             shown.total = event.total

@@ -59,7 +59,7 @@ def load_design(path: str | Path, **overrides: Any) -> Design:
     Parameters
     ----------
     path
-        The design file.
+        The design file (a bundled one by name: ``"design/example.toml"``; `uwlab.api.paths.config_file`).
     **overrides
         Values replacing the file's: ``section__key=value`` (``lens__f_number=4.0``) or, with a dotted key,
         ``**{"lens.f_number": 4.0}`` — the keys of ``uwlab design --set``.
@@ -77,9 +77,10 @@ def load_design(path: str | Path, **overrides: Any) -> Design:
     >>> design["operation.altitude_m"], design.sensor.name
     (2.0, 'IMX250M')
     """
+    from uwlab.api.paths import config_file
     from uwlab.model.build import load_design as load
 
-    return load(path, {_dotted(k): v for k, v in overrides.items()})
+    return load(config_file(path, "design"), {_dotted(k): v for k, v in overrides.items()})
 
 
 @dataclass(frozen=True)

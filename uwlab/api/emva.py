@@ -16,6 +16,8 @@ from uwlab.errors import ConfigError
 if TYPE_CHECKING:
     import pandas as pd
 
+    from uwlab.experiments.acquisition.plan import Plan
+
     from uwlab.api.campaign import Dataset
     from uwlab.experiments.emva.analysis import EmvaResult as Analysis
     from uwlab.experiments.emva.datasheet import SheetInfo
@@ -123,7 +125,7 @@ class EmvaResult:
         from uwlab.experiments.emva.plots import figure_pngs
         from uwlab.outputs import output_file
 
-        target = output_file(path, "datasheet")
+        target = output_file(path, "path")
         return write_datasheet(self.analysis, figure_pngs(self.analysis), target, self.info or SheetInfo())
 
     def sensor_profile(self, name: str | None = None, directory: str | os.PathLike[str] | None = None) -> SensorProfile:
@@ -158,10 +160,12 @@ class EmvaResult:
     def write(self, out: str | os.PathLike[str], name: str | None = None) -> dict[str, Any]:
         """Write everything ``uwlab emva characterize --out`` writes (emva.json, datasheet, XML, figures, the
         profile) into the new or empty directory `out`; returns the ``emva.json`` document."""
+        from uwlab.api.paths import python_names
         from uwlab.experiments.emva.output import output_paths, profile_name, write_characterization
 
         stem = profile_name(name or f"measured-{self.camera}")
-        paths = output_paths(Path(out), self.analysis, stem, bool(self.pixel_size_um or self.base))
+        with python_names():
+            paths = output_paths(Path(out), self.analysis, stem, bool(self.pixel_size_um or self.base))
         document: dict[str, Any] = write_characterization(
             self.analysis,
             self.transfer,
@@ -185,6 +189,8 @@ def characterize(
     sweep: str | None = None,
     pixel_size_um: float | None = None,
     channel: str | None = None,
+    irradiance: float | str | os.PathLike[str] | None = None,
+    wavelength_nm: float | None = None,
 ) -> EmvaResult:
     """EMVA 1288 Release 4.0 characterisation of a camera (``uwlab emva characterize``), or of one colour channel of
     a colour camera's raw Bayer sweep (Release 4.0 Linear §1.2: each channel is a sensor of its own).
@@ -204,6 +210,10 @@ def characterize(
         ``"red"``, ``"green"`` or ``"blue"``: that channel of a dataset's raw Bayer sweep, from its per-channel
         statistics (required for a colour sweep; refused for a monochrome one). Its η is the channel's QE at the
         light's wavelength.
+    irradiance, wavelength_nm
+        The irradiance at the sensor plane replacing a dataset's spectrometer readings (``uwlab emva characterize
+        --irradiance``): a number in W/m² of monochromatic light at `wavelength_nm`, or a spectrum CSV
+        (``wavelength_nm, irradiance_w_m2_nm``).
 
     Returns
     -------
@@ -213,19 +223,22 @@ def characterize(
     --------
     See `EmvaResult`.
     """
+    from uwlab.api.campaign import dataset_path
+    from uwlab.api.paths import python_names
     from uwlab.experiments.emva.analysis import characterize as run
     from uwlab.experiments.emva.transfer import PhotonTransfer
+    from uwlab.model.schema import PixelSizeUm, WavelengthNm, check
 
     if pixel_size_um is not None:
-        from uwlab.model.schema import PixelSizeUm, check
-
         check(PixelSizeUm, pixel_size_um, "pixel_size_um")
+    if wavelength_nm is not None:
+        check(WavelengthNm, wavelength_nm, "wavelength_nm")
+    if irradiance is not None and (isinstance(source, PhotonTransfer) or dataset_path(source).is_file()):
+        raise ConfigError("irradiance", irradiance, "replaces a dataset's readings; this source has its own")
     if isinstance(source, PhotonTransfer):
         if channel is not None:
             raise ConfigError("channel", channel, "for a dataset; a PhotonTransfer is one sensor's already")
         return EmvaResult(run(source, model), source, pixel_size_um=pixel_size_um)
-    from uwlab.api.campaign import dataset_path
-
     path = dataset_path(source)
     if path.is_file():
         if channel is not None:
@@ -238,9 +251,17 @@ def characterize(
         return EmvaResult(run(pt, model), pt, camera=camera, info=info, pixel_size_um=pixel_size_um)
     if not path.is_dir():
         raise ConfigError("source", str(path), "neither a dataset directory nor a descriptor file")
-    from uwlab.experiments.emva.from_dataset import CHANNELS, load_dataset_inputs
+    from uwlab.experiments.emva.from_dataset import CHANNELS, IrradianceOverride, load_dataset_inputs
 
-    inputs = load_dataset_inputs(path, sweep_id=sweep, pixel_size_um=pixel_size_um, channel=channel)
+    with python_names():
+        inputs = load_dataset_inputs(
+            path,
+            sweep_id=sweep,
+            pixel_size_um=pixel_size_um,
+            override=IrradianceOverride.given(irradiance, wavelength_nm),
+            wavelength_nm=wavelength_nm,
+            channel=channel,
+        )
     if len(inputs) > 1:
         raise ConfigError(
             "channel",
@@ -257,3 +278,41 @@ def characterize(
         info=loaded.info,
         pixel_size_um=pixel_size_um,
     )
+
+
+def characterize_on_bench(plan: Plan | str | os.PathLike[str], *, seed: int = 0) -> dict[str, EmvaResult]:
+    """Each camera of a plan characterised on the simulated EMVA 1288 bench, as a lab characterises its cameras
+    before a tank campaign (``uwlab demo``'s step 3): the plan's simulated sensor (its profile and the rig world's
+    sensor realism: the non-linearity near full well, DSNU, PRNU, hot pixels) under flat light of known photon
+    irradiance, 40 exposures from 1 % to 110 % of saturation and a dark series, characterised by the Release 4.0
+    linear model. ``result.write(DIR)`` writes what ``uwlab emva characterize --out DIR`` writes, the sensor
+    profile with its measured response curve among it: the ``sensor=`` of `uwlab.fit`.
+
+    Parameters
+    ----------
+    plan
+        A plan (`uwlab.load_plan`) or its file (a bundled plan by name: ``"plans/tank-exposure-sweep.toml"``).
+    seed
+        Seeds the bench's noise (equal seeds, equal figures; ``uwlab demo --seed``).
+
+    Returns
+    -------
+    dict
+        {camera (the plan's sensor profile name): `EmvaResult`}.
+
+    Examples
+    --------
+    >>> import uwlab
+    >>> cameras = uwlab.characterize_on_bench("plans/tank-exposure-sweep.toml")  # doctest: +SKIP
+    >>> {name: round(result.K_dn_per_e, 3) for name, result in cameras.items()}  # doctest: +SKIP
+    {'icx285alm': 1.11, 'imx250m': 0.347}
+    """
+    from uwlab.api.campaign import load_plan
+    from uwlab.experiments.acquisition.plan import Plan
+    from uwlab.experiments.demo import bench_characterisations, bench_sheet_info
+
+    loaded = plan if isinstance(plan, Plan) else load_plan(os.fspath(plan))
+    return {
+        name: EmvaResult(analysis, pt, camera=name, base=profile, info=bench_sheet_info(profile))
+        for name, (analysis, pt, profile) in bench_characterisations(loaded, seed).items()
+    }

@@ -14,6 +14,7 @@ safe state) on any exit. Limits are checked before anything is sent; every setti
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -145,7 +146,7 @@ def open_spectrometer(
 
 
 def grab(
-    backend: str = "sim",
+    backend: str | None = None,
     device_id: str | None = None,
     *,
     frames: int = 1,
@@ -159,13 +160,16 @@ def grab(
     cti: list[str] | None = None,
     fake: bool = False,
     timeout_s: float = 5.0,
+    save: str | os.PathLike[str] | None = None,
 ) -> Grab:
     """Acquire `frames` frames with read-back settings and their statistics (``uwlab grab``).
 
     Parameters
     ----------
     backend, device_id, cti, config, fake
-        The camera (`open_camera`; `fake`: the backend's test camera, e.g. Aravis's ``Fake_1``).
+        The camera (`open_camera`; `fake`: the backend's test camera, e.g. Aravis's ``Fake_1``; `config`: the
+        simulated camera's rig, a bundled one by name: ``"rigs/sim-tank.toml"``). `backend` None:
+        the simulated camera, or with `fake` Aravis (``uwlab grab``'s defaults).
     exposure_us, gain_db, pixel_format, roi
         Settings applied first (checked against plausibility limits, read back); None leaves the camera's.
     bayer
@@ -174,6 +178,9 @@ def grab(
     sensor
         The sensor profile (name or TOML) giving the saturation clip level (default for ``"sim"``: its rig's;
         else detected from the frames).
+    save
+        A folder (created if its parent exists, as ``uwlab grab --save``) receiving each frame as TIFF with its
+        settings in the metadata (`Grab.saved`: the files).
 
     Returns
     -------
@@ -186,16 +193,20 @@ def grab(
     >>> len(shots.images), shots.images[0].shape, shots.stats["exposure_us"].tolist()
     (2, (48, 64), [2000.0, 2000.0])
     """
+    from uwlab.api.paths import config_file, python_names
     from uwlab.experiments.acquisition.grab import Settings, grab_frames
 
-    return grab_frames(
-        backend,
-        device_id,
-        frames=frames,
-        sensor=sensor,
-        config=config,
-        cti=cti,
-        fake=fake,
-        timeout_s=timeout_s,
-        settings=Settings(exposure_us=exposure_us, gain_db=gain_db, pixel_format=pixel_format, roi=roi, bayer=bayer),
-    )
+    settings = Settings(exposure_us=exposure_us, gain_db=gain_db, pixel_format=pixel_format, roi=roi, bayer=bayer)
+    with python_names():
+        return grab_frames(
+            backend,
+            device_id,
+            frames=frames,
+            sensor=sensor,
+            config=None if config is None else str(config_file(config, "config")),
+            cti=cti,
+            fake=fake,
+            timeout_s=timeout_s,
+            settings=settings,
+            save_dir=save,
+        )

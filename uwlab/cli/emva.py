@@ -48,6 +48,7 @@ _FLEET_COLUMNS = (
     ("dark_current_e_per_s", "Idark e-/s", "{:.3g}"),
 )
 MODELS = ("linear", "general")
+MISSING = "—"  # a figure the measurement does not give; the reason is printed beside it or under the table
 
 
 def register(subparsers) -> None:
@@ -155,17 +156,8 @@ def _check_out(out: str | None) -> None:
 
 def _override(args):
     from uwlab.experiments.emva.from_dataset import IrradianceOverride
-    from uwlab.model.schema import IrradianceWM2, check
 
-    if args.irradiance is None:
-        return None
-    try:
-        value = float(args.irradiance)
-    except ValueError:
-        return IrradianceOverride.from_csv(args.irradiance)
-    return IrradianceOverride(
-        irradiance_w_m2=check(IrradianceWM2, value, "--irradiance"), wavelength_nm=args.wavelength_nm
-    )
+    return IrradianceOverride.given(args.irradiance, args.wavelength_nm)
 
 
 def _dataset_options(args) -> dict:
@@ -274,16 +266,19 @@ def _channels_document(documents: dict) -> dict:
 
 def _channels_summary(documents: dict, summary: Path | None) -> str:
     """Each colour channel's figures, one row each, then the files written."""
+    from uwlab.experiments.emva.datasheet import missing_figures
+
     first = next(iter(documents.values()))
     header = ["channel", *(label for _, label, _ in _FLEET_COLUMNS)]
     rows = [
-        [channel, *("—" if doc.get(key) is None else fmt.format(doc[key]) for key, _, fmt in _FLEET_COLUMNS)]
+        [channel, *(MISSING if doc.get(key) is None else fmt.format(doc[key]) for key, _, fmt in _FLEET_COLUMNS)]
         for channel, doc in documents.items()
     ]
     lines = [
         f"EMVA 1288 ({first['standard']}) — {first['source'].rsplit(',', 1)[0]}: each colour channel a sensor of "
         "its own (Release 4.0 Linear §1.2)",
         *_aligned([header, *rows]),
+        *_missing_lines({channel: missing_figures(doc) for channel, doc in documents.items()}),
     ]
     notes = {channel: doc.get("notes", []) for channel, doc in documents.items()}
     shared = [n for n in notes[next(iter(notes))] if all(n in other for other in notes.values())]
@@ -293,6 +288,21 @@ def _channels_summary(documents: dict, summary: Path | None) -> str:
         lines += [f"  wrote {Path(doc['files'][0]).parent}/ ({channel})" for channel, doc in documents.items()]
         lines.append(f"  wrote {summary}")
     return "\n".join(lines)
+
+
+def _missing_lines(missing: dict[str, dict[str, str]]) -> list[str]:
+    """Under a table, why its DSNU and PRNU cells are `MISSING`: one line per reason, naming the columns and the
+    rows (channels or cameras) it holds for (`uwlab.experiments.emva.datasheet.missing_figures`)."""
+    labels = {key: label for key, label, _ in _FLEET_COLUMNS}
+    grouped: dict[str, tuple[dict[str, None], dict[str, None]]] = {}
+    for row, reasons in missing.items():
+        for key, reason in reasons.items():
+            columns, rows = grouped.setdefault(reason, ({}, {}))
+            columns[labels.get(key, key)] = None
+            rows[row] = None
+    return [
+        f"  {MISSING} {', '.join(columns)} ({', '.join(rows)}): {reason}" for reason, (columns, rows) in grouped.items()
+    ]
 
 
 def _aligned(rows: list[list[str]]) -> list[str]:
@@ -305,18 +315,24 @@ def _aligned(rows: list[list[str]]) -> list[str]:
 
 
 def _summary(doc: dict) -> str:
+    from uwlab.experiments.emva.datasheet import missing_figures
+
     lines = [
         f"EMVA 1288 ({doc['standard']}) — {doc['source']}",
         f"{doc['points']} points, saturation at point {doc['saturation_index']} ({doc['saturation_rule']}), "
         f"gain {doc['gain_db']:g} dB, {doc['bit_depth']} bit",
     ]
+    missing = missing_figures(doc)
     for key, label, unit, fmt in _SUMMARY:
         if key not in doc:
             continue
         value = doc[key]
-        text = "n/a" if value is None else fmt.format(value)
+        if value is None:
+            lines.append(f"  {label:<32} {MISSING} ({missing[key]})" if key in missing else f"  {label:<32} n/a")
+            continue
+        text = fmt.format(value)
         std = doc.get(f"{key}_std")
-        if value is not None and std is not None:
+        if std is not None:
             text += f" ± {fmt.format(std)}"
         lines.append(f"  {label:<32} {text} {unit}".rstrip())
     lines += [f"  note: {n}" for n in doc.get("notes", [])]
@@ -363,7 +379,7 @@ def _fleet_table(documents: list[dict]) -> str:
     rows = []
     for doc in documents:
         cells = [doc["camera"]]
-        cells += ["—" if doc.get(key) is None else fmt.format(doc[key]) for key, _, fmt in _FLEET_COLUMNS]
+        cells += [MISSING if doc.get(key) is None else fmt.format(doc[key]) for key, _, fmt in _FLEET_COLUMNS]
         cells.append("ok" if doc["error"] is None else f"refused: {doc['error']}")
         rows.append(cells)
     widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(len(header) - 1)]
@@ -371,6 +387,7 @@ def _fleet_table(documents: list[dict]) -> str:
     for r in [header, *rows]:
         texts = (str(c).rjust(w) if i else str(c).ljust(w) for i, (c, w) in enumerate(zip(r, widths, strict=False)))
         lines.append("  ".join(texts) + "  " + str(r[-1]))
+    lines += _missing_lines({doc["camera"]: doc.get("missing") or {} for doc in documents})
     ok = sum(d["error"] is None for d in documents)
     lines.append(f"{ok} of {len(documents)} cameras characterised")
     return "\n".join(lines)

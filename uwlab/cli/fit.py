@@ -4,9 +4,6 @@ from __future__ import annotations
 
 import json
 import sys
-from pathlib import Path
-
-from uwlab.outputs import FIT_FOLDER
 from uwlab.progress import tau_bar
 
 
@@ -51,13 +48,12 @@ def register(subparsers) -> None:
 def run(args) -> int:
     from uwlab.experiments.calibration.pipeline import calibrate
 
-    out = Path(args.out) if args.out else Path(args.dataset) / FIT_FOLDER
     bar, update = tau_bar("sampling")
     with bar:
         calibration = calibrate(
             args.dataset,
             args.config,
-            out,
+            args.out,
             args.train,
             progress=update,
             model=args.model,
@@ -69,7 +65,7 @@ def run(args) -> int:
         json.dump(summary, sys.stdout, indent=2)
         sys.stdout.write("\n")
         return 0
-    print(f"calibration written to {out}" + (f" ({args.channel} channel)" if args.channel else ""))
+    print(f"calibration written to {calibration.out}" + (f" ({args.channel} channel)" if args.channel else ""))
     coverage = summary["predictive_coverage"]
     print(
         f"{summary['model']} model: {'adequate' if summary['model_adequate'] else 'NOT adequate'}; "

@@ -6,7 +6,6 @@ import json
 
 from uwlab.drivers.camera import BACKENDS
 from uwlab.drivers.camera.pixels import BAYER_LAYOUTS, MONO_FORMATS
-from uwlab.outputs import output_dir
 
 
 def register(subparsers) -> None:
@@ -16,7 +15,9 @@ def register(subparsers) -> None:
         "fraction per frame (and per colour channel R, G, B of a raw "
         "Bayer frame).",
     )
-    p.add_argument("--backend", choices=tuple(BACKENDS), default="sim")
+    p.add_argument(
+        "--backend", choices=tuple(BACKENDS), help="camera backend (default: sim; with --fake, aravis's Fake_1)"
+    )
     p.add_argument("--device", metavar="ID", help="device id (aravis: id or IP address); default: first found")
     p.add_argument("--cti", action="append", default=[], metavar="PATH", help="GenTL producer (harvesters)")
     p.add_argument(
@@ -60,7 +61,6 @@ def register(subparsers) -> None:
 def run(args) -> int:
     from uwlab.experiments.acquisition.grab import Settings, grab_frames, parse_roi
 
-    save_dir = output_dir(args.save, "--save") if args.save else None
     settings = Settings(
         exposure_us=args.exposure_us,
         gain_db=args.gain_db,
@@ -68,9 +68,6 @@ def run(args) -> int:
         roi=parse_roi(args.roi) if args.roi else None,
         bayer=args.bayer,
     )
-    settings.check()
-    if save_dir is not None:
-        save_dir.mkdir(exist_ok=True)
     grabbed = grab_frames(
         args.backend,
         args.device,
@@ -82,7 +79,7 @@ def run(args) -> int:
         fake=args.fake,
         timeout_s=args.timeout_s,
         keep_frames=False,
-        save_dir=save_dir,
+        save_dir=args.save,
     )
     device, rows = grabbed.device, grabbed.rows
     if args.json:

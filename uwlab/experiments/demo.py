@@ -34,6 +34,7 @@ import sys
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import tomli_w
 
@@ -53,8 +54,11 @@ from uwlab.experiments.geometry import GEOMETRY_FILE
 from uwlab.experiments.report import write_report
 from uwlab.model.data import config_dir, read_json, read_toml, resolve_path
 from uwlab.model.build import build_design
-from uwlab.model.sensor import load_sensor_profile
+from uwlab.model.sensor import SensorProfile, load_sensor_profile
 from uwlab.outputs import output_dir
+
+if TYPE_CHECKING:
+    from uwlab.experiments.emva.datasheet import SheetInfo
 
 DEMO_PLAN = "plans/tank-exposure-sweep.toml"
 SENSOR_SOURCES = ("emva", "profile")
@@ -152,21 +156,18 @@ def quick_demo(
     return {**summary, **assessment.summary(), "world": world}
 
 
-def characterise_cameras(plan, out: Path, seed: int = 0) -> dict[str, Path]:
-    """Characterise every camera of `plan` on the simulated EMVA bench (module docstring, step 3) into
-    ``out/<camera>/``; returns {camera (sensor profile name): its characterised profile TOML}."""
+def bench_characterisations(plan, seed: int = 0) -> dict:
+    """Every camera of `plan` characterised on the simulated EMVA bench (module docstring, step 3), in memory:
+    {camera (sensor profile name): (its EMVA analysis, the photon transfer measured, its sensor profile)}."""
     import numpy as np
 
     from uwlab.experiments.emva.analysis import characterize
-    from uwlab.experiments.emva.datasheet import SheetInfo
-    from uwlab.experiments.emva.output import output_paths, write_characterization
     from uwlab.experiments.emva.simulate import DirectBench
     from uwlab.sim.devices.camera import SimTruth
     from uwlab.sim.scene import RigScene
 
     realism = RigScene.from_toml(plan.rig_path).sensor_realism()
     profiles = {sweep.sensor_profile: sweep.design.sensor for sweep in plan.sweeps}
-    out.mkdir()
     found = {}
     for index, (name, profile) in enumerate(sorted(profiles.items())):
         truth = SimTruth.from_sensor_profile(profile, resolution_px=BENCH_PIXELS, **realism)
@@ -175,17 +176,29 @@ def characterise_cameras(plan, out: Path, seed: int = 0) -> dict[str, Path]:
         pt = bench.photon_transfer(
             np.linspace(0.01, 1.1, BENCH_STEPS) * t_sat_us, dark_exposures_us=np.linspace(0.01, 1.0, 4) * t_sat_us
         )
-        result = characterize(pt)
+        found[name] = (characterize(pt), pt, profile)
+    return found
+
+
+def bench_sheet_info(profile: SensorProfile) -> SheetInfo:
+    """The datasheet header of a camera characterised on the simulated bench."""
+    from uwlab.experiments.emva.datasheet import SheetInfo
+
+    return SheetInfo(vendor="uwlab (simulated)", model=f"sim {profile.name}", measured="simulated EMVA bench")
+
+
+def characterise_cameras(plan, out: Path, seed: int = 0) -> dict[str, Path]:
+    """Characterise every camera of `plan` on the simulated EMVA bench (`bench_characterisations`) into
+    ``out/<camera>/``; returns {camera (sensor profile name): its characterised profile TOML}."""
+    from uwlab.experiments.emva.output import output_paths, write_characterization
+
+    out.mkdir()
+    found = {}
+    for name, (result, pt, profile) in bench_characterisations(plan, seed).items():
         paths = output_paths(out / name, result, name, with_profile=True)
         out.joinpath(name).mkdir()
         write_characterization(
-            result,
-            pt,
-            paths,
-            name=name,
-            base=profile,
-            pixel_size_um=None,
-            info=SheetInfo(vendor="uwlab (simulated)", model=f"sim {profile.name}", measured="simulated EMVA bench"),
+            result, pt, paths, name=name, base=profile, pixel_size_um=None, info=bench_sheet_info(profile)
         )
         assert paths.profile is not None
         found[name] = paths.profile[0]

@@ -361,7 +361,7 @@ class TankWorld:
             return coarse.astype(np.float32)
         if min(rows, columns) < 2:
             return np.broadcast_to(coarse, shape_yx).astype(np.float32)
-        # imported here: scipy.interpolate takes 0.3 s to import, and the serial simulators (a spawned process per
+        # imported here: scipy.interpolate takes 0.3 s to import, and the serial simulators (a process per
         # instrument, per rig) import this module for the spectrometer's light and never draw an image
         from scipy.interpolate import RectBivariateSpline
 

@@ -135,3 +135,17 @@ def test_rig_scene_drives_the_sensor():
     corner = native[:32, :32].mean() - truth.dark_offset_dn
     ratio = scene.sim.surround_reflectance / scene.design["target.reflectance"]
     assert corner < 1.2 * ratio * (centre - truth.dark_offset_dn)
+
+
+def test_the_default_simulated_grab_is_well_exposed():
+    """The simulated camera powers on where continuous auto-exposure settles: the brightest 1 % of the default rig's
+    scene at half the saturation capacity, so a grab with no settings clips nothing and uses the range."""
+    import uwlab
+
+    shot = uwlab.grab()
+    row = shot.stats.iloc[0]
+    assert row["saturated_fraction"] == 0.0 and row["pixel_format"] == "Mono16"
+    profile = RigScene.from_toml().sensor
+    scale = 2.0 ** (16 - profile.bit_depth)  # Mono16 carries the 12-bit ADC's counts shifted up
+    electrons = (shot.images[0] / scale - profile.dark_offset_dn) / profile.K_dn_per_e
+    assert np.quantile(electrons, 0.99) / profile.saturation_e == pytest.approx(0.5, abs=0.05)

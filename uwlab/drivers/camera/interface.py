@@ -425,6 +425,28 @@ class Camera:
         """The colour filter layout of the current pixel format on this camera (None: monochrome)."""
         return self.profile.bayer_layout(self.pixel_format)
 
+    def bayer_format(self, layout: str) -> str | None:
+        """The pixel format delivering the colour filter ``layout`` on this device, as its profile reads the mosaic
+        (Aravis's fake camera delivers RG in its BayerBG8): the current format if it does, else an offered one of
+        the current format's bit depth, else the first offered that does; None when none does."""
+
+        def delivers(name: str) -> bool:
+            try:
+                return self.profile.bayer_layout(name) == layout
+            except ConfigError:  # a format uwlab does not read (RGB8, ...)
+                return False
+
+        current = self.pixel_format
+        if delivers(current):
+            return current
+        offered = [name for name in self.pixel_formats if delivers(name)]
+        try:
+            bits = pixel_format(current).bits
+        except ConfigError:
+            bits = None
+        same_depth = [name for name in offered if pixel_format(name).bits == bits]
+        return next(iter(same_depth or offered), None)
+
     def check_bayer(self, layout: str) -> None:
         """Refuse (`ConfigError`) when the device's pixel format does not deliver the colour filter ``layout``
         the caller expects (e.g. a colour sensor profile's or the operator's)."""

@@ -9,6 +9,7 @@ their settings in the metadata (`save_tiff`; never overwriting a file).
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
@@ -18,6 +19,7 @@ from uwlab.errors import ConfigError
 from uwlab.experiments.frames.frame import frame_statistics
 from uwlab.model.schema import check, limits
 from uwlab.model.sensor import SensorProfile, load_sensor_profile
+from uwlab.outputs import output_dir
 
 # Frames of one grab: 100 000 is ~20 min at 100 fps; a larger count is a typo, refused before the camera opens.
 GrabFrames = Annotated[int, limits(1, 100_000, "frames", hint="", integer=True)]
@@ -50,7 +52,7 @@ class Settings:
     gain_db: float | None = None
     pixel_format: str | None = None
     roi: tuple[int, int, int, int] | None = None
-    bayer: str | None = None  # the colour filter layout the camera must deliver (refused otherwise)
+    bayer: str | None = None  # the colour filter layout the camera must deliver (refused when it offers none)
 
     def check(self) -> None:
         """Plausibility limits (`uwlab.model.schema`) before anything is sent to a camera."""
@@ -62,9 +64,13 @@ class Settings:
             check(GainDb, self.gain_db, "--gain-db")
 
     def apply(self, cam: Camera) -> None:
-        """Write the settings (the camera reads each back and refuses a value it did not take)."""
-        if self.pixel_format:
-            cam.pixel_format = self.pixel_format
+        """Write the settings (the camera reads each back and refuses a value it did not take). With `bayer` and
+        no `pixel_format`, the device's own format delivering that layout (`Camera.bayer_format`)."""
+        chosen = self.pixel_format
+        if not chosen and self.bayer is not None:
+            chosen = cam.bayer_format(self.bayer)
+        if chosen and chosen != cam.pixel_format:
+            cam.pixel_format = chosen
         if self.roi:
             cam.set_roi(*self.roi)
         if self.exposure_us is not None:
@@ -145,8 +151,20 @@ def sensor_for(backend: str, sensor: str | None, config: str | None) -> SensorPr
     return None
 
 
+def chosen_backend(backend: str | None, fake: bool) -> str:
+    """The camera backend a grab uses: `backend`, else the fake cameras' (Aravis, whose ``Fake_1`` is the default
+    device there) when `fake`, else the simulated camera.
+
+    >>> chosen_backend(None, False), chosen_backend(None, True), chosen_backend("harvesters", True)
+    ('sim', 'aravis', 'harvesters')
+    """
+    if backend is not None:
+        return backend
+    return "aravis" if fake else "sim"
+
+
 def grab_frames(
-    backend: str = "sim",
+    backend: str | None = None,
     device_id: str | None = None,
     *,
     frames: int = 1,
@@ -157,14 +175,20 @@ def grab_frames(
     fake: bool = False,
     timeout_s: float = 5.0,
     keep_frames: bool = True,
-    save_dir: Path | None = None,
+    save_dir: str | os.PathLike[str] | None = None,
 ) -> Grabbed:
     """Open the camera, apply `settings`, acquire `frames` frames and compute their statistics; the camera is
-    closed on any exit. `fake`: the backend's test camera (`uwlab.drivers.camera.open_camera`). `keep_frames` False
-    keeps only the statistics (long grabs); `save_dir` (an existing folder) receives each frame as TIFF."""
+    closed on any exit. `backend` None: `chosen_backend`. `fake`: the backend's test camera
+    (`uwlab.drivers.camera.open_camera`). `keep_frames` False keeps only the statistics (long grabs); `save_dir` (a
+    folder, created if its parent exists: `uwlab.outputs.output_dir`) receives each frame as TIFF. Everything is
+    checked before the camera opens."""
+    backend = chosen_backend(backend, fake)
     frames = check(GrabFrames, frames, "frames")
     settings = settings or Settings()
     settings.check()
+    folder = output_dir(save_dir, "--save") if save_dir is not None else None
+    if folder is not None:
+        folder.mkdir(exist_ok=True)
     options: dict[str, Any] = {"fake": fake}
     if backend == "harvesters":
         options["cti"] = list(cti or [])
@@ -178,7 +202,7 @@ def grab_frames(
             result.rows.append(frame_statistics(frame, profile))
             if keep_frames:
                 result.frames.append(frame)
-            if save_dir is not None:
-                result.saved.append(save_tiff(save_dir, frame, result.device))
+            if folder is not None:
+                result.saved.append(save_tiff(folder, frame, result.device))
         result.device["discarded_frames"] = cam.stats.discarded
     return result

@@ -36,6 +36,7 @@ from uwlab.experiments.calibration.validation import (
 )
 from uwlab.experiments.dataset import Dataset, channel_view
 from uwlab.model.schema import parse
+from uwlab.outputs import FIT_FOLDER
 
 
 def truth_from_metadata(metadata: dict, points: pd.DataFrame, names) -> dict:
@@ -192,7 +193,7 @@ def sensor_descriptions(rigs: dict, points: pd.DataFrame) -> dict[str, str]:
 def calibrate(
     dataset_dir: str | Path,
     config_path: str | Path | None,
-    out: str | Path,
+    out: str | Path | None,
     train_sweeps: list[str] | None = None,
     progress=None,
     model: str | None = None,
@@ -207,11 +208,13 @@ def calibrate(
     cameras characterised by ``uwlab emva characterize`` (`with_characterised_sensors`); `channel` ("red",
     "green", "blue"; ``uwlab fit --channel``) fits that colour channel of Bayer points, predicted with its own QE
     (`uwlab.experiments.dataset.channel_view`), instead of the whole mosaic against the combined QE. Every input is
-    checked before sampling starts."""
+    checked before sampling starts. The defaults of `uwlab fit` and `uwlab.fit` are these: `out` None is
+    ``DATASET/fit``, `config_path` None the default fit config for the dataset's cameras, `model` None the rigs'
+    [model] kind, no `sensors` the profiles, `channel` None the whole mosaic."""
     if model is not None and model not in MODELS:
         raise ConfigError("--model", model, f"must be one of {', '.join(MODELS)}")
     dataset = Dataset.open(dataset_dir)
-    out = Path(out)
+    out = Path(dataset_dir) / FIT_FOLDER if out is None else Path(out)
     check_output_dir(out)
     points, metadata = dataset.points(), dataset.metadata
     if points.empty:

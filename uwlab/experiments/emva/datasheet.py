@@ -93,6 +93,20 @@ def missing_notes(values: dict) -> list[tuple[str, str]]:
     return notes
 
 
+SUMMARY_SPATIAL = (("dsnu_e", "DSNU"), ("dsnu_p", "DSNU"), ("prnu_percent", "PRNU"))
+
+
+def missing_figures(values: dict) -> dict[str, str]:
+    """{key: why it is not given} for the total DSNU and PRNU of a summary (``dsnu_e``, ``dsnu_p``,
+    ``prnu_percent``) held without a value: the reason the datasheet prints under its table (`missing_reason`),
+    for every summary that shows them as ``—``."""
+    return {
+        key: missing_reason(values, ["total"], which)
+        for key, which in SUMMARY_SPATIAL
+        if key in values and values[key] is None
+    }
+
+
 def summary_rows(values: dict) -> list[tuple[str, list[tuple[str, str, str]]]]:
     """The one-column table of Table 2: [(group, [(symbol, value, unit), ...]), ...]."""
     v = values

@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from uwlab.errors import ConfigError, UwlabError
 from uwlab.jsonable import dumps
@@ -70,7 +71,7 @@ class FleetRow:
     error: str | None = None
 
     def document(self) -> dict:
-        row = {
+        row: dict[str, Any] = {
             "camera": self.camera,
             "source": self.source,
             "status": "ok" if self.error is None else "refused",
@@ -79,6 +80,10 @@ class FleetRow:
         values = self.values or {}
         row |= {key: values.get(key) for key, _, _ in COLUMNS}
         row |= {"model": values.get("model"), "notes": values.get("notes", [])}
+        if values:
+            from uwlab.experiments.emva.datasheet import missing_figures
+
+            row["missing"] = missing_figures(values)
         return row
 
 

@@ -32,6 +32,7 @@ a dataset recorded before uwlab kept the split per channel gives none (the datas
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -84,6 +85,20 @@ class IrradianceOverride:
         """A spectrum CSV with columns ``wavelength_nm``, ``irradiance_w_m2_nm`` (``#`` comment lines allowed)."""
         table = read_csv_columns(Path(path), ("wavelength_nm", "irradiance_w_m2_nm"), "--irradiance")
         return cls(spectrum_nm=table["wavelength_nm"], spectrum_w_m2_nm=table["irradiance_w_m2_nm"])
+
+    @classmethod
+    def given(cls, irradiance: float | str | os.PathLike[str] | None, wavelength_nm: float | None = None):
+        """``uwlab emva characterize --irradiance``: a number [W/m²] (at `wavelength_nm`) or a spectrum CSV; None
+        when not given. The number is checked against the plausibility limits (`uwlab.model.schema`)."""
+        from uwlab.model.schema import IrradianceWM2, check
+
+        if irradiance is None:
+            return None
+        try:
+            value = float(irradiance)  # type: ignore[arg-type]
+        except (TypeError, ValueError):
+            return cls.from_csv(os.fspath(irradiance))  # type: ignore[arg-type]
+        return cls(irradiance_w_m2=check(IrradianceWM2, value, "--irradiance"), wavelength_nm=wavelength_nm)
 
     def photon_irradiance(self) -> float:
         if self.spectrum_nm is not None:

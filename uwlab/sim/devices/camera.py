@@ -50,6 +50,9 @@ from uwlab.drivers.camera.pixels import MONO_FORMATS, bayer_formats, pack, pixel
 from uwlab.errors import ConfigError, DeviceError
 
 NOISE_BANK_MARGIN = 1 << 20
+# The brightest 1 % of the scene at half the saturation capacity: where a camera's continuous auto-exposure settles
+# (assumed: vendors' targets vary; this one keeps the highlights unclipped).
+AUTO_EXPOSURE_FILL = 0.5
 
 
 @dataclass(frozen=True)
@@ -177,6 +180,16 @@ class SimSensor:
             raise ConfigError("rate_map", rate.shape, f"expected shape {(height, width)}")
         self.rate_e_per_s = rate
         self._cache: tuple[Any, tuple[np.ndarray, np.ndarray, float]] | None = None
+
+    def auto_exposure_us(self) -> float:
+        """The exposure a camera powered on with continuous auto-exposure has settled at (its power-on
+        ExposureTime; uwlab's driver then turns auto-exposure off and keeps it): the brightest 1 % of the scene, as
+        lit now, at `AUTO_EXPOSURE_FILL` of the saturation capacity, within the exposure range; the range's
+        10 ms (or its nearest end) in the dark."""
+        truth = self.truth
+        brightest = float(np.quantile(self.rate_e_per_s[::8, ::8], 0.99)) * float(self.light_fraction())
+        exposure_us = AUTO_EXPOSURE_FILL * truth.saturation_e / brightest * 1e6 if brightest > 0 else 10000.0
+        return min(max(exposure_us, truth.exposure_min_us), truth.exposure_max_us)
 
     def _dark_electrons(self, cfg: SensorConfig, t: float):
         """Mean dark-current electrons per output pixel (a scalar without hot pixels)."""
@@ -316,7 +329,7 @@ class SimNodeMap:
     """SFNC feature map of the simulated camera, shared by the in-process transport and the
     GigE Vision server. Writes are range-checked like a device would (`ConfigError`)."""
 
-    def __init__(self, truth: SimTruth, serial: str = "SIM0001"):
+    def __init__(self, truth: SimTruth, serial: str = "SIM0001", exposure_us: float = 10000.0):
         self.truth = truth
         width, height = truth.resolution_px
         fmts = bayer_formats(truth.bayer) if truth.bayer else MONO_FORMATS
@@ -361,7 +374,7 @@ class SimNodeMap:
             "PayloadSize": _Node("int", 0, writable=False),
             "ExposureTime": _Node(
                 "float",
-                min(max(10000.0, truth.exposure_min_us), truth.exposure_max_us),
+                min(max(exposure_us, truth.exposure_min_us), truth.exposure_max_us),
                 lambda: (truth.exposure_min_us, truth.exposure_max_us),
             ),
             "ExposureAuto": _Node("enum", "Continuous", entries=("Off", "Continuous")),
@@ -499,7 +512,11 @@ class SimTransport:
         self._triggers = 0
 
     def _power_on(self) -> SimNodeMap:
-        return SimNodeMap(self.sensor.truth, serial=f"SIM{zlib.crc32(self.device_id.encode()) % 10000:04d}")
+        return SimNodeMap(
+            self.sensor.truth,
+            serial=f"SIM{zlib.crc32(self.device_id.encode()) % 10000:04d}",
+            exposure_us=self.sensor.auto_exposure_us(),
+        )
 
     @property
     def operations(self) -> int:

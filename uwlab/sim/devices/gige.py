@@ -87,7 +87,7 @@ class GigeCameraServer:
         self.address = address
         self.faults = faults or GigeFaults()
         serial = serial or f"GV{zlib.crc32(address.encode()) % 100000:05d}"
-        self.nodes = SimNodeMap(sensor.truth, serial=serial)
+        self.nodes = SimNodeMap(sensor.truth, serial=serial, exposure_us=sensor.auto_exposure_us())
         self.xml = genicam_xml(self.nodes)
         self.registers = register_map()
         self._lock = threading.Lock()

@@ -31,15 +31,15 @@ every instrument logs its true state (`uwlab.sim.state_log`) to ``<dir>/<name>.s
 from __future__ import annotations
 
 import fcntl
-import multiprocessing
 import os
+import pickle
 import select
 import signal
+import subprocess
+import sys
 import time
-import threading
 import tty
 from collections import deque
-from contextlib import contextmanager
 from dataclasses import dataclass
 from functools import partial
 from pathlib import Path
@@ -71,6 +71,7 @@ MAX_PENDING_OUTPUT_BYTES = 64 * 1024
 READ_CHUNK_BYTES = 4096
 GARBAGE = b"\x00\xff\xfe\x1b[2J\xc3(\x07garbage\x80"
 START_TIMEOUT_S = 60.0
+MODULE = "uwlab.sim.devices.serial_sim"  # a simulator process runs ``python -P -m MODULE``
 
 
 class PtyPort:
@@ -235,51 +236,63 @@ class SerialServer:
                 fh.write(line + "\n")
 
 
-def _child_main(factory, link: Path, command_log: Path | None, vanish_s: float, status, stop) -> None:
-    """Process entry point: build the instrument, serve until ``stop`` is set, SIGTERM arrives or the parent dies."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+def _serve(status: int) -> None:
+    """The simulator process's work: read the instrument to simulate, build it, report ``ready`` (or why not) on
+    the pipe ``status``, then serve until its standard input (the parent's lifeline) reaches its end:
+    `SimulatorProcess.stop` closes it, and the kernel closes it when the parent dies, however it dies. SIGTERM
+    stops it too. A parent that stopped listening (interrupted while it started) ends it quietly."""
+    stopping: list[bool] = []
+    signal.signal(signal.SIGTERM, lambda *_: stopping.append(True))
+    try:
+        sys.path[:] = pickle.load(sys.stdin.buffer)  # the factory's modules are found as in the parent
+        factory, link, command_log, vanish_s = pickle.load(sys.stdin.buffer)
+    except EOFError:  # the parent went away before it sent them
+        return
+    except Exception as exc:  # e.g. a spectrum defined in the caller's __main__, which is not imported here
+        _report(status, f"cannot load the instrument: {type(exc).__name__}: {exc}")
+        return
     try:
         server = SerialServer(factory(), PtyPort(link), command_log, vanish_s)
     except (UwlabError, OSError) as exc:
-        status.send(f"{type(exc).__name__}: {exc}")
+        _report(status, f"{type(exc).__name__}: {exc}")
         return
-    status.send("ready")
-    parent = multiprocessing.parent_process()
-    assert parent is not None  # the simulator runs in a child process
     try:
-        while not stop.is_set() and parent.is_alive():
+        if not _report(status, "ready"):
+            return
+        lifeline = sys.stdin.fileno()
+        while not stopping and not select.select([lifeline], [], [], 0)[0]:  # readable: at its end
             server.step(0.1)
     finally:
         server.port.close()
 
 
-@contextmanager
-def _ctrl_c_deferred():
-    """Spawn children that never see Ctrl-C, and let the parent see it only once they are spawned.
-
-    Ctrl-C reaches the whole process group. A child spawned inside this block starts with SIGINT blocked (the
-    thread's mask survives fork and exec; `_child_main` then ignores it), so it prints no traceback while it is
-    still importing. In the parent, the signal may land on any thread (pyarrow's, say), so blocking it in this
-    one is not enough: Python's handler is swapped for one that only notes it, and KeyboardInterrupt is raised
-    after the block — never halfway through a spawn, which would leave the child without its start-up data.
-    Outside the main thread (no signal handlers there) the block only masks."""
-    main = threading.current_thread() is threading.main_thread()
-    noted = []
-    previous = signal.signal(signal.SIGINT, lambda *_: noted.append(True)) if main else None
-    blocked = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+def _report(status: int, line: str) -> bool:
+    """Write the start-up outcome and close the pipe; False when nobody reads it any more."""
     try:
-        yield
+        os.write(status, line.encode(errors="replace") + b"\n")
+        return True
+    except BrokenPipeError:
+        return False
     finally:
-        signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
-        if main:
-            signal.signal(signal.SIGINT, previous)
-    if noted:
-        raise KeyboardInterrupt
+        os.close(status)
+
+
+def main() -> None:
+    """``python -P -m uwlab.sim.devices.serial_sim STATUS_FD``, started by `SimulatorProcess`: two pickles on
+    standard input (the parent's ``sys.path``, then the instrument factory and its options), the outcome of the
+    start as one line on the file descriptor STATUS_FD."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # its own process group; a stray SIGINT must not kill it either
+    _serve(int(sys.argv[1]))
 
 
 class SimulatorProcess:
-    """One simulated instrument in a spawned process; ``link`` is its port path once started."""
+    """One simulated instrument in a process of its own (``python -m uwlab.sim.devices.serial_sim``, never a
+    multiprocessing child: starting one does not import the caller's ``__main__`` again, so a script without an
+    ``if __name__ == "__main__":`` guard is not re-run); ``link`` is its port path once started.
+
+    The factory (and what it holds) is pickled to the process, which imports its modules from the parent's
+    ``sys.path``. The process runs in its own process group (a terminal's Ctrl-C reaches the parent only, which
+    stops it) and ends when its standard input closes: on `stop`, or when the parent dies."""
 
     def __init__(
         self,
@@ -289,26 +302,24 @@ class SimulatorProcess:
         command_log: Path | None = None,
         vanish_s: float = 0.5,
     ):
-        context = multiprocessing.get_context("spawn")
         self.link = Path(link)
         self._options = (factory, command_log, vanish_s)
-        self._status, child_status = context.Pipe(duplex=False)
-        self._stop = context.Event()  # polled by the child; see `stop` for why the parent sets it only while it runs
+        self.process: subprocess.Popen[bytes] | None = None
         self._stopped = False  # stop() was called
-        self.process = context.Process(
-            target=_child_main,
-            args=(factory, self.link, command_log, vanish_s, child_status, self._stop),
-            daemon=True,
-        )
 
     @property
     def port(self) -> str:
         return str(self.link)
 
     @property
+    def exitcode(self) -> int | None:
+        """The process's exit code (negative: the signal that ended it); None while it runs or before it starts."""
+        return None if self.process is None else self.process.poll()
+
+    @property
     def died(self) -> bool:
         """Started, and no longer running although nobody stopped it."""
-        return self.process.pid is not None and not self._stopped and not self.process.is_alive()
+        return self.process is not None and not self._stopped and self.exitcode is not None
 
     def fresh(self) -> SimulatorProcess:
         """A new, unstarted simulator of the same instrument on the same port path."""
@@ -317,53 +328,94 @@ class SimulatorProcess:
 
     def kill(self, timeout_s: float = 10.0) -> None:
         """SIGKILL, as a power cut: no clean-up by the process; its port disappears (as a USB device's node does)."""
-        if self.process.is_alive():
-            self.process.kill()
-        self.process.join(timeout_s)
+        if self.process is not None:
+            if self.process.poll() is None:
+                self.process.kill()
+            self.process.wait(timeout_s)
         self.link.unlink(missing_ok=True)
 
     def start(self, timeout_s: float = START_TIMEOUT_S) -> SimulatorProcess:
-        with _ctrl_c_deferred():
-            self.process.start()
-        deadline = time.monotonic() + timeout_s
-        while not self._status.poll(0.1):
-            if not self.process.is_alive() or time.monotonic() > deadline:
-                self.stop()
-                raise DeviceError(f"simulator for {self.link} did not start (exit code {self.process.exitcode})")
+        factory, command_log, vanish_s = self._options
+        payload = pickle.dumps(list(sys.path)) + pickle.dumps((factory, self.link, command_log, vanish_s))
+        status_read, status_write = os.pipe()
         try:
-            status = self._status.recv()
-        except EOFError:
-            status = f"exited (code {self.process.exitcode}) before it was ready"
+            self.process = subprocess.Popen(
+                [sys.executable, "-P", "-m", MODULE, str(status_write)],
+                stdin=subprocess.PIPE,
+                stdout=subprocess.DEVNULL,
+                pass_fds=(status_write,),
+                process_group=0,
+                env=_child_environment(),
+            )
+            os.close(status_write)
+            status_write = -1
+            status = self._handshake(payload, status_read, timeout_s)
+        except BaseException:  # Ctrl-C while it starts, say: the process must not outlive the attempt
+            self.stop()
+            raise
+        finally:
+            os.close(status_read)
+            if status_write >= 0:
+                os.close(status_write)
         if status != "ready":
             self.stop()
             raise DeviceError(f"simulator for {self.link} failed to start: {status}")
         return self
 
-    def stop(self, timeout_s: float = 10.0) -> None:
-        """Ask the process to finish, then terminate and kill it if it does not.
+    def _handshake(self, payload: bytes, status_fd: int, timeout_s: float) -> str:
+        """Send the start-up data; the status line the process answers (or why there is none)."""
+        assert self.process is not None and self.process.stdin is not None
+        try:
+            self.process.stdin.write(payload)
+            self.process.stdin.flush()
+        except BrokenPipeError:
+            pass  # the process ended early: its status (or exit code) says why
+        received = b""
+        deadline = time.monotonic() + timeout_s
+        while not received.endswith(b"\n"):
+            if not select.select([status_fd], [], [], max(deadline - time.monotonic(), 0.0))[0]:
+                return f"not ready within {timeout_s:g} s"
+            chunk = os.read(status_fd, 4096)
+            if not chunk:
+                return f"exited (code {self.process.wait(timeout_s)}) before it was ready"
+            received += chunk
+        return received.decode(errors="replace").strip()
 
-        The stop event is set only while the process runs: one killed (SIGKILL, a power cut) while it polled the
-        event may have died holding the event's lock, and setting it would then wait for ever (a CI run hung in a
-        fixture's teardown so, after the random-restart sweep)."""
+    def stop(self, timeout_s: float = 10.0) -> None:
+        """Close the process's lifeline and wait for it to finish; terminate, then kill it if it does not."""
         self._stopped = True
-        if self.process.pid is None:
+        process = self.process
+        if process is None:
             return
-        if self.process.is_alive():
-            self._stop.set()
-        self.process.join(timeout_s)
-        if self.process.is_alive():
-            self.process.terminate()
-            self.process.join(timeout_s)
-        if self.process.is_alive():
-            self.process.kill()
-            self.process.join(timeout_s)
+        if process.stdin is not None:
+            try:
+                process.stdin.close()
+            except BrokenPipeError:
+                pass
+        for end in (None, process.terminate, process.kill):
+            if end is not None and process.poll() is None:
+                end()
+            try:
+                process.wait(timeout_s)
+                break
+            except subprocess.TimeoutExpired:
+                continue
         self.link.unlink(missing_ok=True)
 
     def __enter__(self) -> SimulatorProcess:
-        return self.start() if self.process.pid is None else self
+        return self.start() if self.process is None else self
 
     def __exit__(self, *exc_info) -> None:
         self.stop()
+
+
+def _child_environment() -> dict[str, str]:
+    """The environment for a simulator process: this one's, with the directory holding this uwlab first on
+    PYTHONPATH (the process must import the same uwlab, wherever the caller's script runs)."""
+    root = str(Path(__file__).resolve().parents[3])
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([root, *filter(None, env.get("PYTHONPATH", "").split(os.pathsep))])
+    return env
 
 
 @dataclass(frozen=True)
@@ -478,7 +530,7 @@ class SerialRig:
 
     def revive(self) -> dict[str, int | None]:
         """Restart every simulator that died unasked (logged as a power loss); returns their exit codes."""
-        dead = {name: sim.process.exitcode for name, sim in self.simulators.items() if sim.died}
+        dead = {name: sim.exitcode for name, sim in self.simulators.items() if sim.died}
         for name in dead:
             self._power_lost(name)
             self.restart(name)
@@ -513,3 +565,7 @@ class SerialRig:
 
     def __exit__(self, *exc_info) -> None:
         self.stop()
+
+
+if __name__ == "__main__":
+    main()
