@@ -260,7 +260,7 @@ def run_demo(
     # The geometry (MTF, focus, depth of field) is measured on the other core while the cameras are characterised
     # and the fit runs: its own process (python -m), never a child re-running the caller's script.
     geometry = subprocess.Popen(
-        [sys.executable, "-m", "uwlab.experiments.geometry.tank", "--out", str(out / "geometry")]
+        [sys.executable, "-P", "-m", "uwlab.experiments.geometry.tank", "--out", str(out / "geometry")]
         + ["--rig", str(plan.rig_path), "--seed", str(seed)],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
