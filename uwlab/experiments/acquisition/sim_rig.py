@@ -13,7 +13,11 @@ sensor under a diffuse disk source, the spectrometer at the sensor plane).
   level) to the serial light, so it lights the simulated tank as the serial light would. Lights on real resources
   are replaced by the serial light (the first) or left out.
 
-Apertures are set directly (`RigScene.set_lens` and a re-render); the spectrometer is moved between the
+Apertures are set directly (`RigScene.set_lens` and a re-render); so are a geometry sweep's lens focus and target
+distance: each geometry point renders a slanted-edge chart at the sensor's centre on the board
+(`uwlab.sim.edge_chart.chart_rate_map`: defocus traced through the tank's wall, diffraction, the target's motion at
+the rig's ``operation.speed_m_s`` over the exposure, the pixel) into the electron-rate map. Other sweeps render no
+chart (their images are as before). The spectrometer is moved between the
 target and the camera with the simulator's ``SIM:POS`` command. "No lens" gives a uniform field (a bare
 sensor sees the whole hemisphere; see `uwlab.model.optics`). The simulated board carries no printed
 markers, so an ``aruco`` ROI is the board's footprint from the scene (what the detector would report).
@@ -42,7 +46,9 @@ from uwlab.drivers.instruments import VisaLight, open_visa_light
 from uwlab.drivers.serial import Light, Spectrometer, open_light, open_spectrometer
 from uwlab.drivers.serial.ascii import AsciiSpectrometer
 from uwlab.experiments.acquisition.plan import LightSpec, SweepSpec
-from uwlab.experiments.acquisition.rigs import to_safe_state
+from uwlab.errors import ConfigError
+from uwlab.experiments.acquisition.plan import Point
+from uwlab.experiments.acquisition.rigs import GeometrySetting, to_safe_state
 from uwlab.experiments.acquisition.roi import Rect
 from uwlab.experiments.saturation import sensor_clip_dn
 from uwlab.lockfile import OwnerLock, is_stale, read_holder
@@ -50,6 +56,7 @@ from uwlab.model.chain import beam_half_angle_rad
 from uwlab.sim.bench import BenchScene
 from uwlab.sim.devices.camera import RateMap, SimFaults, SimSensor, SimTruth, flat_rate_map
 from uwlab.sim.devices.serial_sim import SerialRig, SerialSimSettings
+from uwlab.sim.edge_chart import chart_rate_map, rig_optics
 from uwlab.sim.rig_state import RigState
 from uwlab.sim.scene import RigScene, load_scene
 
@@ -167,6 +174,29 @@ class SimRig:
         scene, sensor, open_sweep = self._open()
         scene.set_lens(f_number=f_number)
         sensor.set_rate_map(_rate_map(scene, open_sweep.lens.bare))
+
+    def set_geometry(self, sweep: SweepSpec, point: Point) -> GeometrySetting:
+        """Set the lens focus and the target's distance directly: the scene is rendered with the point's chart
+        (module docstring); the chart's noise is seeded by the rig's seed and the point's index."""
+        scene, sensor, open_sweep = self._open()
+        if not isinstance(scene, RigScene) or point.lens_focus_m is None or point.target_distance_m is None:
+            raise ConfigError(f"sweep.{sweep.table.id}.kind", "geometry", "the simulated rig has no target here")
+        try:
+            optics = rig_optics(scene.design, scene.world, scene.tank is not None, float(scene.design["lens.f_number"]))
+        except ValueError as exc:
+            raise ConfigError(f"sweep.{sweep.table.id}.kind", "geometry", str(exc)) from None
+        plain = _rate_map(scene, open_sweep.lens.bare)
+        focus, distance = point.lens_focus_m, point.target_distance_m
+        speed = float(sweep.design["operation.speed_m_s"])
+        seed = (scene.sim.seed + self.seed, point.index)
+
+        def charted(shape: tuple[int, int]) -> np.ndarray:
+            return chart_rate_map(
+                plain(shape), optics, distance, focus, seed, speed_m_s=speed, exposure_s=point.exposure_us * 1e-6
+            )
+
+        sensor.set_rate_map(charted)
+        return GeometrySetting(focus, distance, "rig")
 
     def place_spectrometer(self, position: str) -> None:
         """Move the simulated spectrometer (the simulator's ``SIM:POS`` command on its serial line)."""
