@@ -285,8 +285,8 @@ def point_row(
     identity columns of `POINT_SCHEMA` (camera, lens, exposure, read-backs, irradiance, times, the Bayer layout
     ``bayer``, ...). A geometry point's ``edges`` (`uwlab.experiments.frames.esfr.measure_edge`: None → the edge of
     the whole image or a mosaic's green, channel name → its own) give ``edge_roi_{x,y,w,h}``, ``mtf50_cy_per_px``,
-    ``mtf_nyquist``, ``edge_angle_deg`` and the per-channel ``<channel>_…`` (`EDGE_FIELDS`); a column given twice, an unknown column or a missing required one raises `ConfigError` naming
-    it.
+    ``mtf_nyquist``, ``edge_angle_deg`` and the per-channel ``<channel>_…`` (`EDGE_FIELDS`); a column given twice,
+    an unknown column or a missing required one raises `ConfigError` naming it.
     """
     derived = {
         "frames": bright.frames,

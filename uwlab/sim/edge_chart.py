@@ -1,10 +1,10 @@
 """A slanted-edge chart in the simulated tank, rendered sharp or blurred by ray sampling (not by the model's MTF).
 
 The chart is a black-and-white straight edge on the board, tilted from the pixel columns (ISO 12233's slanted
-edge), seen by the camera through the tank's flat wall. Every pixel's value is the mean, over Monte Carlo samples, of where the light
-of the chart's points lands on the sensor; the blur comes from four independent random displacements, each drawn
-from its own physics in the spatial domain (`uwlab.model.mtf` predicts the same chain from closed-form transfer
-functions in the frequency domain: the two meet only in the validation):
+edge), seen by the camera through the tank's flat wall. Every pixel's value is the mean, over Monte Carlo samples,
+of where the light of the chart's points lands on the sensor; the blur comes from four independent random
+displacements, each drawn from its own physics in the spatial domain (`uwlab.model.mtf` predicts the same chain from
+closed-form transfer functions in the frequency domain: the two meet only in the validation):
 
 - Defocus, by ray tracing: the board's on-axis point is traced paraxially through water, the acrylic wall and the
   air gap (Snell's law at each face, a ray of 10⁻⁴ rad) and its apparent position found where the air ray's
@@ -23,8 +23,9 @@ its black `CHART_BLACK` of it; the patch keeps its size in pixels whatever the t
 illumination is the board's (a simplification: only the blur follows the distance). The simulated camera then adds
 its own noise (`uwlab.sim.devices.camera.SimSensor`).
 
-Electrons (`render_edge`): the dark and bright sides give ``dark_e`` and ``bright_e``; Poisson shot noise, Gaussian read noise
-(``dark_noise_e``), then DN = K · e + offset, rounded and clipped to the bit depth (EMVA 1288's linear model).
+Electrons (`render_edge`): the dark and bright sides give ``dark_e`` and ``bright_e``; Poisson shot noise,
+Gaussian read noise (``dark_noise_e``), then DN = K · e + offset, rounded and clipped to the bit depth (EMVA 1288's
+linear model).
 """
 
 from __future__ import annotations
