@@ -21,9 +21,10 @@ import pandas as pd
 from jinja2 import Environment, PackageLoader, StrictUndefined
 
 from uwlab.errors import UwlabError
-from uwlab.experiments.dataset import read_metadata
+from uwlab.experiments.dataset import Dataset, read_metadata
 from uwlab.experiments.geometry import GEOMETRY_FIGURE, GEOMETRY_FILE
 from uwlab.experiments.figures import LABEL_PT, PALETTE, TICK_PT, Figure, figure_png, number_text, png_data_uri
+from uwlab.jsonable import to_jsonable
 from uwlab.outputs import MANIFEST_FILE, METADATA_FILE, output_file
 from uwlab.experiments.calibration.adequacy import SWEPT_LABELS
 from uwlab.experiments.calibration.forward import PERCENT_PARAMETERS, parameter_label
@@ -437,38 +438,65 @@ def _emva(path: Path) -> dict:
 
 
 def _geometry(path: Path) -> dict:
-    """The geometry section: `uwlab.experiments.geometry`'s verdict, its comparison table and figure."""
-    doc = json.loads((path / GEOMETRY_FILE).read_text())
-    near, far = doc["dof_measured_m"]
-    model_near, model_far = doc["dof_model_m"]
-    near_error, far_error = doc["dof_depth_errors"]
+    """The geometry section of a ``geometry.json`` (`uwlab.experiments.geometry`): its verdict, comparison table and
+    figure."""
+    figure = path / GEOMETRY_FIGURE
+    return _geometry_section(
+        json.loads((path / GEOMETRY_FILE).read_text()), path, _img(figure) if figure.exists() else None
+    )
+
+
+def _dataset_geometry(path: Path) -> dict | None:
+    """The geometry section computed from a dataset's geometry sweeps (`uwlab.experiments.geometry.from_dataset`),
+    None for a dataset without any."""
+    from uwlab.experiments.geometry import plot_geometry
+    from uwlab.experiments.geometry.from_dataset import geometry_from_dataset, has_geometry
+
+    data = Dataset.open(path)
+    if not has_geometry(data.points()):
+        return None
+    result = geometry_from_dataset(data)
+    image = png_data_uri(figure_png(plot_geometry(result)))
+    return _geometry_section(to_jsonable(result.to_json()), path, image)
+
+
+def _metres(value) -> str:
+    return number_text(value, ".4f") + (" m" if value is not None and np.isfinite(value) else "")
+
+
+def _geometry_section(doc: dict, path: Path, image: str | None) -> dict:
+    """The verdict, the comparison table (the parts measured: MTF50, best focus, depth of field) and the figure."""
+    depth = f"depth within {_percent(doc['tolerances']['depth'], 0)}"
     rows = [
         {
-            "quantity": "MTF50, worst over both sweeps",
+            "quantity": "MTF50, worst over the sweeps",
             "measured": f"within {_percent(doc['worst_mtf50_error'])} of the model",
             "model": "—",
             "target": f"≤ {_percent(doc['tolerances']['mtf50'], 0)}",
-        },
-        {
-            "quantity": "best focus setting",
-            "measured": f"{doc['best_focus_measured_m']:.4f} m",
-            "model": f"{doc['best_focus_predicted_m']:.4f} m",
-            "target": f"within one step ({doc['focus_step_m'] * 1e3:.1f} mm)",
-        },
-        {
-            "quantity": "depth of field, near limit",
-            "measured": f"{near:.4f} m",
-            "model": f"{model_near:.4f} m",
-            "target": f"depth within {_percent(doc['tolerances']['depth'], 0)} ({near_error * 100:+.1f} %)",
-        },
-        {
-            "quantity": "depth of field, far limit",
-            "measured": f"{far:.4f} m",
-            "model": f"{model_far:.4f} m",
-            "target": f"depth within {_percent(doc['tolerances']['depth'], 0)} ({far_error * 100:+.1f} %)",
-        },
+        }
     ]
-    figure = path / GEOMETRY_FIGURE
+    if doc["focus_sweep"]:
+        step = doc["focus_step_m"]
+        rows.append(
+            {
+                "quantity": "best focus setting",
+                "measured": _metres(doc["best_focus_measured_m"]),
+                "model": _metres(doc["best_focus_predicted_m"]),
+                "target": f"within one step ({number_text(None if step is None else step * 1e3, '.1f')} mm)",
+            }
+        )
+    if doc["distance_sweep"]:
+        for name, measured, model, error in zip(
+            ("near", "far"), doc["dof_measured_m"], doc["dof_model_m"], doc["dof_depth_errors"], strict=True
+        ):
+            rows.append(
+                {
+                    "quantity": f"depth of field, {name} limit",
+                    "measured": _metres(measured),
+                    "model": _metres(model),
+                    "target": f"{depth} ({number_text(None if error is None else error * 100, '+.1f')} %)",
+                }
+            )
     return {
         "path": str(path),
         "adequate": doc["adequate"],
@@ -476,7 +504,7 @@ def _geometry(path: Path) -> dict:
         "lens": doc["lens"],
         "criterion": _number(doc["criterion_mtf50_cy_per_px"], 3),
         "rows": rows,
-        "image": _img(figure) if figure.exists() else None,
+        "image": image,
     }
 
 
@@ -553,7 +581,7 @@ def write_report(root: str | Path, out: str | Path, *, replace: bool = False) ->
         world=_world(metadata[0][1]) if metadata else None,
         bench_hints=[] if emva else [_bench_hint(d) for d, m in metadata if _has_bench(m)],
         emva=[_emva(e) for e in emva],
-        geometry=[_geometry(g) for g in geometry],
+        geometry=[_geometry(g) for g in geometry] + [g for d in datasets if (g := _dataset_geometry(d)) is not None],
         provenance=[_provenance(d, m) for d, m in metadata],
     )
     out.write_text(html)
