@@ -245,7 +245,11 @@ def slanted_edge(
         cell_offsets = [(((pw - 1 - cx) % 2) if step == 2 else 0, cy) for cx, cy in cell_offsets]
 
     # Plateaus and noise: the step must stand clear of the noise.
-    left, right = plane[:, : max(2, pw // 6)], plane[:, -max(2, pw // 6) :]
+    side = max(2, pw // 6)
+    # A channel's own sites (every pixel of a monochrome image): a mosaic's neighbours are other colours.
+    cx0, cy0 = cell_offsets[0]
+    left = plane[cy0::step, cx0:side:step]
+    right = plane[cy0::step, pw - side + (cx0 - (pw - side)) % step : pw : step]
     contrast = float(np.median(right) - np.median(left))
     noise = float(np.median(np.abs(np.diff(left, axis=0)))) / 0.6745 / np.sqrt(2) if left.shape[0] > 1 else 0.0
     if not contrast > MIN_CONTRAST_NOISE * max(noise, 1e-12 * max(1.0, abs(contrast))):
