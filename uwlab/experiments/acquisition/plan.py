@@ -728,7 +728,7 @@ def _check_geometry_values(spec: SweepSpec, sensor: SensorProfile) -> None:
         within(key, spec.values, lo, top, "the lens's f-number range")
     else:
         within(key, spec.values, sensor.exposure_min_us, sensor.exposure_max_us, f"{sensor.name}'s exposure range [µs]")
-        if not float(design["operation.speed_m_s"]) > 0:
+        if isinstance(design, Bench) or not float(design["operation.speed_m_s"]) > 0:
             raise ConfigError(
                 f"sweep.{table.id}.step",
                 step,

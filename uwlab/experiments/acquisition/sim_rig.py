@@ -187,7 +187,7 @@ class SimRig:
             raise ConfigError(f"sweep.{sweep.table.id}.kind", "geometry", str(exc)) from None
         plain = _rate_map(scene, open_sweep.lens.bare)
         focus, distance = point.lens_focus_m, point.target_distance_m
-        speed = float(sweep.design["operation.speed_m_s"])
+        speed = float(scene.design["operation.speed_m_s"])  # the sweep's design, on the scene
         seed = (scene.sim.seed + self.seed, point.index)
 
         def charted(shape: tuple[int, int]) -> np.ndarray:

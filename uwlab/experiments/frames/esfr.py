@@ -468,8 +468,10 @@ def measure_edge(
     def measure(box: tuple[int, int, int, int]) -> dict[str | None, EdgeMTF]:
         if sites is None:
             return {None: slanted_edge(plane, box, None, saturation)}
-        channels = {name: slanted_edge(plane, box, sites[name[0].upper()], saturation) for name in CHANNELS}
-        return {None: channels["green"], **channels}
+        found: dict[str | None, EdgeMTF] = {
+            name: slanted_edge(plane, box, sites[name[0].upper()], saturation) for name in CHANNELS
+        }
+        return {None: found["green"], **found}
 
     try:
         if roi is not None:

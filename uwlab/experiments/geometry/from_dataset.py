@@ -97,9 +97,9 @@ def geometry_from_dataset(data: Dataset) -> GeometryValidation:
     first = next(iter(by_step.values()))
     reference = _design(rigs[first])
     port, n_w, flat, dome, decenter_z = port_geometry(reference)
-    focus_id, focus_rows, focus_design = sweep("lens_focus_m")
+    _, focus_rows, focus_design = sweep("lens_focus_m")
     distance_id, distance_rows, distance_design = sweep("target_distance_m")
-    if distance_design is not None:
+    if distance_design is not None and distance_id is not None:
         s = float(tables[distance_id].get("target_distance_m", distance_design["operation.altitude_m"]))
     elif focus_design is not None:
         s = float(focus_rows["target_distance_m"].median())
