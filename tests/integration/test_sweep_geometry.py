@@ -130,3 +130,19 @@ def test_a_colour_cameras_channels_each_measure_the_edge(tmp_path, sim_rig):
         assert np.allclose(points[f"{channel}_edge_angle_deg"].abs(), 5.0, atol=0.3)
     assert points["mtf50_cy_per_px"].tolist() == points["green_mtf50_cy_per_px"].tolist()
     assert points["red_mtf50_cy_per_px"].to_numpy() == pytest.approx(points["blue_mtf50_cy_per_px"], rel=0.1)
+
+
+def test_motion_blur_and_the_aperture_follow_the_model(tmp_path, tank_rig):
+    """An exposure step with the target moving at the rig's speed (0.5 m/s: up to about 4 px of travel) and an
+    f-number step (diffraction and defocus change together): every point's MTF50 within 5 % of the model's."""
+    moving = {"id": "moving", "step": "exposure_us", "values": [100, 400, 800], "light_level": 0.6}
+    moving["geometry"] = {"operation": {"speed_m_s": 0.5}}
+    aperture = {"id": "aperture", "step": "f_number", "values": [2.8, 11.0], "light_level": 0.6, "exposure_us": 300}
+    plan = load_plan(
+        write_plan(tmp_path / "plan.toml", "moving", [moving, aperture], rig=PAPER_TANK, defaults=GEOMETRY)
+    )
+    result = geometry_from_dataset(record(plan, tmp_path / "data", tank_rig))
+    errors = [p.error for p in [*result.exposure, *result.aperture]]
+    assert len(errors) == 5 and max(abs(e) for e in errors) < 0.05, errors
+    blurred = [p.measured_mtf50 for p in result.exposure]
+    assert blurred[-1] < 0.5 * blurred[0]  # the motion dominates at the longest exposure
