@@ -23,7 +23,7 @@ Schema (docs/sweeps.md has a commented example). Top level:
   ``area_cm2``): a USB spectrometer through python-seabreeze (docs/spectrometers.md);
 - ``[defaults]``: any sweep key, applied to every sweep unless the sweep sets it.
 
-Each ``[[sweep]]``: ``id`` (unique), ``kind`` (exposure | aperture | gain | light-level | dark), ``values``
+Each ``[[sweep]]``: ``id`` (unique), ``kind`` (exposure | aperture | gain | light-level | dark | geometry), ``values``
 (a list, or ``{start, stop, num, spacing = "linear" | "log"}``: exposure_us, f-number, gain_db or light level;
 a dark sweep steps exposure_us with the light off), ``frames_per_point`` (≥ 2), ``settle_s``, ``dark``
 ("point": dark frames at every point, "block": once per sweep, only when camera settings stay fixed, "none"),
@@ -35,6 +35,14 @@ at the camera's clip level above which a point is flagged; `uwlab.experiments.sa
 sensor profile: sets the rig's ``sensor.profile``; the simulated camera uses it), ``camera`` (a table overriding
 ``[camera]``), the fixed settings ``exposure_us``, ``gain_db``, ``black_level_dn``, ``light_level``,
 ``save_frames`` (TIFFs under ``frames/``) and ``geometry`` (design overrides for this sweep only).
+
+A geometry sweep (``kind = "geometry"``, docs/sweeps.md) measures a slanted edge's e-SFR at each point: ``step``
+names what its values step (``lens_focus_m``: the lens focus setting, the air-equivalent distance from the pupil;
+``target_distance_m``: the target's distance from the pupil; ``f_number``; ``exposure_us`` with the target moving at
+the rig's ``operation.speed_m_s``, refused when it is 0); ``lens_focus_m`` and ``target_distance_m`` fix the
+settings not stepped (defaults: the target's image through the port, `uwlab.model.focus.target_image_distance_m`,
+and the rig's ``operation.altitude_m``); ``edge_roi`` ([x, y, w, h] within the image; default: found). It needs a
+lens and a tank rig; the geometry keys on another kind of sweep are refused.
 
 No lens: the resolved rig of a "no lens" sweep carries the bare sensor's f-number and transmittance
 (`uwlab.model.optics.NO_LENS`); its rows have null focal length and f-number.
