@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import sys
 
 from uwlab.errors import ConfigError
@@ -31,7 +32,9 @@ def register(subparsers) -> None:
         help="overwrite an existing dataset at --out (one with no recorded point is replaced without it)",
     )
     p.add_argument(
-        "--non-interactive", action="store_true", help="never prompt the operator (manual aperture changes are refused)"
+        "--non-interactive",
+        action="store_true",
+        help="never prompt the operator (manual aperture, focus and target-distance changes are refused)",
     )
     p.add_argument("--json", action="store_true", help="print the dataset summary as one JSON object")
     p.set_defaults(func=run)
@@ -41,6 +44,22 @@ def _confirm(message: str) -> None:
     reply = input(f"{message}, then press Enter (or type 'q' to stop): ")
     if reply.strip().lower() in ("q", "quit"):
         raise ConfigError("operator", reply.strip(), "stopped at the prompt")
+
+
+def _ask_value(message: str, requested: float) -> float:
+    """The value the operator set by hand: Enter accepts the one requested, a number gives another."""
+    reply = input(f"{message}; press Enter when done, or type the value set (or 'q' to stop): ").strip()
+    if reply.lower() in ("q", "quit"):
+        raise ConfigError("operator", reply, "stopped at the prompt")
+    if not reply:
+        return requested
+    try:
+        value = float(reply)
+    except ValueError:
+        value = float("nan")
+    if not (math.isfinite(value) and value > 0):
+        raise ConfigError("operator", reply, "expected a positive number in metres (the value set) or Enter")
+    return value
 
 
 def run(args) -> int:
@@ -63,6 +82,7 @@ def run(args) -> int:
             sim=args.sim,
             force=args.force,
             confirm=None if args.non_interactive else _confirm,
+            ask_value=None if args.non_interactive else _ask_value,
             progress=progress,
         )
     summary = summarize(Dataset.open(root))

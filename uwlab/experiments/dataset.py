@@ -59,6 +59,7 @@ from uwlab.experiments.dataset_store import (
     read_sealed,
     write_sealed,
 )
+from uwlab.experiments.frames.esfr import EdgeMTF
 from uwlab.experiments.frames.frame import CHANNEL_NAMES
 from uwlab.experiments.frames.stack import StackStatistics
 from uwlab.experiments.saturation import POINT_SATURATED_FRACTION, ClipLevel, point_saturated
@@ -79,7 +80,7 @@ DATASET_ENTRIES = (
     QUARANTINE_DIR,
 )
 # What a sweep steps, the kind of each point row.
-SweepKind = Literal["exposure", "aperture", "gain", "light-level", "dark"]
+SweepKind = Literal["exposure", "aperture", "gain", "light-level", "dark", "geometry"]
 KINDS: tuple[str, ...] = get_args(SweepKind)
 
 # The per-channel columns of a raw Bayer point, ``<channel>_<statistic>`` with the design model's channel names
@@ -103,6 +104,21 @@ CHANNEL_STATISTICS = (
 )
 CHANNEL_FIELDS = tuple(
     (f"{channel}_{statistic}", kind) for channel in CHANNEL_NAMES.values() for statistic, kind in CHANNEL_STATISTICS
+)
+# A geometry point's slanted edge (ISO 12233 e-SFR, `uwlab.experiments.frames.esfr`): MTF50 and the MTF at Nyquist
+# in cycles per pixel along the edge normal, the edge's angle from the pixel grid; of the whole mosaic (every pixel)
+# and, for a raw Bayer point, of each colour channel's own sites (``<channel>_<statistic>``). Null for other points.
+EDGE_STATISTICS = (("mtf50_cy_per_px", pa.float64()), ("mtf_nyquist", pa.float64()), ("edge_angle_deg", pa.float64()))
+EDGE_FIELDS = (
+    ("lens_focus_m", pa.float64()),
+    ("target_distance_m", pa.float64()),
+    ("geometry_set_by", pa.string()),
+    ("edge_roi_x", pa.int64()),
+    ("edge_roi_y", pa.int64()),
+    ("edge_roi_w", pa.int64()),
+    ("edge_roi_h", pa.int64()),
+    *EDGE_STATISTICS,
+    *((f"{channel}_{statistic}", kind) for channel in CHANNEL_NAMES.values() for statistic, kind in EDGE_STATISTICS),
 )
 POINT_SCHEMA = pa.schema(
     [
@@ -148,6 +164,7 @@ POINT_SCHEMA = pa.schema(
         ("clip_source", pa.string()),
         ("bayer", pa.string()),
         *CHANNEL_FIELDS,
+        *EDGE_FIELDS,
         ("exposure_us_readback", pa.float64()),
         ("gain_db_readback", pa.float64()),
         ("light_on_readback", pa.bool_()),
@@ -226,6 +243,7 @@ def point_row(
     dark: StackStatistics | None,
     clip: ClipLevel,
     saturation_threshold: float = POINT_SATURATED_FRACTION,
+    edges: dict[str | None, EdgeMTF] | None = None,
     **columns: Any,
 ) -> dict:
     """The dataset row of one measured point — the one place a row is built.
@@ -242,8 +260,10 @@ def point_row(
     the flag by the same threshold, the highpassed split of its sites' planes; EMVA 1288 Release 4.0 Linear §1.2:
     each channel is a sensor of its own); they are null for a monochrome point. ``columns`` are the settings and
     identity columns of `POINT_SCHEMA` (camera, lens, exposure, read-backs, irradiance, times, the Bayer layout
-    ``bayer``, ...); a column given twice, an unknown column or a missing required one raises `ConfigError` naming
-    it.
+    ``bayer``, ...). A geometry point's ``edges`` (`uwlab.experiments.frames.esfr.measure_edge`: None → the edge of
+    the whole image or a mosaic's green, channel name → its own) give ``edge_roi_{x,y,w,h}``, ``mtf50_cy_per_px``,
+    ``mtf_nyquist``, ``edge_angle_deg`` and the per-channel ``<channel>_…`` (`EDGE_FIELDS`); a column given twice,
+    an unknown column or a missing required one raises `ConfigError` naming it.
     """
     derived = {
         "frames": bright.frames,
@@ -263,11 +283,29 @@ def point_row(
         "clip_level_dn": clip.dn,
         "clip_source": clip.source,
         **_channel_columns(bright, dark, saturation_threshold),
+        **_edge_columns(edges),
     }
     twice = sorted(set(derived) & set(columns))
     if twice:
         raise ConfigError(f"point.{twice[0]}", columns[twice[0]], "derived from the frame statistics; do not pass it")
     return check_point_row({"sweep_id": sweep_id, "point_index": point_index, "kind": kind, **derived, **columns})
+
+
+def _edge_columns(edges: dict[str | None, EdgeMTF] | None) -> dict:
+    """A geometry point's e-SFR columns (`EDGE_FIELDS`), {} for another point."""
+    if edges is None:
+        return {}
+    whole = edges[None]
+    x, y, w, h = whole.roi
+    columns: dict[str, Any] = {"edge_roi_x": x, "edge_roi_y": y, "edge_roi_w": w, "edge_roi_h": h}
+    for channel, edge in edges.items():
+        prefix = "" if channel is None else f"{channel}_"
+        columns |= {
+            f"{prefix}mtf50_cy_per_px": edge.mtf50_cy_per_px,
+            f"{prefix}mtf_nyquist": edge.mtf_nyquist,
+            f"{prefix}edge_angle_deg": edge.angle_deg,
+        }
+    return columns
 
 
 def _channel_columns(bright: StackStatistics, dark: StackStatistics | None, saturation_threshold: float) -> dict:

@@ -22,9 +22,10 @@ import pandas as pd
 from jinja2 import Environment, PackageLoader, StrictUndefined
 
 from uwlab.errors import ConfigError, UwlabError
-from uwlab.experiments.dataset import read_metadata
+from uwlab.experiments.dataset import Dataset, read_metadata
 from uwlab.experiments.geometry import GEOMETRY_FIGURE, GEOMETRY_FILE
 from uwlab.experiments.figures import LABEL_PT, PALETTE, TICK_PT, Figure, figure_png, number_text, png_data_uri
+from uwlab.jsonable import to_jsonable
 from uwlab.outputs import MANIFEST_FILE, METADATA_FILE, output_file
 from uwlab.provenance import provenance, provenance_line
 from uwlab.experiments.calibration.adequacy import SWEPT_LABELS
@@ -467,38 +468,68 @@ def _dataset_made_with(path: Path, metadata: dict) -> list[tuple[str, str]]:
 
 
 def _geometry(path: Path) -> dict:
-    """The geometry section: `uwlab.experiments.geometry`'s verdict, its comparison table and figure."""
+    """The geometry section of a ``geometry.json`` (`uwlab.experiments.geometry`): its verdict, comparison table and
+    figure."""
+    figure = path / GEOMETRY_FIGURE
     doc = read_json(path / GEOMETRY_FILE, "report")
-    near, far = doc["dof_measured_m"]
-    model_near, model_far = doc["dof_model_m"]
-    near_error, far_error = doc["dof_depth_errors"]
+    section = _geometry_section(doc, path, _img(figure) if figure.exists() else None)
+    section["made_with"] = [(f"geometry {path}", _made_with(doc.get("provenance")))]
+    return section
+
+
+def _dataset_geometry(path: Path) -> dict | None:
+    """The geometry section computed from a dataset's geometry sweeps (`uwlab.experiments.geometry.from_dataset`),
+    None for a dataset without any."""
+    from uwlab.experiments.geometry import plot_geometry
+    from uwlab.experiments.geometry.from_dataset import geometry_from_dataset, has_geometry
+
+    data = Dataset.open(path)
+    if not has_geometry(data.points()):
+        return None
+    result = geometry_from_dataset(data)
+    image = png_data_uri(figure_png(plot_geometry(result)))
+    section = _geometry_section(to_jsonable(result.to_json()), path, image)
+    section["made_with"] = []  # the dataset's own provenance is listed with it
+    return section
+
+
+def _metres(value) -> str:
+    return number_text(value, ".4f") + (" m" if value is not None and np.isfinite(value) else "")
+
+
+def _geometry_section(doc: dict, path: Path, image: str | None) -> dict:
+    """The verdict, the comparison table (the parts measured: MTF50, best focus, depth of field) and the figure."""
+    depth = f"depth within {_percent(doc['tolerances']['depth'], 0)}"
     rows = [
         {
-            "quantity": "MTF50, worst over both sweeps",
+            "quantity": "MTF50, worst over the sweeps",
             "measured": f"within {_percent(doc['worst_mtf50_error'])} of the model",
             "model": "—",
             "target": f"≤ {_percent(doc['tolerances']['mtf50'], 0)}",
-        },
-        {
-            "quantity": "best focus setting",
-            "measured": f"{doc['best_focus_measured_m']:.4f} m",
-            "model": f"{doc['best_focus_predicted_m']:.4f} m",
-            "target": f"within one step ({doc['focus_step_m'] * 1e3:.1f} mm)",
-        },
-        {
-            "quantity": "depth of field, near limit",
-            "measured": f"{near:.4f} m",
-            "model": f"{model_near:.4f} m",
-            "target": f"depth within {_percent(doc['tolerances']['depth'], 0)} ({near_error * 100:+.1f} %)",
-        },
-        {
-            "quantity": "depth of field, far limit",
-            "measured": f"{far:.4f} m",
-            "model": f"{model_far:.4f} m",
-            "target": f"depth within {_percent(doc['tolerances']['depth'], 0)} ({far_error * 100:+.1f} %)",
-        },
+        }
     ]
-    figure = path / GEOMETRY_FIGURE
+    if doc["focus_sweep"]:
+        step = doc["focus_step_m"]
+        rows.append(
+            {
+                "quantity": "best focus setting",
+                "measured": _metres(doc["best_focus_measured_m"]),
+                "model": _metres(doc["best_focus_predicted_m"]),
+                "target": f"within one step ({number_text(None if step is None else step * 1e3, '.1f')} mm)",
+            }
+        )
+    if doc["distance_sweep"]:
+        for name, measured, model, error in zip(
+            ("near", "far"), doc["dof_measured_m"], doc["dof_model_m"], doc["dof_depth_errors"], strict=True
+        ):
+            rows.append(
+                {
+                    "quantity": f"depth of field, {name} limit",
+                    "measured": _metres(measured),
+                    "model": _metres(model),
+                    "target": f"{depth} ({number_text(None if error is None else error * 100, '+.1f')} %)",
+                }
+            )
     return {
         "path": str(path),
         "adequate": doc["adequate"],
@@ -506,8 +537,7 @@ def _geometry(path: Path) -> dict:
         "lens": doc["lens"],
         "criterion": _number(doc["criterion_mtf50_cy_per_px"], 3),
         "rows": rows,
-        "image": _img(figure) if figure.exists() else None,
-        "made_with": [(f"geometry {path}", _made_with(doc.get("provenance")))],
+        "image": image,
     }
 
 
@@ -581,6 +611,7 @@ def write_report(root: str | Path, out: str | Path, *, replace: bool = False) ->
     emva_parts = [_emva(e) for e in emva]
     dataset_parts = [_provenance(d, m) for d, m in metadata]
     geometry_parts = [_geometry(g) for g in geometry]
+    geometry_parts += [g for d in datasets if (g := _dataset_geometry(d)) is not None]
     made_with = [("this report", provenance_line(provenance()))]
     for part in (*dataset_parts, *calibration_parts, *emva_parts, *geometry_parts):
         made_with += part["made_with"]

@@ -23,7 +23,7 @@ Schema (docs/sweeps.md has a commented example). Top level:
   ``area_cm2``): a USB spectrometer through python-seabreeze (docs/spectrometers.md);
 - ``[defaults]``: any sweep key, applied to every sweep unless the sweep sets it.
 
-Each ``[[sweep]]``: ``id`` (unique), ``kind`` (exposure | aperture | gain | light-level | dark), ``values``
+Each ``[[sweep]]``: ``id`` (unique), ``kind`` (exposure | aperture | gain | light-level | dark | geometry), ``values``
 (a list, or ``{start, stop, num, spacing = "linear" | "log"}``: exposure_us, f-number, gain_db or light level;
 a dark sweep steps exposure_us with the light off), ``frames_per_point`` (≥ 2), ``settle_s``, ``dark``
 ("point": dark frames at every point, "block": once per sweep, only when camera settings stay fixed, "none"),
@@ -35,6 +35,14 @@ at the camera's clip level above which a point is flagged; `uwlab.experiments.sa
 sensor profile: sets the rig's ``sensor.profile``; the simulated camera uses it), ``camera`` (a table overriding
 ``[camera]``), the fixed settings ``exposure_us``, ``gain_db``, ``black_level_dn``, ``light_level``,
 ``save_frames`` (TIFFs under ``frames/``) and ``geometry`` (design overrides for this sweep only).
+
+A geometry sweep (``kind = "geometry"``, docs/sweeps.md) measures a slanted edge's e-SFR at each point: ``step``
+names what its values step (``lens_focus_m``: the lens focus setting, the air-equivalent distance from the pupil;
+``target_distance_m``: the target's distance from the pupil; ``f_number``; ``exposure_us`` with the target moving at
+the rig's ``operation.speed_m_s``, refused when it is 0); ``lens_focus_m`` and ``target_distance_m`` fix the
+settings not stepped (defaults: the target's image through the port, `uwlab.model.focus.target_image_distance_m`,
+and the rig's ``operation.altitude_m``); ``edge_roi`` ([x, y, w, h] within the image; default: found). It needs a
+lens and a tank rig; the geometry keys on another kind of sweep are refused.
 
 No lens: the resolved rig of a "no lens" sweep carries the bare sensor's f-number and transmittance
 (`uwlab.model.optics.NO_LENS`); its rows have null focal length and f-number.
@@ -75,6 +83,7 @@ from uwlab.model.evaluation import SpectrometerPosition
 from uwlab.model.optics import NO_LENS, LensSetting
 from uwlab.model.sensor import SensorProfile
 from uwlab.model.schema import (
+    DistanceM,
     DurationS,
     ExposureUs,
     FNumber,
@@ -100,6 +109,10 @@ from uwlab.model.schema import (
 )
 
 DarkMode = Literal["point", "block", "none"]
+# What a geometry sweep steps: the lens focus setting, the target's distance, the f-number, or the exposure (the
+# target moving at the rig's ``operation.speed_m_s``).
+GeometryStep = Literal["lens_focus_m", "target_distance_m", "f_number", "exposure_us"]
+GEOMETRY_KEYS = ("step", "lens_focus_m", "target_distance_m", "edge_roi")
 MAX_POINTS = 10000
 # Pixel coordinates of a window or ROI: offsets from 0, sizes from 2 (a variance needs two pixels).
 OffsetPx = Annotated[int, limits(0, 100000, "px", hint="", integer=True)]
@@ -284,6 +297,28 @@ class SweepTable(Schema):
     light: NonEmptyText | None = Field(None, description="the [[lights]] name the level applies to (default: first)")
     save_frames: StrictBool = Field(False, description="write each point's frames as TIFF under frames/")
     geometry: DesignSections = Field({}, description="design sections overriding the rig for this sweep")
+    step: GeometryStep | None = Field(None, description="what a geometry sweep steps (its values' unit)")
+    lens_focus_m: DistanceM | None = Field(
+        None,
+        description="a geometry sweep's lens focus setting [m, air-equivalent, from the pupil] (default: the "
+        "target's image)",
+    )
+    target_distance_m: DistanceM | None = Field(
+        None, description="a geometry sweep's target distance from the pupil [m] (default: operation.altitude_m)"
+    )
+    edge_roi: Rectangle | None = Field(
+        None, description="a geometry sweep's slanted edge [x, y, width, height] within the image (default: found)"
+    )
+
+    @model_validator(mode="after")
+    def _geometry_keys(self):
+        if self.kind == "geometry" and self.step is None:
+            raise invalid("step", None, "a geometry sweep needs step = " + " | ".join(GeometryStep.__args__))
+        if self.kind != "geometry":
+            for key in GEOMETRY_KEYS:
+                if getattr(self, key) is not None:
+                    raise invalid(key, getattr(self, key), 'only for a kind = "geometry" sweep')
+        return self
 
     @field_validator("spectrometer")
     @classmethod
@@ -343,6 +378,8 @@ class Point:
     f_number: float | None
     light_level: float
     light_on: bool
+    lens_focus_m: float | None = None  # a geometry point's focus setting and target distance (else None)
+    target_distance_m: float | None = None
 
 
 @dataclass(frozen=True)
@@ -359,6 +396,8 @@ class SweepSpec:
     camera: CameraSpec  # the plan's [camera] with the table's camera keys over it
     rig_raw: dict  # the rig config with the plan's and the sweep's geometry, its sensor and lens written in
     design: Design | Bench  # rig_raw validated: the design of its rates, or the EMVA 1288 bench
+    lens_focus_m: float | None = None  # a geometry sweep's fixed focus setting and target distance (else None)
+    target_distance_m: float | None = None
 
     def points(self) -> list[Point]:
         """Every point of the sweep, in order."""
@@ -366,14 +405,17 @@ class SweepSpec:
 
     def _point(self, index: int, value: float) -> Point:
         """The point stepping the setting of the sweep's kind to ``value``, the others at the sweep's fixed ones."""
-        kind = self.table.kind
+        kind, step = self.table.kind, self.table.step
+        geometry = kind == "geometry"
         return Point(
             index=index,
-            exposure_us=value if kind in ("exposure", "dark") else self.exposure_us,
+            exposure_us=value if kind in ("exposure", "dark") or step == "exposure_us" else self.exposure_us,
             gain_db=value if kind == "gain" else self.table.gain_db,
-            f_number=value if kind == "aperture" else self.lens.f_number,
+            f_number=value if kind == "aperture" or step == "f_number" else self.lens.f_number,
             light_level=value if kind == "light-level" else self.table.light_level,
             light_on=kind != "dark",
+            lens_focus_m=value if step == "lens_focus_m" else self.lens_focus_m if geometry else None,
+            target_distance_m=value if step == "target_distance_m" else self.target_distance_m if geometry else None,
         )
 
 
@@ -600,7 +642,8 @@ def _sweep(body: dict, number: int, rig_raw: dict, rig_dir: Path, geometry: dict
     sensor = design.sensor
     exposure_us = table.exposure_us
     if exposure_us is None:
-        exposure_us = float(np.median(values)) if table.kind in ("exposure", "dark") else 1000.0
+        stepped = table.kind in ("exposure", "dark") or table.step == "exposure_us"
+        exposure_us = float(np.median(values)) if stepped else 1000.0
     within(
         f"{prefix}.exposure_us",
         exposure_us,
@@ -621,6 +664,7 @@ def _sweep(body: dict, number: int, rig_raw: dict, rig_dir: Path, geometry: dict
         camera=parse(CameraSpec, {**camera, **table.camera}, f"{prefix}.camera"),
         rig_raw=rig,
         design=design,
+        **_geometry_settings(prefix, table, design, lens),
     )
     _check_values(spec, sensor)
     _check_dark_mode(table)
@@ -662,6 +706,8 @@ def _check_values(spec: SweepSpec, sensor: SensorProfile) -> None:
         within(key, spec.values, sensor.gain_min_db, sensor.gain_max_db, f"{sensor.name}'s gain range [dB]")
     elif kind == "light-level":
         within(key, spec.values, 0.0, 1.0, "the light level range")
+    elif kind == "geometry":
+        _check_geometry_values(spec, sensor)
     elif spec.lens.bare:
         raise ConfigError(f"sweep.{spec.table.id}.lens", "none", "an aperture sweep needs a lens")
     else:
@@ -669,7 +715,82 @@ def _check_values(spec: SweepSpec, sensor: SensorProfile) -> None:
         within(key, spec.values, lo, hi, "the lens's f-number range")
 
 
+def _geometry_settings(prefix: str, table: SweepTable, design: Design | Bench, lens: LensSetting) -> dict:
+    """A geometry sweep's fixed target distance (the table's, else the rig's ``operation.altitude_m``) and lens focus
+    setting (the table's, else where the model puts the target's image through the port,
+    `uwlab.model.focus.target_image_distance_m`); {} for other sweeps. A geometry sweep needs a lens and a design
+    rig (not the EMVA bench)."""
+    if table.kind != "geometry":
+        return {}
+    if isinstance(design, Bench):
+        raise ConfigError(f"{prefix}.kind", "geometry", "the EMVA 1288 bench has no target to image: use a tank rig")
+    if lens.bare:
+        raise ConfigError(f"{prefix}.lens", "none", "a geometry sweep needs a lens")
+    from uwlab.model.chain import port_geometry
+    from uwlab.model.focus import target_image_distance_m
+
+    distance = table.target_distance_m
+    if distance is None:
+        distance = float(design["operation.altitude_m"])
+    focus = table.lens_focus_m
+    if focus is None:
+        port, n_w, flat, dome, decenter_z = port_geometry(design)
+        focus = float(target_image_distance_m(distance, port, n_w, flat, dome, decenter_z))
+    return {"lens_focus_m": float(focus), "target_distance_m": float(distance)}
+
+
+def _check_geometry_values(spec: SweepSpec, sensor: SensorProfile) -> None:
+    """A geometry sweep's values within what its step allows: a focus setting beyond the focal length (a lens
+    focuses no closer), a target beyond the port (the flat port's air gap and thickness), an f-number within the
+    lens's range, an exposure within the sensor's with a moving target (``operation.speed_m_s`` > 0)."""
+    table, key = spec.table, f"sweep.{spec.table.id}.values"
+    design = spec.design
+    step = table.step
+    focal_m = spec.lens.focal_length_mm * 1e-3 if spec.lens.focal_length_mm is not None else 0.0
+    hi = limits_of(DistanceM).hi
+    if step == "lens_focus_m":
+        within(key, spec.values, focal_m * 1.001, hi, "focus settings beyond the focal length [m]")
+    elif step == "target_distance_m":
+        within(key, spec.values, _port_depth_m(design) * 1.001, hi, "distances beyond the port [m]")
+    elif step == "f_number":
+        lo, top = spec.lens.f_number_range or (limits_of(FNumber).lo, limits_of(FNumber).hi)
+        within(key, spec.values, lo, top, "the lens's f-number range")
+    else:
+        within(key, spec.values, sensor.exposure_min_us, sensor.exposure_max_us, f"{sensor.name}'s exposure range [µs]")
+        if isinstance(design, Bench) or not float(design["operation.speed_m_s"]) > 0:
+            raise ConfigError(
+                f"sweep.{table.id}.step",
+                step,
+                "an exposure step measures motion blur: the rig needs a moving target (operation.speed_m_s > 0)",
+            )
+    fixed = {"lens_focus_m": spec.lens_focus_m, "target_distance_m": spec.target_distance_m}
+    if step != "lens_focus_m" and fixed["lens_focus_m"] is not None and not fixed["lens_focus_m"] > focal_m:
+        raise ConfigError(f"sweep.{table.id}.lens_focus_m", fixed["lens_focus_m"], "must be beyond the focal length")
+    depth = _port_depth_m(design)
+    if (
+        step != "target_distance_m"
+        and fixed["target_distance_m"] is not None
+        and not fixed["target_distance_m"] > depth
+    ):
+        raise ConfigError(
+            f"sweep.{table.id}.target_distance_m", fixed["target_distance_m"], f"must be beyond the port ({depth:g} m)"
+        )
+
+
+def _port_depth_m(design: Design | Bench) -> float:
+    """How far from the pupil the water begins: a flat port's air gap plus its thickness (0 for a dome)."""
+    if isinstance(design, Bench) or design["housing.port"] != "flat":
+        return 0.0
+    return (float(design["housing.flat_air_gap_mm"]) + float(design["housing.flat_thickness_mm"])) * 1e-3
+
+
 def _check_dark_mode(table: SweepTable) -> None:
+    if table.dark == "block" and table.step == "exposure_us":
+        raise ConfigError(
+            f"sweep.{table.id}.dark",
+            "block",
+            "a geometry sweep stepping exposure_us changes the camera settings at every point: use 'point'",
+        )
     if table.dark == "block" and table.kind in ("exposure", "gain"):
         raise ConfigError(
             f"sweep.{table.id}.dark",

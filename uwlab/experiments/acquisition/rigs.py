@@ -10,6 +10,7 @@ module never imports the simulator.
 from __future__ import annotations
 
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Protocol
 
 import numpy as np
@@ -18,7 +19,7 @@ from uwlab.drivers.camera import Camera, open_camera
 from uwlab.drivers.ocean_insight import open_instrument
 from uwlab.drivers.serial import Light, Spectrometer, open_light, open_spectrometer
 from uwlab.errors import ConfigError
-from uwlab.experiments.acquisition.plan import Plan, SweepSpec
+from uwlab.experiments.acquisition.plan import Plan, Point, SweepSpec
 from uwlab.experiments.acquisition.roi import Rect, aruco_roi
 from uwlab.model.data import resolve_path
 
@@ -38,11 +39,24 @@ class Rig(Protocol):
     def open_camera(self, sweep: SweepSpec) -> Camera: ...
     def set_aperture(self, sweep: SweepSpec, f_number: float) -> None: ...
     def place_spectrometer(self, position: str) -> None: ...
+    def set_geometry(self, sweep: SweepSpec, point: Point) -> GeometrySetting: ...
     def board_roi(self, sweep: SweepSpec, camera: Camera, image: np.ndarray) -> Rect: ...
     def truth(self, camera: Camera) -> dict | None: ...
 
 
 Confirm = Callable[[str], None]
+# Asks the operator to set something by hand (the message) and returns the value set, given the one requested.
+AskValue = Callable[[str, float], float]
+
+
+@dataclass(frozen=True)
+class GeometrySetting:
+    """A geometry point's lens focus setting and target distance as they were set, and by whom: ``"rig"`` (set
+    directly: the simulated rig) or ``"operator"`` (by hand, the values given at the prompt)."""
+
+    lens_focus_m: float
+    target_distance_m: float
+    set_by: str
 
 
 def to_safe_state(lights: dict[str, Light]) -> dict[str, bool]:
@@ -92,14 +106,17 @@ def open_plan_lights(plan: Plan) -> dict[str, Light]:
 
 class HardwareRig:
     """The tank: a camera by backend and id, the light and spectrometer on serial ports. ``confirm(message)``
-    asks the operator to do something (set an aperture, move the spectrometer) and returns once done; None
-    (``--non-interactive``) refuses every such request."""
+    asks the operator to do something (set an aperture, move the spectrometer) and returns once done; ``ask_value``
+    asks for a setting made by hand (the lens focus ring, the target's distance: the tank has no motorised axis) and
+    returns the value set; None (``--non-interactive``) refuses every such request."""
 
     sim = False
 
-    def __init__(self, plan: Plan, confirm: Confirm | None = None):
+    def __init__(self, plan: Plan, confirm: Confirm | None = None, ask_value: AskValue | None = None):
         self.plan = plan
         self.confirm = confirm
+        self.ask_value = ask_value
+        self._geometry: dict[str, tuple[float, float]] = {}  # setting → (requested, given) last
         self.light: Light | None = None
         self.lights: dict[str, Light] = {}
         self.hold_levels: dict[str, float] = {spec.name: spec.level for spec in plan.lights}
@@ -155,6 +172,33 @@ class HardwareRig:
         if position != self._position:
             self._ask("spectrometer", position, f"place the spectrometer at the {position}")
             self._position = position
+
+    def set_geometry(self, sweep: SweepSpec, point: Point) -> GeometrySetting:
+        """The operator sets the focus ring and places the target by hand, asked only when the requested value
+        changes; the values they give are recorded."""
+        focus = self._given(
+            sweep, "lens_focus_m", point.lens_focus_m, "set the lens focus to {:.4g} m (air-equivalent)"
+        )
+        distance = self._given(
+            sweep, "target_distance_m", point.target_distance_m, "place the target {:.4g} m from the lens's pupil"
+        )
+        return GeometrySetting(focus, distance, "operator")
+
+    def _given(self, sweep: SweepSpec, setting: str, requested: float | None, message: str) -> float:
+        if requested is None:
+            raise ValueError(f"sweep {sweep.table.id}: a geometry point without {setting}")
+        last = self._geometry.get(setting)
+        if last is not None and last[0] == requested:
+            return last[1]
+        if self.ask_value is None:
+            raise ConfigError(
+                f"sweep.{sweep.table.id}.{setting}",
+                requested,
+                f"needs the operator ({message.format(requested)}); refused under --non-interactive",
+            )
+        given = float(self.ask_value(message.format(requested), requested))
+        self._geometry[setting] = (requested, given)
+        return given
 
     def board_roi(self, sweep: SweepSpec, camera: Camera, image: np.ndarray) -> Rect:
         return aruco_roi(image, sweep.table.aruco_dictionary)

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 
 from uwlab.errors import ConfigError
 from uwlab.experiments.acquisition.plan import Plan
-from uwlab.experiments.acquisition.rigs import Confirm, HardwareRig
+from uwlab.experiments.acquisition.rigs import AskValue, Confirm, HardwareRig
 from uwlab.experiments.acquisition.sweep import Progress, SweepRunner, open_for_resume
 from uwlab.experiments.dataset import Dataset
 from uwlab.outputs import output_dir
@@ -52,14 +52,17 @@ def open_target(
     return Dataset.create(target, plan.raw, plan_sha256=plan.sha256, sim=sim, force=force, purpose=purpose)
 
 
-def make_rig(plan: Plan, sim: bool, confirm: Confirm | None = None, seed: int = 0) -> SimRig | HardwareRig:
+def make_rig(
+    plan: Plan, sim: bool, confirm: Confirm | None = None, seed: int = 0, ask_value: AskValue | None = None
+) -> SimRig | HardwareRig:
     """The rig the plan runs on: the simulated one (`SimRig`, its noise seeded from `seed`) or the tank's devices
-    (`HardwareRig`; `confirm` asks the operator for manual steps, None refuses them)."""
+    (`HardwareRig`; `confirm` asks the operator for manual steps and `ask_value` for settings made by hand, the lens
+    focus and the target's distance; None refuses them)."""
     if sim:
         from uwlab.experiments.acquisition.sim_rig import SimRig
 
         return SimRig(plan.rig_path, seed=seed, lights=plan.lights)
-    return HardwareRig(plan, confirm)
+    return HardwareRig(plan, confirm, ask_value)
 
 
 def progress_text(event: Progress) -> str:
@@ -83,11 +86,12 @@ def run_session(
     seed: int = 0,
     progress: Callable[[Progress], None] | None = None,
     purpose: str = "uwlab sweep",
+    ask_value: AskValue | None = None,
 ) -> Path:
     """Run every missing point of `plan` into the dataset `open_target` gives, on `make_rig`'s rig; `progress` is
     called after each recorded point. Returns the dataset's directory."""
     with open_target(plan, out, resume=resume, sim=sim, force=force, purpose=purpose) as dataset:
-        rig = make_rig(plan, sim, confirm, seed)
+        rig = make_rig(plan, sim, confirm, seed, ask_value)
         try:
             with rig:
                 SweepRunner(plan, dataset, rig, progress).run()

@@ -13,12 +13,15 @@ sensor under a diffuse disk source, the spectrometer at the sensor plane).
   level) to the serial light, so it lights the simulated tank as the serial light would. Lights on real resources
   are replaced by the serial light (the first) or left out.
 
-Apertures are set directly (`RigScene.set_lens` and a re-render); the spectrometer is moved between the
-target and the camera with the simulator's ``SIM:POS`` command. Every configuration is the scene's rendering
-(`RigScene.electron_rate_map`), a colour sensor's each Bayer site through its own channel's QE; "no lens" gives a
-uniform field (per channel: a bare sensor sees the whole hemisphere; see `uwlab.model.optics`). The simulated
-board carries no printed markers, so an ``aruco`` ROI is the board's footprint from the scene (what the detector
-would report).
+Apertures are set directly (`RigScene.set_lens` and a re-render); so are a geometry sweep's lens focus and target
+distance: each geometry point renders a slanted-edge chart at the sensor's centre on the board
+(`uwlab.sim.edge_chart.chart_rate_map`: defocus traced through the tank's wall, diffraction, the target's motion at
+the rig's ``operation.speed_m_s`` over the exposure, the pixel) into the electron-rate map. Other sweeps render no
+chart (their images are as before). The spectrometer is moved between the target and the camera with the
+simulator's ``SIM:POS`` command. Every configuration is the scene's rendering (`RigScene.electron_rate_map`), a
+colour sensor's each Bayer site through its own channel's QE; "no lens" gives a uniform field (per channel: a bare
+sensor sees the whole hemisphere; see `uwlab.model.optics`). The simulated board carries no printed markers, so an
+``aruco`` ROI is the board's footprint from the scene (what the detector would report).
 The spectrometer simulator models the rig file's geometry; per-sweep geometry overrides change the images only.
 
 The rig's temporary folder (``uwlab-simrig-*`` in the system's temporary directory: pseudo-terminal links, the
@@ -44,7 +47,9 @@ from uwlab.drivers.instruments import VisaLight, open_visa_light
 from uwlab.drivers.serial import Light, Spectrometer, open_light, open_spectrometer
 from uwlab.drivers.serial.ascii import AsciiSpectrometer
 from uwlab.experiments.acquisition.plan import LightSpec, SweepSpec
-from uwlab.experiments.acquisition.rigs import to_safe_state
+from uwlab.errors import ConfigError
+from uwlab.experiments.acquisition.plan import Point
+from uwlab.experiments.acquisition.rigs import GeometrySetting, to_safe_state
 from uwlab.experiments.acquisition.roi import Rect
 from uwlab.experiments.saturation import sensor_clip_dn
 from uwlab.lockfile import OwnerLock, is_stale, read_holder
@@ -52,6 +57,7 @@ from uwlab.model.chain import beam_half_angle_rad
 from uwlab.sim.bench import BenchScene
 from uwlab.sim.devices.camera import SimFaults, SimSensor, SimTruth
 from uwlab.sim.devices.serial_sim import SerialRig, SerialSimSettings
+from uwlab.sim.edge_chart import chart_rate_map, rig_optics
 from uwlab.sim.rig_state import RigState
 from uwlab.sim.scene import RigScene, load_scene
 
@@ -167,6 +173,29 @@ class SimRig:
         scene, sensor, _ = self._open()
         scene.set_lens(f_number=f_number)
         sensor.set_rate_map(scene.electron_rate_map)
+
+    def set_geometry(self, sweep: SweepSpec, point: Point) -> GeometrySetting:
+        """Set the lens focus and the target's distance directly: the scene is rendered with the point's chart
+        (module docstring); the chart's noise is seeded by the rig's seed and the point's index."""
+        scene, sensor, _ = self._open()
+        if not isinstance(scene, RigScene) or point.lens_focus_m is None or point.target_distance_m is None:
+            raise ConfigError(f"sweep.{sweep.table.id}.kind", "geometry", "the simulated rig has no target here")
+        try:
+            optics = rig_optics(scene.design, scene.world, scene.tank is not None, float(scene.design["lens.f_number"]))
+        except ValueError as exc:
+            raise ConfigError(f"sweep.{sweep.table.id}.kind", "geometry", str(exc)) from None
+        plain = scene.electron_rate_map
+        focus, distance = point.lens_focus_m, point.target_distance_m
+        speed = float(scene.design["operation.speed_m_s"])  # the sweep's design, on the scene
+        seed = (scene.sim.seed + self.seed, point.index)
+
+        def charted(shape: tuple[int, int]) -> np.ndarray:
+            return chart_rate_map(
+                plain(shape), optics, distance, focus, seed, speed_m_s=speed, exposure_s=point.exposure_us * 1e-6
+            )
+
+        sensor.set_rate_map(charted)
+        return GeometrySetting(focus, distance, "rig")
 
     def place_spectrometer(self, position: str) -> None:
         """Move the simulated spectrometer (the simulator's ``SIM:POS`` command on its serial line)."""

@@ -17,6 +17,13 @@ colour channel is a sensor of its own), and the row records the layout (``bayer`
 declares the layout the camera must deliver: every remaining sweep's camera is checked before the first point is
 measured, and a mismatch is refused (`ConfigError`, nothing recorded).
 
+A geometry sweep (``kind = "geometry"``) also sets the point's lens focus and target distance (`Rig.set_geometry`:
+directly on the simulated rig, by the operator on the tank, the values given recorded) and measures the slanted
+edge on the mean of the point's lit frames (ISO 12233 e-SFR, `uwlab.experiments.frames.esfr.measure_edge`: in the
+sweep's ``edge_roi``, else where one is found; per colour channel for a raw Bayer format), recorded next to the
+radiometry (`uwlab.experiments.dataset.EDGE_FIELDS`); an edge that does not measure stops the sweep (`ConfigError`
+naming the point).
+
 With ``save_frames``, every frame the point was computed from, bright and dark (a shared dark block linked into
 each point), is kept as TIFF with its settings (`uwlab.experiments.dataset_frames`), committed with the point.
 
@@ -60,9 +67,10 @@ from uwlab.experiments.acquisition.dataset_check import check
 from uwlab.experiments.acquisition.light_calibration import measure_unsaturated
 from uwlab.experiments.acquisition.plan import Plan, Point, SweepSpec, resolved_rig, sweep_tables
 from uwlab.experiments.acquisition.readbacks import verified
-from uwlab.experiments.acquisition.rigs import Rig
+from uwlab.experiments.acquisition.rigs import GeometrySetting, Rig
 from uwlab.experiments.acquisition.roi import Rect, check_inside
 from uwlab.experiments.acquisition.spectra import irradiance_w_m2
+from uwlab.experiments.frames.esfr import EdgeMTF, measure_edge
 from uwlab.experiments.frames.stack import StackAccumulator, StackStatistics
 from uwlab.experiments.saturation import ClipLevel, frame_clip_level
 from uwlab.provenance import provenance
@@ -124,6 +132,8 @@ class SweepRunner:
         self._done = len(dataset.completed())
         self._spectrometer_darks: dict = {}
         self._swept: str | None = None  # the light the current sweep dims (the others hold their level)
+        self._geometry: GeometrySetting | None = None  # a geometry point's focus and distance as set
+        self._mean_image: np.ndarray | None = None  # the mean of a geometry point's lit frames
 
     def run(self) -> None:
         """Check every remaining sweep's colour filter layout, measure every remaining point, then record the
@@ -350,27 +360,51 @@ class SweepRunner:
         """Every setting the point depends on: camera exposure and gain, aperture, light output and level."""
         camera.exposure_us = point.exposure_us
         camera.gain_db = point.gain_db
-        if sweep.table.kind == "aperture":
+        if sweep.table.kind == "aperture" or sweep.table.step == "f_number":
             if point.f_number is None:  # an aperture sweep's points carry their own (`SweepSpec.points`)
                 raise ValueError(f"sweep {sweep.table.id} point {point.index}: no f-number to set")
             self.rig.set_aperture(sweep, point.f_number)
+        if sweep.table.kind == "geometry":
+            self._geometry = self.rig.set_geometry(sweep, point)
         self._set_light(point.light_on, point.light_level, 0.0)
         self.sleep(sweep.table.settle_s)
 
     def _lit(
         self, sweep: SweepSpec, camera: Camera, roi: Rect, point: Point, recorder: FrameRecorder | None
     ) -> tuple[StackStatistics, ClipLevel, list[FrameRecord], list[Reading]]:
-        """The point's own frames and spectrometer readings (the verified window)."""
+        """The point's own frames and spectrometer readings (the verified window); a geometry point's frames are
+        also summed for its edge (`_edges`)."""
         if recorder is not None:
             recorder.forget("bright")
-        bright, clip, frames = self._stack(
-            sweep,
-            camera,
-            roi,
-            sweep.table.frames_per_point,
-            self._keeper(recorder, "bright", sweep, camera, roi, point),
-        )
+        keep = self._keeper(recorder, "bright", sweep, camera, roi, point)
+        total: list[np.ndarray] = []
+        if sweep.table.kind == "geometry":
+            keeper = keep
+
+            def keep(frame: Frame) -> None:
+                if keeper is not None:
+                    keeper(frame)
+                if total:
+                    total[0] += frame.image
+                else:
+                    total.append(frame.image.astype(np.float64))
+
+        bright, clip, frames = self._stack(sweep, camera, roi, sweep.table.frames_per_point, keep)
+        self._mean_image = total[0] / len(frames) if total else None
         return bright, clip, frames, [self._reading(sweep, position) for position in sweep.table.spectrometer]
+
+    def _edges(self, sweep: SweepSpec, point: Point, clip: ClipLevel, bayer: str | None) -> dict | None:
+        """A geometry point's e-SFR on the mean of its lit frames (None for other points); `ConfigError` naming the
+        point when its edge does not measure."""
+        if sweep.table.kind != "geometry" or self._mean_image is None:
+            return None
+        try:
+            edges: dict[str | None, EdgeMTF] = measure_edge(self._mean_image, sweep.table.edge_roi, bayer, clip.dn)
+        except ConfigError as exc:
+            raise ConfigError(
+                f"sweep.{sweep.table.id}.edge_roi", exc.value, f"point {point.index}: {exc.reason}"
+            ) from None
+        return edges
 
     def _measure(
         self,
@@ -398,6 +432,8 @@ class SweepRunner:
         if sweep.table.dark == "point":
             dark = self._dark(sweep, camera, roi, recorder, point)
         settings = frames[-1].settings
+        edges = self._edges(sweep, point, clip, frames[-1].bayer)
+        geometry = self._geometry if edges is not None else None
         lens = replace(sweep.lens, f_number=point.f_number)
         swept_state = window.lights.get(self._swept, {}) if self._swept is not None else {}
         row = point_row(
@@ -408,6 +444,10 @@ class SweepRunner:
             dark=dark,
             clip=clip,
             saturation_threshold=sweep.table.saturation_threshold,
+            edges=edges,
+            lens_focus_m=geometry.lens_focus_m if geometry else None,
+            target_distance_m=geometry.target_distance_m if geometry else None,
+            geometry_set_by=geometry.set_by if geometry else None,
             bayer=frames[-1].bayer,
             camera_backend=camera.info.backend,
             camera_id=camera.info.device_id,

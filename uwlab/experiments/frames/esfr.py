@@ -245,7 +245,11 @@ def slanted_edge(
         cell_offsets = [(((pw - 1 - cx) % 2) if step == 2 else 0, cy) for cx, cy in cell_offsets]
 
     # Plateaus and noise: the step must stand clear of the noise.
-    left, right = plane[:, : max(2, pw // 6)], plane[:, -max(2, pw // 6) :]
+    side = max(2, pw // 6)
+    # A channel's own sites (every pixel of a monochrome image): a mosaic's neighbours are other colours.
+    cx0, cy0 = cell_offsets[0]
+    left = plane[cy0::step, cx0:side:step]
+    right = plane[cy0::step, pw - side + (cx0 - (pw - side)) % step : pw : step]
     contrast = float(np.median(right) - np.median(left))
     noise = float(np.median(np.abs(np.diff(left, axis=0)))) / 0.6745 / np.sqrt(2) if left.shape[0] > 1 else 0.0
     if not contrast > MIN_CONTRAST_NOISE * max(noise, 1e-12 * max(1.0, abs(contrast))):
@@ -443,3 +447,47 @@ def measure_image(
         elif bayer is not None:
             raise ConfigError("bayer", bayer, "give --channel red|green|blue to measure one channel of the mosaic")
     return slanted_edges(plane, _roi(roi), sites, saturation)
+
+
+def measure_edge(
+    image: np.ndarray,
+    roi: tuple[int, int, int, int] | None = None,
+    bayer: str | None = None,
+    saturation: float | None = None,
+) -> dict[str | None, EdgeMTF]:
+    """The e-SFR of the one slanted edge of a sweep point's image (a mean of frames): in ``roi``, else in the largest
+    region `find_edges` finds that measures. A raw Bayer mosaic (``bayer``, its layout at the image's origin) is
+    measured per channel on its own sites, with the edge found on the mosaic averaged over 2 × 2 cells; the result
+    maps ``None`` to the edge over every pixel (a monochrome image) or the green channel's (a mosaic: green samples
+    the plane densest), and each channel name to its own. `ConfigError` (key ``edge_roi``) when no edge measures."""
+    from uwlab.drivers.camera.pixels import bayer_sites
+
+    plane = np.asarray(image, dtype=np.float64)
+    sites = bayer_sites(bayer) if bayer is not None else None
+
+    def measure(box: tuple[int, int, int, int]) -> dict[str | None, EdgeMTF]:
+        if sites is None:
+            return {None: slanted_edge(plane, box, None, saturation)}
+        found: dict[str | None, EdgeMTF] = {
+            name: slanted_edge(plane, box, sites[name[0].upper()], saturation) for name in CHANNELS
+        }
+        return {None: found["green"], **found}
+
+    try:
+        if roi is not None:
+            return measure(roi)
+        import cv2
+
+        search = cv2.blur(plane, (2, 2)) if sites is not None else plane
+        last: ConfigError | None = None
+        for box in sorted(find_edges(search), key=lambda r: -r[2] * r[3]):
+            try:
+                return measure(box)
+            except ConfigError as exc:
+                last = exc
+        reason = f"no measurable edge found ({last.reason})" if last else "no straight slanted edge found"
+        raise ConfigError("edge_roi", None, reason)
+    except ConfigError as exc:
+        if exc.key == "edge_roi":
+            raise
+        raise ConfigError("edge_roi", exc.value, exc.reason) from None

@@ -45,7 +45,8 @@ GEOMETRY_FIGURE = "geometry.png"
 
 @dataclass
 class SweepPoint:
-    value_m: float  # the focus setting or the target distance stepped
+    value_m: float  # the focus setting or the target distance stepped (an aperture sweep: the f-number; an
+    # exposure sweep: the exposure in seconds)
     measured_mtf50: float
     predicted_mtf50: float
 
@@ -56,7 +57,10 @@ class SweepPoint:
 
 @dataclass
 class GeometryValidation:
-    """A focus sweep and a distance sweep, with the measured and predicted best focus and depth of field."""
+    """A focus sweep and a distance sweep, with the measured and predicted best focus and depth of field; a rig's
+    geometry sweeps (`uwlab.experiments.geometry.from_dataset`) may also step the f-number (``aperture``) or the
+    exposure with a moving target (``exposure``). A part not measured (an empty sweep) is left out of the verdict
+    and reads NaN."""
 
     target_distance_m: float
     focus_image_m: float  # the target's image distance (where the model says to focus)
@@ -69,22 +73,31 @@ class GeometryValidation:
     focus_curve: tuple[list[float], list[float]] = ([], [])
     distance_curve: tuple[list[float], list[float]] = ([], [])
     lens: str = ""
+    aperture: list[SweepPoint] = field(default_factory=list)
+    exposure: list[SweepPoint] = field(default_factory=list)
 
     @property
     def focus_step_m(self) -> float:
+        if len(self.focus) < 2:
+            return float("nan")
         return float(np.median(np.diff([p.value_m for p in self.focus])))
 
     @property
     def best_focus_measured_m(self) -> float:
+        if not self.focus:
+            return float("nan")
         return self.focus[int(np.argmax([p.measured_mtf50 for p in self.focus]))].value_m
 
     @property
     def best_focus_predicted_m(self) -> float:
+        if not self.focus:
+            return float("nan")
         return self.focus[int(np.argmax([p.predicted_mtf50 for p in self.focus]))].value_m
 
     @property
     def worst_mtf50_error(self) -> float:
-        return float(max(abs(p.error) for p in [*self.focus, *self.distance]))
+        points = [*self.focus, *self.distance, *self.aperture, *self.exposure]
+        return float(max(abs(p.error) for p in points)) if points else float("nan")
 
     def depth_errors(self) -> tuple[float, float]:
         """Relative errors of the measured near and far depths (limit − target distance) against the model's."""
@@ -95,25 +108,30 @@ class GeometryValidation:
         )
 
     @property
-    def best_focus_steps_off(self) -> int:
+    def best_focus_steps_off(self) -> int | None:
+        """Steps between the measured and the predicted best focus (None without a focus sweep of 2 points)."""
+        if len(self.focus) < 2:
+            return None
         return int(round(abs(self.best_focus_measured_m - self.best_focus_predicted_m) / self.focus_step_m))
 
     @property
     def adequate(self) -> bool:
+        steps = self.best_focus_steps_off
         return bool(
             self.worst_mtf50_error <= MTF50_TOLERANCE
-            and self.best_focus_steps_off <= 1
-            and all(abs(e) <= DEPTH_TOLERANCE for e in self.depth_errors())
+            and (steps is None or steps <= 1)
+            and (not self.distance or all(abs(e) <= DEPTH_TOLERANCE for e in self.depth_errors()))
         )
 
     def headline(self) -> str:
         """The comparison in one clause (the report's verdict box; `uwlab demo` prints it after the word)."""
-        near_error, far_error = self.depth_errors()
-        return (
-            f"MTF50 within {100 * self.worst_mtf50_error:.1f} % of the model; best focus "
-            f"{self.best_focus_steps_off} step(s) off; depth of field near {100 * near_error:+.1f} %, "
-            f"far {100 * far_error:+.1f} %"
-        )
+        parts = [f"MTF50 within {100 * self.worst_mtf50_error:.1f} % of the model"]
+        if self.best_focus_steps_off is not None:
+            parts.append(f"best focus {self.best_focus_steps_off} step(s) off")
+        if self.distance:
+            near_error, far_error = self.depth_errors()
+            parts.append(f"depth of field near {100 * near_error:+.1f} %, far {100 * far_error:+.1f} %")
+        return "; ".join(parts)
 
     def to_json(self) -> dict:
         near_error, far_error = self.depth_errors()
@@ -128,6 +146,8 @@ class GeometryValidation:
             "focus_image_m": self.focus_image_m,
             "focus_sweep": [vars(p) for p in self.focus],
             "distance_sweep": [vars(p) for p in self.distance],
+            "aperture_sweep": [vars(p) for p in self.aperture],
+            "exposure_sweep": [vars(p) for p in self.exposure],
             "best_focus_measured_m": self.best_focus_measured_m,
             "best_focus_predicted_m": self.best_focus_predicted_m,
             "focus_step_m": self.focus_step_m,
