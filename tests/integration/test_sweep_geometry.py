@@ -146,3 +146,13 @@ def test_motion_blur_and_the_aperture_follow_the_model(tmp_path, tank_rig):
     assert len(errors) == 5 and max(abs(e) for e in errors) < 0.05, errors
     blurred = [p.measured_mtf50 for p in result.exposure]
     assert blurred[-1] < 0.5 * blurred[0]  # the motion dominates at the longest exposure
+
+
+def test_a_fit_leaves_geometry_sweeps_out(focus_sweep, capsys):
+    """A geometry sweep's window holds the chart's black half: its points are not radiometry, and a dataset of
+    geometry sweeps alone has nothing to fit (one line, exit 2)."""
+    from tests.support.cli import one_line_error
+
+    _, data = focus_sweep
+    line = one_line_error(capsys, ["fit", str(data.root), "--out", str(data.root.parent / "fit")])
+    assert "no radiometric points" in line

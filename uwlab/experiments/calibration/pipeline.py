@@ -217,8 +217,11 @@ def calibrate(
     out = Path(dataset_dir) / FIT_FOLDER if out is None else Path(out)
     check_output_dir(out)
     points, metadata = dataset.points(), dataset.metadata
+    # Geometry sweeps (a slanted-edge chart in the window, focus and distance stepped) validate the MTF, not the
+    # radiometry: their points are left to the report's geometry section.
+    points = points[points["kind"].astype(str) != "geometry"].reset_index(drop=True)
     if points.empty:
-        raise ConfigError("dataset", str(dataset_dir), "has no points to fit; run (or --resume) its sweep first")
+        raise ConfigError("dataset", str(dataset_dir), "has no radiometric points to fit; run (or --resume) its sweep")
     points = points.assign(relative_flux=relative_flux(points))
     if channel is not None:
         try:
