@@ -27,17 +27,27 @@ function imageUrl(frameId) {
   return `/api/camera/frame.png?clip=${clip}&peaking=${peaking}&n=${frameId}`;
 }
 
-function loadImage(frameId) {
-  // One image request at a time; a newer frame waits for the one loading (the latest wins).
+async function loadImage(frameId) {
+  // One image request at a time; a newer frame waits for the one loading (the latest wins). The PNG is drawn on a
+  // canvas once decoded, so the page never shows a half-loaded image.
   if (state.loading) { state.pending = frameId; return; }
   state.loading = true;
-  const img = $("live");
-  img.onload = img.onerror = () => {
-    state.loading = false;
-    img.dataset.frameId = String(frameId);
-    if (state.pending !== null) { const next = state.pending; state.pending = null; loadImage(next); }
-  };
-  img.src = imageUrl(frameId);
+  try {
+    const response = await fetch(imageUrl(frameId));
+    if (response.ok) {
+      const bitmap = await createImageBitmap(await response.blob());
+      const canvas = $("live");
+      if (canvas.width !== bitmap.width || canvas.height !== bitmap.height) {
+        canvas.width = bitmap.width; canvas.height = bitmap.height;
+      }
+      canvas.getContext("2d").drawImage(bitmap, 0, 0);
+      canvas.dataset.frameId = response.headers.get("x-frame-id");
+      bitmap.close();
+      drawRoi();
+    }
+  } catch (error) { $("status").textContent = String(error.message || error); }
+  state.loading = false;
+  if (state.pending !== null) { const next = state.pending; state.pending = null; loadImage(next); }
 }
 
 function drawRoi() {
@@ -52,7 +62,7 @@ function drawRoi() {
 function showStats(s) {
   state.frameWidth = s.width; state.frameHeight = s.height;
   if (!state.dragging) state.roi = [s.roi.x, s.roi.y, s.roi.w, s.roi.h];
-  $("s-frame").textContent = `#${s.frame_id} ${s.width}×${s.height} ${s.pixel_format}, ${fmt(s.exposure_us, 5)} µs, ${fmt(s.gain_db, 3)} dB`;
+  $("s-frame").textContent = `#${s.frame_id} ${s.width}×${s.height} ${s.pixel_format}, ${s.exposure_us} µs, ${s.gain_db} dB`;
   $("s-mean").textContent = `${fmt(s.mean_dn, 5)} DN`;
   $("s-sat").textContent = `${fmt(100 * s.saturated_fraction, 3)} % (clip ${s.clip_level_dn} DN, ${s.clip_source})`;
   $("s-roi-mean").textContent = `${fmt(s.roi.mean_dn, 5)} DN`;
@@ -69,9 +79,10 @@ function showStats(s) {
   const counts = s.histogram.counts, width = s.histogram.max_dn / s.histogram.bins_dn;
   const colours = { mono: "#444", R: "#d62728", G: "#2ca02c", B: "#1f77b4" };
   Plotly.react("histogram", Object.entries(counts).map(([name, c]) => ({
-    x: c.map((_, i) => (i + 0.5) * width), y: c.map((v) => (v > 0 ? v : null)), name, type: "scatter",
-    mode: "lines", line: { shape: "hvh", color: colours[name] },
+    x: c.map((_, i) => (i + 0.5) * width), y: c, name, type: "bar", width, opacity: 0.7,
+    marker: { color: colours[name], line: { width: 0 } },
   })), {
+    barmode: "overlay", bargap: 0,
     margin: { l: 50, r: 10, t: 10, b: 35 }, height: 180, showlegend: Object.keys(counts).length > 1,
     xaxis: { title: { text: "DN" }, range: [0, s.histogram.max_dn] },
     yaxis: { type: "log", title: { text: "pixels" } },
