@@ -156,7 +156,8 @@ def test_a_second_session_watches(console, tmp_path):
         wait(watcher, lambda d: d.execute_script("return document.getElementById('live').dataset.frameId"), "no image")
         answer = watcher.execute_script(
             "const r = await fetch('/api/camera', {method: 'POST', headers: {'Content-Type': 'application/json', "
-            "'X-XSRF-Token': (document.cookie.match(/_xsrf=([^;]*)/) || [])[1]}, body: JSON.stringify({exposure_us: 99})});"
+            "'X-XSRF-Token': (document.cookie.match(/_xsrf=([^;]*)/) || [])[1]}, "
+            "body: JSON.stringify({exposure_us: 99})});"
             "return [r.status, (await r.json()).error];"
         )
         assert answer[0] == 403 and "watches" in answer[1]
