@@ -240,6 +240,8 @@ def create_console(live: Live, runs: Runs, access: Access | None = None) -> Guar
                     await asyncio.sleep(STREAM_POLL_S)
             finally:
                 control.streams[who] -= 1
+                if control.streams[who] == 0:  # its page closed: control is free for another session
+                    control.release(who)
 
         return StreamingResponse(events(), media_type="text/event-stream", headers={"x-accel-buffering": "no"})
 

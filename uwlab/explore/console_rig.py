@@ -574,6 +574,8 @@ class Run:
     paused_for_s: float = 0.0
     first_done: int = 0
     want: str = "run"  # run, pause, abort
+    began_s: float | None = None  # time.monotonic() when the run took the rig, and when it ended
+    ended_s: float | None = None
     cond: threading.Condition = field(default_factory=threading.Condition)
 
     def eta_s(self) -> float | None:
@@ -592,6 +594,7 @@ class Run:
             "points_done": self.points_done,
             "points_total": self.points_total,
             "eta_s": self.eta_s(),
+            "elapsed_s": None if self.began_s is None else (self.ended_s or time.monotonic()) - self.began_s,
             "faults": list(self.faults),
             "recoveries": dict(self.recoveries),
             "lights_safe_state": self.lights_safe,
@@ -607,6 +610,7 @@ class Runs:
         self.runs: dict[str, Run] = {}
         self.seq = 0
         self._lock = threading.Lock()
+        self._rig = threading.Lock()
 
     def active(self) -> Run | None:
         return next((r for r in self.runs.values() if r.state in ("running", "paused")), None)
@@ -635,7 +639,12 @@ class Runs:
         return run
 
     def _run(self, run: Run, dataset) -> None:
+        with self._rig:  # one run at a time owns the rig, until the live view has it back
+            self._run_holding_the_rig(run, dataset)
+
+    def _run_holding_the_rig(self, run: Run, dataset) -> None:
         self.live.release()
+        run.began_s = time.monotonic()
         try:
             with dataset:
                 rig = make_rig(run.plan, self.sim, None, self.seed)
@@ -655,6 +664,7 @@ class Runs:
             run.faults.append(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
             run.state = "failed"
         finally:
+            run.ended_s = time.monotonic()
             self.seq += 1
             try:
                 self.live.start()
