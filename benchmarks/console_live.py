@@ -150,6 +150,8 @@ def sweep_times(url: str, folder: Path, repeats: int = 2) -> dict:
     path = plan(folder / "plan.toml")
     times: dict[str, list[float]] = {"console_unwatched": [], "console_watched": []}
     with httpx.Client(base_url=url, timeout=60) as client:
+        while not client.post("api/control", json={}).json()["controlling"]:  # the browser's page just closed
+            time.sleep(0.5)
         for i in range(repeats):
             times["console_unwatched"].append(console_run(client, path, folder / f"unwatched-{i}"))
         stop = threading.Event()

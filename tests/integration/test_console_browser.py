@@ -76,7 +76,8 @@ def wait(driver, condition, message: str):
 
 
 def text(driver, element_id: str) -> str:
-    return driver.find_element(By.ID, element_id).text
+    """An element's text, read in one step (the page rewrites its readouts many times a second)."""
+    return driver.execute_script("return document.getElementById(arguments[0]).innerText.trim()", element_id)
 
 
 def set_input(driver, element_id: str, value: str) -> None:

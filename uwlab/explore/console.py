@@ -36,6 +36,7 @@ from uwlab.jsonable import dumps
 
 SESSION_COOKIE = "uwlab_console"
 CONTROL_IDLE_S = 30.0
+STREAM_GRACE_S = 5.0  # a page's stream may reconnect within this long and keep control
 STREAM_POLL_S = 0.02
 
 
@@ -44,8 +45,9 @@ class Control:
 
     def __init__(self) -> None:
         self.holder: str | None = None
-        self.seen: dict[str, float] = {}
-        self.streams: dict[str, int] = {}
+        self.seen: dict[str, float] = {}  # a session's last request
+        self.streams: dict[str, int] = {}  # its open event streams
+        self.left: dict[str, float] = {}  # when its last event stream closed
 
     def touch(self, session: str) -> None:
         self.seen[session] = time.monotonic()
@@ -53,8 +55,11 @@ class Control:
     def _free(self) -> bool:
         if self.holder is None:
             return True
-        idle = time.monotonic() - self.seen.get(self.holder, 0.0)
-        return self.streams.get(self.holder, 0) == 0 and idle > CONTROL_IDLE_S
+        if self.streams.get(self.holder, 0) > 0:
+            return False
+        now, seen = time.monotonic(), self.seen.get(self.holder, 0.0)
+        left = self.left.get(self.holder)
+        return now - seen > CONTROL_IDLE_S or (left is not None and now - max(seen, left) > STREAM_GRACE_S)
 
     def claim(self, session: str) -> bool:
         """Take control when it is free; True when ``session`` controls the rig."""
@@ -80,12 +85,9 @@ class Sessions:
         if scope["type"] != "http":
             await self.app(scope, receive, send)
             return
-        session = _session_cookie(scope)
-        fresh = (
-            session is None or not 16 <= len(session) <= 64 or not session.replace("-", "").replace("_", "").isalnum()
-        )
-        if fresh:
-            session = secrets.token_urlsafe(24)
+        cookie = _session_cookie(scope)
+        fresh = cookie is None or not 16 <= len(cookie) <= 64 or not cookie.replace("-", "").replace("_", "").isalnum()
+        session = secrets.token_urlsafe(24) if fresh or cookie is None else cookie
         scope["session_id"] = session
         self.control.touch(session)
 
@@ -240,8 +242,8 @@ def create_console(live: Live, runs: Runs, access: Access | None = None) -> Guar
                     await asyncio.sleep(STREAM_POLL_S)
             finally:
                 control.streams[who] -= 1
-                if control.streams[who] == 0:  # its page closed: control is free for another session
-                    control.release(who)
+                if control.streams[who] == 0:
+                    control.left[who] = time.monotonic()
 
         return StreamingResponse(events(), media_type="text/event-stream", headers={"x-accel-buffering": "no"})
 

@@ -31,7 +31,7 @@ import uuid
 from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy import ndimage
@@ -49,6 +49,10 @@ from uwlab.experiments.saturation import ClipLevel, adc_max_dn, frame_clip_level
 from uwlab.model.data import read_toml
 from uwlab.model.schema import ExposureUs, GainDb, check
 from uwlab.model.sensor import SensorProfile
+
+if TYPE_CHECKING:
+    from uwlab.experiments.acquisition.rigs import HardwareRig
+    from uwlab.experiments.acquisition.sim_rig import SimRig
 
 PREVIEW_MAX_PX = 800  # the browser's image: the frame decimated to at most this many pixels a side
 HISTOGRAM_BINS = 256
@@ -254,30 +258,31 @@ class Source:
         return RigScene.from_toml(self.rig_path).design
 
     def open(self) -> Devices:
+        """The devices, open (the simulated rig's simulators started); `Devices.close` releases them."""
+        rig: SimRig | HardwareRig
+        sim_rig: SimRig | None = None
+        device_id: str | None
         if self.sim:
             from uwlab.experiments.acquisition.sim_rig import SimRig
 
-            rig = SimRig(self.rig_path, seed=self.seed, lights=self.plan.lights if self.plan else ())
-            rig.__enter__()
-            try:
-                camera = open_camera(
-                    "sim", "sim0", config=str(self.rig_path), rig_state=str(rig.rig_state_path), seed=self.seed
-                )
-            except BaseException:
-                rig.close()
-                raise
+            sim_rig = rig = SimRig(self.rig_path, seed=self.seed, lights=self.plan.lights if self.plan else ())
+            options: dict[str, Any] = {"config": str(self.rig_path), "seed": self.seed}
+            backend, device_id = "sim", "sim0"
         else:
             from uwlab.experiments.acquisition.rigs import HardwareRig
 
-            assert self.plan is not None
+            assert self.plan is not None  # a rig file without --sim is refused in __init__
             rig = HardwareRig(self.plan, None)
-            rig.__enter__()
             spec = self.plan.sweeps[0].camera
-            try:
-                camera = open_camera(spec.backend, spec.device_id, policy=spec.policy())
-            except BaseException:
-                rig.__exit__()
-                raise
+            options, backend, device_id = {"policy": spec.policy()}, spec.backend, spec.device_id
+        rig.__enter__()
+        try:
+            if sim_rig is not None:  # the camera sees the simulated light through the rig's shared state
+                options["rig_state"] = str(sim_rig.rig_state_path)
+            camera = open_camera(backend, device_id, **options)
+        except BaseException:
+            rig.__exit__(None, None, None)
+            raise
 
         def close() -> None:
             try:
@@ -331,6 +336,7 @@ class Live:
         with self.lock:
             self.devices = self.source.open()
             self.released = False
+            self._changed()
         self._stop.clear()
         self._thread = threading.Thread(target=self._loop, name="console-live", daemon=True)
         self._thread.start()
@@ -447,7 +453,7 @@ class Live:
                 check_roi(roi, (info.sensor_height, info.sensor_width))
             camera.stop()  # formats and windows change only while the camera is idle; the next grab restarts it
             settings.apply(camera)
-            self.settings_seq += 1
+            self._changed()
         if roi is not None:
             self.roi = None
         return self.camera_readback()
@@ -466,6 +472,12 @@ class Live:
         self.roi = parsed
         self.reset_focus()
         return {"roi": list(parsed)}
+
+    def _changed(self) -> None:
+        """A setting or a light changed: the page hears of it, and the sharpness trace and its best start over
+        (a best value from other settings — a darker image's noise reads sharp — would mislead)."""
+        self.settings_seq += 1
+        self.reset_focus()
 
     def reset_focus(self) -> None:
         self.best = {"tenengrad": 0.0, "laplacian": 0.0}
@@ -518,7 +530,7 @@ class Live:
                 light.set_level(float(level))
             if on is not None:
                 light.set_output(on)
-            self.settings_seq += 1
+            self._changed()
             return {**self._light(light), "set": {"on": on, "level": level}}
 
     def spectrum(self) -> dict[str, Any]:
@@ -628,8 +640,8 @@ class Runs:
         if out is not None and not isinstance(out, str):
             raise ConfigError("out", out, "must be a directory path")
         with self._lock:
-            if self.active() is not None:
-                raise ConfigError("run", self.active().id, "a run is in progress: pause, resume or abort it first")
+            if (active := self.active()) is not None:
+                raise ConfigError("run", active.id, "a run is in progress: pause, resume or abort it first")
             plan = load_plan(body["plan"])
             dataset = open_target(plan, out, sim=self.sim, purpose="uwlab console")
             run = Run(uuid.uuid4().hex[:12], plan, Path(dataset.root), points_total=plan.total_points())

@@ -170,32 +170,35 @@ function showControl(control) {
 }
 
 function showLights(lights) {
+  // Rows are made once and then updated in place: a field being edited keeps what the user typed.
   const box = $("lights");
-  box.textContent = "";
   for (const [name, light] of Object.entries(lights)) {
-    const row = document.createElement("div");
-    row.className = "light";
-    row.dataset.name = name;
+    let row = box.querySelector(`.light[data-name="${CSS.escape(name)}"]`);
+    if (!row) {
+      row = document.createElement("div");
+      row.className = "light";
+      row.dataset.name = name;
+      row.innerHTML = `<strong></strong> <label><input type="checkbox" class="light-on"> on</label>
+        <label>level <input type="number" class="light-level" min="0" max="1" step="0.05"></label>
+        <button class="light-apply">Set</button> <span class="readback"></span>`;
+      row.querySelector("strong").textContent = name;
+      row.querySelector(".light-apply").addEventListener("click", async () => {
+        try {
+          await api(`/api/lights/${encodeURIComponent(name)}`, {
+            on: row.querySelector(".light-on").checked, level: Number(row.querySelector(".light-level").value),
+          });
+          showError("camera-error");
+          refreshRig();
+        } catch (error) { showError("camera-error", error); }
+      });
+      row.querySelector(".light-on").checked = light.on;
+      row.querySelector(".light-level").value = light.level;
+      box.appendChild(row);
+    }
     const currents = Object.entries(light).filter(([k]) => k.endsWith("_a"))
       .map(([k, v]) => `${k} ${fmt(v, 4)}`).join(", ");
-    row.innerHTML = `<strong></strong> <label><input type="checkbox" class="light-on"> on</label>
-      <label>level <input type="number" class="light-level" min="0" max="1" step="0.05"></label>
-      <button class="light-apply">Set</button> <span class="readback"></span>`;
-    row.querySelector("strong").textContent = name;
-    row.querySelector(".light-on").checked = light.on;
-    row.querySelector(".light-level").value = light.level;
     row.querySelector(".readback").textContent =
       `read back: ${light.on ? "on" : "off"}, level ${fmt(light.level, 3)}${currents ? ", " + currents : ""}; safe state: off`;
-    row.querySelector(".light-apply").addEventListener("click", async () => {
-      try {
-        await api(`/api/lights/${encodeURIComponent(name)}`, {
-          on: row.querySelector(".light-on").checked, level: Number(row.querySelector(".light-level").value),
-        });
-        showError("camera-error");
-        refreshRig();
-      } catch (error) { showError("camera-error", error); }
-    });
-    box.appendChild(row);
   }
 }
 
@@ -268,6 +271,7 @@ function connect() {
   events.addEventListener("stats", (e) => showStats(JSON.parse(e.data)));
   events.addEventListener("rig", (e) => {
     const rig = JSON.parse(e.data);
+    state.trace = [];  // the server starts the sharpness trace over at every change of a setting
     if (rig.error) $("status").textContent = rig.error;
     refreshRig();
   });
