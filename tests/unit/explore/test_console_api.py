@@ -281,3 +281,22 @@ def test_an_oversized_body_is_refused(client):
         "/api/camera", content=b"{" + b" " * 2_000_000 + b"}", headers={"Content-Type": "application/json"}
     )
     assert answer.status_code == 413
+
+
+def test_every_answer_carries_the_security_headers_and_no_cors(client):
+    answers = [
+        client.get("/"),
+        client.get("/api/rig"),
+        client.get("/api/camera/frame.png"),
+        client.get("/api/stream", params={"limit": 1}),
+        client.post("/api/camera", json={"exposure_us": -1}),
+        client.get("/api/runs/none"),
+        client.options(
+            "/api/camera", headers={"Origin": "http://evil.example", "Access-Control-Request-Method": "POST"}
+        ),
+    ]
+    for answer in answers:
+        assert answer.headers["x-content-type-options"] == "nosniff", answer.request.url
+        assert "frame-ancestors 'none'" in answer.headers["content-security-policy"]
+        assert not any(h.startswith("access-control-") for h in answer.headers)
+    assert answers[-1].status_code >= 400
