@@ -34,6 +34,10 @@ SUBCOMMANDS: dict[str, tuple[str, str]] = {
         "uwlab.cli.explore",
         "the design explorer: edit a design in a local web page, see its numbers and figures live, sweep, solve, save",
     ),
+    "console": (
+        "uwlab.cli.console",
+        "the rig console: live image, histogram, clipping, focus aids, lights, spectrum and sweep runs in a web page",
+    ),
     "devices": ("uwlab.cli.devices", "list cameras on every backend"),
     "grab": ("uwlab.cli.grab", "acquire frames from a camera and report statistics"),
     "light": ("uwlab.cli.light", "switch and dim the light, or calibrate it"),

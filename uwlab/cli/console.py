@@ -1,0 +1,115 @@
+"""`uwlab console`: the rig console, a local web page to see and steer the rig live (docs/console.md)."""
+
+from __future__ import annotations
+
+import asyncio
+import json
+import sys
+import threading
+import webbrowser
+
+from uwlab.errors import ConfigError
+from uwlab.model.data import config_dir
+
+DEFAULT_PORT = 8060
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "console",
+        description="Serve the rig console: the live image with its histogram, clipped pixels and sharpness, the "
+        "camera's settings, the lights and the spectrometer, and sweep runs with pause, resume and abort.",
+    )
+    p.add_argument(
+        "rig",
+        nargs="?",
+        metavar="RIG.toml",
+        help="a rig file (simulated, with --sim; default configs/rigs/sim-tank.toml) or a sweep plan naming the "
+        "tank's camera, lights and spectrometer",
+    )
+    p.add_argument("--sim", action="store_true", help="serve the simulated rig (camera, light, spectrometer)")
+    p.add_argument(
+        "--port", type=int, default=DEFAULT_PORT, help=f"TCP port (default {DEFAULT_PORT}; 0: any free port)"
+    )
+    p.add_argument(
+        "--host",
+        default="127.0.0.1",
+        help="address to listen on (default 127.0.0.1; any other address requires a token, printed in the URL)",
+    )
+    p.add_argument(
+        "--allow-host",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="a host name the browser may use besides the loopback names and --host (repeatable)",
+    )
+    p.add_argument("--token", metavar="TOKEN", help="require this token (default: none on the loopback)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the simulated rig's noise (runs: as uwlab sweep)")
+    p.add_argument("--max-fps", type=float, default=12.0, help="most frames a second the live view grabs")
+    p.add_argument("--no-browser", action="store_true", help="do not open a browser")
+    p.add_argument("--json", action="store_true", help='print {"url": ...} as one JSON line')
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    import uvicorn
+
+    from uwlab.cli.explore import _listen
+    from uwlab.explore.console import create_console
+    from uwlab.explore.console_rig import Live, Runs, Source
+    from uwlab.explore.security import Access, is_loopback
+
+    if args.rig is None and not args.sim:
+        raise ConfigError("RIG.toml", None, "give the plan naming the rig's devices, or --sim")
+    if not 0 < args.max_fps <= 100:
+        raise ConfigError("--max-fps", args.max_fps, "must be in (0, 100]")
+    if args.token is not None and len(args.token) < 8:
+        raise ConfigError("--token", args.token, "too short (at least 8 characters)")
+    source = Source(args.rig or config_dir() / "rigs" / "sim-tank.toml", args.sim, args.seed)
+    access = Access.for_server(args.host, args.allow_host, args.token)
+    sock = _listen(args.host, args.port)
+    host, port = sock.getsockname()[:2]
+    shown = f"[{host}]" if ":" in host else host
+    url = f"http://{shown}:{port}/" + (f"?token={access.token}" if access.token else "")
+    if not is_loopback(args.host):
+        print(
+            f"uwlab console: warning: listening on {args.host}, beyond this machine; anyone who can reach it and "
+            "has the token can steer the rig",
+            file=sys.stderr,
+        )
+    live = Live(source, max_fps=args.max_fps)
+    runs = Runs(live, sim=args.sim, seed=args.seed)
+    live.start()
+    try:
+        server = uvicorn.Server(
+            uvicorn.Config(
+                create_console(live, runs, access),
+                log_level="warning",
+                access_log=False,
+                lifespan="off",
+                timeout_graceful_shutdown=1,
+            )
+        )
+
+        async def serve() -> None:
+            task = asyncio.ensure_future(server.serve(sockets=[sock]))
+            while not server.started and not task.done():
+                await asyncio.sleep(0.01)
+            if server.started:
+                if args.json:
+                    json.dump({"url": url}, sys.stdout)
+                    sys.stdout.write("\n")
+                else:
+                    print(f"uwlab console: {source.path} {'(simulated) ' if args.sim else ''}at {url} (Ctrl-C stops)")
+                sys.stdout.flush()
+                if not args.no_browser:
+                    threading.Timer(0.5, webbrowser.open, (url,)).start()
+            await task
+
+        asyncio.run(serve())
+    finally:
+        try:
+            runs.close()
+        finally:
+            live.close()
+    return 0
