@@ -54,23 +54,26 @@ def register(subparsers) -> None:
 def run(args) -> int:
     import uvicorn
 
-    from uwlab.cli.explore import _listen
+    from uwlab.cli.explore import _listen, _reachable
     from uwlab.explore.console import create_console
     from uwlab.explore.console_rig import Live, Runs, Source
-    from uwlab.explore.security import Access, is_loopback
+    from uwlab.explore.security import TOKEN, Access, host_name, is_loopback
+    from uwlab.explore.server import server_config
 
     if args.rig is None and not args.sim:
         raise ConfigError("RIG.toml", None, "give the plan naming the rig's devices, or --sim")
     if not 0 < args.max_fps <= 100:
         raise ConfigError("--max-fps", args.max_fps, "must be in (0, 100]")
-    if args.token is not None and len(args.token) < 8:
-        raise ConfigError("--token", args.token, "too short (at least 8 characters)")
+    if args.token is not None and not TOKEN.fullmatch(args.token):
+        raise ConfigError("--token", args.token, "must be 8 to 256 characters of A-Z a-z 0-9 - . _ ~")
+    for name in args.allow_host:
+        if host_name(name) is None:
+            raise ConfigError("--allow-host", name, "not a host name or address (RFC 3986)")
     source = Source(args.rig or config_dir() / "rigs" / "sim-tank.toml", args.sim, args.seed)
     access = Access.for_server(args.host, args.allow_host, args.token)
     sock = _listen(args.host, args.port)
     host, port = sock.getsockname()[:2]
-    shown = f"[{host}]" if ":" in host else host
-    url = f"http://{shown}:{port}/" + (f"?token={access.token}" if access.token else "")
+    url = f"http://{_reachable(host)}:{port}/" + (f"?token={access.token}" if access.token else "")
     if not is_loopback(args.host):
         print(
             f"uwlab console: warning: listening on {args.host}, beyond this machine; anyone who can reach it and "
@@ -81,8 +84,9 @@ def run(args) -> int:
     runs = Runs(live, sim=args.sim, seed=args.seed)
     live.start()
     try:
+        # The explorer's server: its header and body read deadlines and connection caps (`uwlab.explore.server`).
         server = uvicorn.Server(
-            uvicorn.Config(
+            server_config(
                 create_console(live, runs, access),
                 log_level="warning",
                 access_log=False,
