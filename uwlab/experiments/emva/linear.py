@@ -244,8 +244,7 @@ def characterize_linear(pt: PhotonTransfer) -> tuple[dict, dict]:
             ("saturation_photons", "saturation_e", "sensitivity_threshold_photons", "sensitivity_threshold_e"),
         )
     )
-    curve = response_curve(pt.photons, signal, sat.index, eta, mu_e_sat)
-    values["response"] = None if curve is None else curve.model_dump()
+    values["response"] = response_curve(pt.photons, signal, sat.index, eta, mu_e_sat)
     dark_values, dark_fit = dark_current_values(pt, k, "e", notes, k_fit.slope_std)
     values.update(dark_values)
     spatial_values, spatial_curves = _nonuniformity(pt, sat, k, notes)
