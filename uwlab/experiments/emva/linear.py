@@ -41,7 +41,7 @@ import math
 import numpy as np
 
 from uwlab.errors import ConfigError
-from uwlab.experiments.emva.dark import dark_current, dark_current_by_temperature
+from uwlab.experiments.emva.dark import dark_current, dark_current_by_temperature, distinct
 from uwlab.experiments.frames.nonuniformity import dsnu_e, prnu_percent
 from uwlab.experiments.emva.regression import bspline_regression, fit_line, intervals_for
 from uwlab.experiments.emva.response import response_curve
@@ -300,7 +300,7 @@ def dark_current_values(
         }
         for d in dark_current_by_temperature(pt.dark)
     ]
-    exposures = len(np.unique(series.exposure_s))
+    exposures = len(distinct(series.exposure_s))
     values = {
         key: None,
         f"{key}_std": None,
