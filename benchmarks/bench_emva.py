@@ -22,13 +22,13 @@
    committed — 2448×2048 12-bit TIFFs, ``--lab-steps`` photon-transfer steps of two bright and two dark images each
    plus two 10-image nonuniformity stacks (200 images, about 2 GB, by default), drawn from a known sensor (K =
    `LAB_K` DN/e⁻, Poisson light, Gaussian read noise). In fresh interpreters, ``--repeats`` times back to back:
-   uwlab's characterisation (wall, CPU, peak resident memory, GB/s of image data, K against the truth) and the
-   floor it is held to, reading the same TIFFs (``tifffile.imread``, one after the other) with one numpy pass over
-   each (its sum), measured before the first run and after each; ``ratio_to_read_and_pass`` is each run's wall time
-   over the mean of the floors either side of it (median and range; issue 33's target ≤ 3: a ratio, so it holds on
-   slower machines; on a loaded one the floor, a single thread for under a second, and uwlab's two threads meet
-   different moments of the load, and the ratio scatters). Also a plain ``cat`` of the files (the
-   files are in the page cache, just written) and, with ``--reference-python``, the reference on the same files (its
+   ``uwlab emva characterize --descriptor --json`` (wall, CPU, peak resident memory, GB/s of image data, K against
+   the truth) and the floor it is held to, reading the same TIFFs (``tifffile.imread``, one after the other) with
+   one numpy pass over each (its sum), measured before the first run and after each; ``ratio_to_read_and_pass`` is
+   each run's wall time over the mean of the floors either side of it (median and range; issue 33's target ≤ 3: a
+   ratio, so it holds on slower machines; on a loaded one the floor, a single thread for under a second, and
+   uwlab's two threads meet different moments of the load, and the ratio scatters). Also a plain ``cat`` of the
+   files (in the page cache, just written) and, with ``--reference-python``, the reference on the same files (its
    wall time and peak memory, or its failure).
 
 Usage: python benchmarks/bench_emva.py [--frames N] [--repeats R] [--reference-python PY] [--lab [--lab-steps S]]
@@ -61,16 +61,6 @@ parser = argparse.ArgumentParser(prog="uwlab")
 emva.register(parser.add_subparsers(dest="command"))
 args = parser.parse_args(["emva", "characterize", "--descriptor", sys.argv[1], "--json"])
 sys.exit(args.func(args))
-"""
-PEAK_SCRIPT = """
-import json, resource, sys, time
-t0, c0 = time.perf_counter(), time.process_time()
-from uwlab.experiments.emva.analysis import characterize
-from uwlab.experiments.emva.descriptor import photon_transfer_from_descriptor
-result = characterize(photon_transfer_from_descriptor(sys.argv[1]))
-print(json.dumps({"wall_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0,
-                  "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024,
-                  "K_dn_per_e": result.values["K_dn_per_e"]}))
 """
 REFERENCE_SCRIPT = """
 import json, logging, resource, sys, time
@@ -290,6 +280,24 @@ def write_lab_descriptor(root: Path, steps: int, stack_frames: int = 10) -> Path
     return path
 
 
+def _cli_run(path: Path) -> dict:
+    """``uwlab emva characterize --descriptor PATH --json`` in a fresh interpreter, measured from outside: wall and
+    CPU time, peak resident memory, K; or its failure."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    done = subprocess.run([sys.executable, *CLI_ARGV, str(path), "--json"], capture_output=True, text=True)
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if done.returncode != 0:
+        return {"failed": (done.stderr.strip().splitlines() or [f"exit {done.returncode}"])[-1]}
+    return {
+        "wall_s": wall,
+        "cpu_s": (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime),
+        "peak_rss_mb": after.ru_maxrss / 1024,  # the largest child so far: the floors' are smaller
+        "K_dn_per_e": json.loads(done.stdout)["K_dn_per_e"],
+    }
+
+
 def _child_json(argv: list[str]) -> dict:
     """A child's one-line JSON, or its failure (the last line of its stderr)."""
     done = subprocess.run(argv, capture_output=True, text=True)
@@ -311,7 +319,7 @@ def lab_benchmark(steps: int, repeats: int, reference_python: str | None) -> dic
         floor_argv = [sys.executable, "-c", READ_AND_PASS_SCRIPT, str(Path(tmp) / "images")]
         floors, runs = [_child_json(floor_argv)], []
         for _ in range(repeats):  # each run between two floors, so that the machine's load weighs on both alike
-            runs.append(_child_json([sys.executable, "-c", PEAK_SCRIPT, str(path)]))
+            runs.append(_cli_run(path))
             floors.append(_child_json(floor_argv))
         failed = next((run for run in runs + floors if "failed" in run), None)
         result = {
