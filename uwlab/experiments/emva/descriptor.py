@@ -23,8 +23,10 @@ nor the irradiance at one exposure (methods II/III), two bright blocks with the 
 bright exposure without its dark block, more than one spatial block of a kind, a spatial block without its partner
 at the same exposure; and on reading, an image of the wrong size or type, or with values outside 0 … 2^BITS − 1.
 
-Images are read one at a time (tifffile for TIFFs, OpenCV for other formats and TIFFs tifffile cannot decode) into
-`uwlab.experiments.frames.stack` statistics, one accumulator per block, the blocks spread over the CPU's threads.
+Images are read one at a time (tifffile for TIFFs, OpenCV for other formats and TIFFs tifffile cannot decode; a TIFF
+laid out byte for byte as the first one tifffile read, apart from its pixels, is read at its pixels directly,
+`_TiffLayout`) into `uwlab.experiments.frames.stack` statistics, one accumulator per block, the blocks spread over
+the CPU's threads.
 The clip level (`uwlab.experiments.saturation.clip_level`) is found once, from the first image of the brightest
 bright block (a pile-up at the top code), else it is the ADC maximum 2^BITS − 1.
 """
