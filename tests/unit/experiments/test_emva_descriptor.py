@@ -180,3 +180,31 @@ def test_reading_into_a_reused_array_checks_the_same(tmp_path):
     _images(tmp_path, shape=(8, 9))
     with pytest.raises(ConfigError, match="differs from the descriptor's n line"):
         reader.read("a.tif", buffer)
+
+
+def test_images_laid_out_alike_are_read_as_tifffile_reads_them(tmp_path):
+    """After the first TIFF, images with the same layout are read at their pixels without tifffile: each gives its
+    own pixels (into the reused array or not); an image of the same size whose header differs (big-endian, another
+    description) is read through tifffile as before; one of another layout likewise; out-of-range values are still
+    refused."""
+    path = tmp_path / "d.txt"
+    path.write_text(HEAD + B1 + D1)
+    desc = parse_descriptor(path)
+    reader = ImageReader(tmp_path, desc)
+    rng = np.random.default_rng(3)
+    images = {name: rng.integers(0, 4096, (8, 8)).astype(np.uint16) for name in ("a.tif", "b.tif", "c.tif")}
+    for name, image in images.items():
+        tifffile.imwrite(tmp_path / name, image)
+    tifffile.imwrite(tmp_path / "d.tif", images["a.tif"].byteswap().view(">u2"), byteorder=">")
+    buffer = np.empty((8, 8), np.uint16)
+    assert np.array_equal(reader.read("a.tif", buffer), images["a.tif"])  # tifffile: the layout is learnt
+    for name in ("b.tif", "c.tif", "a.tif"):
+        assert np.array_equal(reader.read(name, buffer), images[name])
+        assert np.array_equal(reader.read(name), images[name])
+    assert (tmp_path / "d.tif").stat().st_size == (tmp_path / "a.tif").stat().st_size
+    assert np.array_equal(reader.read("d.tif", buffer), images["a.tif"])
+    tifffile.imwrite(tmp_path / "c.tif", images["c.tif"], description="x" * 5)
+    assert np.array_equal(reader.read("c.tif", buffer), images["c.tif"])
+    tifffile.imwrite(tmp_path / "b.tif", np.full((8, 8), 4096, np.uint16))
+    with pytest.raises(ConfigError, match="outside 0..4095"):
+        reader.read("b.tif", buffer)

@@ -202,3 +202,17 @@ def test_sim_truth_records_nonlinearity_and_doubling():
     assert replace(t, temperature_c=48.0).dark_current_e_per_s == DARK_E_S
     assert t.at_temperature(48.0).dark_current_e_per_s == pytest.approx(2 * DARK_E_S)
     assert t.compressed_e(t.saturation_e) == pytest.approx(0.9 * t.saturation_e)
+
+
+def test_a_profile_refuses_an_implausible_response_curve_in_one_line(result):
+    """The response curve is fitted as plain numbers and checked as the profile's `ResponseCurve` where the profile
+    is written: a measured one passes, a coefficient beyond its limit is a one-line error naming it."""
+    from uwlab.errors import ConfigError
+    from uwlab.experiments.emva.profile import profile_documents
+
+    kwargs = {"name": "cam", "width_px": 96, "height_px": 96, "exposure_range_us": (10, 1e6), "pixel_size_um": 3.45}
+    assert result["response"] is not None and abs(result["response"]["a"]) < 0.05
+    assert "[response]" in profile_documents(result, **kwargs)[0]
+    bad = {**result, "response": {**result["response"], "a": 3.0}}
+    with pytest.raises(ConfigError, match=r"response\.a"):
+        profile_documents(bad, **kwargs)

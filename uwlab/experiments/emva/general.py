@@ -50,6 +50,7 @@ from uwlab.experiments.emva.linear import (
     linearity_fit,
     require_fit_points,
 )
+from uwlab.experiments.emva.dark import distinct
 from uwlab.experiments.emva.regression import bspline_regression, fit_line, intervals_for
 from uwlab.experiments.emva.transfer import (
     PhotonTransfer,
@@ -66,7 +67,7 @@ MAX_SNR_P_AT_LOWEST_POINT = 2.0
 def dark_variance_general(pt: PhotonTransfer) -> tuple[float, bool]:
     """(σ²_y.dark [DN²], upper-limit flag) by §6.7 item 1 (see the module docstring)."""
     series = pt.dark.at_temperature(pt.operating_temperature_c)
-    if len(np.unique(pt.exposure_s)) > 1 and len(np.unique(series.exposure_s)) > 2:
+    if len(distinct(pt.exposure_s)) > 1 and len(distinct(series.exposure_s)) > 2:
         var = fit_line(series.exposure_s, series.var_dn2).intercept
     else:
         var = series.at_shortest_exposure()[1]

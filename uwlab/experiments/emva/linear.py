@@ -41,7 +41,7 @@ import math
 import numpy as np
 
 from uwlab.errors import ConfigError
-from uwlab.experiments.emva.dark import dark_current, dark_current_by_temperature
+from uwlab.experiments.emva.dark import dark_current, dark_current_by_temperature, distinct
 from uwlab.experiments.frames.nonuniformity import dsnu_e, prnu_percent
 from uwlab.experiments.emva.regression import bspline_regression, fit_line, intervals_for
 from uwlab.experiments.emva.response import response_curve
@@ -244,8 +244,7 @@ def characterize_linear(pt: PhotonTransfer) -> tuple[dict, dict]:
             ("saturation_photons", "saturation_e", "sensitivity_threshold_photons", "sensitivity_threshold_e"),
         )
     )
-    curve = response_curve(pt.photons, signal, sat.index, eta, mu_e_sat)
-    values["response"] = None if curve is None else curve.model_dump()
+    values["response"] = response_curve(pt.photons, signal, sat.index, eta, mu_e_sat)
     dark_values, dark_fit = dark_current_values(pt, k, "e", notes, k_fit.slope_std)
     values.update(dark_values)
     spatial_values, spatial_curves = _nonuniformity(pt, sat, k, notes)
@@ -301,7 +300,7 @@ def dark_current_values(
         }
         for d in dark_current_by_temperature(pt.dark)
     ]
-    exposures = len(np.unique(series.exposure_s))
+    exposures = len(distinct(series.exposure_s))
     values = {
         key: None,
         f"{key}_std": None,

@@ -15,7 +15,8 @@ import json
 import math
 
 from uwlab.errors import ConfigError
-from uwlab.model.sensor import SensorProfile
+from uwlab.model.schema import parse
+from uwlab.model.sensor import ResponseCurve, SensorProfile
 from uwlab.provenance import provenance as current_provenance, provenance_line
 
 QE_RANGE_NM = (300.0, 1100.0)
@@ -115,8 +116,9 @@ def profile_documents(
     measured_keys = [k for k, text in provenance.items() if text.startswith(measured)]
     lines += ["", "[flags]", f"measured = {_toml_value(measured_keys)}", f"assumed = {_toml_value(assumed)}", ""]
     response = values.get("response")
-    if response is not None:  # the measured response curve (uwlab.model.sensor.ResponseCurve)
-        lines += ["[response]"] + [f"{k} = {_toml_value(v)}" for k, v in response.items()] + [""]
+    if response is not None:  # the measured response curve, checked as the profile's reader will
+        fields = parse(ResponseCurve, response, "response").model_dump()
+        lines += ["[response]"] + [f"{k} = {_toml_value(v)}" for k, v in fields.items()] + [""]
     csv = (
         f"# Quantum efficiency of {name} [fraction]: FLAT at the value measured {at} by {measured}.\n"
         "# Assumption: the spectral shape is unknown; only the value at the measurement wavelength is measured.\n"

@@ -1,4 +1,7 @@
-"""The measured response curve of a characterised camera, for the model (`uwlab.model.sensor.ResponseCurve`).
+"""The measured response curve of a characterised camera, for the model (the fields of
+`uwlab.model.sensor.ResponseCurve`, validated as one where a sensor profile is written,
+`uwlab.experiments.emva.profile`: the analysis path does not import pydantic, a third of a small characterisation's
+time).
 
 From the photon-transfer points between `RESPONSE_RANGE` of the saturation signal (the darkest, noisiest points and
 the saturation plateau left out): the responsivity of each point, y_i = (μ_y − μ_y.dark)_i / μ_p,i [DN/photon],
@@ -13,7 +16,6 @@ from __future__ import annotations
 import numpy as np
 
 from uwlab.experiments.emva.transfer import points_between
-from uwlab.model.sensor import ResponseCurve
 
 RESPONSE_RANGE = (0.02, 0.95)
 MIN_POINTS = 6
@@ -21,14 +23,14 @@ MIN_POINTS = 6
 
 def response_curve(
     photons: np.ndarray, signal_dn: np.ndarray, saturation_index: int, eta: float, saturation_e: float
-) -> ResponseCurve | None:
-    """The response curve (module docstring) of sorted photon-transfer points; None with fewer than `MIN_POINTS`
-    points in `RESPONSE_RANGE`.
+) -> dict | None:
+    """The response curve (module docstring) of sorted photon-transfer points, as the fields of a
+    `uwlab.model.sensor.ResponseCurve`; None with fewer than `MIN_POINTS` points in `RESPONSE_RANGE`.
 
     >>> mu_p = np.linspace(100.0, 10000.0, 20)
     >>> electrons = 0.5 * mu_p
     >>> curve = response_curve(mu_p, 0.2 * (electrons - 0.02 * electrons**2 / 5000.0), 19, 0.5, 5000.0)
-    >>> round(curve.a, 6), abs(round(curve.b, 6))
+    >>> round(curve["a"], 6), abs(round(curve["b"], 6))
     (-0.02, 0.0)
     """
     idx = points_between(signal_dn, saturation_index, *RESPONSE_RANGE)
@@ -44,11 +46,11 @@ def response_curve(
     c0, c1, c2 = coef
     jacobian = np.array([[-c1 / c0**2, 1 / c0, 0.0], [-c2 / c0**2, 0.0, 1 / c0]])
     ab_cov = jacobian @ cov @ jacobian.T
-    return ResponseCurve(
-        a=float(c1 / c0),
-        b=float(c2 / c0),
-        covariance=((float(ab_cov[0, 0]), float(ab_cov[0, 1])), (float(ab_cov[1, 0]), float(ab_cov[1, 1]))),
-        fraction_range=(float(u.min()), float(u.max())),
-        source=f"EMVA 1288 photon transfer, {idx.size} points between {RESPONSE_RANGE[0]:g} and "
+    return {
+        "a": float(c1 / c0),
+        "b": float(c2 / c0),
+        "covariance": ((float(ab_cov[0, 0]), float(ab_cov[0, 1])), (float(ab_cov[1, 0]), float(ab_cov[1, 1]))),
+        "fraction_range": (float(u.min()), float(u.max())),
+        "source": f"EMVA 1288 photon transfer, {idx.size} points between {RESPONSE_RANGE[0]:g} and "
         f"{RESPONSE_RANGE[1]:g} of saturation",
-    )
+    }

@@ -339,18 +339,19 @@ def _row_chunks(image: np.ndarray) -> list[np.ndarray]:
 
 
 def _pieces(image: np.ndarray, bound: int) -> tuple[list[np.ndarray], np.ndarray] | None:
-    """The memory of a C-contiguous 8- or 16-bit ``image`` regrouped as pieces of `PIECE_WIDTH` columns and R rows,
-    R · ``bound`` < 2^31 (``bound``: the largest term a column adds per row), so that every partial sum of OpenCV's
-    column reductions stays below 2^31, exact in any accumulator; and the elements left over (1-D). None for other
-    images (the int64 route)."""
+    """The memory of a C-contiguous 8- or 16-bit ``image`` regrouped as pieces of `PIECE_WIDTH` columns and at most R
+    rows, R · ``bound`` < 2^31 (``bound``: the largest term a column adds per row), so that every partial sum of
+    OpenCV's column reductions stays below 2^31, exact in any accumulator; and the fewer than `PIECE_WIDTH` elements
+    left over (1-D, summed in int64: a last piece of fewer rows takes the rest, which as a remainder of whole pieces
+    could be most of a frame). None for other images (the int64 route)."""
     rows = EXACT_PARTIAL // max(bound, 1)
     if image.dtype not in _OPENCV_SUMS or not image.flags.c_contiguous or rows < 1:
         return None
     flat = image.reshape(-1)
     width = min(PIECE_WIDTH, flat.size)
-    step = min(rows, flat.size // width) * width
-    body = flat.size // step * step
-    return [flat[i : i + step].reshape(-1, width) for i in range(0, body, step)], flat[body:]
+    body = flat.size // width * width
+    step = min(rows, body // width) * width
+    return [flat[i : min(i + step, body)].reshape(-1, width) for i in range(0, body, step)], flat[body:]
 
 
 def _total(image: np.ndarray, bound: int) -> int:
