@@ -293,7 +293,8 @@ class ImageReader:
                 fits = out is not None and page.shape == out.shape and page.dtype == out.dtype
                 image = page.asarray(out=out if fits else None)
                 if self._layout is None and page.shape == self.shape and page.is_final:
-                    native = page.dtype.itemsize == 1 or tif.byteorder == ("<" if sys.byteorder == "little" else ">")
+                    one_byte = page.dtype is not None and page.dtype.itemsize == 1
+                    native = one_byte or tif.byteorder == ("<" if sys.byteorder == "little" else ">")
                     if native and page.samplesperpixel == 1 and image.dtype == page.dtype:
                         self._layout = _TiffLayout.of(path, page.dataoffsets[0], image.nbytes, image.dtype)
                 return image
@@ -355,8 +356,8 @@ class _TiffLayout:
                 if os.fstat(f.fileno()).st_size != self.size or f.read(self.offset) != self.head:
                     return None
                 fits = out is not None and out.shape == shape and out.dtype == self.dtype and out.flags.c_contiguous
-                image = out if fits else np.empty(shape, self.dtype)
-                if f.readinto(memoryview(image).cast("B")) != image.nbytes or f.read() != self.tail:
+                image = out if out is not None and fits else np.empty(shape, self.dtype)
+                if f.readinto(image.data.cast("B")) != image.nbytes or f.read() != self.tail:
                     return None
                 return image
         except OSError:
