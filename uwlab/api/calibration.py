@@ -169,6 +169,8 @@ def fit(
     config: str | os.PathLike[str] | None = None,
     train: list[str] | None = None,
     channel: str | None = None,
+    held_out: int | str | None = None,
+    dask: str | None = None,
     progress: bool = True,
     **sampler: int,
 ) -> Fit:
@@ -225,6 +227,8 @@ def fit(
             model=model,
             sampler=dict(sampler) or None,
             channel=channel,
+            held_out=held_out,
+            dask=dask,
         )
     return Fit.open(target)
 
