@@ -10,6 +10,8 @@ configuration, and the bands' sharpness: median half-width, median realised erro
 score, `uwlab.experiments.calibration.validation.band_sharpness`), the verdict ``model_adequate`` with its named
 ``checks`` and, when the model fails, the failing checks and likely causes in ``warnings``
 (`uwlab.experiments.calibration.adequacy`), the spectra comparison and, per parameter, the simulated ground truth.
+The held-out folds (by default one per configuration) run beside the whole-data fit, in worker processes or on a
+Dask cluster (`uwlab.experiments.calibration.parallel`).
 """
 
 from __future__ import annotations
