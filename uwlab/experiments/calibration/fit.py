@@ -31,7 +31,7 @@ lemma for the covariance diag(σ²) + τ² μ μᵀ); given θ, δ_k ~ N(m_k, v_
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Final, Literal
 
 import warnings
 from dataclasses import dataclass, field
@@ -41,8 +41,6 @@ from collections.abc import Callable, Mapping
 import emcee
 import numpy as np
 import pandas as pd
-from typing import Literal
-
 from pydantic import ConfigDict, Field, model_validator
 from scipy import optimize
 
@@ -72,7 +70,7 @@ Folds = Annotated[
     Annotated[int, limits(2, 100, "folds", hint="", integer=True)] | Literal["loo"],
     number_or('must be a number of folds or "loo"'),
 ]
-LEAVE_ONE_OUT = "loo"
+LEAVE_ONE_OUT: Final = "loo"
 
 
 class Sampler(Schema):
