@@ -25,6 +25,7 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
+from typing import cast
 
 import pandas as pd
 
@@ -53,15 +54,27 @@ class FoldJob:
 
 
 def run_folds(job: FoldJob) -> list[HeldOutFold | None]:
-    """Fit and predict the job's folds here, in order (`uwlab.experiments.calibration.validation.held_out_fold`);
-    an error is raised again as a plain `UwlabError` (its message), which pickles."""
+    """Fit and predict the job's folds here, in order (`uwlab.experiments.calibration.validation.held_out_fold`)."""
+    return [
+        held_out_fold(job.points, job.rigs, job.config, list(fold), number, job.kind, seed=job.seed)
+        for number, fold in job.folds
+    ]
+
+
+def _reply(job: FoldJob) -> tuple[str, object]:
+    """A worker's answer: ("ok", `run_folds`'s results) or ("error", the message of its `UwlabError`), which
+    pickles where the error may not and leaves no traceback in the worker's log."""
     try:
-        return [
-            held_out_fold(job.points, job.rigs, job.config, list(fold), number, job.kind, seed=job.seed)
-            for number, fold in job.folds
-        ]
+        return "ok", run_folds(job)
     except UwlabError as exc:
-        raise UwlabError(str(exc)) from None
+        return "error", str(exc)
+
+
+def _result(reply: tuple[str, object]) -> list[HeldOutFold | None]:
+    status, value = reply
+    if status == "ok":
+        return cast("list[HeldOutFold | None]", value)
+    raise UwlabError(str(value))
 
 
 @contextmanager
@@ -115,10 +128,7 @@ def _stop(processes: list[subprocess.Popen]) -> None:
 def _answer(process: subprocess.Popen, out: bytes, err: bytes) -> list[HeldOutFold | None]:
     """A worker's results, or its error as a `UwlabError`."""
     if process.returncode == 0:
-        status, value = pickle.loads(out)
-        if status == "ok":
-            return value
-        raise UwlabError(value)
+        return _result(pickle.loads(out))
     last = err.decode(errors="replace").strip().splitlines()[-1:] or [f"exit code {process.returncode}"]
     raise UwlabError(f"a held-out fold's worker failed: {last[0]}")
 
@@ -128,9 +138,9 @@ def _on_dask(job: FoldJob, address: str) -> Iterator[Callable[[], list[HeldOutFo
     from uwlab.experiments.cluster import dask_client
 
     with dask_client(address) as client:
-        futures = [client.submit(run_folds, job.share(i, len(job.folds)), pure=False) for i in range(len(job.folds))]
+        futures = [client.submit(_reply, job.share(i, len(job.folds)), pure=False) for i in range(len(job.folds))]
         try:
-            yield lambda: [future.result()[0] for future in futures]
+            yield lambda: [_result(future.result())[0] for future in futures]
         finally:
             client.cancel(futures)
 
@@ -141,11 +151,9 @@ def main() -> int:
     answer = sys.stdout.buffer
     sys.stdout = sys.stderr  # nothing but the answer on stdout
     try:
-        reply: tuple = ("ok", run_folds(job))
+        reply = _reply(job)
     except KeyboardInterrupt:
         return 130
-    except UwlabError as exc:
-        reply = ("error", str(exc))
     pickle.dump(reply, answer)
     answer.flush()
     return 0
