@@ -133,6 +133,16 @@ ROWS = [
         ["--train", "imx250-30mm-f3"],
     ),
     (
+        "fit --held-out misspelled",
+        lambda c, s: ["fit", c.sweep, "--held-out", "three", "--out", s / "fit"],
+        ["--held-out", "three", "loo"],
+    ),
+    (
+        "fit --dask not an address",
+        lambda c, s: ["fit", c.sweep, "--dask", "scheduler:8786", "--out", s / "fit"],
+        ["--dask", "scheduler:8786", "tcp://"],
+    ),
+    (
         "report --out in a missing directory",
         lambda c, s: ["report", c.sweep, "--out", s / "nonexistent" / "r.html"],
         ["--out", "does not exist"],

@@ -180,6 +180,8 @@ def fit(
     | os.PathLike[str]
     | None = None,
     channel: str | None = None,
+    held_out: int | str | None = None,
+    dask: str | None = None,
     progress: bool = True,
     **sampler: int,
 ) -> Fit:
@@ -242,6 +244,8 @@ def fit(
             sampler=dict(sampler) or None,
             sensors=_sensor_values(sensor),
             channel=channel,
+            held_out=held_out,
+            dask=dask,
         )
     return Fit.open(calibration.out)
 

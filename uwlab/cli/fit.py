@@ -21,7 +21,20 @@ def register(subparsers) -> None:
         "--train",
         action="append",
         metavar="SWEEP_ID",
-        help="sweeps the held-out check fits (it predicts the others; default: two folds of the sweeps)",
+        help="sweeps the held-out check fits (it predicts the others; default: --held-out)",
+    )
+    p.add_argument(
+        "--held-out",
+        type=lambda value: int(value) if value.isdigit() else value,
+        metavar="loo|N",
+        help="folds of the held-out check: loo, each configuration predicted from a fit of all the others, or N "
+        "folds of the sweeps dealt out in order (default: the fit config's [holdout], else loo)",
+    )
+    p.add_argument(
+        "--dask",
+        metavar="ADDRESS",
+        help="fit the held-out folds on a Dask cluster: local (one worker per core) or tcp://HOST:PORT (default: "
+        "worker processes on this machine's cores)",
     )
     p.add_argument(
         "--model",
@@ -59,6 +72,8 @@ def run(args) -> int:
             model=args.model,
             sensors=args.sensor,
             channel=args.channel,
+            held_out=args.held_out,
+            dask=args.dask,
         )
     summary = calibration.summary
     if args.json:

@@ -128,12 +128,18 @@ def _median_range(values: list) -> list[float] | None:
 
 
 def quick_demo(
-    world: str | None = None, model: str | None = None, seed: int = 0, directory: Path | None = None, progress=None
+    world: str | None = None,
+    model: str | None = None,
+    seed: int = 0,
+    directory: Path | None = None,
+    progress=None,
+    held_out: int | str | None = None,
 ) -> dict:
     """The demo's campaign without devices, a summary like `run_demo`'s: the same rig and world rendered in process
     (`uwlab.experiments.calibration.simulate`: its sweeps span each configuration's own exposure range, the light
-    does not drift, there is no spectrometer), calibrated and judged like the demo (`assess`). For tests and quick
-    looks; `directory` receives the derived rig (default: a temporary one)."""
+    does not drift, there is no spectrometer), calibrated and judged like the demo (`assess`; `held_out`: its
+    folds, "loo" or a number, None: the default config's, leave one configuration out). For tests and quick looks;
+    `directory` receives the derived rig (default: a temporary one)."""
     with tempfile.TemporaryDirectory(prefix="uwlab-quick-demo-") as tmp:
         plan = write_inputs(config_dir() / DEMO_PLAN, world, Path(directory or tmp) / "inputs")
         rig = load_plan(plan).rig_path
@@ -142,7 +148,8 @@ def quick_demo(
         points, rigs = simulate_campaign(truth, seed=seed, rig=rig, world=None, points_per_sweep=10)
         config = default_config_for(points[~points["saturated"]], rigs)
         sweeps = list(dict.fromkeys(points["sweep_id"]))
-        assessment = assess(points, rigs, config, default_folds(sweeps, config.holdout.folds), model, progress)
+        folds = default_folds(sweeps, config.holdout.folds if held_out is None else held_out)
+        assessment = assess(points, rigs, config, folds, model, progress)
     summary = assessment.result.summary()
     names = assessment.result.names
     truths = {

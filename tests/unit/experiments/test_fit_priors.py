@@ -147,3 +147,23 @@ def test_a_truncated_normal_is_renormalised_on_its_bounds():
     x = np.array([1e-9, 0.5, 1.999])
     closed = -0.5 * x**2 - 0.5 * math.log(2 * math.pi) - math.log(0.9772498680518208 - 0.5)
     assert prior.logpdf(x) == pytest.approx(closed, rel=1e-12)
+
+
+@pytest.mark.parametrize(
+    "prior",
+    [
+        LogNormal(median=1.2, sigma=0.4),
+        Normal(mean=1.0, sigma=0.5, lo=0.0),
+        Uniform(lo=0.5, hi=2.0),
+        HalfNormal(sigma=0.05, hi=0.2),
+    ],
+)
+def test_priors_pickle_to_the_same_distribution(prior):
+    """A held-out fold's worker process gets its priors pickled (the lognormal's scipy variable holds a lambda)."""
+    import pickle
+
+    again = pickle.loads(pickle.dumps(prior))
+    x = np.array([0.01, 0.1, 0.7, 1.0, 1.9])
+    assert type(again) is type(prior) and again.model_dump() == prior.model_dump()
+    assert again.logpdf(x) == pytest.approx(prior.logpdf(x), rel=1e-15)
+    assert again.quantile([0.1, 0.5, 0.9]) == pytest.approx(prior.quantile([0.1, 0.5, 0.9]), rel=1e-12)

@@ -223,6 +223,8 @@ def test_bad_plans_name_the_key(tmp_path, text, key, shown, words):
         ("walkers = 32", "walkers = 9", "sampler.walkers", 9, "even"),
         ("seed = 1", "seed = -1", "sampler.seed", -1, "integer"),
         ("train = ", "train = 1 #", "holdout.train", 1, "must be a list"),
+        ("[holdout]", '[holdout]\nfolds = "two"', "holdout.folds", "two", 'a number of folds or "loo"'),
+        ("[holdout]", "[holdout]\nfolds = 1", "holdout.folds", 1, "[2, 100]"),
         (
             "[parameters.light_efficiency]",
             "walkers = 32\n[parameters.light_efficiency]",

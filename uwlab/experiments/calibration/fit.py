@@ -31,7 +31,7 @@ lemma for the covariance diag(σ²) + τ² μ μᵀ); given θ, δ_k ~ N(m_k, v_
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Final, Literal
 
 import warnings
 from dataclasses import dataclass, field
@@ -49,7 +49,7 @@ from uwlab.experiments.calibration.forward import ForwardModel, build_forward_mo
 from uwlab.experiments.calibration.priors import HalfNormal, JointPrior, LogNormal, Normal, Prior, PriorSpec
 from uwlab.model.data import read_toml
 from uwlab.model.sensor import load_sensor_profile
-from uwlab.model.schema import NonEmptyText, Schema, Seed, invalid, parse, limits
+from uwlab.model.schema import NonEmptyText, Schema, Seed, invalid, limits, number_or, parse
 
 MIN_TAU_MULTIPLE = 50
 MAP_EVALUATIONS = 500
@@ -66,7 +66,11 @@ ANCHORS = ("light_efficiency", "reflectance")
 Walkers = Annotated[int, limits(8, 10000, "walkers", hint="", integer=True)]
 ChunkSteps = Annotated[int, limits(100, 10_000_000, "steps", hint="", integer=True)]
 MaxSteps = Annotated[int, limits(1000, 100_000_000, "steps", hint="", integer=True)]
-Folds = Annotated[int, limits(2, 100, "folds", hint="", integer=True)]
+Folds = Annotated[
+    Annotated[int, limits(2, 100, "folds", hint="", integer=True)] | Literal["loo"],
+    number_or('must be a number of folds or "loo"'),
+]
+LEAVE_ONE_OUT: Final = "loo"
 
 
 class Sampler(Schema):
@@ -85,9 +89,9 @@ class Holdout(Schema):
         [], description="sweeps the held-out check fits (it predicts the others); default: `folds` folds"
     )
     folds: Folds = Field(
-        2,
-        description="folds of the held-out check: the sweeps dealt out in order, each fold "
-        "predicted from a fit of the others",
+        LEAVE_ONE_OUT,
+        description='folds of the held-out check: "loo", one per sweep (each predicted from a fit of all the '
+        "others), or a number of folds, the sweeps dealt out in order, each predicted from a fit of the others",
     )
 
 

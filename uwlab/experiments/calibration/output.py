@@ -270,7 +270,7 @@ def write_fit(
     held_out: pd.DataFrame | None = None,
 ) -> dict:
     """Write every calibration output to `out` (refusing to overwrite); returns the summary. `held_out`: the
-    held-out predictions (`uwlab.experiments.calibration.validation.cross_validation`), drawn in response.png and
+    held-out predictions (`uwlab.experiments.calibration.validation.held_out_fold`), drawn in response.png and
     written to heldout.parquet."""
     check_output_dir(out)
     out.mkdir(exist_ok=True)

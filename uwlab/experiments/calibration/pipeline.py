@@ -10,6 +10,8 @@ configuration, and the bands' sharpness: median half-width, median realised erro
 score, `uwlab.experiments.calibration.validation.band_sharpness`), the verdict ``model_adequate`` with its named
 ``checks`` and, when the model fails, the failing checks and likely causes in ``warnings``
 (`uwlab.experiments.calibration.adequacy`), the spectra comparison and, per parameter, the simulated ground truth.
+The held-out folds (by default one per configuration) run beside the whole-data fit, in worker processes or on a
+Dask cluster (`uwlab.experiments.calibration.parallel`).
 """
 
 from __future__ import annotations
@@ -23,19 +25,27 @@ import pandas as pd
 
 from uwlab.errors import ConfigError
 from uwlab.experiments.calibration.adequacy import Verdict, verdict
-from uwlab.experiments.calibration.fit import FitConfig, FitResult, default_config_for, fit_points, load_fit_config
+from uwlab.experiments.calibration.fit import (
+    FitConfig,
+    FitResult,
+    Folds,
+    Holdout,
+    default_config_for,
+    fit_points,
+    load_fit_config,
+)
 from uwlab.experiments.calibration.forward import MODELS, characterised_sensor, relative_flux
 from uwlab.experiments.calibration.output import check_output_dir, write_fit
+from uwlab.experiments.calibration.parallel import FoldJob, folds_in_background
 from uwlab.experiments.calibration.validation import (
     CrossValidation,
     compare_spectra,
-    cross_validation,
     default_folds,
     posterior_predictive_checks,
     predicted_spectra,
 )
 from uwlab.experiments.dataset import Dataset, channel_view
-from uwlab.model.schema import parse
+from uwlab.model.schema import check, parse
 from uwlab.outputs import FIT_FOLDER
 
 
@@ -85,7 +95,7 @@ def world_of(metadata: dict) -> str | None:
 
 def held_out_folds(sweeps: list[str], config: FitConfig, train_sweeps: list[str] | None) -> list[list[str]]:
     """The held-out sweeps of each fold: everything but `train_sweeps` (or the config's [holdout] train), else
-    `[holdout] folds` folds dealt out in sweep order."""
+    the config's `[holdout] folds`: one per sweep ("loo", the default) or that many dealt out in sweep order."""
     train = train_sweeps or config.holdout.train
     if train:
         unknown = sorted(set(train) - set(sweeps))
@@ -136,15 +146,24 @@ class Assessment:
 
 
 def assess(
-    points: pd.DataFrame, rigs: dict, config: FitConfig, folds: list[list[str]], model: str | None = None, progress=None
+    points: pd.DataFrame,
+    rigs: dict,
+    config: FitConfig,
+    folds: list[list[str]],
+    model: str | None = None,
+    progress=None,
+    workers: int | None = None,
+    dask: str | None = None,
 ) -> Assessment:
     """Fit the points with the chain `model`, check every configuration, predict each held-out fold from a fit of
-    the others, and judge the model (`uwlab.experiments.calibration.adequacy`)."""
-    result = fit_points(points, rigs, config, progress=progress, kind=model)
+    the others, and judge the model (`uwlab.experiments.calibration.adequacy`). The folds run meanwhile on
+    `workers` processes (None: one per core) or on the Dask cluster at `dask`
+    (`uwlab.experiments.calibration.parallel`)."""
+    job = FoldJob(points, rigs, config, model, config.sampler.seed, tuple((i, tuple(f)) for i, f in enumerate(folds)))
+    with folds_in_background(job, workers, dask) as held_out:
+        result = fit_points(points, rigs, config, progress=progress, kind=model)
+        cross = CrossValidation.of(held_out())
     ppc = posterior_predictive_checks(result)
-    cross = cross_validation(
-        points, rigs, config, folds, kind=result.model.kind, progress=progress, seed=config.sampler.seed
-    )
     return Assessment(result, ppc, cross, verdict(result, ppc, cross))
 
 
@@ -200,6 +219,8 @@ def calibrate(
     sampler: dict | None = None,
     sensors: list[str] | None = None,
     channel: str | None = None,
+    held_out: int | str | None = None,
+    dask: str | None = None,
 ) -> Calibration:
     """Fit the whole dataset with the chain `model` ("paper", "extended"; None: the rigs' [model] kind), check it
     per configuration, predict every configuration from a fit that did not see it (`held_out_folds`), judge the
@@ -207,10 +228,13 @@ def calibrate(
     overrides the fit config's [sampler] keys (`resolve_fit_config`); `sensors` (``uwlab fit --sensor``) name
     cameras characterised by ``uwlab emva characterize`` (`with_characterised_sensors`); `channel` ("red",
     "green", "blue"; ``uwlab fit --channel``) fits that colour channel of Bayer points, predicted with its own QE
-    (`uwlab.experiments.dataset.channel_view`), instead of the whole mosaic against the combined QE. Every input is
-    checked before sampling starts. The defaults of `uwlab fit` and `uwlab.fit` are these: `out` None is
-    ``DATASET/fit``, `config_path` None the default fit config for the dataset's cameras, `model` None the rigs'
-    [model] kind, no `sensors` the profiles, `channel` None the whole mosaic."""
+    (`uwlab.experiments.dataset.channel_view`), instead of the whole mosaic against the combined QE. `held_out`
+    (``uwlab fit --held-out``: "loo" or a number of folds) replaces the config's ``[holdout] folds``; the folds run
+    on this machine's cores or on the Dask cluster at `dask` (``uwlab fit --dask``: ``local`` or
+    ``tcp://HOST:PORT``), beside the whole-data fit. Every input is checked before sampling starts. The defaults of
+    `uwlab fit` and `uwlab.fit` are these: `out` None is ``DATASET/fit``, `config_path` None the default fit config
+    for the dataset's cameras, `model` None the rigs' [model] kind, no `sensors` the profiles, `channel` None the
+    whole mosaic, `held_out` None the config's folds, `dask` None this machine's cores."""
     if model is not None and model not in MODELS:
         raise ConfigError("--model", model, f"must be one of {', '.join(MODELS)}")
     dataset = Dataset.open(dataset_dir)
@@ -230,9 +254,11 @@ def calibrate(
             raise ConfigError("--channel", exc.value, exc.reason) from None
     rigs = with_characterised_sensors(metadata.get("rigs") or {}, points, sensors or [])
     config = resolve_fit_config(config_path, points, rigs, sampler)
+    if held_out is not None:
+        config = config.model_copy(update={"holdout": Holdout(folds=check(Folds, held_out, "--held-out"))})
     sweeps = list(dict.fromkeys(points.loc[~points["saturated"].astype(bool), "sweep_id"]))
     folds = held_out_folds(sweeps, config, train_sweeps)
-    assessment = assess(points, rigs, config, folds, model, progress)
+    assessment = assess(points, rigs, config, folds, model, progress, dask=dask)
     result, cross = assessment.result, assessment.cross
     truth = truth_from_metadata(metadata, points, result.names)
     predicted = predicted_spectra(result)

@@ -67,6 +67,11 @@ class Prior(Schema):
         self._alone = JointPrior([self])
         return self
 
+    def __reduce__(self):
+        """Pickled as its fields and built again (a held-out fold's worker process gets its priors so): the
+        lognormal's scipy random variable holds a lambda, which does not pickle."""
+        return type(self).model_validate, (self.model_dump(),)
+
     def base(self):
         """The untruncated scipy.stats random variable."""
         raise NotImplementedError

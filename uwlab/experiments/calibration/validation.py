@@ -14,8 +14,10 @@
   the fitted line's values at the sweep's two ends ("+0.6 → −0.7 %") and p the two-sided t-test of its slope
   (n − 2 degrees of freedom, the scatter about the line estimated from the points themselves, so the test holds
   whatever the noise model). A χ² check misses such a drift when the points are few or the discrepancy absorbs it.
-- Held-out configurations (`cross_validation`): the configurations are split into folds (by default two,
-  alternating in sweep order, or the [holdout] train list); each fold is fitted on the others and predicts its own
+- Held-out configurations (`held_out_fold`, `CrossValidation`): the configurations are split into folds (by default
+  one per configuration, "leave one configuration out", so that every fold learns τ from all the others; or a
+  number of folds dealt out in sweep order; or the [holdout] train list; the folds run in parallel:
+  `uwlab.experiments.calibration.parallel`); each fold is fitted on the others and predicts its own
   configurations as new ones: δ_new ~ N(0, τ²) with the posterior's between-configuration scale τ, and parameters
   the training data cannot reach (the gain K of a camera it has not seen) drawn from their priors. Per
   configuration: the relative error of the median, the fraction of points inside the 95 % band, and a check of
@@ -31,7 +33,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pandas as pd
 
-from uwlab.experiments.calibration.fit import FitConfig, FitResult, config_offsets, fit_points
+from uwlab.experiments.calibration.fit import LEAVE_ONE_OUT, FitConfig, FitResult, config_offsets, fit_points
 from uwlab.experiments.calibration.forward import ForwardModel, build_forward_model
 from uwlab.model.evaluation import stage_spectra
 
@@ -250,8 +252,16 @@ def _prior_columns(
     return np.stack(columns, axis=1)
 
 
-def default_folds(sweeps: list[str], count: int = 2) -> list[list[str]]:
-    """The held-out sets of `count` folds: the sweeps dealt out in order (every fold trains on the others)."""
+def default_folds(sweeps: list[str], count: int | str = LEAVE_ONE_OUT) -> list[list[str]]:
+    """The held-out sets: one per sweep for ``"loo"`` (leave one configuration out: each is predicted from a fit of
+    all the others), else `count` folds, the sweeps dealt out in order (every fold trains on the others).
+
+    >>> default_folds(["a", "b", "c"]), default_folds(["a", "b", "c"], 2)
+    ([['a'], ['b'], ['c']], [['a', 'c'], ['b']])
+    """
+    if count == LEAVE_ONE_OUT:
+        return [[s] for s in sweeps]
+    assert isinstance(count, int)
     return [sweeps[i::count] for i in range(min(count, len(sweeps))) if sweeps[i::count]]
 
 
@@ -291,6 +301,16 @@ class CrossValidation:
     points: pd.DataFrame
     folds: list[dict]
 
+    @classmethod
+    def of(cls, folds: list[HeldOutFold | None]) -> CrossValidation:
+        """The folds' predictions together (None: a fold with nothing to train on or to predict)."""
+        done = [f for f in folds if f is not None]
+        return cls(
+            pd.concat([f.table for f in done], ignore_index=True) if done else pd.DataFrame(),
+            pd.concat([f.points for f in done], ignore_index=True) if done else pd.DataFrame(),
+            [f.info for f in done],
+        )
+
     @property
     def inside_95(self) -> float:
         return float(self.points["inside_95"].mean()) if len(self.points) else float("nan")
@@ -301,46 +321,55 @@ class CrossValidation:
         return band_sharpness(self.points)
 
 
-def cross_validation(
+@dataclass
+class HeldOutFold:
+    """One fold's held-out predictions: per configuration (`table`), per point (`points`) and what it trained on."""
+
+    table: pd.DataFrame
+    points: pd.DataFrame
+    info: dict
+
+
+def _for_cameras(config: FitConfig, points: pd.DataFrame) -> FitConfig:
+    """The config without the gains K of cameras that have no points here."""
+    cameras = set(points["sensor_profile"].astype(str))
+    priors = {
+        n: p for n, p in config.priors.items() if not n.startswith("K_dn_per_e:") or n.split(":", 1)[1] in cameras
+    }
+    return config.model_copy(update={"priors": priors})
+
+
+def held_out_fold(
     points: pd.DataFrame,
     rigs: dict,
     config: FitConfig,
-    held_out: list[list[str]],
+    fold: list[str],
+    number: int,
     kind: str | None = None,
     progress=None,
     seed: int = 0,
-) -> CrossValidation:
-    """For each fold (a list of sweeps held out), fit the other sweeps and predict the held-out ones as new
-    configurations (module docstring)."""
+) -> HeldOutFold | None:
+    """Fit the unsaturated points of every sweep but those of `fold` and predict these as new configurations
+    (module docstring); None when either side has no points. `number` tells the fold's draws apart (seed +
+    number)."""
     usable = points[~points["saturated"].astype(bool)]
-    tables, frames, folds = [], [], []
-    for number, fold in enumerate(held_out):
-        train = usable[~usable["sweep_id"].isin(fold)]
-        test = usable[usable["sweep_id"].isin(fold)]
-        if train.empty or test.empty:
-            continue
-        cameras = tuple(sorted(train["sensor_profile"].astype(str).unique()))
-        priors = {
-            n: p for n, p in config.priors.items() if not n.startswith("K_dn_per_e:") or n.split(":", 1)[1] in cameras
-        }
-        result = fit_points(train, rigs, config.model_copy(update={"priors": priors}), progress=progress, kind=kind)
-        model = build_forward_model(test, rigs, config.names, kind=kind)
-        rng = np.random.default_rng(seed + number)
-        theta = _prior_columns(config, model.names, _thinned(result.samples), result.names, rng)
-        draws = predictive_draws(model, theta, seen=False, seed=seed + number)
-        frame = _prediction_frame(model, draws).assign(fold=number)
-        frames.append(frame)
-        tables.append(_held_out_table(model, draws, frame, number))
-        folds.append(
-            {
-                "held_out": list(fold),
-                "trained_on": sorted(set(train["sweep_id"])),
-                "converged": result.converged,
-                "config_discrepancy_median": result.median("config_discrepancy"),
-            }
-        )
-    table = pd.concat(tables, ignore_index=True) if tables else pd.DataFrame()
-    return CrossValidation(table, pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(), folds)
+    train = usable[~usable["sweep_id"].isin(fold)]
+    test = usable[usable["sweep_id"].isin(fold)]
+    if train.empty or test.empty:
+        return None
+    result = fit_points(train, rigs, _for_cameras(config, train), progress=progress, kind=kind)
+    model = build_forward_model(test, rigs, _for_cameras(config, test).names, kind=kind)
+    rng = np.random.default_rng(seed + number)
+    theta = _prior_columns(config, model.names, _thinned(result.samples), result.names, rng)
+    draws = predictive_draws(model, theta, seen=False, seed=seed + number)
+    frame = _prediction_frame(model, draws).assign(fold=number)
+    info = {
+        "held_out": list(fold),
+        "trained_on": sorted(set(train["sweep_id"])),
+        "converged": result.converged,
+        "config_discrepancy_median": result.median("config_discrepancy"),
+    }
+    return HeldOutFold(_held_out_table(model, draws, frame, number), frame, info)
 
 
 def _held_out_table(model: ForwardModel, draws: Draws, frame: pd.DataFrame, fold: int) -> pd.DataFrame:
