@@ -65,6 +65,8 @@ VERBS = {
             "model": "model",
             "sensor": "sensor",
             "channel": "channel",
+            "held_out": "held_out",
+            "dask": "dask",
         },
         {"json": "output format"},
     ),
