@@ -44,6 +44,8 @@ LAMP = DATA / "ocean_insight_lamp_3100k.LMP"
 SUPPLY_YAML = CONFIGS / "instruments" / "sim" / "scpi-dc-supply.yaml"
 SUPPLY = ["--instrument", "scpi-dc-supply", "--resource", "TCPIP0::192.168.0.10::inst0::INSTR"]
 SIM_SUPPLY = [*SUPPLY, "--visa-library", f"{SUPPLY_YAML}@sim"]
+SIM_SPECTRUM = ["spectrum", "--instrument", "ocean-insight", "--sim"]
+CALIBRATE = ["spectrometer", "calibrate", "--out-csv", "calibration.csv"]  # in the run's own folder
 SERVERS = ("sim", "explore")
 
 
@@ -176,21 +178,21 @@ FILE_CASES: list[FileCase] = [
         ],
     ),
     ("spectrum --import", "s.csv", lambda f, t: ["spectrum", "--import", str(f)]),
-    ("spectrum --calibration", "c.cal", lambda f, t: ["spectrum", "--sim", "--calibration", str(f)]),
-    ("spectrum --dark", "d.csv", lambda f, t: ["spectrum", "--sim", "--dark", str(f)]),
-    ("spectrum --sim-lamp", "l.LMP", lambda f, t: ["spectrum", "--sim", "--sim-lamp", str(f)]),
+    ("spectrum --calibration", "c.cal", lambda f, t: [*SIM_SPECTRUM, "--calibration", str(f)]),
+    ("spectrum --dark", "d.csv", lambda f, t: [*SIM_SPECTRUM, "--dark", str(f)]),
+    ("spectrum --sim-lamp", "l.LMP", lambda f, t: [*SIM_SPECTRUM, "--raw", "--sim-lamp", str(f)]),
     ("spectrum --instrument FILE", "i.toml", lambda f, t: ["spectrum", "--instrument", str(f)]),
-    ("spectrometer calibrate --lamp", "l.LMP", lambda f, t: ["spectrometer", "calibrate", "--sim", "--lamp", str(f)]),
+    ("spectrometer calibrate --lamp", "l.LMP", lambda f, t: [*CALIBRATE, "--sim", "--lamp", str(f)]),
     (
         "spectrometer calibrate --sim-lamp",
         "l.LMP",
-        lambda f, t: ["spectrometer", "calibrate", "--sim", "--lamp", str(LAMP), "--sim-lamp", str(f)],
+        lambda f, t: [*CALIBRATE, "--sim", "--lamp", str(LAMP), "--sim-lamp", str(f)],
     ),
     (
         "spectrometer calibrate --lamp-spectrum",
         "s.txt",
         lambda f, t: [
-            "spectrometer", "calibrate", "--lamp", str(LAMP), "--lamp-spectrum", str(f),
+            *CALIBRATE, "--lamp", str(LAMP), "--lamp-spectrum", str(f),
             "--dark-spectrum", str(DATA / "spectrasuite_dark_FLMS01234.txt"),
         ],
     ),
@@ -198,7 +200,7 @@ FILE_CASES: list[FileCase] = [
         "spectrometer calibrate --dark-spectrum",
         "d.txt",
         lambda f, t: [
-            "spectrometer", "calibrate", "--lamp", str(LAMP), "--lamp-spectrum",
+            *CALIBRATE, "--lamp", str(LAMP), "--lamp-spectrum",
             str(DATA / "oceanview_lamp_FLMS01234.txt"), "--dark-spectrum", str(f),
         ],
     ),
@@ -288,8 +290,8 @@ def numeric_bases(tmp: Path) -> dict[tuple[str, str], list[str]]:
     """(verb, option) → a command line the option is added to, run in the fresh folder ``tmp``."""
     ds = str(tmp / "base" / "ds")
     out = str(tmp / "o")
-    sim_spec = ["spectrum", "--sim"]
-    cal = ["spectrometer", "calibrate", "--sim", "--lamp", str(LAMP)]
+    sim_spec = [*SIM_SPECTRUM, "--raw"]
+    cal = [*CALIBRATE, "--sim", "--lamp", str(LAMP)]
     light_cal = ["light", "calibrate", "--light", "/dev/null", "--spectrometer-instrument", "ocean-insight", "--out",
                  f"{out}.csv"]  # fmt: skip
     supply = ["light", *SIM_SUPPLY]
@@ -423,7 +425,8 @@ def prepare(tmp: Path) -> None:
         raise SystemExit(f"the base dataset could not be made: {result}")
 
 
-def folder_for(kind: str, entry: str, tmp: Path, make: Callable[[Path], Path]) -> Path:
+def folder_for(kind: str, entry: str, tmp: Path, make: Callable[[Path], Path]) -> tuple[Path, Path]:
+    """The folder given to the command, and the bad entry made in it."""
     import shutil
 
     folder = tmp / "in"
@@ -443,16 +446,18 @@ def folder_for(kind: str, entry: str, tmp: Path, make: Callable[[Path], Path]) -
     if path.exists() or path.is_symlink():
         path.unlink() if not path.is_dir() else shutil.rmtree(path)
     make(path)
-    return folder
+    return folder, path
 
 
-def verdict(result: dict, server: bool = False) -> str:
+def verdict(result: dict, server: bool = False, named: str = "") -> str:
+    """How a run ended; a refusal of a bad input counts only when its line names the input (``named``): one that
+    names something else was refused before the input was looked at (the probe's command line is wrong)."""
     if result["traceback"]:
         return "traceback"
     if result["rc"] is None:
         return "running" if server else "hang"
     if result["rc"] == 2 and result["stderr_lines"] == 1:
-        return "refused in one line"
+        return "refused in one line" if named in result["message"] else "refused for another reason"
     return "accepted" if result["rc"] == 0 else "other"
 
 
@@ -478,13 +483,15 @@ def campaign(groups: tuple[str, ...] = ("file", "folder", "numeric", "design --s
                 work = fresh()
                 path = Path("/dev/zero") if bad == "/dev/zero" else make(work / filename)
                 result = run(argv(path, work), work)
-                runs.append({"group": "file", "input": case, "bad": bad, **result, "verdict": verdict(result)})
+                named = verdict(result, named=path.name)
+                runs.append({"group": "file", "input": case, "bad": bad, **result, "verdict": named})
         for case, kind, entry, argv in FOLDER_CASES if "folder" in groups else ():
             for bad, make in BAD.items():
                 work = fresh()
-                folder = folder_for(kind, entry, work, make)
+                folder, path = folder_for(kind, entry, work, make)
                 result = run(argv(folder, work), work)
-                runs.append({"group": "folder", "input": case, "bad": bad, **result, "verdict": verdict(result)})
+                named = verdict(result, named=path.name)
+                runs.append({"group": "folder", "input": case, "bad": bad, **result, "verdict": named})
         for verb, option, kind in numeric if "numeric" in groups else ():
             if (verb, option) not in numeric_bases(tmp):
                 runs.append({"group": "numeric", "input": f"{verb} {option}", "bad": "", "verdict": "no base line"})
