@@ -227,6 +227,8 @@ def test_a_malformed_pyvisa_sim_file_is_one_line(tmp_path, capsys):
 ABSURD_NUMBERS = [
     (["grab", "--timeout-s", "1e308"], "policy.timeout_s"),
     (["grab", "--timeout-s", "nan"], "policy.timeout_s"),
+    (["design", str(CONFIGS / "design" / "example.toml"), "--grid", "lens.f_number=1:1e308:1e-308"], "too many"),
+    (["design", str(CONFIGS / "design" / "example.toml"), "--grid", "lens.f_number=-1e308:1e308:1"], "too many"),
     (["sim", "charuco", str(DOME), "--medium", "air", "--out", "OUT", "--lens-k1", "1e308"], "--lens-k1"),
     (["sim", "charuco", str(DOME), "--medium", "air", "--out", "OUT", "--lens-k1", "nan"], "--lens-k1"),
 ]
