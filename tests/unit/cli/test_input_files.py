@@ -66,6 +66,27 @@ COMMANDS: list[tuple[str, str, Callable[[Path, Path], list[str]]]] = [
         ],
     ),
     (
+        "light --instrument FILE",
+        ".toml",
+        lambda f, tmp: ["light", "--instrument", str(f), "--resource", "ASRL1::INSTR"],
+    ),
+    (  # the light's files are checked before the spectrometer (a port that cannot be opened) is opened
+        "light calibrate --instrument FILE",
+        ".toml",
+        lambda f, tmp: [
+            *("light", "calibrate", "--instrument", str(f), "--resource", "ASRL1::INSTR"),
+            *("--spectrometer", "/dev/null", "--out", str(tmp / "out.csv")),
+        ],
+    ),
+    (
+        "light calibrate --visa-library PATH@sim",
+        ".yaml",
+        lambda f, tmp: [
+            *("light", "calibrate", *SUPPLY, "--visa-library", f"{f}@sim"),
+            *("--spectrometer", "/dev/null", "--out", str(tmp / "out.csv")),
+        ],
+    ),
+    (
         "sim charuco --board",
         ".toml",
         lambda f, tmp: ["sim", "charuco", str(DOME), "--medium", "air", "--out", str(tmp / "o"), "--board", str(f)],

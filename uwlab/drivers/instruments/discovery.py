@@ -46,20 +46,25 @@ def identity_fields(idn: str) -> tuple[str | None, str | None, str | None]:
     return fields[0], fields[1], fields[2]
 
 
+def check_visa_library(visa_library: str | None) -> None:
+    """A pyvisa-sim definitions file (``PATH.yaml@sim``) checked as every input file is (`check_input_file`),
+    without opening it; other libraries are PyVISA's to find."""
+    path, at, backend = (visa_library or "").rpartition("@")
+    if at and backend == "sim" and path:
+        check_input_file(path, "visa-library", MAX_TOML_BYTES, "pyvisa-sim YAML")
+
+
 def visa_manager(visa_library: str | None) -> Any:
     """PyVISA's resource manager for ``visa_library`` (``@py`` when None). A pyvisa-sim definitions file
-    (``PATH.yaml@sim``), which pyvisa-sim opens and reads itself, is checked first as every input file is
-    (`check_input_file`: a FIFO, a device or an over-size file is refused in one line, never opened). A library
+    (``PATH.yaml@sim``), which pyvisa-sim opens and reads itself, is checked first (`check_visa_library`: a FIFO,
+    a device or an over-size file is refused in one line, never opened). A library
     that does not load is a `ConfigError` naming it: pyvisa-sim re-raises whatever its YAML parser raised (a
     ``yaml.ParserError`` for a malformed file) with the traceback packed into the message, `said` unpacks it."""
     import pyvisa
 
-    library = visa_library or "@py"
-    path, at, backend = library.rpartition("@")
-    if at and backend == "sim" and path:
-        check_input_file(path, "visa-library", MAX_TOML_BYTES, "pyvisa-sim YAML")
+    check_visa_library(visa_library)
     try:
-        return pyvisa.ResourceManager(library)
+        return pyvisa.ResourceManager(visa_library or "@py")
     except Exception as exc:  # any library's own failure to load, in one line
         raise ConfigError("visa-library", visa_library, f"cannot be loaded ({said(exc)})") from None
 
