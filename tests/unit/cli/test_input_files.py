@@ -86,6 +86,7 @@ COMMANDS: list[tuple[str, str, Callable[[Path, Path], list[str]]]] = [
             *("--spectrometer", "/dev/null", "--out", str(tmp / "out.csv")),
         ],
     ),
+    ("sim camera --rig-state", ".json", lambda f, tmp: ["sim", "camera", "--gige", "--rig-state", str(f)]),
     (
         "sim charuco --board",
         ".toml",
@@ -248,6 +249,8 @@ def test_a_malformed_pyvisa_sim_file_is_one_line(tmp_path, capsys):
 ABSURD_NUMBERS = [
     (["grab", "--timeout-s", "1e308"], "policy.timeout_s"),
     (["grab", "--timeout-s", "nan"], "policy.timeout_s"),
+    (["sim", "supply", "--seed", "-1"], "seed"),
+    (["spectrum", "--instrument", "ocean-insight", "--sim", "--raw", "--area-cm2", "0"], "area-cm2"),
     (["design", str(CONFIGS / "design" / "example.toml"), "--grid", "lens.f_number=1:1e308:1e-308"], "too many"),
     (["design", str(CONFIGS / "design" / "example.toml"), "--grid", "lens.f_number=-1e308:1e308:1"], "too many"),
     (["sim", "charuco", str(DOME), "--medium", "air", "--out", "OUT", "--lens-k1", "1e308"], "--lens-k1"),
