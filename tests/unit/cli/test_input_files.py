@@ -262,3 +262,15 @@ ABSURD_NUMBERS = [
 def test_an_absurd_number_is_refused_in_one_line(tmp_path, capsys, argv, words):
     err = one_line_error(capsys, [str(tmp_path / "out") if word == "OUT" else word for word in argv])
     assert words in err, err
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize("inside", [False, True], ids=["file", "in the folder"])
+def test_a_fifo_as_a_characterised_sensor_is_refused_for_what_it_is(tmp_path, inside):
+    """`uwlab fit --sensor CAMERA=FROM`: a FIFO given as the profile, or as the one TOML of an emva folder, is refused
+    as not a regular file (not as a missing profile), never opened."""
+    from uwlab.experiments.calibration.forward import characterised_sensor
+
+    fifo = _fifo(tmp_path / "camera.toml")
+    with pytest.raises(ConfigError, match=f"{fifo}.*not a regular file"):
+        characterised_sensor(str(tmp_path if inside else fifo))
