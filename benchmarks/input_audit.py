@@ -49,8 +49,9 @@ CALIBRATE = ["spectrometer", "calibrate", "--out-csv", "calibration.csv"]  # in 
 LONG_RUNNING = ("sim", "explore", "demo")  # servers, and the demo's campaign: accepted, they run past the timeout
 
 
-def run(argv: list[str], cwd: Path) -> dict:
-    """``uwlab ARGV`` in a forked child, killed after `TIMEOUT_S`: exit code (None: killed), stderr, time."""
+def run(argv: list[str], cwd: Path, command: Callable[[list[str]], int] = main) -> dict:
+    """``uwlab ARGV`` (or ``command(argv)``) in a forked child, killed after `TIMEOUT_S`: exit code (None: killed),
+    stderr, time."""
     err_path, out_path = cwd / "stderr.txt", cwd / "stdout.txt"
     start = time.monotonic()
     pid = os.fork()
@@ -64,7 +65,7 @@ def run(argv: list[str], cwd: Path) -> dict:
             os.dup2(out, 1)
             os.dup2(err, 2)
             sys.stdin = open(os.devnull)
-            code = main(argv)
+            code = command(argv)
         except SystemExit as exc:
             code = exc.code if isinstance(exc.code, int) else 1
         except BaseException:
@@ -491,7 +492,10 @@ def handled(expect: str, verdict: str, result: dict, name: str) -> bool:
     }[expect]
 
 
-def campaign(groups: tuple[str, ...] = ("file", "folder", "numeric", "design --set")) -> dict:
+GROUPS = ("file", "folder", "numeric", "design --set", "explorer")
+
+
+def campaign(groups: tuple[str, ...] = GROUPS) -> dict:
     import shutil
 
     numeric = numeric_options()  # imports every verb's module here, once: a run's time is the command's own
@@ -546,13 +550,66 @@ def campaign(groups: tuple[str, ...] = ("file", "folder", "numeric", "design --s
                 work = fresh()
                 result = run(["design", str(DESIGN), "--set", f"{key}={value}"], work)
                 runs.append({"group": "design --set", "input": key, "bad": value, **result, "verdict": verdict(result)})
+        for endpoint, key, bad in EXPLORER_CASES if "explorer" in groups else ():
+            work = fresh()
+            result = run([endpoint, key, bad], work, explorer_request)
+            named = "refused" if result["rc"] == 0 and result["stdout"].startswith("4") else "not refused"
+            runs.append({"group": "explorer", "input": f"{endpoint} {key}", "bad": bad, **result, "verdict": named})
     return summarise(runs)
+
+
+# --- the explorer's file-valued keys: a bad file inside its --data-dir, through each endpoint that takes one -------
+
+EXPLORER_CASES = [
+    (endpoint, key, bad)
+    for endpoint, key in (
+        ("/api/design", "water.type"),
+        ("/api/design", "light.spectrum"),
+        ("/api/design", "sensor.profile"),
+        ("/api/sweep", "water.type"),
+        ("/api/profile", "path"),
+    )
+    for bad in BAD
+]
+
+
+def explorer_request(argv: list[str]) -> int:
+    """POST the bad file ``argv[2]`` made in a --data-dir as ``argv[1]`` to the endpoint ``argv[0]`` of an explorer
+    served in process (Starlette's TestClient); prints the status and the answer (a 4xx is a refusal)."""
+    import warnings
+
+    from starlette.testclient import TestClient
+
+    from uwlab.explore.app import create_app
+    from uwlab.explore.catalog import Catalog
+    from uwlab.explore.inputs import load_served
+
+    endpoint, key, bad = argv
+    folder = directory(Path.cwd() / "data")
+    name = "profile.toml" if key in ("sensor.profile", "path") else "table.csv"
+    path = Path("/dev/zero") if bad == "/dev/zero" else BAD[bad](folder / name)
+    if bad == "/dev/zero":
+        path = device(folder / name)
+    if endpoint == "/api/profile":
+        body: dict = {"path": str(path)}
+    elif endpoint == "/api/sweep":
+        body = {"grid": {key: [str(path)]}, "output": "snr_db"}
+    else:
+        body = {"text": {key: str(path)}}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        served = load_served(DESIGN).with_roots(folder)
+        with TestClient(create_app(served, Catalog()), base_url="http://127.0.0.1") as client:
+            answer = client.post(endpoint, json=body)
+    print(answer.status_code, answer.text[:300])
+    return 0
 
 
 def summarise(runs: list[dict]) -> dict:
     inputs = [r for r in runs if r["group"] in ("file", "folder")]
     timed = [r for r in inputs if r["handled"] and r["verdict"] != "running"]
-    numeric = [r for r in runs if r["group"] not in ("file", "folder") and "rc" in r]
+    numeric = [r for r in runs if r["group"] in ("numeric", "design --set") and "rc" in r]
+    explorer = [r for r in runs if r["group"] == "explorer"]
     slowest = max(timed, key=lambda r: r["time_s"], default=None)
     return {
         "benchmark": "input_audit",
@@ -563,6 +620,8 @@ def summarise(runs: list[dict]) -> dict:
         "handled_within_2_s": sum(r["time_s"] <= TARGET_S for r in timed),
         "worst_time_s": slowest["time_s"] if slowest else 0.0,
         "worst_time_input": f"{slowest['input']} ({slowest['bad']})" if slowest else None,
+        "explorer_requests_tried": len(explorer),
+        "explorer_refused_4xx": sum(r["verdict"] == "refused" for r in explorer),
         "numeric_values_tried": len(numeric),
         "numeric_refused_in_one_line": sum(r["verdict"] == "refused in one line" for r in numeric),
         "numeric_accepted": sum(r["verdict"] in ("accepted", "running") for r in numeric),
@@ -573,7 +632,7 @@ def summarise(runs: list[dict]) -> dict:
             {k: v for k, v in r.items() if k != "stdout"}
             for r in runs
             if (r["group"] in ("file", "folder") and not r["handled"])
-            or r["verdict"] in ("traceback", "hang", "other", "refused for another reason")
+            or r["verdict"] in ("traceback", "hang", "other", "refused for another reason", "not refused")
             and r["group"] not in ("file", "folder")
         ],
         "runs": runs,
@@ -595,9 +654,9 @@ def warm() -> None:
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--details", action="store_true", help="also print every run")
-    parser.add_argument("--only", action="append", choices=("file", "folder", "numeric", "design --set"))
+    parser.add_argument("--only", action="append", choices=GROUPS, help="run only these groups (repeatable)")
     args = parser.parse_args()
-    summary = campaign(tuple(args.only or ("file", "folder", "numeric", "design --set")))
+    summary = campaign(tuple(args.only or GROUPS))
     if not args.details:
         summary.pop("runs")
     print(json.dumps(summary, indent=1))
