@@ -26,8 +26,8 @@ def shown(value: object) -> str:
 
 def said(exc: BaseException) -> str:
     """What a library's exception says, for an error line: its message on one line; when the library packed a
-    formatted traceback into the message (pyvisa-sim re-raises a definitions file it cannot read that way), the
-    exception it was handling instead.
+    formatted traceback into the message (pyvisa-sim re-raises a definitions file it cannot read that way, twice for
+    a malformed YAML), the first exception it was handling that says something else.
 
     >>> try:
     ...     try:
@@ -39,8 +39,9 @@ def said(exc: BaseException) -> str:
     "[Errno 2] No such file or directory: '/no/such.yaml'"
     """
     text = str(exc)
-    if "Traceback (most recent call last)" in text and exc.__context__ is not None:
-        text = str(exc.__context__)
+    while "Traceback (most recent call last)" in text and exc.__context__ is not None:  # packed again and again
+        exc = exc.__context__
+        text = str(exc)
     return " ".join(text.split())
 
 

@@ -6,7 +6,9 @@ even by SIGKILL, so a lock file that can be locked has no live holder on this ho
 stale and the lock is taken over. A file naming *another* host is refused even when it can be locked (``flock``
 may not reach across hosts on a network file system, so that holder may still be running there); the refusal
 names the file to delete once that process is known to be gone. Releasing empties the file before unlocking, so
-an empty file is a free lock.
+an empty file is a free lock. A lock path that is not a regular file (a FIFO, a device, planted by mistake or
+malice) is refused in one line, never waited on or read; a holder record is read bounded (`MAX_HOLDER_BYTES`) — the
+rule of `uwlab.model.data.read_bytes`, which this layer sits below.
 
 >>> import tempfile, pathlib
 >>> path = pathlib.Path(tempfile.mkdtemp()) / "lock"
@@ -25,11 +27,17 @@ import json
 import os
 import typing
 import socket
+import stat
 from dataclasses import asdict, dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 
-from uwlab.errors import UwlabError
+from uwlab.errors import ConfigError, UwlabError
+
+# A holder record is one short JSON line; anything longer is not one (and is not read further)
+MAX_HOLDER_BYTES = 4096
+# O_NONBLOCK: opening a FIFO never waits for a writer (a regular file's reads are unaffected)
+_OPEN_FLAGS = os.O_NONBLOCK | os.O_CLOEXEC
 
 
 @dataclass(frozen=True)
@@ -55,12 +63,26 @@ class LockHeld(UwlabError):
 
 
 def read_holder(path: str | os.PathLike) -> Holder | None:
-    """The holder named in a lock file (None: no file, an empty file or one that is not a holder record)."""
+    """The holder named in a lock file (None: no file, an empty file, one that is not a holder record, or not a
+    regular file at all); at most `MAX_HOLDER_BYTES` are read."""
     try:
-        text = Path(path).read_text()
-        return Holder(**json.loads(text)) if text.strip() else None
+        fd = os.open(path, os.O_RDONLY | _OPEN_FLAGS)
+    except OSError:
+        return None
+    try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            return None
+        text = os.read(fd, MAX_HOLDER_BYTES + 1).decode()
+        return Holder(**json.loads(text)) if text.strip() and len(text) <= MAX_HOLDER_BYTES else None
     except (OSError, ValueError, TypeError):
         return None
+    finally:
+        os.close(fd)
+
+
+def _check_regular(fd: int, path: Path) -> None:
+    if not stat.S_ISREG(os.fstat(fd).st_mode):
+        raise ConfigError("lock", str(path), "not a regular file (a device or pipe), not a lock file")
 
 
 def _try_flock(fd: int) -> bool:
@@ -88,8 +110,9 @@ class OwnerLock:
 
         Raises `LockHeld` naming the live holder, and `OSError` when the lock file cannot be created (a read-only
         folder)."""
-        fd = os.open(self.path, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o666)
+        fd = os.open(self.path, os.O_RDWR | os.O_CREAT | _OPEN_FLAGS, 0o666)
         try:
+            _check_regular(fd, self.path)
             if not _try_flock(fd):
                 holder = read_holder(self.path)
                 who = holder.describe() if holder else "another process (starting or stopping)"
@@ -135,10 +158,12 @@ def is_stale(path: str | os.PathLike) -> bool:
     """True when the lock file at ``path`` names a holder on this host that no longer holds it (its process died
     without releasing it). A free (empty) lock, a live holder or another host's holder are not stale."""
     try:
-        fd = os.open(path, os.O_RDONLY | os.O_CLOEXEC)
+        fd = os.open(path, os.O_RDONLY | _OPEN_FLAGS)
     except OSError:
         return False
     try:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):
+            return False
         holder = read_holder(path)
         if holder is None or holder.host != socket.gethostname() or not _try_flock(fd):
             return False

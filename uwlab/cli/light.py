@@ -8,7 +8,8 @@ from datetime import datetime, UTC
 from uwlab.progress import bar
 
 from uwlab.api.instruments import open_light, open_spectrometer
-from uwlab.drivers.instruments.definition import LightRig, MaxCurrentA, VoltageV, load_light_rig
+from uwlab.drivers.instruments.definition import LightRig, MaxCurrentA, VoltageV, load_light_definition, load_light_rig
+from uwlab.drivers.instruments.discovery import check_visa_library
 from uwlab.drivers.ocean_insight import read_dark
 from uwlab.drivers.serial import PROTOCOLS
 from uwlab.drivers.serial.base import check_integration_ms, check_level
@@ -237,6 +238,8 @@ def _calibration_light(args) -> tuple[dict, str]:
             raise ConfigError(extra.replace("_", "-"), getattr(args, extra), "needs --instrument (not --light)")
         return {"port": args.light, "protocol": args.protocol}, args.light
     _require_resource(args)
+    load_light_definition(args.instrument)  # its files checked before the spectrometer is opened
+    check_visa_library(args.visa_library)
     options = {
         "port": args.resource,
         "instrument": args.instrument,

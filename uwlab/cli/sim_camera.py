@@ -4,12 +4,14 @@ from __future__ import annotations
 
 import ipaddress
 import json
+import os
 import signal
 import threading
 
 from uwlab.sim.devices.camera import sensor_from_rig
 from uwlab.sim.devices.gige import GVCP_PORT, GigeCameraServer, GigeFaults
 from uwlab.errors import ConfigError
+from uwlab.model.data import MAX_JSON_BYTES, check_input_file
 from uwlab.model.schema import Seed, check
 
 LOOPBACK = ipaddress.IPv4Network("127.0.0.0/8")
@@ -61,6 +63,8 @@ def run_sim_camera(args) -> int:
     if args.incomplete_every < 0:
         raise ConfigError("incomplete-every", args.incomplete_every, "must be >= 0")
     check(Seed, args.seed, "--seed")
+    if args.rig_state is not None and os.path.lexists(args.rig_state):  # a mistake shown now, not a dark image later
+        check_input_file(args.rig_state, "--rig-state", MAX_JSON_BYTES, "light-state")
     sensor = sensor_from_rig(args.config, args.seed, rig_state=args.rig_state)
     stop = threading.Event()
     previous = signal.signal(signal.SIGTERM, lambda *_: stop.set())

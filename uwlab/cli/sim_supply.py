@@ -7,6 +7,7 @@ import threading
 from contextlib import ExitStack
 
 from uwlab.errors import ConfigError, DeviceError
+from uwlab.model.schema import Seed, check
 from uwlab.sim.devices.led_load import LOAD_FAULTS
 from uwlab.sim.devices.supply import DIALECTS, SupplyTwin, serve
 
@@ -39,8 +40,9 @@ def add_sim_supply_parser(sub) -> None:
 def run_sim_supply(args) -> int:
     if not 0 <= args.tcp <= 65535:
         raise ConfigError("tcp", args.tcp, "a TCP port is 0-65535 (0: any free port)")
+    seed = check(Seed, args.seed, "seed")
     try:
-        twin = SupplyTwin(args.dialect, idn=args.idn, seed=args.seed)
+        twin = SupplyTwin(args.dialect, idn=args.idn, seed=seed)
     except ValueError as exc:
         raise ConfigError("idn", args.idn, str(exc)) from None
     twin.set_fault(args.fault)

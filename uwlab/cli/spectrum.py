@@ -256,7 +256,7 @@ def _measure_ocean(args) -> tuple[tuple, bool, dict[str, object], DarkSpectrum |
 def _raw_ocean(args) -> int:
     """``--raw``: the raw counts per pixel, averaged (no electric dark, nonlinearity, dark or calibration)."""
     for name in ("calibration", "dark", "dark_now", "save_dark", "area_cm2", "cosine_corrector"):
-        if getattr(args, name) not in (None, False):
+        if getattr(args, name) is not None and getattr(args, name) is not False:  # 0.0 == False: given, refused
             raise ConfigError(name.replace("_", "-"), getattr(args, name), "not used with --raw (counts only)")
     if args.integration_ms is not None:
         check_integration_ms(args.integration_ms)

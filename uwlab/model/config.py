@@ -364,9 +364,10 @@ def parse_grid_values(key: str, text: str) -> list:
             raise ConfigError(key, text, "grid range must be finite START:STOP:STEP numbers")
         if step <= 0 or stop < start:
             raise ConfigError(key, text, "grid range needs step > 0 and stop >= start")
-        count = int(math.floor((stop - start) / step + 1e-9)) + 1
+        steps = (stop - start) / step  # inf when the span or the ratio overflows (1:1e308:1e-308)
+        count = int(math.floor(steps + 1e-9)) + 1 if steps < 10_000_000 else math.inf
         if count > 10_000_000:
-            raise ConfigError(key, text, f"{count} values in one axis is too many")
+            raise ConfigError(key, text, f"{steps + 1:.4g} values in one axis is too many (at most 10⁷)")
         return (start + step * np.arange(count)).tolist()
     values = [parse_value(v.strip()) for v in text.split(",") if v.strip()]
     if not values:

@@ -10,6 +10,9 @@ restarted simulator append to the same file safely)::
 ``power-on`` (start, ``*RST`` or a reset), ``command`` (a setting changed), ``read`` (the spectrometer took a
 reading: its settings and the light state it saw) or ``power-lost`` (the process was killed; written by
 whoever killed it). Every line carries the instrument's full state after the event.
+
+The log is appended to without waiting (a FIFO planted at its path with no reader is an `OSError`, never a
+blocked instrument) and read through the one bounded regular-file reader (`uwlab.model.data.read_text`).
 """
 
 from __future__ import annotations
@@ -18,6 +21,8 @@ import json
 import os
 import time
 from pathlib import Path
+
+from uwlab.model.data import MAX_JSON_BYTES, read_text
 
 
 class StateLog:
@@ -28,7 +33,7 @@ class StateLog:
 
     def append(self, event: str, **state: object) -> None:
         line = json.dumps({"t_ns": time.time_ns(), "event": event, **state}, separators=(",", ":")) + "\n"
-        fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
+        fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | os.O_NONBLOCK | os.O_CLOEXEC, 0o644)
         try:
             os.write(fd, line.encode())
         finally:
@@ -36,10 +41,9 @@ class StateLog:
 
     def entries(self) -> list[dict]:
         """Every event so far, in time order (a missing file: none)."""
-        try:
-            text = self.path.read_text()
-        except FileNotFoundError:
+        if not os.path.lexists(self.path):
             return []
+        text = read_text(self.path, "state log", MAX_JSON_BYTES, "state log")
         return sorted((json.loads(line) for line in text.splitlines() if line.strip()), key=lambda e: e["t_ns"])
 
 

@@ -44,7 +44,7 @@ def test_one_line_each(capsys):
 
 @pytest.mark.parametrize(
     ("library", "cause"),
-    [("no-visa.so", "cannot open shared object file"), ("no-such.yaml@sim", "No such file or directory")],
+    [("no-visa.so", "cannot open shared object file"), ("no-such.yaml@sim", "file not found")],
 )
 def test_a_visa_library_that_does_not_load_is_one_line(tmp_path, capsys, library, cause):
     """Reported in one line saying why (pyvisa-sim packs a traceback into its error: the line gives its cause)."""

@@ -16,8 +16,21 @@ import pytest
 import tifffile
 
 from tests.support.cli import one_line_error
+from tests.support.paths import CONFIGS, DATA
 from uwlab.errors import ConfigError
-from uwlab.model.data import MAX_CSV_BYTES, check_input_file, read_bytes
+from uwlab.model.data import MAX_BINARY_BYTES, MAX_CSV_BYTES, check_input_file, read_bytes
+
+DOME = CONFIGS / "design" / "dome-8mm.toml"
+LAMP = DATA / "ocean_insight_lamp_3100k.LMP"
+# a VISA supply on its pyvisa-sim twin (configs/instruments/sim/)
+SUPPLY = ["--instrument", "scpi-dc-supply", "--resource", "TCPIP0::192.168.0.10::inst0::INSTR"]
+SIM_SPECTRUM = ["spectrum", "--instrument", "ocean-insight", "--sim"]
+SIM_SUPPLY = [*SUPPLY, "--visa-library", f"{CONFIGS / 'instruments' / 'sim' / 'scpi-dc-supply.yaml'}@sim"]
+
+
+def calibrate(tmp: Path) -> list[str]:
+    return ["spectrometer", "calibrate", "--out-csv", str(tmp / "calibration.csv")]
+
 
 # (name, suffix of the file, argv with the file in it)
 COMMANDS: list[tuple[str, str, Callable[[Path, Path], list[str]]]] = [
@@ -30,6 +43,55 @@ COMMANDS: list[tuple[str, str, Callable[[Path, Path], list[str]]]] = [
     ("port trace", ".toml", lambda f, tmp: ["port", "trace", str(f)]),
     ("grab --config", ".toml", lambda f, tmp: ["grab", "--config", str(f)]),
     ("devices --config", ".toml", lambda f, tmp: ["devices", "--config", str(f)]),
+    ("mtf IMAGE", ".tif", lambda f, tmp: ["mtf", str(f)]),
+    ("spectrum --calibration", ".cal", lambda f, tmp: [*SIM_SPECTRUM, "--calibration", str(f)]),
+    ("spectrum --dark", ".csv", lambda f, tmp: [*SIM_SPECTRUM, "--dark", str(f)]),
+    ("spectrometer --lamp", ".LMP", lambda f, tmp: [*calibrate(tmp), "--sim", "--lamp", str(f)]),
+    (
+        "spectrometer --lamp-spectrum",
+        ".txt",
+        lambda f, tmp: [
+            *(*calibrate(tmp), "--lamp", str(LAMP), "--lamp-spectrum", str(f)),
+            *("--dark-spectrum", str(DATA / "spectrasuite_dark_FLMS01234.txt")),
+        ],
+    ),
+    ("light --rig", ".toml", lambda f, tmp: ["light", *SIM_SUPPLY, "--rig", str(f)]),
+    ("light --visa-library PATH@sim", ".yaml", lambda f, tmp: ["light", *SUPPLY, "--visa-library", f"{f}@sim"]),
+    (
+        "light calibrate --calibration",
+        ".csv",
+        lambda f, tmp: [
+            *("light", "calibrate", "--light", "/dev/null", "--spectrometer-instrument", "ocean-insight"),
+            *("--calibration", str(f), "--out", str(tmp / "out.csv")),
+        ],
+    ),
+    (
+        "light --instrument FILE",
+        ".toml",
+        lambda f, tmp: ["light", "--instrument", str(f), "--resource", "ASRL1::INSTR"],
+    ),
+    (  # the light's files are checked before the spectrometer (a port that cannot be opened) is opened
+        "light calibrate --instrument FILE",
+        ".toml",
+        lambda f, tmp: [
+            *("light", "calibrate", "--instrument", str(f), "--resource", "ASRL1::INSTR"),
+            *("--spectrometer", "/dev/null", "--out", str(tmp / "out.csv")),
+        ],
+    ),
+    (
+        "light calibrate --visa-library PATH@sim",
+        ".yaml",
+        lambda f, tmp: [
+            *("light", "calibrate", *SUPPLY, "--visa-library", f"{f}@sim"),
+            *("--spectrometer", "/dev/null", "--out", str(tmp / "out.csv")),
+        ],
+    ),
+    ("sim camera --rig-state", ".json", lambda f, tmp: ["sim", "camera", "--gige", "--rig-state", str(f)]),
+    (
+        "sim charuco --board",
+        ".toml",
+        lambda f, tmp: ["sim", "charuco", str(DOME), "--medium", "air", "--out", str(tmp / "o"), "--board", str(f)],
+    ),
 ]
 
 
@@ -39,9 +101,9 @@ def _fifo(path: Path) -> Path:
 
 
 def _sparse(path: Path) -> Path:
-    """A file larger than any input cap (sparse: no disk is used)."""
+    """A file larger than any input cap, images' included (sparse: no disk is used)."""
     with open(path, "wb") as fh:
-        fh.truncate(MAX_CSV_BYTES + 1)
+        fh.truncate(max(MAX_CSV_BYTES, MAX_BINARY_BYTES) + 1)
     return path
 
 
@@ -137,3 +199,78 @@ def test_a_fifo_as_the_shared_light_state_is_not_waited_on(tmp_path):
 
     state = RigState(_fifo(tmp_path / "state.json"))
     assert state.light == LightState()
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize("bad", ["fifo", "device"])
+def test_a_lock_file_that_is_not_a_regular_file_is_refused_not_waited_on(tmp_path, bad):
+    """A FIFO planted as a dataset's or a rig folder's lock is refused in one line when the lock is taken (opening
+    it non-blocking; reading its holder would wait for ever), and is no holder; a lock beyond a holder record's size
+    is read no further and names no holder."""
+    from uwlab.lockfile import MAX_HOLDER_BYTES, OwnerLock, is_stale, read_holder
+
+    lock = _fifo(tmp_path / "lock") if bad == "fifo" else Path("/dev/zero")
+    with pytest.raises(ConfigError, match="not a regular file .*not a lock file"):
+        OwnerLock(lock, "test").acquire()
+    assert read_holder(lock) is None and not is_stale(lock)
+    big = _sparse(tmp_path / "big-lock")
+    assert big.stat().st_size > MAX_HOLDER_BYTES and read_holder(big) is None
+    with OwnerLock(big, "test"):  # not a holder: a free lock, taken over (and rewritten)
+        assert read_holder(big).pid == os.getpid()
+
+
+@pytest.mark.timeout(60)
+def test_a_fifo_as_a_simulators_state_log_is_neither_waited_on_nor_read(tmp_path):
+    """Appending to a FIFO with no reader fails at once (O_NONBLOCK) instead of stalling the simulated instrument;
+    reading the log goes through the bounded reader."""
+    from uwlab.sim.state_log import StateLog
+
+    log = StateLog(_fifo(tmp_path / "light.state.jsonl"))
+    with pytest.raises(OSError):
+        log.append("command", on=True)
+    with pytest.raises(ConfigError, match="not a regular file"):
+        log.entries()
+    regular = StateLog(tmp_path / "spectrometer.state.jsonl")
+    assert regular.entries() == []
+    regular.append("read", level=0.5)
+    assert [e["level"] for e in regular.entries()] == [0.5]
+
+
+def test_a_malformed_pyvisa_sim_file_is_one_line(tmp_path, capsys):
+    """pyvisa-sim re-raises the YAML parser's error twice, each with the last traceback packed in its message: the
+    line gives the parser's own words, and the exception is not one uwlab would otherwise let through."""
+    bad = tmp_path / "twin.yaml"
+    bad.write_text("devices: [")
+    err = one_line_error(capsys, ["light", *SUPPLY, "--visa-library", f"{bad}@sim"])
+    assert "cannot be loaded (while parsing" in err and str(bad) in err and "Traceback" not in err, err
+
+
+# (argv, the words of the refusal): a number no camera, lens or light could have is a unit error, refused in one line
+ABSURD_NUMBERS = [
+    (["grab", "--timeout-s", "1e308"], "policy.timeout_s"),
+    (["grab", "--timeout-s", "nan"], "policy.timeout_s"),
+    (["sim", "supply", "--seed", "-1"], "seed"),
+    (["spectrum", "--instrument", "ocean-insight", "--sim", "--raw", "--area-cm2", "0"], "area-cm2"),
+    (["design", str(CONFIGS / "design" / "example.toml"), "--grid", "lens.f_number=1:1e308:1e-308"], "too many"),
+    (["design", str(CONFIGS / "design" / "example.toml"), "--grid", "lens.f_number=-1e308:1e308:1"], "too many"),
+    (["sim", "charuco", str(DOME), "--medium", "air", "--out", "OUT", "--lens-k1", "1e308"], "--lens-k1"),
+    (["sim", "charuco", str(DOME), "--medium", "air", "--out", "OUT", "--lens-k1", "nan"], "--lens-k1"),
+]
+
+
+@pytest.mark.parametrize(("argv", "words"), ABSURD_NUMBERS, ids=[" ".join(a[-2:]) for a, _ in ABSURD_NUMBERS])
+def test_an_absurd_number_is_refused_in_one_line(tmp_path, capsys, argv, words):
+    err = one_line_error(capsys, [str(tmp_path / "out") if word == "OUT" else word for word in argv])
+    assert words in err, err
+
+
+@pytest.mark.timeout(60)
+@pytest.mark.parametrize("inside", [False, True], ids=["file", "in the folder"])
+def test_a_fifo_as_a_characterised_sensor_is_refused_for_what_it_is(tmp_path, inside):
+    """`uwlab fit --sensor CAMERA=FROM`: a FIFO given as the profile, or as the one TOML of an emva folder, is refused
+    as not a regular file (not as a missing profile), never opened."""
+    from uwlab.experiments.calibration.forward import characterised_sensor
+
+    fifo = _fifo(tmp_path / "camera.toml")
+    with pytest.raises(ConfigError, match=f"{fifo}.*not a regular file"):
+        characterised_sensor(str(tmp_path if inside else fifo))

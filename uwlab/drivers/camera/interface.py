@@ -168,6 +168,11 @@ class AcquisitionStats:
     reconnects: int = 0
 
 
+# The longest any wait of a camera may be: a day (beyond it a value is a unit error; 1e308 s would overflow the
+# backends' integer microseconds)
+MAX_WAIT_S = 86_400
+
+
 @dataclass(frozen=True)
 class Policy:
     """Fault handling bounds.
@@ -189,8 +194,8 @@ class Policy:
     def __post_init__(self) -> None:
         for name in ("timeout_s", "reconnect_delay_s", "reconnect_max_delay_s", "outage_limit_s"):
             value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ConfigError(f"policy.{name}", value, "must be a finite number > 0")
+            if not (isinstance(value, (int, float)) and 0 < value <= MAX_WAIT_S):
+                raise ConfigError(f"policy.{name}", value, f"must be a number of seconds in (0, {MAX_WAIT_S}]")
         for name in ("max_discarded_in_row", "reconnect_attempts"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 0:

@@ -365,7 +365,7 @@ def load_light_definition(name_or_file: str) -> LightDefinition:
     """The light definition `name_or_file` (a name in configs/instruments/ or a TOML file); `ConfigError` naming
     the instrument when there is none, or the offending key."""
     path = definition_path(name_or_file)
-    if not path.is_file():
+    if not path.exists():  # a FIFO or a device is there: read_toml refuses it for what it is
         folder = config_dir() / "instruments"
         known = sorted(p.stem for p in folder.glob("*.toml")) if folder.is_dir() else []
         raise ConfigError("instrument", name_or_file, f"no such instrument definition; known: {', '.join(known)}")

@@ -14,6 +14,9 @@ import warnings
 from dataclasses import asdict, dataclass
 from typing import Any
 
+from uwlab.errors import ConfigError, said
+from uwlab.model.data import MAX_TOML_BYTES, check_input_file
+
 IDN_TIMEOUT_MS = 500
 
 
@@ -43,14 +46,35 @@ def identity_fields(idn: str) -> tuple[str | None, str | None, str | None]:
     return fields[0], fields[1], fields[2]
 
 
+def check_visa_library(visa_library: str | None) -> None:
+    """A pyvisa-sim definitions file (``PATH.yaml@sim``) checked as every input file is (`check_input_file`),
+    without opening it; other libraries are PyVISA's to find."""
+    path, at, backend = (visa_library or "").rpartition("@")
+    if at and backend == "sim" and path:
+        check_input_file(path, "visa-library", MAX_TOML_BYTES, "pyvisa-sim YAML")
+
+
+def visa_manager(visa_library: str | None) -> Any:
+    """PyVISA's resource manager for ``visa_library`` (``@py`` when None). A pyvisa-sim definitions file
+    (``PATH.yaml@sim``), which pyvisa-sim opens and reads itself, is checked first (`check_visa_library`: a FIFO,
+    a device or an over-size file is refused in one line, never opened). A library
+    that does not load is a `ConfigError` naming it: pyvisa-sim re-raises whatever its YAML parser raised (a
+    ``yaml.ParserError`` for a malformed file) with the traceback packed into the message, `said` unpacks it."""
+    import pyvisa
+
+    check_visa_library(visa_library)
+    try:
+        return pyvisa.ResourceManager(visa_library or "@py")
+    except Exception as exc:  # any library's own failure to load, in one line
+        raise ConfigError("visa-library", visa_library, f"cannot be loaded ({said(exc)})") from None
+
+
 def visa_resources(visa_library: str | None = None) -> list[Found]:
     """Every VISA resource PyVISA finds through ``visa_library``, with its ``*IDN?`` where it answers. A library
     that cannot be loaded raises `OSError`/`ValueError` (the caller reports it)."""
-    import pyvisa
-
     with warnings.catch_warnings():  # pyvisa-py's notes on optional discovery packages (zeroconf, pyusb)
         warnings.simplefilter("ignore")
-        manager = pyvisa.ResourceManager(visa_library or "@py")
+        manager = visa_manager(visa_library)
         try:
             names = manager.list_resources("?*")
             return [_resource(manager, name) for name in names]

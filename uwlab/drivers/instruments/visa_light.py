@@ -27,6 +27,7 @@ import warnings
 from typing import Any
 
 from uwlab.drivers.instruments.definition import LightDefinition, load_light_definition
+from uwlab.drivers.instruments.discovery import visa_manager
 from uwlab.drivers.serial.base import Light, check_level
 from uwlab.errors import ConfigError, DeviceError, said
 
@@ -37,10 +38,7 @@ FALSE_TOKENS = ("0", "OFF")
 def _open_resource(resource: str, visa_library: str | None, definition: LightDefinition) -> Any:
     import pyvisa
 
-    try:
-        manager = pyvisa.ResourceManager(visa_library or "@py")
-    except (OSError, ValueError, pyvisa.errors.Error) as exc:
-        raise ConfigError("visa-library", visa_library, f"cannot be loaded ({said(exc)})") from None
+    manager = visa_manager(visa_library)
     try:
         handle = manager.open_resource(
             resource,

@@ -439,7 +439,7 @@ def characterised_sensor(source: str, base_dir: Path | None = None) -> SensorPro
         if len(found) != 1:
             raise ConfigError("sensor.characterised", source, f"holds {len(found)} profile TOMLs; name the one to use")
         path = found[0]
-    if not path.is_file():
+    if not path.exists():  # a FIFO or a device is there: the profile's reader refuses it for what it is
         raise ConfigError("sensor.characterised", source, "no such profile or `uwlab emva characterize` folder")
     profile = load_sensor_profile(str(path))
     if profile.response is None:

@@ -38,6 +38,8 @@ from uwlab.outputs import output_dir
 
 # Images of one simulated set: a calibration uses 10–50; more than 1000 is a typo (each pose is a render).
 PoseCount = Annotated[int, limits(1, 1000, "poses", hint="", integer=True)]
+# OpenCV's k1 on normalised image coordinates: real lenses, fisheyes included, stay well within ±1
+LensK1 = Annotated[float, limits(-1.0, 1.0, "", hint="k1 of normalised coordinates (OpenCV), not of pixels")]
 
 MEDIA = ("air", "water")
 SIDECAR = "charuco.json"
@@ -148,6 +150,7 @@ def simulate_charuco(
     returns the sidecar record (also written as charuco.json)."""
     count = check(PoseCount, count, "--poses")
     seed = check(Seed, seed, "--seed")
+    k1 = check(LensK1, k1, "--lens-k1")
     if not 0 < white_fraction <= 1:
         raise ConfigError("white_fraction", white_fraction, "must be in (0, 1]")
     port = port_in(design, medium)
