@@ -57,7 +57,7 @@ demo: $(VENV)/.demo
 # unit and slow tests fill those waits. A file is one work unit (its tests share simulators and fixtures), taken in
 # the order given, so the longest files (tests/slow) start first and none of them starts last.
 test: $(VENV)/.aravis
-	$(PY) -m pytest -n 4 --dist loadfile --no-loadscope-reorder tests/slow tests/integration tests/unit uwlab
+	$(PY) -m pytest -n 4 --dist loadfile --no-loadscope-reorder --durations=15 tests/slow tests/integration tests/unit uwlab
 
 # The in-process unit tests and the doctests (no devices, no subprocesses), on two workers.
 test-fast: venv
