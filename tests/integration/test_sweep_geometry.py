@@ -155,4 +155,4 @@ def test_a_fit_leaves_geometry_sweeps_out(focus_sweep, capsys):
 
     _, data = focus_sweep
     line = one_line_error(capsys, ["fit", str(data.root), "--out", str(data.root.parent / "fit")])
-    assert "no radiometric points" in line
+    assert "no points to fit outside geometry sweeps" in line

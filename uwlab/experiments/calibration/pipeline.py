@@ -245,7 +245,11 @@ def calibrate(
     # radiometry: their points are left to the report's geometry section.
     points = points[points["kind"].astype(str) != "geometry"].reset_index(drop=True)
     if points.empty:
-        raise ConfigError("dataset", str(dataset_dir), "has no radiometric points to fit; run (or --resume) its sweep")
+        raise ConfigError(
+            "dataset",
+            str(dataset_dir),
+            "has no points to fit outside geometry sweeps; run (or --resume) its sweep first",
+        )
     points = points.assign(relative_flux=relative_flux(points))
     if channel is not None:
         try:
