@@ -19,9 +19,14 @@ START_TIMEOUT_S = 120
 
 
 class Explorer:
+    """``uwlab VERB`` (the explorer; `tests.support.console_process.Console` the console) as a real process."""
+
+    VERB = "explore"
+    STOP_TIMEOUT_S = 30
+
     def __init__(self, *args: str):
         self.process = subprocess.Popen(
-            [sys.executable, "-m", "uwlab.cli.main", "explore", "--no-browser", "--json", "--port", "0", *args],
+            [sys.executable, "-m", "uwlab.cli.main", self.VERB, "--no-browser", "--json", "--port", "0", *args],
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
             text=True,
@@ -30,7 +35,7 @@ class Explorer:
         line = self.process.stdout.readline() if ready else ""
         if not line:
             self.stop()
-            raise RuntimeError(f"uwlab explore did not start: {self.process.stderr.read()}")
+            raise RuntimeError(f"uwlab {self.VERB} did not start: {self.process.stderr.read()}")
         self.url = json.loads(line)["url"]
 
     def stop(self) -> tuple[int, str]:
@@ -38,7 +43,7 @@ class Explorer:
         if self.process.poll() is None:
             self.process.send_signal(signal.SIGINT)
             try:
-                self.process.wait(timeout=30)
+                self.process.wait(timeout=self.STOP_TIMEOUT_S)
             except subprocess.TimeoutExpired:
                 self.process.kill()
                 self.process.wait(timeout=30)

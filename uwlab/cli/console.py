@@ -2,11 +2,7 @@
 
 from __future__ import annotations
 
-import asyncio
-import json
 import sys
-import threading
-import webbrowser
 
 from uwlab.errors import ConfigError
 from uwlab.model.data import config_dir
@@ -54,7 +50,7 @@ def register(subparsers) -> None:
 def run(args) -> int:
     import uvicorn
 
-    from uwlab.cli.explore import _listen, _reachable
+    from uwlab.cli.explore import _listen, _reachable, serve_until_stopped
     from uwlab.explore.console import create_console
     from uwlab.explore.console_rig import Live, Runs, Source
     from uwlab.explore.security import TOKEN, Access, host_name, is_loopback
@@ -95,22 +91,8 @@ def run(args) -> int:
             )
         )
 
-        async def serve() -> None:
-            task = asyncio.ensure_future(server.serve(sockets=[sock]))
-            while not server.started and not task.done():
-                await asyncio.sleep(0.01)
-            if server.started:
-                if args.json:
-                    json.dump({"url": url}, sys.stdout)
-                    sys.stdout.write("\n")
-                else:
-                    print(f"uwlab console: {source.path} {'(simulated) ' if args.sim else ''}at {url} (Ctrl-C stops)")
-                sys.stdout.flush()
-                if not args.no_browser:
-                    threading.Timer(0.5, webbrowser.open, (url,)).start()
-            await task
-
-        asyncio.run(serve())
+        simulated = "(simulated) " if args.sim else ""
+        serve_until_stopped(server, sock, url, f"uwlab console: {source.path} {simulated}at {url} (Ctrl-C stops)", args)
     finally:
         try:
             runs.close()

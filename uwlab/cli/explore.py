@@ -85,6 +85,29 @@ def _listen(host: str, port: int) -> socket.socket:
     return sock
 
 
+def serve_until_stopped(server, sock: socket.socket, url: str, line: str, args) -> None:
+    """Serve on ``sock`` and, once the server accepts connections, print ``line`` (``--json``: ``{"url": ...}``)
+    and open a browser unless ``--no-browser``; returns when the server stops (uvicorn handles Ctrl-C itself). The
+    explorer's and the console's one way of starting."""
+
+    async def serve() -> None:
+        task = asyncio.ensure_future(server.serve(sockets=[sock]))
+        while not server.started and not task.done():
+            await asyncio.sleep(0.01)
+        if server.started:
+            if args.json:
+                json.dump({"url": url}, sys.stdout)
+                sys.stdout.write("\n")
+            else:
+                print(line)
+            sys.stdout.flush()
+            if not args.no_browser:
+                threading.Timer(0.5, webbrowser.open, (url,)).start()
+        await task
+
+    asyncio.run(serve())
+
+
 def _reachable(host: str) -> str:
     """The host of the printed URL: a wildcard address (any interface) is not one a browser may ask for, its
     loopback is (and is always allowed, `uwlab.explore.security`); an IPv6 address in brackets."""
@@ -128,21 +151,5 @@ def run(args) -> int:
         server_config(create_app(served, catalog, access), log_level="warning", access_log=False, lifespan="off")
     )
 
-    async def serve() -> None:
-        """Serve, and print the URL once the server accepts connections (and handles Ctrl-C itself)."""
-        task = asyncio.ensure_future(server.serve(sockets=[sock]))
-        while not server.started and not task.done():
-            await asyncio.sleep(0.01)
-        if server.started:
-            if args.json:
-                json.dump({"url": url}, sys.stdout)
-                sys.stdout.write("\n")
-            else:
-                print(f"uwlab explore: {served.path} at {url} (Ctrl-C stops)")
-            sys.stdout.flush()
-            if not args.no_browser:
-                threading.Timer(0.5, webbrowser.open, (url,)).start()
-        await task
-
-    asyncio.run(serve())
+    serve_until_stopped(server, sock, url, f"uwlab explore: {served.path} at {url} (Ctrl-C stops)", args)
     return 0

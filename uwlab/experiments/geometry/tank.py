@@ -13,7 +13,7 @@ from uwlab.experiments.geometry import EDGE_ANGLE_DEG, GeometryValidation, Sweep
 from uwlab.model import mtf, optics
 from uwlab.model import port as port_model
 from uwlab.model.chain import circle_of_confusion_m
-from uwlab.sim.edge_chart import TankOptics, render_edge
+from uwlab.sim.edge_chart import render_edge, rig_optics
 from uwlab.sim.scene import RigScene
 
 
@@ -31,18 +31,11 @@ def validate_tank_geometry(
     (relative) around the target's image distance, and ``distance_steps`` board distances across twice the model's
     depth of field, with the rig's camera fitted with a ``focal_length_mm`` lens at ``f_number``."""
     scene = RigScene.from_toml(rig)
-    world, design = scene.world, scene.design
+    world = scene.world
+    design = scene.design.with_values(**{"lens.focal_length_mm": focal_length_mm, "lens.f_number": f_number})
     sensor = design.sensor
     n_w = float(design["housing.water_index"])
-    optics_ = TankOptics(
-        focal_length_m=focal_length_mm * 1e-3,
-        f_number=f_number,
-        pixel_pitch_m=sensor.pixel_size_um * 1e-6,
-        camera_gap_m=world.camera_gap_m,
-        wall_thickness_m=world.wall_thickness_m,
-        wall_index=world.wall_index,
-        water_index=n_w,
-    )
+    optics_ = rig_optics(design, world, tank=True, f_number=f_number)
     s = world.camera_gap_m + world.wall_thickness_m + world.tank_size_m[2]  # the board on the far wall
     flat = (world.camera_gap_m, world.wall_thickness_m, world.wall_index)  # the rig as the user describes it
     f_m, pitch = focal_length_mm * 1e-3, sensor.pixel_size_um * 1e-6
