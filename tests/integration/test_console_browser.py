@@ -11,19 +11,18 @@ import time
 import httpx
 import numpy as np
 import pytest
-from selenium import webdriver
-from selenium.webdriver.chrome.service import Service
+from selenium.common.exceptions import StaleElementReferenceException
 from selenium.webdriver.common.by import By
 from selenium.webdriver.common.keys import Keys
 from selenium.webdriver.support.ui import WebDriverWait
 
+from tests.support.chromium import chromium
 from tests.support.console_process import Console
 from tests.support.plans import write_plan
 from uwlab.experiments.acquisition.plan import load_plan
 from uwlab.experiments.acquisition.session import run_session
 from uwlab.experiments.dataset import Dataset
 
-CHROMIUM, CHROMEDRIVER = "/usr/bin/chromium", "/usr/bin/chromedriver"
 WAIT_S = 90
 TIMING = ("t_start_ns", "t_end_ns", "readback_t_start_ns", "readback_t_end_ns")
 # The fraction of the shown image's pixels painted red (the clipping overlay), from the page's own canvas.
@@ -44,22 +43,7 @@ def console():
 
 
 def chrome(profile):
-    options = webdriver.ChromeOptions()
-    options.binary_location = CHROMIUM
-    for flag in (
-        "--headless",
-        "--no-sandbox",
-        "--disable-gpu",
-        "--disable-quic",
-        "--no-first-run",
-        "--disable-background-networking",
-        "--disable-component-update",
-        "--disable-sync",
-        f"--user-data-dir={profile}",
-        "--window-size=1400,1500",
-    ):
-        options.add_argument(flag)
-    driver = webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
+    driver = chromium(profile, (1400, 1500))
     driver.set_page_load_timeout(WAIT_S)
     return driver
 
@@ -72,7 +56,9 @@ def browser(tmp_path_factory):
 
 
 def wait(driver, condition, message: str):
-    return WebDriverWait(driver, WAIT_S, poll_frequency=0.1).until(lambda d: condition(d), message)
+    """Wait for ``condition``; an element the page replaced between finding and reading it is read again."""
+    waiter = WebDriverWait(driver, WAIT_S, poll_frequency=0.1, ignored_exceptions=(StaleElementReferenceException,))
+    return waiter.until(lambda d: condition(d), message)
 
 
 def text(driver, element_id: str) -> str:

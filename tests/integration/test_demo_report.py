@@ -15,6 +15,7 @@ import scipy
 import uwlab
 from uwlab.cli.main import main
 from uwlab.experiments.dataset import Dataset
+from tests.support.chromium import chromium
 from tests.support.paths import ROOT
 
 
@@ -140,16 +141,9 @@ def test_the_report_and_the_datasheet_at_1400_px_keep_every_figure_inside_and_le
     # the rules of uwlab.experiments.figures: text of p points in a figure saved at d dpi is p·d/72 px, so it stays
     # ≥ 11 px when the figure is shown at ≥ 11·72/(p·d) of its pixel size: the report's figures (90 dpi, ≥ 11 pt)
     # at ≥ 0.8, the datasheet's (110 dpi, ≥ 9.5 pt) at ≥ 0.758; nothing may stick out of the page
-    from selenium import webdriver
-    from selenium.webdriver.chrome.options import Options
-    from selenium.webdriver.chrome.service import Service
     from selenium.webdriver.common.by import By
 
-    options = Options()
-    for argument in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage"):
-        options.add_argument(argument)
-    options.binary_location = "/usr/bin/chromium"
-    browser = webdriver.Chrome(service=Service("/usr/bin/chromedriver"), options=options)
+    browser = chromium(tmp_path / "chromium-profile")
     try:
         browser.set_window_size(1400, 1000)
         pages = {

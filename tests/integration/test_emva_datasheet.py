@@ -4,20 +4,15 @@ narrow screen the table moves below the figures."""
 
 import numpy as np
 import pytest
-from selenium import webdriver
-from selenium.webdriver.chrome.options import Options
-from selenium.webdriver.chrome.service import Service
 from selenium.webdriver.common.by import By
 
+from tests.support.chromium import chromium
 from uwlab.sim.devices.camera import SimTruth
 from uwlab.experiments.emva.analysis import characterize
 from uwlab.experiments.emva.datasheet import SheetInfo
 from uwlab.experiments.emva.output import output_paths, write_characterization
 from uwlab.experiments.emva.simulate import DirectBench
 from uwlab.model.sensor import load_sensor_profile
-
-CHROMIUM = "/usr/bin/chromium"
-CHROMEDRIVER = "/usr/bin/chromedriver"
 
 
 @pytest.fixture(scope="module")
@@ -45,12 +40,8 @@ def datasheet(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def browser():
-    options = Options()
-    for argument in ("--headless=new", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage"):
-        options.add_argument(argument)
-    options.binary_location = CHROMIUM
-    driver = webdriver.Chrome(service=Service(CHROMEDRIVER), options=options)
+def browser(tmp_path_factory):
+    driver = chromium(tmp_path_factory.mktemp("chromium-profile"))
     yield driver
     driver.quit()
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import sys
 
+from uwlab.cli.explore import add_server_arguments
 from uwlab.errors import ConfigError
 from uwlab.model.data import config_dir
 
@@ -24,52 +25,27 @@ def register(subparsers) -> None:
         "tank's camera, lights and spectrometer",
     )
     p.add_argument("--sim", action="store_true", help="serve the simulated rig (camera, light, spectrometer)")
-    p.add_argument(
-        "--port", type=int, default=DEFAULT_PORT, help=f"TCP port (default {DEFAULT_PORT}; 0: any free port)"
-    )
-    p.add_argument(
-        "--host",
-        default="127.0.0.1",
-        help="address to listen on (default 127.0.0.1; any other address requires a token, printed in the URL)",
-    )
-    p.add_argument(
-        "--allow-host",
-        action="append",
-        default=[],
-        metavar="NAME",
-        help="a host name the browser may use besides the loopback names and --host (repeatable)",
-    )
-    p.add_argument("--token", metavar="TOKEN", help="require this token (default: none on the loopback)")
+    add_server_arguments(p, DEFAULT_PORT, "the console")
     p.add_argument("--seed", type=int, default=0, help="seed of the simulated rig's noise (runs: as uwlab sweep)")
     p.add_argument("--max-fps", type=float, default=12.0, help="most frames a second the live view grabs")
-    p.add_argument("--no-browser", action="store_true", help="do not open a browser")
-    p.add_argument("--json", action="store_true", help='print {"url": ...} as one JSON line')
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
     import uvicorn
 
-    from uwlab.cli.explore import _listen, _reachable, serve_until_stopped
+    from uwlab.cli.explore import listening, serve_until_stopped
     from uwlab.explore.console import create_console
     from uwlab.explore.console_rig import Live, Runs, Source
-    from uwlab.explore.security import TOKEN, Access, host_name, is_loopback
+    from uwlab.explore.security import is_loopback
     from uwlab.explore.server import server_config
 
     if args.rig is None and not args.sim:
         raise ConfigError("RIG.toml", None, "give the plan naming the rig's devices, or --sim")
     if not 0 < args.max_fps <= 100:
         raise ConfigError("--max-fps", args.max_fps, "must be in (0, 100]")
-    if args.token is not None and not TOKEN.fullmatch(args.token):
-        raise ConfigError("--token", args.token, "must be 8 to 256 characters of A-Z a-z 0-9 - . _ ~")
-    for name in args.allow_host:
-        if host_name(name) is None:
-            raise ConfigError("--allow-host", name, "not a host name or address (RFC 3986)")
     source = Source(args.rig or config_dir() / "rigs" / "sim-tank.toml", args.sim, args.seed)
-    access = Access.for_server(args.host, args.allow_host, args.token)
-    sock = _listen(args.host, args.port)
-    host, port = sock.getsockname()[:2]
-    url = f"http://{_reachable(host)}:{port}/" + (f"?token={access.token}" if access.token else "")
+    access, sock, url = listening(args)
     if not is_loopback(args.host):
         print(
             f"uwlab console: warning: listening on {args.host}, beyond this machine; anyone who can reach it and "

@@ -22,27 +22,7 @@ def register(subparsers) -> None:
         description="Serve the design explorer for a design TOML on a local address and open it in the browser.",
     )
     p.add_argument("config", nargs="?", help="design TOML (default: configs/design/example.toml)")
-    p.add_argument(
-        "--port", type=int, default=DEFAULT_PORT, help=f"TCP port (default {DEFAULT_PORT}; 0: any free port)"
-    )
-    p.add_argument(
-        "--host",
-        default="127.0.0.1",
-        help="address to listen on (default 127.0.0.1; any other address requires a token, printed in the URL)",
-    )
-    p.add_argument(
-        "--allow-host",
-        action="append",
-        default=[],
-        metavar="NAME",
-        help="a host name the browser may use to reach the explorer besides the loopback names and --host "
-        "(repeatable; other Host headers are refused, against DNS rebinding)",
-    )
-    p.add_argument(
-        "--token",
-        metavar="TOKEN",
-        help="require this token (default: none on the loopback, a new random one on any other address)",
-    )
+    add_server_arguments(p, DEFAULT_PORT, "the explorer")
     p.add_argument(
         "--data-dir",
         action="append",
@@ -59,9 +39,51 @@ def register(subparsers) -> None:
         help="a sensor (e.g. `uwlab emva` output), light or lens profile TOML, or a directory of them, "
         "offered beside the shipped ones (repeatable)",
     )
+    p.set_defaults(func=run)
+
+
+def add_server_arguments(p, default_port: int, what: str) -> None:
+    """The options of a web verb (the explorer, the console): where it listens, who may reach it, how it starts."""
+    p.add_argument(
+        "--port", type=int, default=default_port, help=f"TCP port (default {default_port}; 0: any free port)"
+    )
+    p.add_argument(
+        "--host",
+        default="127.0.0.1",
+        help="address to listen on (default 127.0.0.1; any other address requires a token, printed in the URL)",
+    )
+    p.add_argument(
+        "--allow-host",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help=f"a host name the browser may use to reach {what} besides the loopback names and --host "
+        "(repeatable; other Host headers are refused, against DNS rebinding)",
+    )
+    p.add_argument(
+        "--token",
+        metavar="TOKEN",
+        help="require this token (default: none on the loopback, a new random one on any other address)",
+    )
     p.add_argument("--no-browser", action="store_true", help="do not open a browser")
     p.add_argument("--json", action="store_true", help='print {"url": ...} as one JSON line')
-    p.set_defaults(func=run)
+
+
+def listening(args):
+    """(access, listening socket, URL to print) of a web verb's options (`add_server_arguments`), each checked
+    first: one line naming the option."""
+    from uwlab.explore.security import TOKEN, Access, host_name
+
+    if args.token is not None and not TOKEN.fullmatch(args.token):
+        raise ConfigError("--token", args.token, "must be 8 to 256 characters of A-Z a-z 0-9 - . _ ~")
+    for name in args.allow_host:
+        if host_name(name) is None:
+            raise ConfigError("--allow-host", name, "not a host name or address (RFC 3986)")
+    access = Access.for_server(args.host, args.allow_host, args.token)
+    sock = _listen(args.host, args.port)
+    host, port = sock.getsockname()[:2]
+    url = f"http://{_reachable(host)}:{port}/" + (f"?token={access.token}" if access.token else "")
+    return access, sock, url
 
 
 def _listen(host: str, port: int) -> socket.socket:
@@ -121,7 +143,7 @@ def run(args) -> int:
     from uwlab.explore.app import create_app
     from uwlab.explore.catalog import Catalog
     from uwlab.explore.inputs import load_served
-    from uwlab.explore.security import TOKEN, Access, host_name, is_loopback
+    from uwlab.explore.security import is_loopback
     from uwlab.explore.server import server_config
 
     served = load_served(args.config or config_dir() / "design" / "example.toml")
@@ -132,15 +154,7 @@ def run(args) -> int:
         if not Path(folder).expanduser().is_dir():
             raise ConfigError("--data-dir", folder, "not a directory")
     served = served.with_roots(*args.profile, *args.data_dir)
-    if args.token is not None and not TOKEN.fullmatch(args.token):
-        raise ConfigError("--token", args.token, "must be 8 to 256 characters of A-Z a-z 0-9 - . _ ~")
-    for name in args.allow_host:
-        if host_name(name) is None:
-            raise ConfigError("--allow-host", name, "not a host name or address (RFC 3986)")
-    access = Access.for_server(args.host, args.allow_host, args.token)
-    sock = _listen(args.host, args.port)
-    host, port = sock.getsockname()[:2]
-    url = f"http://{_reachable(host)}:{port}/" + (f"?token={access.token}" if access.token else "")
+    access, sock, url = listening(args)
     if not is_loopback(args.host):
         print(
             f"uwlab explore: warning: listening on {args.host}, beyond this machine; anyone who can reach it "
