@@ -197,6 +197,12 @@ def create_console(live: Live, runs: Runs, access: Access | None = None) -> Guar
             return JSON({"error": f"no run {run_id[:40]}"}, status_code=404)
         return JSON(runs.runs[run_id].as_json())
 
+    async def run_prediction(request: Request):
+        run_id = request.path_params["id"]
+        if run_id not in runs.runs:
+            return JSON({"error": f"no run {run_id[:40]}"}, status_code=404)
+        return JSON(runs.runs[run_id].prediction)
+
     async def run_action(request: Request):
         if (refused := controlled(request)) is not None:
             return refused
@@ -265,6 +271,7 @@ def create_console(live: Live, runs: Runs, access: Access | None = None) -> Guar
         Route("/api/runs", runs_post, methods=["POST"]),
         Route("/api/runs", runs_list),
         Route("/api/runs/{id}", run_get),
+        Route("/api/runs/{id}/prediction", run_prediction),
         Route("/api/runs/{id}/{action}", run_action, methods=["POST"]),
         Route("/api/stream", stream),
     ]

@@ -564,6 +564,21 @@ class Live:
             }
 
 
+def prediction_of(plan: Plan, fit: str | None) -> dict[str, Any]:
+    """The model's band for ``plan`` (`uwlab.experiments.calibration.planned.predicted_bands`): from the fit
+    directory ``fit`` (a `ConfigError` when it is no fit of this plan's configurations), else from the design's
+    priors — a design the model cannot predict answers its reason as ``error`` and no configurations (the run goes
+    ahead without a band)."""
+    from uwlab.experiments.calibration.planned import predicted_bands
+
+    if fit is not None:
+        return predicted_bands(plan, fit.strip())
+    try:
+        return predicted_bands(plan)
+    except UwlabError as exc:
+        return {"source": "design", "configurations": [], "skipped": {}, "error": str(exc).splitlines()[0]}
+
+
 class RunAborted(Exception):
     """Raised in the engine's progress callback to end a run the operator aborted."""
 
@@ -588,6 +603,7 @@ class Run:
     want: str = "run"  # run, pause, abort
     began_s: float | None = None  # time.monotonic() when the run took the rig, and when it ended
     ended_s: float | None = None
+    prediction: dict = field(default_factory=dict)  # the model's band for the plan (`predicted_bands`)
     cond: threading.Condition = field(default_factory=threading.Condition)
 
     def eta_s(self) -> float | None:
@@ -605,6 +621,7 @@ class Run:
             "state": self.state,
             "points_done": self.points_done,
             "points_total": self.points_total,
+            "prediction_source": self.prediction.get("source"),
             "eta_s": self.eta_s(),
             "elapsed_s": None if self.began_s is None else (self.ended_s or time.monotonic()) - self.began_s,
             "faults": list(self.faults),
@@ -633,18 +650,28 @@ class Runs:
         return self.runs[run_id]
 
     def start(self, body: Any) -> Run:
-        """Validate the plan and open the dataset (so bad input is refused now), then run it in a thread."""
+        """Validate the plan (and the fit directory of the predicted band) and open the dataset (so bad input is
+        refused now), then run it in a thread."""
         if not isinstance(body, dict) or not isinstance(body.get("plan"), str):
-            raise ConfigError("plan", None, 'give {"plan": "PATH.toml", "out": "DIR"}')
-        out = body.get("out")
+            raise ConfigError("plan", None, 'give {"plan": "PATH.toml", "out": "DIR", "fit": "FIT_DIR" (optional)}')
+        out, fit = body.get("out"), body.get("fit")
         if out is not None and not isinstance(out, str):
             raise ConfigError("out", out, "must be a directory path")
+        if fit is not None and (not isinstance(fit, str) or not fit.strip()):
+            raise ConfigError("fit", fit, "must be a `uwlab fit` output directory")
         with self._lock:
             if (active := self.active()) is not None:
                 raise ConfigError("run", active.id, "a run is in progress: pause, resume or abort it first")
             plan = load_plan(body["plan"])
+            prediction = prediction_of(plan, fit)
             dataset = open_target(plan, out, sim=self.sim, purpose="uwlab console")
-            run = Run(uuid.uuid4().hex[:12], plan, Path(dataset.root), points_total=plan.total_points())
+            run = Run(
+                uuid.uuid4().hex[:12],
+                plan,
+                Path(dataset.root),
+                points_total=plan.total_points(),
+                prediction=prediction,
+            )
             self.runs[run.id] = run
             self.seq += 1
         threading.Thread(target=self._run, args=(run, dataset), name=f"console-run-{run.id}", daemon=True).start()

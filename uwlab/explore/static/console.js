@@ -6,7 +6,8 @@ const $ = (id) => document.getElementById(id);
 const xsrfToken = () => (document.cookie.match(/(?:^|;\s*)_xsrf=([^;]*)/) || [])[1] || "";
 const fmt = (v, digits = 4) => (v === null || v === undefined ? "–" : Number(v).toPrecision(digits));
 const plotConfig = { displaylogo: false, responsive: true };
-const state = { frameWidth: 1, frameHeight: 1, roi: null, trace: [], run: null, loading: false, pending: null };
+const state = { frameWidth: 1, frameHeight: 1, roi: null, trace: [], run: null, loading: false, pending: null,
+  prediction: null, predictionFor: null };
 
 async function api(path, body) {
   const options = body === undefined ? {} : {
@@ -251,13 +252,53 @@ function showRun(run) {
     (run.state === "paused" ? "; lights in their safe state (off)" : "") +
     (run.faults.length ? `; faults: ${run.faults.join("; ")}` : "");
   $("run-status").dataset.state = run.state;
+  if (state.predictionFor !== run.id) loadPrediction(run.id);
+  drawRun();
+}
+
+// The model's predicted band of the run's plan (GET /api/runs/ID/prediction), fetched once per run.
+async function loadPrediction(runId) {
+  state.predictionFor = runId;
+  state.prediction = null;
+  try { state.prediction = await api(`/api/runs/${runId}/prediction`); }
+  catch (error) { state.prediction = { configurations: [], error: String(error.message || error) }; }
+  if (state.run && state.run.id === runId) drawRun();
+}
+
+const SWEEP_COLOURS = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2", "#17becf"];
+const translucent = (hex) => `rgba(${[1, 3, 5].map((i) => parseInt(hex.slice(i, i + 2), 16)).join(",")},0.18)`;
+
+function drawRun() {
+  // Per configuration (sweep): the predicted band (shaded, 2.5–97.5 %) and its median (dashed) under the points.
+  const run = state.run, prediction = state.prediction || { configurations: [] };
   const bySweep = {};
+  for (const c of prediction.configurations) bySweep[c.sweep_id] = [];
   for (const p of run.points) (bySweep[p.sweep_id] = bySweep[p.sweep_id] || []).push(p);
-  Plotly.react("run-points", Object.entries(bySweep).map(([id, pts]) => ({
+  const ids = Object.keys(bySweep), colour = (id) => SWEEP_COLOURS[ids.indexOf(id) % SWEEP_COLOURS.length];
+  const source = prediction.source || "";
+  const [lo, hi] = prediction.band_percent || [2.5, 97.5];
+  const bands = prediction.configurations.flatMap((c) => [
+    { x: c.exposure_us, y: c.lo, mode: "lines", line: { width: 0, color: colour(c.sweep_id) }, hoverinfo: "skip",
+      showlegend: false, legendgroup: c.sweep_id, meta: "band-lo" },
+    { x: c.exposure_us, y: c.hi, mode: "lines", line: { width: 0, color: colour(c.sweep_id) }, fill: "tonexty",
+      fillcolor: translucent(colour(c.sweep_id)), legendgroup: c.sweep_id, meta: "band",
+      name: `${c.sweep_id}: ${lo}–${hi} % band (${source})` },
+    { x: c.exposure_us, y: c.median, mode: "lines", line: { dash: "dash", width: 1.5, color: colour(c.sweep_id) },
+      legendgroup: c.sweep_id, meta: "median", name: `${c.sweep_id}: predicted median (${source})` },
+  ]);
+  const points = Object.entries(bySweep).filter(([, pts]) => pts.length).map(([id, pts]) => ({
     x: pts.map((p) => p.exposure_us), y: pts.map((p) => p.signal_dn), name: id, mode: "lines+markers",
-    marker: { symbol: pts.map((p) => (p.saturated ? "x" : "circle")) },
-  })), { margin: { l: 60, r: 10, t: 10, b: 40 }, height: 260,
-    xaxis: { type: "log", title: { text: "exposure [µs]" } }, yaxis: { title: { text: "signal [DN]" } } }, plotConfig);
+    legendgroup: id, line: { color: colour(id) }, meta: "points",
+    marker: { color: colour(id), symbol: pts.map((p) => (p.saturated ? "x" : "circle")) },
+  }));
+  const skipped = Object.entries(prediction.skipped || {}).map(([id, why]) => `${id}: ${why}`).join("; ");
+  $("run-prediction").textContent = prediction.error ? `no predicted band: ${prediction.error}` :
+    prediction.configurations.length ? `predicted from ${source} (${prediction.model} chain, ${prediction.samples} ` +
+      `draws): median and ${lo}–${hi} % band of a new measurement` + (skipped ? `; not predicted: ${skipped}` : "") :
+    (skipped ? `not predicted: ${skipped}` : "");
+  Plotly.react("run-points", [...bands, ...points], { margin: { l: 60, r: 10, t: 10, b: 40 }, height: 300,
+    xaxis: { type: "log", title: { text: "exposure [µs]" } }, yaxis: { title: { text: "signal [DN]" } },
+    legend: { font: { size: 11 } } }, plotConfig);
 }
 
 async function runAction(action) {
@@ -298,7 +339,8 @@ document.addEventListener("DOMContentLoaded", () => {
   });
   $("run-start").addEventListener("click", async () => {
     try {
-      const started = await api("/api/runs", { plan: $("run-plan").value, out: $("run-out").value || null });
+      const started = await api("/api/runs", { plan: $("run-plan").value, out: $("run-out").value || null,
+        fit: $("run-fit").value.trim() || null });
       showRun(await api(`/api/runs/${started.id}`));
       showError("run-error");
     } catch (error) { showError("run-error", error); }
