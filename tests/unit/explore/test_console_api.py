@@ -190,7 +190,7 @@ def test_bad_runs_are_one_line(client, tmp_path):
     assert client.post("/api/runs/nosuchrun/pause", json={}).status_code == 404
 
 
-def small_plan(path):
+def small_plan(path, light_level: float = 0.35):
     return write_plan(
         path,
         "console-run",
@@ -202,7 +202,7 @@ def small_plan(path):
             "frames_per_point": 2,
             "dark": "point",
             "dark_frames": 2,
-            "light_level": 0.35,
+            "light_level": light_level,
         },
     )
 
@@ -229,6 +229,55 @@ def test_a_run_paused_and_resumed_is_the_dataset_of_uwlab_sweep(client, tmp_path
     measured = [c for c in theirs.columns if c not in TIMING]
     for (_, a), (_, b) in zip(ours[measured].iterrows(), theirs[measured].iterrows(), strict=True):
         assert _same(a.to_dict(), b.to_dict())
+
+
+def test_a_run_answers_the_models_band_and_its_points_fall_inside(client, app, tmp_path):
+    plan = small_plan(tmp_path / "plan.toml", light_level=1.0)
+    run_id = client.post("/api/runs", json={"plan": str(plan), "out": str(tmp_path / "banded")}).json()["id"]
+    done = wait_for(lambda: (r := client.get(f"/api/runs/{run_id}").json())["state"] == "done" and r, "not done")
+    assert done["prediction_source"] == "design"
+    with TestClient(app, base_url=LOCAL) as watcher:  # a watcher reads it too
+        prediction = watcher.get(f"/api/runs/{run_id}/prediction").json()
+    assert prediction["source"] == "design" and prediction["band_percent"] == [2.5, 97.5]
+    (band,) = prediction["configurations"]
+    assert band["sweep_id"] == "imx250-f2" and len(band["exposure_us"]) == len(band["lo"]) == len(band["hi"]) > 5
+    # The simulated points (the simulator's truth, which the prediction never sees) fall inside the band; the band
+    # is linear in log-log between its exposures (the response is a power of the exposure).
+    x = np.log(band["exposure_us"])
+    for point in done["points"]:
+        lo, hi = (np.exp(np.interp(np.log(point["exposure_us"]), x, np.log(band[k]))) for k in ("lo", "hi"))
+        assert lo <= point["signal_dn"] <= hi, point
+    assert client.get("/api/runs/nosuchrun/prediction").status_code == 404
+    # A sweep with the light dimmed is not predicted (its output is measured, not modelled), and says so.
+    dimmed = client.post(
+        "/api/runs", json={"plan": str(small_plan(tmp_path / "dimmed.toml")), "out": str(tmp_path / "dimmed")}
+    ).json()["id"]
+    prediction = client.get(f"/api/runs/{dimmed}/prediction").json()
+    assert prediction["configurations"] == [] and "light level 0.35" in prediction["skipped"]["imx250-f2"]
+    wait_for(lambda: client.get(f"/api/runs/{dimmed}").json()["state"] == "done", "not done")
+    wait_for(lambda: client.get("/api/rig").json()["camera"] is not None, "the live view did not come back")
+
+
+def test_a_fit_that_is_not_of_the_plan_is_refused_before_the_run(client, tmp_path):
+    import pandas as pd
+
+    plan = small_plan(tmp_path / "plan.toml", light_level=1.0)
+    other = tmp_path / "other-fit"  # a fit directory of another lens (its files as `uwlab fit` writes them)
+    other.mkdir()
+    (other / "summary.json").write_text(json.dumps({"model": "paper", "parameters": {}}))
+    pd.DataFrame(
+        {"sensor_profile": ["imx250m"], "focal_length_mm": [12.0], "f_number": [4.0], "saturated": [False]}
+    ).to_parquet(other / "predictions.parquet")
+    pd.DataFrame({"light_efficiency": [0.8, 0.9]}).to_parquet(other / "samples.parquet")
+    for fit, words in (
+        (str(tmp_path / "missing"), "not a directory"),
+        (str(other), "has no configuration"),
+        (3, "fit"),
+    ):
+        answer = client.post("/api/runs", json={"plan": str(plan), "out": str(tmp_path / "d"), "fit": fit})
+        error = answer.json()["error"]
+        assert answer.status_code == 422 and words in error and "\n" not in error and answer.json()["key"] == "fit"
+    assert not (tmp_path / "d").exists()  # refused before the dataset was made
 
 
 def _same(a: dict, b: dict) -> bool:

@@ -20,11 +20,13 @@ no reading exceeds it; the model is linear beyond it, the camera clips). The ROI
 out (the plan does not know it; over a window of hundreds of pixels it is far below the band's width).
 
 Only exposure sweeps of a tank rig are predicted (the console draws response against exposure), along
-`DENSE_POINTS` log-spaced exposures over the sweep's range, each at the sweep's other settings (gain, lens, light
-level as the light's relative output). The ROI is the sweep's ``roi`` rectangle, else the camera's window, else the
-whole sensor (an ``aruco`` ROI, found on the board at run time, is taken as the window: the model's ROI is
-axis-centred in any case). Other sweeps (dark, gain, aperture, light-level, geometry, an EMVA bench's) are listed
-with the reason they are not predicted.
+`DENSE_POINTS` log-spaced exposures over the sweep's range, each at the sweep's other settings (gain, lens), with the
+light at full output: a sweep at a lower light level is not predicted, since the light's level-to-output curve is no
+part of the model (`uwlab.experiments.calibration.forward.relative_flux` takes each point's output from the
+spectrometer's readings, which a plan does not have; the simulated light's is level^2.2). The ROI is the sweep's
+``roi`` rectangle, else the camera's window, else the whole sensor (an ``aruco`` ROI, found on the board at run time,
+is taken as the window: the model's ROI is axis-centred in any case). Other sweeps (dark, gain, aperture,
+light-level, geometry, an EMVA bench's) are listed with the reason they are not predicted.
 """
 
 from __future__ import annotations
@@ -76,6 +78,12 @@ def planned_points(plan: Plan, dense: int = DENSE_POINTS) -> tuple[pd.DataFrame,
         if table.kind != "exposure":
             skipped[table.id] = f"a {table.kind} sweep: the band is drawn against exposure"
             continue
+        if table.light_level != 1.0:
+            skipped[table.id] = (
+                f"light level {table.light_level:g}: the light's level-to-output curve is not modelled (the fit "
+                "takes it from the spectrometer's readings)"
+            )
+            continue
         exposures = np.geomspace(min(sweep.values), max(sweep.values), dense if len(sweep.values) > 1 else 1)
         roi_w, roi_h = _roi_size(sweep)
         bits = (
@@ -102,7 +110,6 @@ def planned_points(plan: Plan, dense: int = DENSE_POINTS) -> tuple[pd.DataFrame,
                     "roi_w": roi_w,
                     "roi_h": roi_h,
                     "saturated": False,
-                    "relative_flux": point.light_level,
                     "clip_dn": 2.0**bits - 1,
                 }
             )
@@ -155,7 +162,8 @@ def predicted_bands(plan: Plan, fit: str | Path | None = None, samples: int = MA
     source = "design" if fit is None else f"fit: {fit}"
     if points.empty:
         if fit is not None:
-            raise ConfigError("fit", str(fit), "the plan has no exposure sweep of a tank rig to predict")
+            reasons = "; ".join(f"{sweep_id}: {why}" for sweep_id, why in skipped.items())
+            raise ConfigError("fit", str(fit), f"nothing in the plan to predict ({reasons})")
         return {"source": source, "band_percent": [2.5, 97.5], "configurations": [], "skipped": skipped}
     rng = np.random.default_rng(seed)
     if fit is None:
