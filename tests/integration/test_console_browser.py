@@ -1,7 +1,8 @@
 """The rig console in a real browser: Debian's chromium and chromium-driver through selenium, against
 `uwlab console --sim` running as a process on 127.0.0.1. The page shows the live image, its histogram, the clipped
 pixels painted over it and the sharpness; changing the exposure changes the image and the read-back; a run started,
-paused, resumed and finished from the page gives the dataset `uwlab sweep --sim` gives (point by point); a second
+paused, resumed and finished from the page gives the dataset `uwlab sweep --sim` gives (point by point), the model's
+predicted band drawn under its points; a second
 browser session watches read-only. Screenshots are left in the test's folder for people to look at."""
 
 from __future__ import annotations
@@ -31,6 +32,14 @@ const canvas = document.getElementById('live');
 const d = canvas.getContext('2d').getImageData(0, 0, canvas.width, canvas.height).data;
 let red = 0; for (let i = 0; i < d.length; i += 4) if (d[i] === 255 && d[i + 1] === 0 && d[i + 2] === 40) red++;
 return [red / (d.length / 4), Number(canvas.dataset.frameId || -1)];
+"""
+
+# The run plot's traces of one kind (the page's `meta`: points, band, median), and the band fills Plotly drew (SVG
+# paths of a filled trace with an outline).
+TRACES_JS = "return document.getElementById('run-points').data.filter((t) => t.meta === arguments[0]).length;"
+FILLS_JS = """
+return [...document.querySelectorAll('#run-points .scatterlayer .trace path.js-fill')]
+  .filter((p) => (p.getAttribute('d') || '').length > 20).length;
 """
 
 
@@ -195,7 +204,17 @@ def test_a_run_from_the_page_is_the_dataset_of_uwlab_sweep(browser, console, tmp
     browser.find_element(By.ID, "run-resume").click()
     wait(browser, lambda d: run_state(d) == "done", "the run did not finish")
     assert "8/8 points" in text(browser, "run-status")
-    wait(browser, lambda d: len(d.find_elements(By.CSS_SELECTOR, "#run-points .scatterlayer .trace")) == 2, "no plot")
+    # The points of both sweeps, and under them the model's band (shaded) and median for the sweep at full light
+    # (the dimmed one is not predicted: GET /api/runs/ID/prediction says why, and so does the page).
+    run_id = httpx.get(console.url + "api/runs", timeout=30).json()["runs"][-1]["id"]
+    prediction = httpx.get(console.url + f"api/runs/{run_id}/prediction", timeout=30).json()
+    assert [c["sweep_id"] for c in prediction["configurations"]] == ["f4"] and set(prediction["skipped"]) == {"f2"}
+    wait(browser, lambda d: d.execute_script(TRACES_JS, "points") == 2, "no points plotted")
+    wait(browser, lambda d: d.execute_script(FILLS_JS) == 1, "no band drawn")
+    assert browser.execute_script(TRACES_JS, "median") == browser.execute_script(TRACES_JS, "band") == 1
+    assert "predicted from design" in text(browser, "run-prediction") and "f2: light level 0.35" in text(
+        browser, "run-prediction"
+    )
     browser.save_screenshot(str(tmp_path / "console-run.png"))
 
     reference = run_session(load_plan(plan), tmp_path / "sweep-run", sim=True)  # `uwlab sweep PLAN --sim`

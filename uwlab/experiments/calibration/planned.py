@@ -15,15 +15,17 @@ fits) at the plan's settings, over parameter draws:
 Each point of a new run is predicted as the report's held-out configurations are
 (`uwlab.experiments.calibration.validation.predictive_draws` with ``seen`` False): a configuration's discrepancy
 δ ~ N(0, τ²) drawn per sample, and a new measurement with the within-configuration discrepancy. The band is the
-2.5–97.5th percentiles of those draws, the line their median, both held at the pixel format's top code (2^bits − 1:
-no reading exceeds it; the model is linear beyond it, the camera clips). The ROI mean's own measurement noise is left
+2.5–97.5th percentiles of those draws, the line their median, both held at the camera's clip level less its offset
+(`uwlab.experiments.saturation`, from the sensor profile: K μ_e,sat at the gain, at most the ADC maximum; no
+dark-subtracted reading exceeds it, where the model stays linear). The ROI mean's own measurement noise is left
 out (the plan does not know it; over a window of hundreds of pixels it is far below the band's width).
 
 Only exposure sweeps of a tank rig are predicted (the console draws response against exposure), along
 `DENSE_POINTS` log-spaced exposures over the sweep's range, each at the sweep's other settings (gain, lens), with the
-light at full output: a sweep at a lower light level is not predicted, since the light's level-to-output curve is no
-part of the model (`uwlab.experiments.calibration.forward.relative_flux` takes each point's output from the
-spectrometer's readings, which a plan does not have; the simulated light's is level^2.2). The ROI is the sweep's
+light at full output. The light's level-to-output curve is no part of the model (the fit takes each point's output
+from the spectrometer's readings, `uwlab.experiments.calibration.forward.relative_flux`; the simulated light's is
+level^2.2): a sweep at a dimmed level is predicted only from a fit whose dataset (``summary.json``'s ``dataset``,
+still on disk) has that sweep at that level, with the output measured there (`fitted_flux`). The ROI is the sweep's
 ``roi`` rectangle, else the camera's window, else the whole sensor (an ``aruco`` ROI, found on the board at run time,
 is taken as the window: the model's ROI is axis-centred in any case). Other sweeps (dark, gain, aperture,
 light-level, geometry, an EMVA bench's) are listed with the reason they are not predicted.
@@ -41,8 +43,10 @@ import pandas as pd
 from uwlab.errors import ConfigError
 from uwlab.experiments.acquisition.plan import Plan, SweepSpec, resolved_rig
 from uwlab.experiments.calibration.fit import default_config_for
-from uwlab.experiments.calibration.forward import PER_CAMERA, SHARED, build_forward_model
+from uwlab.experiments.calibration.forward import PER_CAMERA, SHARED, build_forward_model, relative_flux
 from uwlab.experiments.calibration.validation import predictive_draws
+from uwlab.experiments.dataset import Dataset
+from uwlab.experiments.saturation import sensor_clip_dn
 from uwlab.model.bench import Bench
 from uwlab.model.data import MAX_BINARY_BYTES, check_input_file, read_json
 from uwlab.drivers.camera.pixels import pixel_format
@@ -63,10 +67,26 @@ def _roi_size(sweep: SweepSpec) -> tuple[int, int]:
     return int(width), int(height)
 
 
-def planned_points(plan: Plan, dense: int = DENSE_POINTS) -> tuple[pd.DataFrame, dict[str, dict], dict[str, str]]:
+def _clip_signal_dn(sweep: SweepSpec, gain_db: float, bits: int) -> float:
+    """The largest dark-subtracted signal the sweep's camera reads [DN]: its clip level from the sensor profile
+    (`uwlab.experiments.saturation.sensor_clip_dn`: K μ_e,sat + offset at the gain, capped at the ADC maximum, in
+    the output format) less the offset."""
+    sensor = sweep.design.sensor
+    offset = sensor.dark_offset_dn + (sweep.table.black_level_dn or 0.0)
+    name = sweep.camera.pixel_format or f"Mono{sensor.bit_depth}"
+    clip = sensor_clip_dn(float(sensor.gain_k(gain_db)), sensor.saturation_e, offset, sensor.bit_depth, name)
+    return clip - offset * 2.0 ** (bits - sensor.bit_depth)
+
+
+def planned_points(
+    plan: Plan, flux: dict[tuple[str, float], float] | None = None, dense: int = DENSE_POINTS
+) -> tuple[pd.DataFrame, dict[str, dict], dict[str, str]]:
     """The predicted sweeps' points as the forward model's contract columns (``signal_dn`` 0: not measured; and
-    ``clip_dn``, the format's top code), the
-    rigs by sweep id (as ``uwlab sweep`` records them in metadata.json) and the sweeps left out with the reason."""
+    ``clip_signal_dn``), the
+    rigs by sweep id (as ``uwlab sweep`` records them in metadata.json) and the sweeps left out with the reason.
+    ``flux``: the light's measured relative output by (sweep id, light level) (`fitted_flux`), which lets a sweep at
+    a dimmed level be predicted."""
+    flux = flux or {}
     rows: list[dict[str, Any]] = []
     rigs: dict[str, dict] = {}
     skipped: dict[str, str] = {}
@@ -78,10 +98,11 @@ def planned_points(plan: Plan, dense: int = DENSE_POINTS) -> tuple[pd.DataFrame,
         if table.kind != "exposure":
             skipped[table.id] = f"a {table.kind} sweep: the band is drawn against exposure"
             continue
-        if table.light_level != 1.0:
+        output = 1.0 if table.light_level == 1.0 else flux.get((table.id, table.light_level))
+        if output is None:
             skipped[table.id] = (
-                f"light level {table.light_level:g}: the light's level-to-output curve is not modelled (the fit "
-                "takes it from the spectrometer's readings)"
+                f"light level {table.light_level:g}: the light's level-to-output curve is not modelled (a fit "
+                "of this sweep at this level brings its measured output)"
             )
             continue
         exposures = np.geomspace(min(sweep.values), max(sweep.values), dense if len(sweep.values) > 1 else 1)
@@ -110,11 +131,28 @@ def planned_points(plan: Plan, dense: int = DENSE_POINTS) -> tuple[pd.DataFrame,
                     "roi_w": roi_w,
                     "roi_h": roi_h,
                     "saturated": False,
-                    "clip_dn": 2.0**bits - 1,
+                    "relative_flux": output,
+                    "clip_signal_dn": _clip_signal_dn(sweep, point.gain_db, bits),
                 }
             )
         rigs[table.id] = resolved_rig(sweep.design)
     return pd.DataFrame(rows), rigs, skipped
+
+
+def fitted_flux(fit_dir: Path) -> dict[tuple[str, float], float]:
+    """The light's relative output by (sweep id, light level) in the dataset a fit was made from (``summary.json``'s
+    ``dataset``; `uwlab.experiments.calibration.forward.relative_flux`, each sweep's median), {} when that dataset
+    is gone."""
+    dataset = read_json(fit_dir / "summary.json", "fit").get("dataset")
+    if not dataset or not Path(dataset).is_dir():
+        return {}
+    points = Dataset.open(dataset).points()
+    points = points[points["kind"].astype(str) == "exposure"].reset_index(drop=True)
+    if points.empty or "light_level" not in points:
+        return {}
+    levels = points["light_level"].astype(float).fillna(1.0)
+    frame = pd.DataFrame({"sweep": points["sweep_id"], "level": levels, "flux": relative_flux(points)})
+    return {(str(k[0]), float(k[1])): float(v) for k, v in frame.groupby(["sweep", "level"])["flux"].median().items()}
 
 
 def _prior_draws(points: pd.DataFrame, rigs: dict, samples: int, rng: np.random.Generator):
@@ -126,8 +164,6 @@ def _prior_draws(points: pd.DataFrame, rigs: dict, samples: int, rng: np.random.
 def _posterior_draws(fit_dir: Path, points: pd.DataFrame, samples: int):
     """The fit's posterior samples (thinned to ``samples``) for the parameters these points have, and its chain;
     `ConfigError` unless every configuration of the points is one of the fit's."""
-    if not fit_dir.is_dir():
-        raise ConfigError("fit", str(fit_dir), "not a directory (give a `uwlab fit` output directory)")
     summary = read_json(fit_dir / "summary.json", "fit")
     table = lambda name: pd.read_parquet(check_input_file(fit_dir / name, "fit", MAX_BINARY_BYTES, "Parquet"))  # noqa: E731
     fitted = table("predictions.parquet")
@@ -158,7 +194,9 @@ def predicted_bands(plan: Plan, fit: str | Path | None = None, samples: int = MA
     """Per predicted sweep of ``plan``: ``exposure_us``, the ``median`` response and the band ``lo``–``hi``
     (2.5–97.5 %) [DN], from the design's priors or the posterior of the fit directory ``fit`` (module
     docstring); ``source`` ("design" or "fit: DIR"), ``skipped`` sweeps with their reason."""
-    points, rigs, skipped = planned_points(plan)
+    if fit is not None and not Path(fit).is_dir():
+        raise ConfigError("fit", str(fit), "not a directory (give a `uwlab fit` output directory)")
+    points, rigs, skipped = planned_points(plan, None if fit is None else fitted_flux(Path(fit)))
     source = "design" if fit is None else f"fit: {fit}"
     if points.empty:
         if fit is not None:
@@ -173,7 +211,7 @@ def predicted_bands(plan: Plan, fit: str | Path | None = None, samples: int = MA
         names, theta, kind = _posterior_draws(Path(fit), points, samples)
     model = build_forward_model(points, rigs, names, kind=kind)
     draws = predictive_draws(model, theta, seen=False, seed=seed)
-    top = points["clip_dn"].to_numpy(float)
+    top = points["clip_signal_dn"].to_numpy(float)
     lo, median, hi = np.minimum(np.percentile(draws.observed, BAND_PERCENTILES, axis=0), top)
     configurations = []
     for sweep_id, rows in points.groupby("sweep_id", sort=False):
@@ -186,7 +224,7 @@ def predicted_bands(plan: Plan, fit: str | Path | None = None, samples: int = MA
                 "median": median[index].tolist(),
                 "lo": lo[index].tolist(),
                 "hi": hi[index].tolist(),
-                "clip_dn": float(top[index[0]]),
+                "clip_signal_dn": float(top[index[0]]),
             }
         )
     return {
