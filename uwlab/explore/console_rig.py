@@ -18,7 +18,9 @@ frame buffer, what each frame shows (statistics, histogram, clipped pixels, shar
   pause takes effect (every light switched off and read back: its safe state) and waits, resume lets the next point
   run (the engine sets the light again before every point), abort ends the run (the dataset stays valid and
   resumable with ``uwlab sweep --resume``). While a run holds the rig, the live view releases its devices (a camera
-  and an instrument have one owner) and takes them back when the run ends.
+  and an instrument have one owner) and takes them back when the run ends. Each run carries the model's predicted
+  band for its plan (`prediction_of`: `uwlab.experiments.calibration.planned`, from the design's priors or a fit's
+  posterior), computed when it starts.
 """
 
 from __future__ import annotations

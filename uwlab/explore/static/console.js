@@ -296,7 +296,7 @@ function drawRun() {
     prediction.configurations.length ? `predicted from ${source} (${prediction.model} chain, ${prediction.samples} ` +
       `draws): median and ${lo}–${hi} % band of a new measurement` + (skipped ? `; not predicted: ${skipped}` : "") :
     (skipped ? `not predicted: ${skipped}` : "");
-  Plotly.react("run-points", [...bands, ...points], { margin: { l: 60, r: 10, t: 10, b: 40 }, height: 300,
+  Plotly.react("run-points", [...bands, ...points], { margin: { l: 60, r: 10, t: 30, b: 40 }, height: 320,
     xaxis: { type: "log", title: { text: "exposure [µs]" } }, yaxis: { title: { text: "signal [DN]" } },
     legend: { font: { size: 11 } } }, plotConfig);
 }
