@@ -82,8 +82,8 @@ def planned_points(
     plan: Plan, flux: dict[tuple[str, float], float] | None = None, dense: int = DENSE_POINTS
 ) -> tuple[pd.DataFrame, dict[str, dict], dict[str, str]]:
     """The predicted sweeps' points as the forward model's contract columns (``signal_dn`` 0: not measured; and
-    ``clip_signal_dn``), the
-    rigs by sweep id (as ``uwlab sweep`` records them in metadata.json) and the sweeps left out with the reason.
+    ``clip_signal_dn``), the rigs by sweep id (as ``uwlab sweep`` records them in metadata.json) and the sweeps left
+    out with the reason.
     ``flux``: the light's measured relative output by (sweep id, light level) (`fitted_flux`), which lets a sweep at
     a dimmed level be predicted."""
     flux = flux or {}
