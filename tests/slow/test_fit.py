@@ -164,10 +164,20 @@ def test_sampling_coordinates_round_trip_with_the_stated_jacobian(campaign):
 
 
 @pytest.mark.slow
-def test_credible_intervals_cover_the_truth_over_20_seeds():
-    """Simulation-based calibration: truths drawn from the priors fall inside the 95 % intervals 90–99 % of the time."""
-    result = interval_coverage(20)
-    assert 0.90 <= result.fraction <= 0.99, result.misses
+def test_credible_intervals_cover_the_truth_over_4_seeds():
+    """Simulation-based calibration on 4 seeds (3 parameters each, truths drawn from the priors): at least 8 of the
+    12 95 % intervals contain their truth. benchmarks/fit_coverage.py measures the coverage itself (20 seeds:
+    target 90–99 %).
+
+    Acceptance bound: with calibrated intervals each misses with probability 0.05; the seeds are independent, but
+    one seed's misses need not be (the light efficiency and the attenuation scale share a ridge). Independent
+    misses, Binomial(12, 0.05), reach 5 with probability 0.0002; the worst dependence within a seed consistent with
+    those margins (a seed missing 0, 1, 2 or 3 with mean 0.15) gives 0.016. A posterior whose intervals cover 50 %
+    (about 3× too narrow, or off by 2 σ) fails with probability 0.81 (0.94 at 40 %, 0.33 at 68 %, i.e. 2× too
+    narrow: the benchmark is the finer check)."""
+    result = interval_coverage(4)
+    assert result.total == 12
+    assert result.hits >= 8, result.misses
 
 
 def test_configuration_discrepancies_are_integrated_out_exactly(campaign):
