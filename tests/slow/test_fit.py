@@ -24,6 +24,13 @@ def campaign():
     return simulate_campaign(TRUTH, seed=3)
 
 
+@pytest.fixture(scope="module")
+def fitted(campaign):
+    """The campaign fitted with the default config (one fit for the tests that only read it)."""
+    points, rigs = campaign
+    return fit_points(points, rigs)
+
+
 def test_forward_rescaling_equals_the_full_model(campaign):
     """Changing θ by the analytic ratios gives what the full model computes with those values in the design."""
     points, rigs = campaign
@@ -50,10 +57,8 @@ def test_forward_rescaling_equals_the_full_model(campaign):
     assert model.predict(theta)[0, 0] == pytest.approx(expected, rel=1e-9)
 
 
-def test_fit_recovers_the_simulated_truth(campaign):
-    points, rigs = campaign
-    result = fit_points(points, rigs)
-    summary = result.summary()
+def test_fit_recovers_the_simulated_truth(fitted):
+    summary = fitted.summary()
     assert summary["converged"] and summary["tau_multiple"] >= 50
     for name, value in TRUTH.items():
         p = summary["parameters"][name]
@@ -62,10 +67,10 @@ def test_fit_recovers_the_simulated_truth(campaign):
     assert max(p["rhat"] for p in summary["parameters"].values()) < 1.1
 
 
-def test_saturated_points_are_excluded_and_all_saturated_is_an_error(campaign):
+def test_saturated_points_are_excluded_and_all_saturated_is_an_error(campaign, fitted):
     points, rigs = campaign
     assert points["saturated"].any()
-    result = fit_points(points, rigs)
+    result = fitted
     assert result.model.y.size == int((~points["saturated"]).sum())
     shown = point_predictions(result)  # the left-out points are reported, marked, not dropped
     assert int(shown["saturated"].sum()) == int(points["saturated"].sum())
