@@ -178,8 +178,9 @@ def test_credible_intervals_cover_the_truth_over_4_seeds():
     one seed's misses need not be (the light efficiency and the attenuation scale share a ridge). Independent
     misses, Binomial(12, 0.05), reach 5 with probability 0.0002; the worst dependence within a seed consistent with
     those margins (a seed missing 0, 1, 2 or 3 with mean 0.15) gives 0.016. A posterior whose intervals cover 50 %
-    (about 3× too narrow, or off by 2 σ) fails with probability 0.81 (0.94 at 40 %, 0.33 at 68 %, i.e. 2× too
-    narrow: the benchmark is the finer check)."""
+    (about 3× too narrow, or off by 2 σ) fails with probability 0.81 if its misses are independent (0.94 at 40 %,
+    0.33 at 68 %, i.e. 2× too narrow). Intervals too wide cannot be told from right on 12 (all inside has
+    probability 0.54): the benchmark's 99 % bound over 20 seeds is the finer check."""
     result = interval_coverage(4)
     assert result.total == 12
     assert result.hits >= 8, result.misses
