@@ -1,6 +1,6 @@
 """Calibration of the credible intervals (simulation-based; `uwlab.experiments.calibration.coverage`): truths drawn
 from the priors, one simulated campaign per seed, and the fraction of 95 % intervals that contain the truth.
-Target (issue 6): 90–99 % over ≥ 20 seeds; the slow test in tests/slow/test_fit.py asserts it.
+Target (issue 6): 90–99 % over ≥ 20 seeds; the slow test in tests/slow/test_fit.py checks 4 seeds (≥ 8 of 12).
 Prints one JSON object (coverage, wall time and every miss). Usage: python benchmarks/fit_coverage.py [SEEDS]
 """
 

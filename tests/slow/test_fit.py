@@ -1,5 +1,11 @@
-"""Model calibration: the forward model's rescaling is exact, fits recover the simulated truth, bad fits are named."""
+"""Model calibration: the forward model's rescaling is exact, fits recover the simulated truth, bad fits are named;
+a fit's posterior is a standard object (`FitResult.inference_data()` is an `arviz.InferenceData` of the very samples
+the fit summarises, and `posterior.nc` beside the other outputs reads back with arviz, whose summary agrees with the
+fit's own table to 4 significant figures)."""
 
+import json
+
+import arviz
 import numpy as np
 import pandas as pd
 import pytest
@@ -8,6 +14,7 @@ from uwlab.errors import ConfigError, UwlabError
 from uwlab.experiments.calibration.coverage import interval_coverage
 from uwlab.experiments.calibration.fit import FitConfig, Posterior, config_offsets, fit_points
 from uwlab.experiments.calibration.forward import build_forward_model, relative_flux
+from uwlab.experiments.calibration.output import write_fit
 from uwlab.experiments.calibration.priors import HalfNormal, Normal, Uniform
 from uwlab.experiments.calibration.simulate import simulate_campaign
 from uwlab.experiments.calibration.validation import point_predictions
@@ -22,6 +29,21 @@ ONE_LENS = (LensSetting(30.0, 2.0), NO_LENS)
 @pytest.fixture(scope="module")
 def campaign():
     return simulate_campaign(TRUTH, seed=3)
+
+
+@pytest.fixture(scope="module")
+def fitted(campaign):
+    """The campaign fitted with the default config (one fit for the tests that only read it)."""
+    points, rigs = campaign
+    return fit_points(points, rigs)
+
+
+@pytest.fixture(scope="module")
+def fit_dir(fitted, tmp_path_factory):
+    """That fit written as `uwlab fit` writes it."""
+    out = tmp_path_factory.mktemp("fit") / "fit"
+    write_fit(fitted, out)
+    return fitted, out
 
 
 def test_forward_rescaling_equals_the_full_model(campaign):
@@ -50,10 +72,8 @@ def test_forward_rescaling_equals_the_full_model(campaign):
     assert model.predict(theta)[0, 0] == pytest.approx(expected, rel=1e-9)
 
 
-def test_fit_recovers_the_simulated_truth(campaign):
-    points, rigs = campaign
-    result = fit_points(points, rigs)
-    summary = result.summary()
+def test_fit_recovers_the_simulated_truth(fitted):
+    summary = fitted.summary()
     assert summary["converged"] and summary["tau_multiple"] >= 50
     for name, value in TRUTH.items():
         p = summary["parameters"][name]
@@ -62,10 +82,10 @@ def test_fit_recovers_the_simulated_truth(campaign):
     assert max(p["rhat"] for p in summary["parameters"].values()) < 1.1
 
 
-def test_saturated_points_are_excluded_and_all_saturated_is_an_error(campaign):
+def test_saturated_points_are_excluded_and_all_saturated_is_an_error(campaign, fitted):
     points, rigs = campaign
     assert points["saturated"].any()
-    result = fit_points(points, rigs)
+    result = fitted
     assert result.model.y.size == int((~points["saturated"]).sum())
     shown = point_predictions(result)  # the left-out points are reported, marked, not dropped
     assert int(shown["saturated"].sum()) == int(points["saturated"].sum())
@@ -164,10 +184,21 @@ def test_sampling_coordinates_round_trip_with_the_stated_jacobian(campaign):
 
 
 @pytest.mark.slow
-def test_credible_intervals_cover_the_truth_over_20_seeds():
-    """Simulation-based calibration: truths drawn from the priors fall inside the 95 % intervals 90–99 % of the time."""
-    result = interval_coverage(20)
-    assert 0.90 <= result.fraction <= 0.99, result.misses
+def test_credible_intervals_cover_the_truth_over_4_seeds():
+    """Simulation-based calibration on 4 seeds (3 parameters each, truths drawn from the priors): at least 8 of the
+    12 95 % intervals contain their truth. benchmarks/fit_coverage.py measures the coverage itself (20 seeds:
+    target 90–99 %).
+
+    Acceptance bound: with calibrated intervals each misses with probability 0.05; the seeds are independent, but
+    one seed's misses need not be (the light efficiency and the attenuation scale share a ridge). Independent
+    misses, Binomial(12, 0.05), reach 5 with probability 0.0002; the worst dependence within a seed consistent with
+    those margins (a seed missing 0, 1, 2 or 3 with mean 0.15) gives 0.016. A posterior whose intervals cover 50 %
+    (about 3× too narrow, or off by 2 σ) fails with probability 0.81 if its misses are independent (0.94 at 40 %,
+    0.33 at 68 %, i.e. 2× too narrow). Intervals too wide cannot be told from right on 12 (all inside has
+    probability 0.54): the benchmark's 99 % bound over 20 seeds is the finer check."""
+    result = interval_coverage(4)
+    assert result.total == 12
+    assert result.hits >= 8, result.misses
 
 
 def test_configuration_discrepancies_are_integrated_out_exactly(campaign):
@@ -207,3 +238,26 @@ def test_configuration_discrepancies_are_integrated_out_exactly(campaign):
     for k, (mean, var) in enumerate(moments):
         assert draws[:, k].mean() == pytest.approx(mean, abs=5 * np.sqrt(var / 40000))
         assert draws[:, k].var() == pytest.approx(var, rel=0.03)
+
+
+def test_the_inference_data_holds_the_fits_samples_per_walker(fit_dir):
+    result, _ = fit_dir
+    data = result.inference_data()
+    walkers = result.chain.shape[1]
+    for i, name in enumerate(result.names):
+        values = data.posterior[name].values
+        assert values.shape[0] == walkers and values.size == result.samples.shape[0]
+        np.testing.assert_array_equal(np.sort(values.ravel()), np.sort(result.samples[:, i]))
+
+
+def test_arviz_summary_of_the_netcdf_matches_the_fits_table(fit_dir):
+    result, out = fit_dir
+    data = arviz.from_netcdf(out / "posterior.nc")
+    table = arviz.summary(data, stat_focus="median", hdi_prob=0.95, round_to="none")
+    summary = json.loads((out / "summary.json").read_text())["parameters"]
+    for name in result.names:
+        ours = summary[name]
+        np.testing.assert_allclose(table.loc[name, "median"], ours["median"], rtol=5e-5)
+        np.testing.assert_allclose(table.loc[name, "eti_2.5%"], ours["p2_5"], rtol=5e-5)
+        np.testing.assert_allclose(table.loc[name, "eti_97.5%"], ours["p97_5"], rtol=5e-5)
+    assert data.posterior.attrs["converged"] == int(result.converged)

@@ -1,6 +1,6 @@
 """Reading a fit's posterior as ArviZ InferenceData (`read_inference_data`, what `uwlab.Fit.posterior` returns):
 every sample with the fit's attributes, an older fit's samples as one chain; sampler overrides validated like the
-fit config file. (`arviz.summary` against the fit's own table: tests/slow/test_fit_posterior.py.)"""
+fit config file. (`arviz.summary` against the fit's own table: tests/slow/test_fit.py.)"""
 
 import numpy as np
 import pytest
