@@ -16,6 +16,7 @@ Targets: ≥ 10 updates/s, ≤ 1 core, ≤ 200 ms. The machine's load changes ev
 
 from __future__ import annotations
 
+import argparse
 import json
 import statistics
 import sys
@@ -33,7 +34,7 @@ sys.path.insert(0, str(ROOT))
 from tests.support.console_process import Console  # noqa: E402
 from tests.support.plans import write_plan  # noqa: E402
 
-WATCH_S = 15.0
+MAX_FPS = 12
 CHROMIUM, CHROMEDRIVER = "/usr/bin/chromium", "/usr/bin/chromedriver"
 
 
@@ -97,7 +98,7 @@ def browser_updates(url: str, seconds: float) -> float | None:
         driver.quit()
 
 
-def plan(path: Path) -> Path:
+def plan(path: Path, points: int) -> Path:
     return write_plan(
         path,
         "console-bench",
@@ -105,7 +106,7 @@ def plan(path: Path) -> Path:
         camera={"pixel_format": "Mono12", "window": [1192, 1000, 64, 48]},
         defaults={
             "kind": "exposure",
-            "values": {"start": 50, "stop": 1500, "num": 12, "spacing": "log"},
+            "values": {"start": 50, "stop": 1500, "num": points, "spacing": "log"},
             "frames_per_point": 4,
             "dark": "point",
             "dark_frames": 4,
@@ -115,96 +116,164 @@ def plan(path: Path) -> Path:
     )
 
 
-def console_run(client: httpx.Client, path: Path, out: Path) -> float:
-    """A run of the plan through the console: its time from taking the rig to its end (``elapsed_s``, the engine's
-    work and the rig's opening and closing, as `session_time` counts them); returns once the live view is back."""
+def console_run(client: httpx.Client, path: Path, out: Path) -> tuple[float, float]:
+    """A run of the plan through the console: its wall time and the console process's CPU time from taking the rig
+    to its end (``elapsed_s``, ``cpu_s``: the engine's work and the rig's opening and closing, the requests served
+    meanwhile; the live view is stopped then); returns once the live view is back."""
     run = client.post("api/runs", json={"plan": str(path), "out": str(out)}).json()["id"]
     while (answer := client.get(f"api/runs/{run}").json())["state"] == "running":
-        time.sleep(0.05)
+        time.sleep(0.25)  # the run's times are the server's: polling seldom adds less to both
     if answer["state"] != "done":
         raise RuntimeError(f"the console's run {run} did not finish")
     while client.get("api/rig").json()["camera"] is None:
         time.sleep(0.05)
-    return answer["elapsed_s"]
+    return answer["elapsed_s"], answer["cpu_s"]
 
 
-def session_time(folder: Path, repeats: int = 2) -> float:
-    """The best of ``repeats`` runs of the plan by `uwlab sweep`'s session in this process (after a warm-up run),
-    with no console running."""
+class Watcher:
+    """A page watching the console (as console.js does): it follows the event stream, fetches each new frame's
+    PNG (the latest winning) and the rig on a ``rig`` event, and decodes every ``run`` event."""
+
+    def __init__(self, url: str):
+        self.url, self.events = url, 0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._follow, daemon=True)
+
+    def __enter__(self) -> Watcher:
+        self._thread.start()
+        return self
+
+    def _follow(self) -> None:
+        try:
+            with httpx.Client(base_url=self.url, timeout=30) as client:
+                with client.stream("GET", "api/stream", timeout=None) as stream:
+                    event, seen = None, -1
+                    for line in stream.iter_lines():
+                        if self._stop.is_set():  # the live view's next frame wakes it: the page leaves
+                            return
+                        if line.startswith("event: "):
+                            event = line[7:]
+                        elif line.startswith("data: "):
+                            self.events += 1
+                            data = json.loads(line[6:])
+                            if event == "rig":
+                                client.get("api/rig")
+                            elif event == "stats" and data["frame_id"] != seen:
+                                seen = data["frame_id"]
+                                client.get("api/camera/frame.png", params={"n": seen})
+        except httpx.HTTPError:  # the server stopped
+            return
+
+    def __exit__(self, *exc) -> None:
+        self._stop.set()
+        self._thread.join(timeout=30)
+        time.sleep(0.5)  # the server sees the stream close
+
+
+def session_times(folder: Path, points: int, repeats: int) -> list[float]:
+    """``repeats`` runs of the plan by `uwlab sweep`'s session in this process (after a warm-up run), with no console
+    running."""
     from uwlab.experiments.acquisition.plan import load_plan
     from uwlab.experiments.acquisition.session import run_session
 
-    path = plan(folder / "plan.toml")
+    path = plan(folder / "plan.toml", points)
     run_session(load_plan(path), folder / "warm-up", sim=True)
     times = []
     for i in range(repeats):
         t0 = time.perf_counter()
         run_session(load_plan(path), folder / f"session-{i}", sim=True)
         times.append(time.perf_counter() - t0)
-    return min(times)
+    return times
 
 
-def sweep_times(url: str, folder: Path, repeats: int = 2) -> dict:
-    """The best of ``repeats`` runs of the plan through the console unwatched, and with a watcher on its event
-    stream."""
-    path = plan(folder / "plan.toml")
-    times: dict[str, list[float]] = {"console_unwatched": [], "console_watched": []}
+def sweep_pairs(url: str, folder: Path, points: int, pairs: int) -> list[dict]:
+    """``pairs`` pairs of runs of the plan through the console, one unwatched and one watched (`Watcher`), in the
+    order ABBA ABBA… (unwatched first in even pairs) after a warm-up run, so that a change of the machine's load
+    falls on both alike; each pair's wall and CPU times."""
+    path = plan(folder / "plan.toml", points)
+    out = []
     with httpx.Client(base_url=url, timeout=60) as client:
         while not client.post("api/control", json={}).json()["controlling"]:  # the browser's page just closed
             time.sleep(0.5)
-        for i in range(repeats):
-            times["console_unwatched"].append(console_run(client, path, folder / f"unwatched-{i}"))
-        stop = threading.Event()
+        console_run(client, path, folder / "warm-up")
+        for i in range(pairs):
+            pair: dict[str, dict] = {}
+            for watched in (False, True) if i % 2 == 0 else (True, False):
+                name = "watched" if watched else "unwatched"
+                if watched:
+                    with Watcher(url):
+                        wall, cpu = console_run(client, path, folder / f"{name}-{i}")
+                else:
+                    wall, cpu = console_run(client, path, folder / f"{name}-{i}")
+                pair[name] = {"wall_s": wall, "cpu_s": cpu}
+            out.append(pair)
+    return out
 
-        def follow() -> None:  # a watcher on the event stream, as the page is
-            try:
-                with httpx.Client(timeout=None) as watcher, watcher.stream("GET", url + "api/stream") as stream:
-                    for _ in stream.iter_lines():
-                        if stop.is_set():
-                            return
-            except httpx.HTTPError:  # the server stopped
-                return
 
-        threading.Thread(target=follow, daemon=True).start()
-        for i in range(repeats):
-            times["console_watched"].append(console_run(client, path, folder / f"watched-{i}"))
-        stop.set()
-    return {name: min(values) for name, values in times.items()}
+def spread(values: list[float]) -> dict[str, float]:
+    return {"median": statistics.median(values), "min": min(values), "max": max(values)}
+
+
+def slowdown(pairs: list[dict], key: str) -> dict[str, float]:
+    """Watched / unwatched − 1 of each pair's ``key`` (wall_s or cpu_s): median and range."""
+    return spread([p["watched"][key] / p["unwatched"][key] - 1.0 for p in pairs])
 
 
 def main() -> None:
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0], formatter_class=argparse.RawTextHelpFormatter
+    )
+    parser.add_argument("--watch-s", type=float, default=15.0, help="seconds the live view is watched (15)")
+    parser.add_argument("--points", type=int, default=12, help="exposures in the plan (12)")
+    parser.add_argument("--pairs", type=int, default=4, help="pairs of console runs, unwatched and watched (4)")
+    parser.add_argument("--session-runs", type=int, default=2, help="runs by `uwlab sweep`'s session (2)")
+    args = parser.parse_args()
+    load = {"before": list(psutil.getloadavg())}
     with tempfile.TemporaryDirectory() as folder:
-        session = session_time(Path(folder))
-    console = Console("--sim", "--max-fps", "12")
+        session = session_times(Path(folder), args.points, args.session_runs)
+    console = Console("--sim", "--max-fps", str(MAX_FPS))
     try:
         server = psutil.Process(console.process.pid)
         time.sleep(3.0)
         cpu0, t0 = server.cpu_times(), time.monotonic()
-        watched = watch(console.url, WATCH_S)
+        watched = watch(console.url, args.watch_s)
         cpu1, t1 = server.cpu_times(), time.monotonic()
         cores = (cpu1.user + cpu1.system - cpu0.user - cpu0.system) / (t1 - t0)
-        in_browser = browser_updates(console.url, WATCH_S / 2)
+        in_browser = browser_updates(console.url, args.watch_s / 2)
         with tempfile.TemporaryDirectory() as folder:
-            sweep = sweep_times(console.url, Path(folder))
+            pairs = sweep_pairs(console.url, Path(folder), args.points, args.pairs)
     finally:
         console.stop()
+    load["after"] = list(psutil.getloadavg())
     latencies = sorted(watched["latencies_s"])
+    watched_wall = [p["watched"]["wall_s"] for p in pairs]
     print(
         json.dumps(
             {
                 "camera_px": [2448, 2048],
-                "max_fps": 12,
-                "updates_per_s": watched["received"] / WATCH_S,
+                "max_fps": MAX_FPS,
+                "updates_per_s": watched["received"] / args.watch_s,
                 "browser_updates_per_s": in_browser,
                 "server_cpu_cores": cores,
                 "frame_latency_ms": {
                     "median": statistics.median(latencies) * 1e3,
                     "p95": latencies[int(0.95 * (len(latencies) - 1))] * 1e3,
                 },
-                "sweep_s": {"session": session, **sweep},
-                "sweep_slowdown": sweep["console_watched"] / sweep["console_unwatched"] - 1.0,
-                "sweep_slowdown_vs_session": sweep["console_watched"] / session - 1.0,
-                "load_average": list(psutil.getloadavg()),
+                "points": args.points,
+                "sweep_pairs": pairs,
+                "sweep_s": {
+                    "session": spread(session),
+                    "console_unwatched": spread([p["unwatched"]["wall_s"] for p in pairs]),
+                    "console_watched": spread(watched_wall),
+                },
+                "sweep_cpu_s": {
+                    "console_unwatched": spread([p["unwatched"]["cpu_s"] for p in pairs]),
+                    "console_watched": spread([p["watched"]["cpu_s"] for p in pairs]),
+                },
+                "sweep_slowdown": slowdown(pairs, "wall_s"),
+                "sweep_cpu_overhead": slowdown(pairs, "cpu_s"),
+                "sweep_slowdown_vs_session": statistics.median(watched_wall) / statistics.median(session) - 1.0,
+                "load_average": load,
             },
             indent=1,
         )

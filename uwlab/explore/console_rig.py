@@ -32,6 +32,7 @@ from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
+from collections.abc import Callable
 
 import numpy as np
 from scipy import ndimage
@@ -309,6 +310,29 @@ def focus_model(design) -> dict[str, Any]:
     }
 
 
+class Changes:
+    """What the page shows changed (a frame, a setting, a run): `notify` calls every subscriber, from whichever thread
+    made the change (the event streams wait for it instead of polling, so a watcher costs nothing between changes)."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._subscribers: set[Callable[[], None]] = set()
+
+    def subscribe(self, callback: Callable[[], None]) -> None:
+        with self._lock:
+            self._subscribers.add(callback)
+
+    def unsubscribe(self, callback: Callable[[], None]) -> None:
+        with self._lock:
+            self._subscribers.discard(callback)
+
+    def notify(self) -> None:
+        with self._lock:
+            subscribers = list(self._subscribers)
+        for callback in subscribers:
+            callback()
+
+
 class Live:
     """The live view (module docstring): ``start`` opens the devices and the grabbing thread, ``close`` stops it
     and releases the devices (lights to their safe state)."""
@@ -324,6 +348,7 @@ class Live:
         self.best = {"tenengrad": 0.0, "laplacian": 0.0}
         self.seq = 0  # bumped with every new frame view
         self.settings_seq = 0  # bumped with every change of a setting or a light
+        self.changes = Changes()  # notified after each bump of these and of the runs' `Runs.seq`
         self.error: str | None = None
         self.released = False
         self._stop = threading.Event()
@@ -356,6 +381,7 @@ class Live:
         self.close()
         self.released = True
         self.settings_seq += 1
+        self.changes.notify()
 
     def _loop(self) -> None:
         period = 1.0 / self.max_fps if self.max_fps > 0 else 0.0
@@ -388,6 +414,7 @@ class Live:
         self.trace.append((arrived, view.stats["sharpness"], view.stats["sharpness_laplacian"]))
         self.latest = view
         self.seq += 1
+        self.changes.notify()
 
     def _devices(self) -> Devices:
         if self.devices is None:
@@ -478,6 +505,7 @@ class Live:
         (a best value from other settings — a darker image's noise reads sharp — would mislead)."""
         self.settings_seq += 1
         self.reset_focus()
+        self.changes.notify()
 
     def reset_focus(self) -> None:
         self.best = {"tenengrad": 0.0, "laplacian": 0.0}
@@ -588,6 +616,8 @@ class Run:
     want: str = "run"  # run, pause, abort
     began_s: float | None = None  # time.monotonic() when the run took the rig, and when it ended
     ended_s: float | None = None
+    cpu_began_s: float | None = None  # time.process_time() then: the console's CPU while the run held the rig
+    cpu_ended_s: float | None = None
     cond: threading.Condition = field(default_factory=threading.Condition)
 
     def eta_s(self) -> float | None:
@@ -607,6 +637,7 @@ class Run:
             "points_total": self.points_total,
             "eta_s": self.eta_s(),
             "elapsed_s": None if self.began_s is None else (self.ended_s or time.monotonic()) - self.began_s,
+            "cpu_s": None if self.cpu_began_s is None else (self.cpu_ended_s or time.process_time()) - self.cpu_began_s,
             "faults": list(self.faults),
             "recoveries": dict(self.recoveries),
             "lights_safe_state": self.lights_safe,
@@ -646,7 +677,7 @@ class Runs:
             dataset = open_target(plan, out, sim=self.sim, purpose="uwlab console")
             run = Run(uuid.uuid4().hex[:12], plan, Path(dataset.root), points_total=plan.total_points())
             self.runs[run.id] = run
-            self.seq += 1
+            self._changed()
         threading.Thread(target=self._run, args=(run, dataset), name=f"console-run-{run.id}", daemon=True).start()
         return run
 
@@ -656,7 +687,7 @@ class Runs:
 
     def _run_holding_the_rig(self, run: Run, dataset) -> None:
         self.live.release()
-        run.began_s = time.monotonic()
+        run.began_s, run.cpu_began_s = time.monotonic(), time.process_time()
         try:
             with dataset:
                 rig = make_rig(run.plan, self.sim, None, self.seed)
@@ -676,8 +707,8 @@ class Runs:
             run.faults.append(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
             run.state = "failed"
         finally:
-            run.ended_s = time.monotonic()
-            self.seq += 1
+            run.ended_s, run.cpu_ended_s = time.monotonic(), time.process_time()
+            self._changed()
             try:
                 self.live.start()
             except Exception as exc:
@@ -697,21 +728,22 @@ class Runs:
         camera = getattr(rig, "camera", None)
         if camera is not None:
             run.recoveries["camera_reconnects"] = camera.stats.reconnects
-        self.seq += 1
+        self._changed()
         with run.cond:
             if run.want == "pause":
                 paused_at = time.monotonic()
                 run.lights_safe = self._lights_off(rig)
                 run.state = "paused"
-                self.seq += 1
+                self._changed()
                 while run.want == "pause":
                     run.cond.wait()
                 run.paused_for_s += time.monotonic() - paused_at
                 run.lights_safe = None
             if run.want == "abort":
                 raise RunAborted(run.id)
-            run.state = "running"
-            self.seq += 1
+            if run.state != "running":  # resumed (the point's own change is told already)
+                run.state = "running"
+                self._changed()
 
     @staticmethod
     def _lights_off(rig) -> dict[str, bool]:
@@ -733,8 +765,12 @@ class Runs:
         with run.cond:
             run.want = {"pause": "pause", "resume": "run", "abort": "abort"}[action]
             run.cond.notify_all()
-        self.seq += 1
+        self._changed()
         return run
+
+    def _changed(self) -> None:
+        self.seq += 1
+        self.live.changes.notify()
 
     def close(self) -> None:
         """Abort every run and wait for it to end (its rig to its safe state)."""
