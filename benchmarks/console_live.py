@@ -17,7 +17,9 @@ Targets: ≥ 10 updates/s, ≤ 1 core, ≤ 200 ms. The machine's load changes ev
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
+import socket
 import statistics
 import sys
 import tempfile
@@ -33,8 +35,10 @@ sys.path.insert(0, str(ROOT))
 
 from tests.support.console_process import Console  # noqa: E402
 from tests.support.plans import write_plan  # noqa: E402
+from uwlab.explore.console import STREAM_IDLE_S  # noqa: E402
 
 MAX_FPS = 12
+IDLE_S = 3.0
 CHROMIUM, CHROMEDRIVER = "/usr/bin/chromium", "/usr/bin/chromedriver"
 
 
@@ -116,41 +120,51 @@ def plan(path: Path, points: int) -> Path:
     )
 
 
-def console_run(client: httpx.Client, path: Path, out: Path) -> tuple[float, float]:
-    """A run of the plan through the console: its wall time and the console process's CPU time from taking the rig
-    to its end (``elapsed_s``, ``cpu_s``: the engine's work and the rig's opening and closing, the requests served
-    meanwhile; the live view is stopped then); returns once the live view is back."""
+def console_run(client: httpx.Client, path: Path, out: Path) -> dict[str, float]:
+    """A run of the plan through the console, from its taking the rig to its end (the live view stopped): its wall
+    time (``elapsed_s``: the engine's work and the rig's opening and closing, as `session_times` counts them), the
+    console process's CPU seconds (``cpu_s``), those of the run's own thread (``run_cpu_s``) and the rest
+    (``serving_cpu_s``: the requests and event streams served meanwhile); returns once the live view is back."""
     run = client.post("api/runs", json={"plan": str(path), "out": str(out)}).json()["id"]
-    while (answer := client.get(f"api/runs/{run}").json())["state"] == "running":
+    while client.get(f"api/runs/{run}").json()["state"] == "running":
         time.sleep(0.25)  # the run's times are the server's: polling seldom adds less to both
-    if answer["state"] != "done":
-        raise RuntimeError(f"the console's run {run} did not finish")
     while client.get("api/rig").json()["camera"] is None:
         time.sleep(0.05)
-    return answer["elapsed_s"], answer["cpu_s"]
+    answer = client.get(f"api/runs/{run}").json()
+    if answer["state"] != "done":
+        raise RuntimeError(f"the console's run {run} did not finish")
+    return {
+        "wall_s": answer["elapsed_s"],
+        "cpu_s": answer["cpu_s"],
+        "run_cpu_s": answer["run_cpu_s"],
+        "serving_cpu_s": answer["cpu_s"] - answer["run_cpu_s"],
+    }
 
 
 class Watcher:
     """A page watching the console (as console.js does): it follows the event stream, fetches each new frame's
-    PNG (the latest winning) and the rig on a ``rig`` event, and decodes every ``run`` event."""
+    PNG (the latest winning) and the rig on a ``rig`` event, and decodes every ``run`` event. Leaving closes the
+    stream's socket, as a closed tab does."""
 
     def __init__(self, url: str):
         self.url, self.events = url, 0
-        self._stop = threading.Event()
+        self._socket: socket.socket | None = None
+        self._opened = threading.Event()
         self._thread = threading.Thread(target=self._follow, daemon=True)
 
     def __enter__(self) -> Watcher:
         self._thread.start()
+        self._opened.wait(30)
         return self
 
     def _follow(self) -> None:
         try:
             with httpx.Client(base_url=self.url, timeout=30) as client:
                 with client.stream("GET", "api/stream", timeout=None) as stream:
+                    self._socket = stream.extensions["network_stream"].get_extra_info("socket")
+                    self._opened.set()
                     event, seen = None, -1
                     for line in stream.iter_lines():
-                        if self._stop.is_set():  # the live view's next frame wakes it: the page leaves
-                            return
                         if line.startswith("event: "):
                             event = line[7:]
                         elif line.startswith("data: "):
@@ -161,13 +175,54 @@ class Watcher:
                             elif event == "stats" and data["frame_id"] != seen:
                                 seen = data["frame_id"]
                                 client.get("api/camera/frame.png", params={"n": seen})
-        except httpx.HTTPError:  # the server stopped
+        except httpx.HTTPError:  # left (the socket shut down) or the server stopped
             return
+        finally:
+            self._opened.set()
 
     def __exit__(self, *exc) -> None:
-        self._stop.set()
+        if self._socket is not None:
+            with contextlib.suppress(OSError):
+                self._socket.shutdown(socket.SHUT_RDWR)
         self._thread.join(timeout=30)
-        time.sleep(0.5)  # the server sees the stream close
+        time.sleep(STREAM_IDLE_S + 0.2)  # the server sees the stream close at its next look
+
+
+def watcher_idle_cpu(client: httpx.Client, url: str, server: psutil.Process, folder: Path, pairs: int) -> dict:
+    """The console process's CPU (cores: CPU seconds a second) while a run is paused (the live view released, nothing
+    changes), without a watcher and with one (`Watcher`), alternating ``pairs`` times for `IDLE_S` each: what a
+    watcher costs when there is nothing to tell."""
+
+    def cores() -> float:
+        cpu0, t0 = server.cpu_times(), time.monotonic()
+        time.sleep(IDLE_S)
+        cpu1, t1 = server.cpu_times(), time.monotonic()
+        return (cpu1.user + cpu1.system - cpu0.user - cpu0.system) / (t1 - t0)
+
+    path = plan(folder / "long.toml", 200)
+    run = client.post("api/runs", json={"plan": str(path), "out": str(folder / "paused")}).json()["id"]
+    while client.get(f"api/runs/{run}").json()["points_done"] < 1:
+        time.sleep(0.1)
+    client.post(f"api/runs/{run}/pause", json={})
+    while client.get(f"api/runs/{run}").json()["state"] != "paused":
+        time.sleep(0.1)
+    time.sleep(1.0)
+    cost: dict[str, list[float]] = {"unwatched": [], "watched": []}
+    for i in range(pairs):
+        for watched in (False, True) if i % 2 == 0 else (True, False):
+            if watched:
+                with Watcher(url):
+                    time.sleep(0.5)  # its first events (the last frame, the rig, the run) answered
+                    cost["watched"].append(cores())
+            else:
+                cost["unwatched"].append(cores())
+    client.post(f"api/runs/{run}/abort", json={})
+    while client.get("api/rig").json()["camera"] is None:
+        time.sleep(0.1)
+    return {
+        **{name: spread(values) for name, values in cost.items()},
+        "watcher_cores": spread([w - u for w, u in zip(cost["watched"], cost["unwatched"], strict=True)]),
+    }
 
 
 def session_times(folder: Path, points: int, repeats: int) -> list[float]:
@@ -186,27 +241,23 @@ def session_times(folder: Path, points: int, repeats: int) -> list[float]:
     return times
 
 
-def sweep_pairs(url: str, folder: Path, points: int, pairs: int) -> list[dict]:
+def sweep_pairs(client: httpx.Client, url: str, folder: Path, points: int, pairs: int) -> list[dict]:
     """``pairs`` pairs of runs of the plan through the console, one unwatched and one watched (`Watcher`), in the
     order ABBA ABBA… (unwatched first in even pairs) after a warm-up run, so that a change of the machine's load
-    falls on both alike; each pair's wall and CPU times."""
+    falls on both alike; each pair's `console_run` times."""
     path = plan(folder / "plan.toml", points)
+    console_run(client, path, folder / "warm-up")
     out = []
-    with httpx.Client(base_url=url, timeout=60) as client:
-        while not client.post("api/control", json={}).json()["controlling"]:  # the browser's page just closed
-            time.sleep(0.5)
-        console_run(client, path, folder / "warm-up")
-        for i in range(pairs):
-            pair: dict[str, dict] = {}
-            for watched in (False, True) if i % 2 == 0 else (True, False):
-                name = "watched" if watched else "unwatched"
-                if watched:
-                    with Watcher(url):
-                        wall, cpu = console_run(client, path, folder / f"{name}-{i}")
-                else:
-                    wall, cpu = console_run(client, path, folder / f"{name}-{i}")
-                pair[name] = {"wall_s": wall, "cpu_s": cpu}
-            out.append(pair)
+    for i in range(pairs):
+        pair: dict[str, dict] = {}
+        for watched in (False, True) if i % 2 == 0 else (True, False):
+            name = "watched" if watched else "unwatched"
+            if watched:
+                with Watcher(url):
+                    pair[name] = console_run(client, path, folder / f"{name}-{i}")
+            else:
+                pair[name] = console_run(client, path, folder / f"{name}-{i}")
+        out.append(pair)
     return out
 
 
@@ -217,6 +268,13 @@ def spread(values: list[float]) -> dict[str, float]:
 def slowdown(pairs: list[dict], key: str) -> dict[str, float]:
     """Watched / unwatched − 1 of each pair's ``key`` (wall_s or cpu_s): median and range."""
     return spread([p["watched"][key] / p["unwatched"][key] - 1.0 for p in pairs])
+
+
+def serving_overhead(pairs: list[dict]) -> dict[str, float]:
+    """What watching added to each pair's serving CPU, over the unwatched run's CPU: median and range."""
+    return spread(
+        [(p["watched"]["serving_cpu_s"] - p["unwatched"]["serving_cpu_s"]) / p["unwatched"]["cpu_s"] for p in pairs]
+    )
 
 
 def main() -> None:
@@ -240,8 +298,11 @@ def main() -> None:
         cpu1, t1 = server.cpu_times(), time.monotonic()
         cores = (cpu1.user + cpu1.system - cpu0.user - cpu0.system) / (t1 - t0)
         in_browser = browser_updates(console.url, args.watch_s / 2)
-        with tempfile.TemporaryDirectory() as folder:
-            pairs = sweep_pairs(console.url, Path(folder), args.points, args.pairs)
+        with tempfile.TemporaryDirectory() as folder, httpx.Client(base_url=console.url, timeout=60) as client:
+            while not client.post("api/control", json={}).json()["controlling"]:  # the browser's page just closed
+                time.sleep(0.5)
+            pairs = sweep_pairs(client, console.url, Path(folder), args.points, args.pairs)
+            idle = watcher_idle_cpu(client, console.url, server, Path(folder), args.pairs)
     finally:
         console.stop()
     load["after"] = list(psutil.getloadavg())
@@ -267,11 +328,14 @@ def main() -> None:
                     "console_watched": spread(watched_wall),
                 },
                 "sweep_cpu_s": {
-                    "console_unwatched": spread([p["unwatched"]["cpu_s"] for p in pairs]),
-                    "console_watched": spread([p["watched"]["cpu_s"] for p in pairs]),
+                    f"console_{name}_{key}": spread([p[name][key] for p in pairs])
+                    for name in ("unwatched", "watched")
+                    for key in ("cpu_s", "run_cpu_s", "serving_cpu_s")
                 },
                 "sweep_slowdown": slowdown(pairs, "wall_s"),
-                "sweep_cpu_overhead": slowdown(pairs, "cpu_s"),
+                "sweep_cpu_ratio": slowdown(pairs, "cpu_s"),
+                "sweep_cpu_overhead": serving_overhead(pairs),
+                "paused_run_server_cpu_cores": idle,
                 "sweep_slowdown_vs_session": statistics.median(watched_wall) / statistics.median(session) - 1.0,
                 "load_average": load,
             },

@@ -616,8 +616,8 @@ class Run:
     want: str = "run"  # run, pause, abort
     began_s: float | None = None  # time.monotonic() when the run took the rig, and when it ended
     ended_s: float | None = None
-    cpu_began_s: float | None = None  # time.process_time() then: the console's CPU while the run held the rig
-    cpu_ended_s: float | None = None
+    cpu_began: tuple[float, float] | None = None  # CPU seconds of the console and of the run's thread then
+    cpu_ended: tuple[float, float] | None = None
     cond: threading.Condition = field(default_factory=threading.Condition)
 
     def eta_s(self) -> float | None:
@@ -626,6 +626,14 @@ class Run:
             return None
         per_point = (time.monotonic() - self.started_s - self.paused_for_s) / measured
         return per_point * (self.points_total - self.points_done)
+
+    def _cpu(self) -> dict[str, float | None]:
+        """``cpu_s``: the console process's CPU seconds while the run held the rig (the live view stopped: the run
+        and the requests served meanwhile); ``run_cpu_s``: the run's own thread's (the engine, the rig's drivers)."""
+        if self.cpu_began is None or self.cpu_ended is None:  # known once the run has ended
+            return {"cpu_s": None, "run_cpu_s": None}
+        (process0, thread0), (process1, thread1) = self.cpu_began, self.cpu_ended
+        return {"cpu_s": process1 - process0, "run_cpu_s": thread1 - thread0}
 
     def as_json(self) -> dict[str, Any]:
         return {
@@ -637,7 +645,7 @@ class Run:
             "points_total": self.points_total,
             "eta_s": self.eta_s(),
             "elapsed_s": None if self.began_s is None else (self.ended_s or time.monotonic()) - self.began_s,
-            "cpu_s": None if self.cpu_began_s is None else (self.cpu_ended_s or time.process_time()) - self.cpu_began_s,
+            **self._cpu(),
             "faults": list(self.faults),
             "recoveries": dict(self.recoveries),
             "lights_safe_state": self.lights_safe,
@@ -687,7 +695,7 @@ class Runs:
 
     def _run_holding_the_rig(self, run: Run, dataset) -> None:
         self.live.release()
-        run.began_s, run.cpu_began_s = time.monotonic(), time.process_time()
+        run.began_s, run.cpu_began = time.monotonic(), (time.process_time(), time.thread_time())
         try:
             with dataset:
                 rig = make_rig(run.plan, self.sim, None, self.seed)
@@ -707,7 +715,7 @@ class Runs:
             run.faults.append(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
             run.state = "failed"
         finally:
-            run.ended_s, run.cpu_ended_s = time.monotonic(), time.process_time()
+            run.ended_s, run.cpu_ended = time.monotonic(), (time.process_time(), time.thread_time())
             self._changed()
             try:
                 self.live.start()
