@@ -6,12 +6,29 @@ PNG, one at a time, the latest winning — and by headless Chromium (the page it
   per second (its canvas's frame id changing), when Chromium is installed;
 - ``server_cpu_cores``: the server process's CPU time over the wall time while watched (1.0 = one core busy);
 - ``frame_latency_ms``: from the frame's arrival at the server (``t_grab_s``) to its PNG received (median, p95);
-- ``sweep_s``: a small plan (12 points) run by ``uwlab sweep``'s session in this process, and through the console
-  (``POST /api/runs``) unwatched and with a watcher on the event stream (best of two each); ``sweep_slowdown``:
-  watched / unwatched − 1 (target ≤ 0.10), ``sweep_slowdown_vs_session``: watched / session − 1. While a run holds
-  the rig the live view releases the camera, so a watcher costs only the stream's run events.
+- the sweep: a small plan (``--points``, 12) run by ``uwlab sweep``'s session in this process (``--session-runs``),
+  then through the console (``POST /api/runs``) in ``--pairs`` (4) pairs after a warm-up run, one run of each pair
+  unwatched and one watched by a page (`Watcher`: the event stream, a PNG for each new frame, the rig on a ``rig``
+  event), in the order ABBA ABBA… so that the machine's changing load falls on both alike. Each run's figures are
+  the server's own, from its taking the rig to its end (the live view stopped): ``wall_s`` (``elapsed_s``),
+  ``cpu_s`` (the console process's CPU seconds), ``run_cpu_s`` (its run thread's: the engine and the drivers) and
+  ``serving_cpu_s`` (the difference: the requests and event streams served meanwhile), all in ``sweep_pairs``;
+- ``sweep_s``, ``sweep_cpu_s``: median and range of each over the pairs (``session``: of the session's runs);
+- ``sweep_slowdown``: watched / unwatched − 1 of the wall times, per pair: median and range (the ≤ 0.10 target);
+- ``sweep_cpu_overhead``: what watching added to a pair's serving CPU over its unwatched run's CPU, median and range:
+  the load-robust form of the target, since the sweep's own work (a 2448 × 2048 scene rendered and the rig's
+  frames) is the same watched or not, while its CPU time, memory-bound, varies by 2–3 times with the machine's load
+  (``sweep_cpu_ratio``: watched / unwatched − 1 of the whole CPU, for comparison);
+- ``paused_run_server_cpu_cores``: the server's CPU (cores) while a run is paused (nothing changes), without and
+  with a watcher, alternating ``--pairs`` times 3 s each, and ``watcher_cores`` their per-pair difference: what a
+  watcher costs when there is nothing to tell (the event streams wait for a change instead of polling);
+- ``sweep_slowdown_vs_session``: the console's watched runs over the session's (medians) − 1;
+- ``load_average``: the 1, 5 and 15 minute load averages before and after.
 
-Targets: ≥ 10 updates/s, ≤ 1 core, ≤ 200 ms. The machine's load changes every number: run it on a quiet machine.
+While a run holds the rig the live view releases the camera, so a watcher costs only the stream's run events (one a
+point) and the rig it fetches when the run takes the rig. Targets: ≥ 10 updates/s, ≤ 1 core, ≤ 200 ms; a watched
+sweep ≤ 10 % slower. Every wall time depends on the machine's load: on a loaded machine compare
+``sweep_cpu_overhead`` and ``watcher_cores``, and `uptime` beside the figures.
 """
 
 from __future__ import annotations

@@ -220,11 +220,9 @@ def create_console(live: Live, runs: Runs, access: Access | None = None) -> Guar
             sent, seen = 0, {"frame": -1, "rig": -1, "run": -1}
             loop, changed = asyncio.get_running_loop(), asyncio.Event()
 
-            def wake() -> None:  # called by the thread that made a change
-                try:
+            def wake() -> None:  # called by the thread that made the change
+                with contextlib.suppress(RuntimeError):  # the server's loop closed (the console stopping)
                     loop.call_soon_threadsafe(changed.set)
-                except RuntimeError:  # the server's loop closed (the console stopping)
-                    pass
 
             live.changes.subscribe(wake)
             try:

@@ -4,7 +4,8 @@ frame buffer, what each frame shows (statistics, histogram, clipped pixels, shar
 - **Live view** (`Live`): the camera streams continuously in a thread of its own (at most ``max_fps`` frames a
   second); each frame's view (`FrameView`) is computed there, so requests only read the latest one. Settings,
   lights and the spectrometer go through one lock with the grabbing, so nothing is sent to a device while another
-  request uses it; every answer is a read-back.
+  request uses it; every answer is a read-back. Each change (a frame, a setting, a run's point or state) is told to
+  the event streams (`Changes`), which wait for one instead of polling: a watcher costs nothing between changes.
 - **Focusing aids** (`sharpness`): the Tenengrad (mean squared Sobel gradient) and the variance of the Laplacian
   of the ROI, each divided by the ROI's squared mean so that the number is the same across exposures and gains
   (both scale as the square of the signal). Tenengrad: J. M. Tenenbaum, *Accommodation in computer vision*, PhD
