@@ -14,6 +14,7 @@ Bad input (`UwlabError`) answers 422 ``{"error": "<one line>", "key": ...}``; an
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import secrets
 import time
 from http.cookies import SimpleCookie
@@ -37,7 +38,7 @@ from uwlab.jsonable import dumps
 SESSION_COOKIE = "uwlab_console"
 CONTROL_IDLE_S = 30.0
 STREAM_GRACE_S = 5.0  # a page's stream may reconnect within this long and keep control
-STREAM_POLL_S = 0.02
+STREAM_IDLE_S = 0.5  # an event stream with nothing to tell looks this often whether its page has gone
 
 
 class Control:
@@ -223,10 +224,18 @@ def create_console(live: Live, runs: Runs, access: Access | None = None) -> Guar
         async def events():
             control.streams[who] = control.streams.get(who, 0) + 1
             sent, seen = 0, {"frame": -1, "rig": -1, "run": -1}
+            loop, changed = asyncio.get_running_loop(), asyncio.Event()
+
+            def wake() -> None:  # called by the thread that made the change
+                with contextlib.suppress(RuntimeError):  # the server's loop closed (the console stopping)
+                    loop.call_soon_threadsafe(changed.set)
+
+            live.changes.subscribe(wake)
             try:
                 yield "retry: 1000\n\n"
                 while not await request.is_disconnected():
                     control.touch(who)
+                    changed.clear()  # before reading: a change from now on wakes the wait below
                     out = []
                     view = live.latest
                     if view is not None and live.seq != seen["frame"]:
@@ -245,8 +254,10 @@ def create_console(live: Live, runs: Runs, access: Access | None = None) -> Guar
                         sent += 1
                         if limit and sent >= limit:
                             return
-                    await asyncio.sleep(STREAM_POLL_S)
+                    with contextlib.suppress(TimeoutError):
+                        await asyncio.wait_for(changed.wait(), STREAM_IDLE_S)
             finally:
+                live.changes.unsubscribe(wake)
                 control.streams[who] -= 1
                 if control.streams[who] == 0:
                     control.left[who] = time.monotonic()

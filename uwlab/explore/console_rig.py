@@ -4,7 +4,8 @@ frame buffer, what each frame shows (statistics, histogram, clipped pixels, shar
 - **Live view** (`Live`): the camera streams continuously in a thread of its own (at most ``max_fps`` frames a
   second); each frame's view (`FrameView`) is computed there, so requests only read the latest one. Settings,
   lights and the spectrometer go through one lock with the grabbing, so nothing is sent to a device while another
-  request uses it; every answer is a read-back.
+  request uses it; every answer is a read-back. Each change (a frame, a setting, a run's point or state) is told to
+  the event streams (`Changes`), which wait for one instead of polling: a watcher costs nothing between changes.
 - **Focusing aids** (`sharpness`): the Tenengrad (mean squared Sobel gradient) and the variance of the Laplacian
   of the ROI, each divided by the ROI's squared mean so that the number is the same across exposures and gains
   (both scale as the square of the signal). Tenengrad: J. M. Tenenbaum, *Accommodation in computer vision*, PhD
@@ -34,6 +35,7 @@ from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
+from collections.abc import Callable
 
 import numpy as np
 from scipy import ndimage
@@ -311,6 +313,29 @@ def focus_model(design) -> dict[str, Any]:
     }
 
 
+class Changes:
+    """What the page shows changed (a frame, a setting, a run): `notify` calls every subscriber, from whichever thread
+    made the change (the event streams wait for it instead of polling, so a watcher costs nothing between changes)."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._subscribers: set[Callable[[], None]] = set()
+
+    def subscribe(self, callback: Callable[[], None]) -> None:
+        with self._lock:
+            self._subscribers.add(callback)
+
+    def unsubscribe(self, callback: Callable[[], None]) -> None:
+        with self._lock:
+            self._subscribers.discard(callback)
+
+    def notify(self) -> None:
+        with self._lock:
+            subscribers = list(self._subscribers)
+        for callback in subscribers:
+            callback()
+
+
 class Live:
     """The live view (module docstring): ``start`` opens the devices and the grabbing thread, ``close`` stops it
     and releases the devices (lights to their safe state)."""
@@ -326,6 +351,7 @@ class Live:
         self.best = {"tenengrad": 0.0, "laplacian": 0.0}
         self.seq = 0  # bumped with every new frame view
         self.settings_seq = 0  # bumped with every change of a setting or a light
+        self.changes = Changes()  # notified after each bump of these and of the runs' `Runs.seq`
         self.error: str | None = None
         self.released = False
         self._stop = threading.Event()
@@ -358,6 +384,7 @@ class Live:
         self.close()
         self.released = True
         self.settings_seq += 1
+        self.changes.notify()
 
     def _loop(self) -> None:
         period = 1.0 / self.max_fps if self.max_fps > 0 else 0.0
@@ -390,6 +417,7 @@ class Live:
         self.trace.append((arrived, view.stats["sharpness"], view.stats["sharpness_laplacian"]))
         self.latest = view
         self.seq += 1
+        self.changes.notify()
 
     def _devices(self) -> Devices:
         if self.devices is None:
@@ -480,6 +508,7 @@ class Live:
         (a best value from other settings — a darker image's noise reads sharp — would mislead)."""
         self.settings_seq += 1
         self.reset_focus()
+        self.changes.notify()
 
     def reset_focus(self) -> None:
         self.best = {"tenengrad": 0.0, "laplacian": 0.0}
@@ -606,6 +635,8 @@ class Run:
     began_s: float | None = None  # time.monotonic() when the run took the rig, and when it ended
     ended_s: float | None = None
     prediction: dict = field(default_factory=dict)  # the model's band for the plan (`predicted_bands`)
+    cpu_began: tuple[float, float] | None = None  # CPU seconds of the console and of the run's thread then
+    cpu_ended: tuple[float, float] | None = None
     cond: threading.Condition = field(default_factory=threading.Condition)
 
     def eta_s(self) -> float | None:
@@ -614,6 +645,14 @@ class Run:
             return None
         per_point = (time.monotonic() - self.started_s - self.paused_for_s) / measured
         return per_point * (self.points_total - self.points_done)
+
+    def _cpu(self) -> dict[str, float | None]:
+        """``cpu_s``: the console process's CPU seconds while the run held the rig (the live view stopped: the run
+        and the requests served meanwhile); ``run_cpu_s``: the run's own thread's (the engine, the rig's drivers)."""
+        if self.cpu_began is None or self.cpu_ended is None:  # known once the run has ended
+            return {"cpu_s": None, "run_cpu_s": None}
+        (process0, thread0), (process1, thread1) = self.cpu_began, self.cpu_ended
+        return {"cpu_s": process1 - process0, "run_cpu_s": thread1 - thread0}
 
     def as_json(self) -> dict[str, Any]:
         return {
@@ -626,6 +665,7 @@ class Run:
             "prediction_source": self.prediction.get("source"),
             "eta_s": self.eta_s(),
             "elapsed_s": None if self.began_s is None else (self.ended_s or time.monotonic()) - self.began_s,
+            **self._cpu(),
             "faults": list(self.faults),
             "recoveries": dict(self.recoveries),
             "lights_safe_state": self.lights_safe,
@@ -675,7 +715,7 @@ class Runs:
                 prediction=prediction,
             )
             self.runs[run.id] = run
-            self.seq += 1
+            self._changed()
         threading.Thread(target=self._run, args=(run, dataset), name=f"console-run-{run.id}", daemon=True).start()
         return run
 
@@ -685,7 +725,7 @@ class Runs:
 
     def _run_holding_the_rig(self, run: Run, dataset) -> None:
         self.live.release()
-        run.began_s = time.monotonic()
+        run.began_s, run.cpu_began = time.monotonic(), (time.process_time(), time.thread_time())
         try:
             with dataset:
                 rig = make_rig(run.plan, self.sim, None, self.seed)
@@ -705,8 +745,8 @@ class Runs:
             run.faults.append(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
             run.state = "failed"
         finally:
-            run.ended_s = time.monotonic()
-            self.seq += 1
+            run.ended_s, run.cpu_ended = time.monotonic(), (time.process_time(), time.thread_time())
+            self._changed()
             try:
                 self.live.start()
             except Exception as exc:
@@ -726,21 +766,22 @@ class Runs:
         camera = getattr(rig, "camera", None)
         if camera is not None:
             run.recoveries["camera_reconnects"] = camera.stats.reconnects
-        self.seq += 1
+        self._changed()
         with run.cond:
             if run.want == "pause":
                 paused_at = time.monotonic()
                 run.lights_safe = self._lights_off(rig)
                 run.state = "paused"
-                self.seq += 1
+                self._changed()
                 while run.want == "pause":
                     run.cond.wait()
                 run.paused_for_s += time.monotonic() - paused_at
                 run.lights_safe = None
             if run.want == "abort":
                 raise RunAborted(run.id)
-            run.state = "running"
-            self.seq += 1
+            if run.state != "running":  # resumed (the point's own change is told already)
+                run.state = "running"
+                self._changed()
 
     @staticmethod
     def _lights_off(rig) -> dict[str, bool]:
@@ -762,8 +803,12 @@ class Runs:
         with run.cond:
             run.want = {"pause": "pause", "resume": "run", "abort": "abort"}[action]
             run.cond.notify_all()
-        self.seq += 1
+        self._changed()
         return run
+
+    def _changed(self) -> None:
+        self.seq += 1
+        self.live.changes.notify()
 
     def close(self) -> None:
         """Abort every run and wait for it to end (its rig to its safe state)."""

@@ -222,6 +222,9 @@ def test_a_run_paused_and_resumed_is_the_dataset_of_uwlab_sweep(client, tmp_path
     again = client.post(f"/api/runs/{run_id}/pause", json={})
     assert again.status_code == 422 and "done" in again.json()["error"]
     wait_for(lambda: client.get("/api/rig").json()["camera"] is not None, "the live view did not come back")
+    assert paused["cpu_s"] is None  # known once the run has ended
+    ended = client.get(f"/api/runs/{run_id}").json()
+    assert 0 < ended["run_cpu_s"] <= ended["cpu_s"]  # the run's thread is one of the console's
 
     reference = run_session(load_plan(plan), tmp_path / "sweep", sim=True)  # what `uwlab sweep --sim` runs
     ours, theirs = Dataset.open(tmp_path / "console").points(), Dataset.open(reference).points()
