@@ -30,6 +30,13 @@
    uwlab's two threads meet different moments of the load, and the ratio scatters). Also a plain ``cat`` of the
    files (in the page cache, just written) and, with ``--reference-python``, the reference on the same files (its
    wall time and peak memory, or its failure).
+   Measured on the shared 2-core VM (2026-11-28, load average 7–18 from other sessions, 5 repeats):
+   ratio_to_read_and_pass median 4.0 (3.4–5.7), ratio_to_read_and_pass_cpu 4.1 (3.6–5.1); interleaved with the
+   code before that day's changes (6 repeats each): medians 3.0 against 3.7, then 3.6 against 3.4 (single runs
+   2.1–4.7): the load moves the ratio more than the changes did. The floor takes 0.6–0.9 s of CPU, uwlab 2.6–4.0 s,
+   about a third of it the §8.1 highpass of the 90 photon-transfer pairs (a 19-tap separable filter in float32,
+   9–10 ms a pair, and its sums). Linux's autogroup scheduling gives a session one share of a loaded machine
+   whatever its threads, so there the wall ratio follows the CPU ratio and uwlab's second thread does not help.
 
 Usage: python benchmarks/bench_emva.py [--frames N] [--repeats R] [--reference-python PY] [--lab [--lab-steps S]]
 """

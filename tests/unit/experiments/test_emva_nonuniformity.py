@@ -228,3 +228,40 @@ def test_pair_highpass_split_whatever_the_route(dtype, low, high):
     expected = spatial_variances(highpass(stack.mean(axis=0)), stats.temporal_var_dn2, 2)
     for name in ("measured", "total", "cav", "rav", "row", "col", "pixel"):
         assert getattr(stats.spatial, name) == pytest.approx(getattr(expected, name), rel=1e-5, abs=1e-9), name
+
+
+@pytest.mark.parametrize("top", [4096, 65536])
+@pytest.mark.parametrize("count", [2, 3, 4, 5])
+@pytest.mark.parametrize("keep_mean_image", [False, True])
+def test_stable_frames_from_two_alternating_buffers(count, top, keep_mean_image):
+    """Frames read into two buffers in turn (a descriptor reader's ``stable_frames``: nothing copied, each buffer
+    overwritten by the frame after next) give the statistics of the frames themselves: eq. 18, 35, 65, the mean
+    image and the highpassed split of the mean image (12-bit frames take the pair-sum route, 16-bit ones keep the
+    first pair's frames)."""
+    from uwlab.experiments.frames.stack import WorkImages
+
+    rng = np.random.default_rng(count * top)
+    frames = [rng.integers(0, top, (37, 45), dtype=np.uint16) for _ in range(count)]
+    buffers = [np.empty((37, 45), np.uint16) for _ in range(2)]
+
+    def read():
+        for i, frame in enumerate(frames):
+            np.copyto(buffers[i % 2], frame)
+            yield buffers[i % 2]
+
+    stats = stack_statistics(read(), top - 1, keep_mean_image, work=WorkImages(), stable_frames=True)
+    stack = np.array(frames, np.float64)
+    pairs = [
+        0.5 * (np.mean((stack[i] - stack[i + 1]) ** 2) - (stack[i].mean() - stack[i + 1].mean()) ** 2)
+        for i in range(0, count - 1, 2)
+    ]
+    assert stats.temporal_var_dn2 == pytest.approx(np.mean(pairs), rel=1e-12)  # eq. 18
+    assert stats.stack_var_dn2 == pytest.approx(stack.var(axis=0, ddof=1).mean(), rel=1e-12)  # eq. 65
+    assert stats.spatial_var_dn2 == pytest.approx(stack.mean(axis=0).var(), rel=1e-9)  # eq. 35
+    assert stats.mean_diff_dn == pytest.approx(stack[0].mean() - stack[1].mean(), abs=1e-9)
+    split = stats.stack_var_dn2 if count > 2 else stats.temporal_var_dn2
+    expected = spatial_variances(highpass(stack.mean(axis=0)), split, count)
+    for name in ("measured", "total", "row", "col", "pixel"):
+        assert getattr(stats.spatial, name) == pytest.approx(getattr(expected, name), rel=1e-5, abs=1e-6), name
+    if keep_mean_image:
+        np.testing.assert_allclose(stats.mean_image, stack.mean(axis=0), rtol=0, atol=4 * np.spacing(np.float32(top)))

@@ -12,13 +12,14 @@ error, the 5×5 highpass).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import cached_property
 
 from uwlab.errors import ConfigError
 from uwlab.experiments.emva.general import characterize_general
 from uwlab.experiments.emva.linear import characterize_linear
 from uwlab.experiments.frames.nonuniformity import ImageAnalysis, analyse_images
-from uwlab.experiments.emva.transfer import PhotonTransfer
+from uwlab.experiments.emva.transfer import NonuniformityStack, PhotonTransfer
 
 MODELS = ("linear", "general")
 
@@ -26,15 +27,26 @@ MODELS = ("linear", "general")
 @dataclass(frozen=True)
 class EmvaResult:
     """The EMVA 1288 parameters (`values`, JSON keys), the curves for the plots (`curves`) and the analysis of the
-    nonuniformity images when the stacks' mean images were kept (`images`)."""
+    nonuniformity images when the stacks' mean images were kept (`images`, from ``stack``)."""
 
     values: dict
     curves: dict
-    images: ImageAnalysis | None = None
+    stack: NonuniformityStack | None = field(default=None, repr=False, compare=False)
 
     @property
     def model(self) -> str:
         return self.values["model"]
+
+    @cached_property
+    def images(self) -> ImageAnalysis | None:
+        """The spectrograms, profiles and histograms (§8.6–8.8) of the stacks' mean images, or None without them:
+        computed at the first use (the figures, the XML, the datasheet), so that a run that only reports the values
+        (``--json``, the summary, a fleet's rows) does not spend a third of a second of CPU on a lab-size camera's
+        two images for nothing."""
+        stack = self.stack
+        if stack is None or stack.bright.mean_image is None or stack.dark.mean_image is None:
+            return None
+        return analyse_images(stack.bright.mean_image, stack.dark.mean_image, stack.bright.frames, stack.dark.frames)
 
 
 def characterize(pt: PhotonTransfer, model: str = "linear") -> EmvaResult:
@@ -44,13 +56,9 @@ def characterize(pt: PhotonTransfer, model: str = "linear") -> EmvaResult:
     if len(pt.dark) == 0:
         raise ConfigError("dark frames", 0, "no dark frames: EMVA 1288 needs dark statistics")
     values, curves = (characterize_linear if model == "linear" else characterize_general)(pt)
-    images = None
-    stack = pt.stack
-    if stack is not None and stack.bright.mean_image is not None and stack.dark.mean_image is not None:
-        images = analyse_images(stack.bright.mean_image, stack.dark.mean_image, stack.bright.frames, stack.dark.frames)
-    elif stack is None:
+    if pt.stack is None:
         values["notes"].append(
             "no nonuniformity stacks: spectrograms, profiles and defect-pixel histograms need L "
             "averaged bright and dark frames (Release 4.0 §8)"
         )
-    return EmvaResult(values, curves, images)
+    return EmvaResult(values, curves, pt.stack)

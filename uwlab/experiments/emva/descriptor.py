@@ -302,12 +302,14 @@ class ImageReader:
             return None
 
     def frames(self, block: Block, work: WorkImages | None = None) -> Iterator[np.ndarray]:
-        """The block's images one at a time; with ``work``, each read into the same work image (the accumulator
-        keeps copies), so no frame costs the page faults of a fresh 10 MB array."""
+        """The block's images one at a time; with ``work``, read into two work images in turn, so that no frame
+        costs the page faults of a fresh 10 MB array and each stays unchanged until the next one has been added to
+        the accumulator (its ``stable_frames``: a frame waiting for its partner is not copied)."""
         if work is None:
             return (self.read(name) for name in block.images)
-        buffer = work.get("read", self.shape, np.uint16 if self.full > 255 else np.uint8)
-        return (self.read(name, buffer) for name in block.images)
+        dtype = np.uint16 if self.full > 255 else np.uint8
+        buffers = (work.get("read 0", self.shape, dtype), work.get("read 1", self.shape, dtype))
+        return (self.read(name, buffers[i % 2]) for i, name in enumerate(block.images))
 
     def statistics(self, blocks: list[Block], clip_dn: float, keep_mean_image: bool = False) -> list[StackStatistics]:
         """`StackStatistics` of each block, the blocks spread over `WORKERS` threads (reading and the arithmetic
@@ -315,13 +317,17 @@ class ImageReader:
         one accumulator, a frame and the work images of the highpass (`WorkImages`, reused) per thread."""
         if len(blocks) < 2 or WORKERS == 1:
             work = WorkImages()
-            return [stack_statistics(self.frames(b, work), clip_dn, keep_mean_image, work=work) for b in blocks]
+            return [
+                stack_statistics(self.frames(b, work), clip_dn, keep_mean_image, work=work, stable_frames=True)
+                for b in blocks
+            ]
         local = threading.local()
 
         def one(block: Block) -> StackStatistics:
             if not hasattr(local, "work"):
                 local.work = WorkImages()  # each thread its own, gone with the pool
-            return stack_statistics(self.frames(block, local.work), clip_dn, keep_mean_image, work=local.work)
+            frames = self.frames(block, local.work)
+            return stack_statistics(frames, clip_dn, keep_mean_image, work=local.work, stable_frames=True)
 
         with _opencv_single_threaded(), ThreadPoolExecutor(min(WORKERS, len(blocks))) as pool:
             return list(pool.map(one, blocks))

@@ -103,7 +103,10 @@ class StackAccumulator:
     the spectrograms, profiles and histograms of a nonuniformity stack); ``bayer``: the colour filter layout of a
     raw Bayer stack (its frames cropped from the mosaic at ``origin`` = (x0, y0): an odd offset shifts the phase),
     whose channels are accumulated too (``StackStatistics.channels``, the same rules over each channel's sites);
-    ``work``: the calling thread's `WorkImages` to reuse (else fresh arrays)."""
+    ``work``: the calling thread's `WorkImages` to reuse (else fresh arrays); ``stable_frames``: the caller leaves
+    each frame it adds unchanged until the next frame has been added (the last one until `result`), as a reader
+    alternating two buffers does, so that a frame waiting for its partner is not copied (else every frame may be
+    overwritten once `add` returns)."""
 
     def __init__(
         self,
@@ -112,8 +115,10 @@ class StackAccumulator:
         bayer: str | None = None,
         origin: tuple[int, int] = (0, 0),
         work: WorkImages | None = None,
+        stable_frames: bool = False,
     ):
         self.work = work
+        self.stable_frames = stable_frames
         self.clip_dn = float(clip_dn)
         self.keep_mean_image = keep_mean_image
         self.bayer = bayer
@@ -123,8 +128,9 @@ class StackAccumulator:
         self._planes = {site: StackAccumulator(clip_dn) for cells in self._sites.values() for site in cells}
         self._pooled = {colour: StackAccumulator(clip_dn) for colour, cells in self._sites.items() if len(cells) > 1}
         self._shape: tuple[int, ...] = ()  # set by the first frame
-        self._first_pair: tuple[np.ndarray, np.ndarray] | None = None  # kept until a second pair makes the sum
-        self._first_pair_sum: np.ndarray | None = None  # its uint16 sum, when it fits
+        # the first pair (kept only without its uint16 sum) or that sum, kept until a second pair makes the sum image
+        self._first_pair: tuple[np.ndarray, np.ndarray] | None = None
+        self._first_pair_sum: np.ndarray | None = None
         self._sum: np.ndarray | None = None  # uint32 Σ_l y_l of the pairs, from the second pair on
         self._saturated: np.ndarray | None = None  # allocated at the first frame reaching the clip level
         self._pending: np.ndarray | None = None
@@ -169,7 +175,9 @@ class StackAccumulator:
             threshold = max(math.ceil(self.clip_dn), int(np.iinfo(frame.dtype).min))
             self._saturated |= frame >= frame.dtype.type(threshold)
         if self._pending is None:
-            self._pending = self._keep(frame, "first" if self.frames == 0 else "pending")
+            self._pending = (
+                frame if self.stable_frames else self._keep(frame, "first" if self.frames == 0 else "pending")
+            )
             self._pending_sum, self._pending_bound = total, bound
         else:
             first, pair_bound = self._pending, max(self._pending_bound, bound)
@@ -183,8 +191,10 @@ class StackAccumulator:
             if self._pairs == 0:
                 self._mean_diff = mean_diff
                 self._first_diff_squares = diff_squares
-                self._first_pair = (first, self._keep(frame, "second"))
                 self._first_pair_sum = pair_sum
+                if pair_sum is None:
+                    kept = self._keep(first, "first") if self.stable_frames else first
+                    self._first_pair = (kept, self._keep(frame, "second"))
             else:
                 self._add_pair(first, frame, pair_sum)
             self._pairs += 1
@@ -195,8 +205,7 @@ class StackAccumulator:
         """Adds a pair after the first to the uint32 sum image (made from the first pair at the second), by its sum
         when it has one: one pass over the sum image per pair."""
         if self._sum is None:
-            assert self._first_pair is not None  # kept by the first pair
-            self._sum = np.add(*self._first_pair, dtype=np.uint32, casting="unsafe")
+            self._sum = self._first_sum()
             self._first_pair = self._first_pair_sum = None
         for addend in (a, b) if pair_sum is None else (pair_sum,):
             np.add(self._sum, addend, out=self._sum, casting="unsafe")
@@ -269,11 +278,17 @@ class StackAccumulator:
         if self._sum is not None:
             total = self._sum
         else:
-            assert self._first_pair is not None  # the first pair is kept until a second makes the sum image
-            total = np.add(*self._first_pair, dtype=np.uint32, casting="unsafe")
+            total = self._first_sum()
         if self._pending is not None:
             total = np.add(total, self._pending, dtype=np.uint32, casting="unsafe")
         return total
+
+    def _first_sum(self) -> np.ndarray:
+        """The first pair's sum as a new uint32 image (from its uint16 sum, else from its kept frames)."""
+        if self._first_pair_sum is not None:
+            return self._first_pair_sum.astype(np.uint32)
+        assert self._first_pair is not None  # kept by the first pair without its sum
+        return np.add(*self._first_pair, dtype=np.uint32, casting="unsafe")
 
     def _offset_sum(self, offset: int) -> np.ndarray:
         """Σ_l y_l − ``offset``, exactly: int16 for a pair of unsigned frames whose values allow it (added in
@@ -420,10 +435,11 @@ def stack_statistics(
     bayer: str | None = None,
     origin: tuple[int, int] = (0, 0),
     work: WorkImages | None = None,
+    stable_frames: bool = False,
 ) -> StackStatistics:
     """`StackStatistics` of an iterable of frames, consumed one at a time (a generator keeps memory flat); with
     ``bayer``, per colour channel too (`StackAccumulator`)."""
-    acc = StackAccumulator(clip_dn, keep_mean_image, bayer, origin, work)
+    acc = StackAccumulator(clip_dn, keep_mean_image, bayer, origin, work, stable_frames)
     for frame in frames:
         acc.add(frame)
     return acc.result()
