@@ -38,6 +38,10 @@ profile's ``combined`` QE, the mean response of one Bayer cell.
 
 from __future__ import annotations
 
+import json
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -307,6 +311,47 @@ def _configuration_design(
     return build_design(raw, base_dir), has_lens
 
 
+_REUSED: ContextVar[dict | None] = ContextVar("reused_configurations", default=None)
+
+
+@contextmanager
+def reused_configurations() -> Iterator[None]:
+    """Within the block, `build_forward_model` evaluates each configuration's chain (its design, nominal ROI rate
+    and G(S_GRID): the costly part of a build) once and reuses it for every model that has the configuration, as
+    the fits of a calibration's held-out folds do. The rigs' files are not read again meanwhile: the block is one
+    job's (`uwlab.experiments.calibration.parallel.run_folds`)."""
+    token = _REUSED.set({})
+    try:
+        yield
+    finally:
+        _REUSED.reset(token)
+
+
+def _configuration(
+    rig: dict,
+    base_dir: Path | None,
+    sensor: str,
+    focal_length_mm,
+    f_number,
+    kind: str | None,
+    channel: str | None,
+    roi: tuple[float, float],
+) -> tuple[Design, bool, float, np.ndarray]:
+    """(design, has a lens, nominal ROI rate, G(S_GRID)) of one configuration, from `reused_configurations`' store
+    when it has them."""
+    store = _REUSED.get()
+    key = (json.dumps(rig, sort_keys=True, default=str), base_dir, sensor, focal_length_mm, f_number, kind, channel)
+    key += roi
+    if store is not None and key in store:
+        return store[key]
+    design, lens = _configuration_design(rig, base_dir, sensor, focal_length_mm, f_number, kind, channel)
+    rates = _extended_rates if design["model.kind"] == "extended" else _paper_rates
+    found = (design, lens, *rates(design, lens, *roi))
+    if store is not None:
+        store[key] = found
+    return found
+
+
 def build_forward_model(
     points: pd.DataFrame,
     rigs: dict[str, dict],
@@ -342,13 +387,11 @@ def build_forward_model(
     for sweep_id, sensor, focal, f_number, *channel in unique:
         if sweep_id not in rigs:
             raise ConfigError("dataset", sweep_id, "no rig recorded for this sweep in metadata.json")
-        design, lens = _configuration_design(
-            rigs[sweep_id], base_dir, sensor, focal, f_number, kind, channel[0] if channel else None
-        )
         rows = points[config == len(designs)]
         roi = (float(rows["roi_w"].median()), float(rows["roi_h"].median()))
-        rates = _extended_rates if design["model.kind"] == "extended" else _paper_rates
-        nominal_rate, curve = rates(design, lens, *roi)
+        design, lens, nominal_rate, curve = _configuration(
+            rigs[sweep_id], base_dir, sensor, focal, f_number, kind, channel[0] if channel else None, roi
+        )
         designs.append(design)
         has_lens.append(lens)
         rate0.append(nominal_rate)
