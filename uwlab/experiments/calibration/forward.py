@@ -194,8 +194,24 @@ class ForwardModel:
 
     def mean_log(self, shape: np.ndarray) -> np.ndarray:
         """ln of a `shape` averaged over the points (each configuration weighted by its points), (n_walkers,)."""
-        share = np.bincount(self.config, minlength=self.n_config) / self.config.size
-        return np.log(shape) @ share
+        return np.log(shape) @ self._config_share
+
+    @cached_property
+    def _config_share(self) -> np.ndarray:
+        """Each configuration's share of the points."""
+        return np.bincount(self.config, minlength=self.n_config) / self.config.size
+
+    @cached_property
+    def _curve_points(self) -> tuple[tuple[ResponseCurve, slice | np.ndarray], ...]:
+        """Each measured response curve with its camera's points: a slice when they are consecutive (a view, as
+        the points of a dataset's cameras usually are), else their indices."""
+        found = []
+        for index, curve in enumerate(self.responses):
+            if curve is not None:
+                mine = np.flatnonzero(self.camera == index)
+                consecutive = mine.size and mine[-1] - mine[0] + 1 == mine.size
+                found.append((curve, slice(int(mine[0]), int(mine[-1]) + 1) if consecutive else mine))
+        return tuple(found)
 
     def predict(self, theta: np.ndarray, shape: np.ndarray | None = None) -> np.ndarray:
         """Predicted dark-subtracted mean [DN], shape (n_walkers, n_points); `shape` = `self.shape(theta)` when the
@@ -222,10 +238,8 @@ class ForwardModel:
         """c(u) ("ratio") or c_sd(u) ("ratio_sd") of each point's camera at well fractions `fraction` (walkers,
         points); `linear` where a camera has no curve."""
         out = np.full_like(fraction, linear)
-        for index, curve in enumerate(self.responses):
-            if curve is not None:
-                mine = self.camera == index
-                out[:, mine] = getattr(curve, what)(fraction[:, mine])
+        for curve, mine in self._curve_points:
+            out[:, mine] = getattr(curve, what)(fraction[:, mine])
         return out
 
     def sigma(self, theta: np.ndarray, prediction: np.ndarray) -> np.ndarray:
