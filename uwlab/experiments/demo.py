@@ -33,6 +33,7 @@ import subprocess
 import sys
 import tempfile
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -270,12 +271,15 @@ def run_demo(
         text=True,
     )
     try:
-        with (
-            Dataset.create(out / "dataset", plan.raw, plan_sha256=plan.sha256, sim=True) as dataset,
-            SimRig(plan.rig_path, seed=seed) as rig,
-        ):
-            SweepRunner(plan, dataset, rig, sweep_progress).run()
-        characterised = characterise_cameras(plan, out / "emva", seed) if sensors == "emva" else {}
+        # The EMVA bench needs the plan alone too: the cameras are characterised in a thread while the sweep waits.
+        with ThreadPoolExecutor(1) as bench:
+            characterising = bench.submit(characterise_cameras, plan, out / "emva", seed) if sensors == "emva" else None
+            with (
+                Dataset.create(out / "dataset", plan.raw, plan_sha256=plan.sha256, sim=True) as dataset,
+                SimRig(plan.rig_path, seed=seed) as rig,
+            ):
+                SweepRunner(plan, dataset, rig, sweep_progress).run()
+            characterised = characterising.result() if characterising is not None else {}
         calibration = calibrate(
             out / "dataset",
             None,
