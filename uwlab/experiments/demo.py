@@ -33,6 +33,7 @@ import subprocess
 import sys
 import tempfile
 from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -259,13 +260,9 @@ def run_demo(
         raise ConfigError("--model", model, f"must be one of {', '.join(MODELS)}")
     out = output_dir(out, "--out", empty=True)
     plan = load_plan(write_inputs(plan_path or config_dir() / DEMO_PLAN, world, out / "inputs"))
-    with (
-        Dataset.create(out / "dataset", plan.raw, plan_sha256=plan.sha256, sim=True) as dataset,
-        SimRig(plan.rig_path, seed=seed) as rig,
-    ):
-        SweepRunner(plan, dataset, rig, sweep_progress).run()
-    # The geometry (MTF, focus, depth of field) is measured on the other core while the cameras are characterised
-    # and the fit runs: its own process (python -m), never a child re-running the caller's script.
+    # The geometry (MTF, focus, depth of field) needs the rig alone: it is measured meanwhile, on the core the
+    # sweep leaves idle while it waits for the simulated instruments, then beside the characterisation and the fit;
+    # its own process (python -m), never a child re-running the caller's script.
     geometry = subprocess.Popen(
         [sys.executable, "-P", "-m", "uwlab.experiments.geometry.tank", "--out", str(out / "geometry")]
         + ["--rig", str(plan.rig_path), "--seed", str(seed)],
@@ -274,7 +271,15 @@ def run_demo(
         text=True,
     )
     try:
-        characterised = characterise_cameras(plan, out / "emva", seed) if sensors == "emva" else {}
+        # The EMVA bench needs the plan alone too: the cameras are characterised in a thread while the sweep waits.
+        with ThreadPoolExecutor(1) as bench:
+            characterising = bench.submit(characterise_cameras, plan, out / "emva", seed) if sensors == "emva" else None
+            with (
+                Dataset.create(out / "dataset", plan.raw, plan_sha256=plan.sha256, sim=True) as dataset,
+                SimRig(plan.rig_path, seed=seed) as rig,
+            ):
+                SweepRunner(plan, dataset, rig, sweep_progress).run()
+            characterised = characterising.result() if characterising is not None else {}
         calibration = calibrate(
             out / "dataset",
             None,

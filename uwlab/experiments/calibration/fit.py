@@ -35,6 +35,7 @@ from typing import Annotated, Final, Literal
 
 import warnings
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from collections.abc import Callable, Mapping
 
@@ -205,6 +206,10 @@ class Posterior:
         lp = self.log_prior(theta)
         ok = np.isfinite(lp)
         out = np.full(theta.shape[0], -np.inf)
+        if ok.all():  # the usual case: no copies of the rows
+            with np.errstate(all="ignore"):
+                ll = self.log_likelihood(theta, shape)
+            return np.where(np.isfinite(ll), lp + ll, -np.inf)
         if np.any(ok):
             with np.errstate(all="ignore"):
                 ll = self.log_likelihood(theta[ok], None if shape is None else shape[ok])
@@ -351,7 +356,7 @@ class FitResult:
     samples: np.ndarray  # (n_samples, n_params), burn-in discarded and thinned (emcee's slicing), step-major
     chain: np.ndarray  # (steps, walkers, params), full
     log_prob: np.ndarray  # (n_samples,)
-    theta_map: np.ndarray
+    map_start: np.ndarray  # θ at the mode the walkers started from, where `theta_map` is sought
     tau: np.ndarray
     acceptance: float
     rhat: np.ndarray
@@ -362,6 +367,12 @@ class FitResult:
     burn: int = 0  # steps discarded at the start of every walker's chain
     thin: int = 1  # every thin-th step kept after them
     saturated: pd.DataFrame | None = field(repr=False, default=None)  # points left out of the fit (saturated)
+
+    @cached_property
+    def theta_map(self) -> np.ndarray:
+        """The maximum a posteriori θ (`find_map` from `map_start`), sought when first asked for: a held-out fold's
+        fit never is."""
+        return find_map(Posterior(self.model, self.priors), self.map_start)
 
     def median(self, name: str) -> float | None:
         """The posterior median of a parameter (None when the fit has no such parameter)."""
@@ -505,7 +516,7 @@ def run_fit(model: ForwardModel, config: FitConfig, progress: Callable[[int, flo
         samples=samples,
         chain=chain,
         log_prob=post(samples),
-        theta_map=find_map(post, post.to_theta(u_map)),
+        map_start=post.to_theta(u_map),
         tau=tau,
         acceptance=float(np.mean(sampler.acceptance_fraction)),
         rhat=split_rhat(chain[burn:]),

@@ -38,6 +38,10 @@ profile's ``combined`` QE, the mean response of one Bayer cell.
 
 from __future__ import annotations
 
+import json
+from collections.abc import Iterator
+from contextlib import contextmanager
+from contextvars import ContextVar
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -190,8 +194,24 @@ class ForwardModel:
 
     def mean_log(self, shape: np.ndarray) -> np.ndarray:
         """ln of a `shape` averaged over the points (each configuration weighted by its points), (n_walkers,)."""
-        share = np.bincount(self.config, minlength=self.n_config) / self.config.size
-        return np.log(shape) @ share
+        return np.log(shape) @ self._config_share
+
+    @cached_property
+    def _config_share(self) -> np.ndarray:
+        """Each configuration's share of the points."""
+        return np.bincount(self.config, minlength=self.n_config) / self.config.size
+
+    @cached_property
+    def _curve_points(self) -> tuple[tuple[ResponseCurve, slice | np.ndarray], ...]:
+        """Each measured response curve with its camera's points: a slice when they are consecutive (a view, as
+        the points of a dataset's cameras usually are), else their indices."""
+        found = []
+        for index, curve in enumerate(self.responses):
+            if curve is not None:
+                mine = np.flatnonzero(self.camera == index)
+                consecutive = mine.size and mine[-1] - mine[0] + 1 == mine.size
+                found.append((curve, slice(int(mine[0]), int(mine[-1]) + 1) if consecutive else mine))
+        return tuple(found)
 
     def predict(self, theta: np.ndarray, shape: np.ndarray | None = None) -> np.ndarray:
         """Predicted dark-subtracted mean [DN], shape (n_walkers, n_points); `shape` = `self.shape(theta)` when the
@@ -218,10 +238,8 @@ class ForwardModel:
         """c(u) ("ratio") or c_sd(u) ("ratio_sd") of each point's camera at well fractions `fraction` (walkers,
         points); `linear` where a camera has no curve."""
         out = np.full_like(fraction, linear)
-        for index, curve in enumerate(self.responses):
-            if curve is not None:
-                mine = self.camera == index
-                out[:, mine] = getattr(curve, what)(fraction[:, mine])
+        for curve, mine in self._curve_points:
+            out[:, mine] = getattr(curve, what)(fraction[:, mine])
         return out
 
     def sigma(self, theta: np.ndarray, prediction: np.ndarray) -> np.ndarray:
@@ -307,6 +325,47 @@ def _configuration_design(
     return build_design(raw, base_dir), has_lens
 
 
+_REUSED: ContextVar[dict | None] = ContextVar("reused_configurations", default=None)
+
+
+@contextmanager
+def reused_configurations() -> Iterator[None]:
+    """Within the block, `build_forward_model` evaluates each configuration's chain (its design, nominal ROI rate
+    and G(S_GRID): the costly part of a build) once and reuses it for every model that has the configuration, as
+    the fits of a calibration's held-out folds do. The rigs' files are not read again meanwhile: the block is one
+    job's (`uwlab.experiments.calibration.parallel.run_folds`)."""
+    token = _REUSED.set({})
+    try:
+        yield
+    finally:
+        _REUSED.reset(token)
+
+
+def _configuration(
+    rig: dict,
+    base_dir: Path | None,
+    sensor: str,
+    focal_length_mm,
+    f_number,
+    kind: str | None,
+    channel: str | None,
+    roi: tuple[float, float],
+) -> tuple[Design, bool, float, np.ndarray]:
+    """(design, has a lens, nominal ROI rate, G(S_GRID)) of one configuration, from `reused_configurations`' store
+    when it has them."""
+    store = _REUSED.get()
+    key = (json.dumps(rig, sort_keys=True, default=str), base_dir, sensor, focal_length_mm, f_number, kind, channel)
+    key += roi
+    if store is not None and key in store:
+        return store[key]
+    design, lens = _configuration_design(rig, base_dir, sensor, focal_length_mm, f_number, kind, channel)
+    rates = _extended_rates if design["model.kind"] == "extended" else _paper_rates
+    found = (design, lens, *rates(design, lens, *roi))
+    if store is not None:
+        store[key] = found
+    return found
+
+
 def build_forward_model(
     points: pd.DataFrame,
     rigs: dict[str, dict],
@@ -342,13 +401,11 @@ def build_forward_model(
     for sweep_id, sensor, focal, f_number, *channel in unique:
         if sweep_id not in rigs:
             raise ConfigError("dataset", sweep_id, "no rig recorded for this sweep in metadata.json")
-        design, lens = _configuration_design(
-            rigs[sweep_id], base_dir, sensor, focal, f_number, kind, channel[0] if channel else None
-        )
         rows = points[config == len(designs)]
         roi = (float(rows["roi_w"].median()), float(rows["roi_h"].median()))
-        rates = _extended_rates if design["model.kind"] == "extended" else _paper_rates
-        nominal_rate, curve = rates(design, lens, *roi)
+        design, lens, nominal_rate, curve = _configuration(
+            rigs[sweep_id], base_dir, sensor, focal, f_number, kind, channel[0] if channel else None, roi
+        )
         designs.append(design)
         has_lens.append(lens)
         rate0.append(nominal_rate)

@@ -31,6 +31,7 @@ import pandas as pd
 
 from uwlab.errors import UwlabError
 from uwlab.experiments.calibration.fit import FitConfig
+from uwlab.experiments.calibration.forward import reused_configurations
 from uwlab.experiments.calibration.validation import HeldOutFold, held_out_fold
 
 SINGLE_THREAD = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
@@ -54,11 +55,13 @@ class FoldJob:
 
 
 def run_folds(job: FoldJob) -> list[HeldOutFold | None]:
-    """Fit and predict the job's folds here, in order (`uwlab.experiments.calibration.validation.held_out_fold`)."""
-    return [
-        held_out_fold(job.points, job.rigs, job.config, list(fold), number, job.kind, seed=job.seed)
-        for number, fold in job.folds
-    ]
+    """Fit and predict the job's folds here, in order (`uwlab.experiments.calibration.validation.held_out_fold`),
+    each configuration's chain evaluated once for all of them (`reused_configurations`)."""
+    with reused_configurations():
+        return [
+            held_out_fold(job.points, job.rigs, job.config, list(fold), number, job.kind, seed=job.seed)
+            for number, fold in job.folds
+        ]
 
 
 def _reply(job: FoldJob) -> tuple[str, object]:

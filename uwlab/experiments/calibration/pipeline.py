@@ -162,8 +162,10 @@ def assess(
     job = FoldJob(points, rigs, config, model, config.sampler.seed, tuple((i, tuple(f)) for i, f in enumerate(folds)))
     with folds_in_background(job, workers, dask) as held_out:
         result = fit_points(points, rigs, config, progress=progress, kind=model)
+        # what needs the whole-data fit alone is done while the folds still run: the checks and the MAP search
+        ppc = posterior_predictive_checks(result)
+        result.theta_map  # noqa: B018 (computed now, kept for the summary)
         cross = CrossValidation.of(held_out())
-    ppc = posterior_predictive_checks(result)
     return Assessment(result, ppc, cross, verdict(result, ppc, cross))
 
 
