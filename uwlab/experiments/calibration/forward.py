@@ -354,8 +354,16 @@ def _configuration(
     """(design, has a lens, nominal ROI rate, G(S_GRID)) of one configuration, from `reused_configurations`' store
     when it has them."""
     store = _REUSED.get()
-    key = (json.dumps(rig, sort_keys=True, default=str), base_dir, sensor, focal_length_mm, f_number, kind, channel)
-    key += roi
+    key = (
+        json.dumps(rig, sort_keys=True, default=str),
+        base_dir,
+        sensor,
+        focal_length_mm,
+        f_number,
+        kind,
+        channel,
+        *roi,
+    )
     if store is not None and key in store:
         return store[key]
     design, lens = _configuration_design(rig, base_dir, sensor, focal_length_mm, f_number, kind, channel)
