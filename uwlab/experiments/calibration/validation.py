@@ -19,7 +19,8 @@
   number of folds dealt out in sweep order; or the [holdout] train list; the folds run in parallel:
   `uwlab.experiments.calibration.parallel`); each fold is fitted on the others and predicts its own
   configurations as new ones: δ_new ~ N(0, τ²) with the posterior's between-configuration scale τ, and parameters
-  the training data cannot reach (the gain K of a camera it has not seen) drawn from their priors. Per
+  the training data cannot reach (the gain K of a camera it has not seen, the transmittance of a lens setting
+  no training configuration carried) drawn from their priors. Per
   configuration: the relative error of the median, the fraction of points inside the 95 % band, and a check of
   the configuration's level: ρ = median(y / μ̂ − 1) against the same statistic of replicated data (two-sided p).
 - Spectra: the spectral irradiance the model predicts at the target (facing the light) and at the camera
@@ -34,7 +35,8 @@ import numpy as np
 import pandas as pd
 
 from uwlab.experiments.calibration.fit import LEAVE_ONE_OUT, FitConfig, FitResult, config_offsets, fit_points
-from uwlab.experiments.calibration.forward import ForwardModel, build_forward_model
+from uwlab.experiments.calibration.forward import BARE, PER_LENS, ForwardModel, build_forward_model, lens_labels
+from uwlab.model.optics import NO_LENS
 from uwlab.model.evaluation import stage_spectra
 
 BANDS = (2.5, 16, 50, 84, 97.5)
@@ -330,12 +332,13 @@ class HeldOutFold:
     info: dict
 
 
-def _for_cameras(config: FitConfig, points: pd.DataFrame) -> FitConfig:
-    """The config without the gains K of cameras that have no points here."""
-    cameras = set(points["sensor_profile"].astype(str))
-    priors = {
-        n: p for n, p in config.priors.items() if not n.startswith("K_dn_per_e:") or n.split(":", 1)[1] in cameras
-    }
+def _for_points(config: FitConfig, points: pd.DataFrame) -> FitConfig:
+    """The config without the parameters of what has no points here: the gains K of absent cameras, the
+    transmittances of absent lens settings, the bare sensor's factor without bare sensors."""
+    present = {f"K_dn_per_e:{c}" for c in points["sensor_profile"].astype(str)}
+    present |= {BARE if label == NO_LENS.label else f"{PER_LENS}:{label}" for label in lens_labels(points)}
+    grouped = lambda n: n == BARE or n.startswith(("K_dn_per_e:", f"{PER_LENS}:"))  # noqa: E731
+    priors = {n: p for n, p in config.priors.items() if not grouped(n) or n in present}
     return config.model_copy(update={"priors": priors})
 
 
@@ -357,8 +360,8 @@ def held_out_fold(
     test = usable[usable["sweep_id"].isin(fold)]
     if train.empty or test.empty:
         return None
-    result = fit_points(train, rigs, _for_cameras(config, train), progress=progress, kind=kind)
-    model = build_forward_model(test, rigs, _for_cameras(config, test).names, kind=kind)
+    result = fit_points(train, rigs, _for_points(config, train), progress=progress, kind=kind)
+    model = build_forward_model(test, rigs, _for_points(config, test).names, kind=kind)
     rng = np.random.default_rng(seed + number)
     theta = _prior_columns(config, model.names, _thinned(result.samples), result.names, rng)
     draws = predictive_draws(model, theta, seen=False, seed=seed + number)
