@@ -114,6 +114,7 @@ def _prediction_frame(model: ForwardModel, draws: Draws) -> pd.DataFrame:
         frame[f"predicted_{key}"] = values
     observed = _bands(draws.observed)
     frame["observed_p2_5"], frame["observed_p97_5"] = observed["p2_5"], observed["p97_5"]
+    frame["observed_p5"], frame["observed_p95"] = np.percentile(draws.observed, (5, 95), axis=0)
     frame["residual_dn"] = model.y - frame["predicted_median"]
     frame["residual_percent"] = 100 * frame["residual_dn"] / frame["predicted_median"]
     frame["residual_sigma"] = frame["residual_dn"] / np.median(draws.sigma, axis=0)
@@ -267,22 +268,29 @@ def default_folds(sweeps: list[str], count: int | str = LEAVE_ONE_OUT) -> list[l
     return [sweeps[i::count] for i in range(min(count, len(sweeps))) if sweeps[i::count]]
 
 
+BAND_COLUMNS = {0.05: ("observed_p2_5", "observed_p97_5"), 0.10: ("observed_p5", "observed_p95")}
+
+
 def band_sharpness(points: pd.DataFrame, alpha: float = 0.05) -> dict[str, float]:
-    """How sharp the held-out 95 % bands are beside how well they cover: medians over the points of the band's
-    half-width and of the realised error, both in % of the predicted median, their ratio, and the interval score
-    of the central (1 − α) band in % (Gneiting & Raftery, JASA 102, 359–378, 2007, eq. 43:
+    """How sharp the held-out central (1 − α) bands (α: 0.05 or 0.10, `BAND_COLUMNS`) are beside how well they
+    cover: medians over the points of the band's half-width and of the realised error, both in % of the predicted
+    median, their ratio, the fraction of points inside (``inside``) and the interval score of the band in %
+    (Gneiting & Raftery, JASA 102, 359–378, 2007, eq. 43:
     IS = (u − l) + (2/α)(l − y)·[y < l] + (2/α)(y − u)·[y > u]; smaller is better: a calibrated band of the
     sharpest width minimises it).
 
     >>> frame = pd.DataFrame({"observed_p2_5": [90.0, 95.0], "observed_p97_5": [110.0, 105.0],
     ...                       "predicted_median": [100.0, 100.0], "measured_dn": [101.0, 106.0]})
-    >>> {key: round(value, 3) for key, value in band_sharpness(frame).items()}
+    >>> {key: round(value, 3) for key, value in band_sharpness(frame).items() if key != "inside"}
     {'half_width_percent': 7.5, 'error_percent': 3.5, 'width_over_error': 2.143, 'interval_score_percent': 35.0}
+    >>> band_sharpness(frame)["inside"]
+    0.5
     """
     if not len(points):
         nan = float("nan")
-        return {"half_width_percent": nan, "error_percent": nan, "width_over_error": nan, "interval_score_percent": nan}
-    lo, hi = points["observed_p2_5"].to_numpy(float), points["observed_p97_5"].to_numpy(float)
+        keys = ("half_width_percent", "error_percent", "width_over_error", "interval_score_percent", "inside")
+        return dict.fromkeys(keys, nan)
+    lo, hi = (points[c].to_numpy(float) for c in BAND_COLUMNS[alpha])
     y, median = points["measured_dn"].to_numpy(float), points["predicted_median"].to_numpy(float)
     score = (hi - lo) + (2 / alpha) * np.clip(lo - y, 0, None) + (2 / alpha) * np.clip(y - hi, 0, None)
     half = float(np.median(100 * (hi - lo) / 2 / median))
@@ -292,6 +300,7 @@ def band_sharpness(points: pd.DataFrame, alpha: float = 0.05) -> dict[str, float
         "error_percent": error,
         "width_over_error": half / error if error > 0 else float("inf"),
         "interval_score_percent": float(np.median(100 * score / median)),
+        "inside": float(np.mean((y >= lo) & (y <= hi))),
     }
 
 
@@ -319,8 +328,13 @@ class CrossValidation:
 
     @property
     def sharpness(self) -> dict[str, float]:
-        """`band_sharpness` of the held-out points."""
-        return band_sharpness(self.points)
+        """`band_sharpness` of the held-out points' 95 % bands (``inside`` is `inside_95`)."""
+        return {k: v for k, v in band_sharpness(self.points).items() if k != "inside"}
+
+    @property
+    def sharpness_90(self) -> dict[str, float]:
+        """`band_sharpness` of the held-out points' 90 % bands."""
+        return band_sharpness(self.points, 0.10)
 
 
 @dataclass
