@@ -79,10 +79,11 @@ def run(args) -> int:
         return 0
     verdict = "adequate" if summary["model_adequate"] else "NOT adequate"
     print(f"{summary['model']} model in the {summary['world']} world: {verdict}")
-    print(f"{'parameter':<24}{'truth':>10}{'median':>10}   95 % interval")
+    width = max(24, *(len(name) + 2 for name in summary["parameters"]))
+    print(f"{'parameter':<{width}}{'truth':>10}{'median':>10}   95 % interval")
     for name, p in summary["parameters"].items():
         truth = "—" if p["truth"] is None else f"{p['truth']:.4g}"
-        print(f"{name:<24}{truth:>10}{p['median']:>10.4g}   [{p['p2_5']:.4g}, {p['p97_5']:.4g}]")
+        print(f"{name:<{width}}{truth:>10}{p['median']:>10.4g}   [{p['p2_5']:.4g}, {p['p97_5']:.4g}]")
     print(f"converged: {summary['converged']}")
     coverage = summary["predictive_coverage"]
     print(
@@ -90,6 +91,12 @@ def run(args) -> int:
         f"(median half-width ±{coverage['held_out_half_width_percent']:.2g} % for median errors of "
         f"{coverage['held_out_error_percent']:.2g} %)"
     )
+    ninety = coverage.get("held_out_90")
+    if ninety:
+        print(
+            f"held-out points inside their 90 % bands: {100 * ninety['inside']:.0f} % "
+            f"(median half-width ±{ninety['half_width_percent']:.2g} %)"
+        )
     for row in summary["cross_configuration"]:
         print(
             f"  {row['sweep_id']:<18} held out: median error {100 * row['median_abs_rel_error']:.2f} %, "

@@ -13,8 +13,8 @@ def register(subparsers) -> None:
     p.add_argument(
         "--config",
         metavar="FIT.toml",
-        help="free parameters and priors (default: light efficiency, "
-        "attenuation scale, each camera's K, discrepancy; see configs/fit/default.toml)",
+        help="free parameters and priors (default: light efficiency, attenuation scale, each camera's K, each lens "
+        "setting's transmittance, the bare sensors' factor, discrepancies; see configs/fit/default.toml)",
     )
     p.add_argument("--out", metavar="DIR", help="output directory (default: DATASET/fit)")
     p.add_argument(

@@ -46,7 +46,16 @@ from pydantic import ConfigDict, Field, model_validator
 from scipy import optimize
 
 from uwlab.errors import UwlabError
-from uwlab.experiments.calibration.forward import ForwardModel, build_forward_model, characterised_sensor
+from uwlab.experiments.calibration.forward import (
+    BARE,
+    PER_LENS,
+    ForwardModel,
+    build_forward_model,
+    characterised_sensor,
+    lens_labels,
+    lens_transmittances,
+)
+from uwlab.model.optics import NO_LENS
 from uwlab.experiments.calibration.priors import HalfNormal, JointPrior, LogNormal, Normal, Prior, PriorSpec
 from uwlab.model.data import read_toml
 from uwlab.model.sensor import load_sensor_profile
@@ -126,14 +135,25 @@ class FitConfig(Schema):
 
 K_PROFILE_SPREAD = 0.05  # a hand-written profile's K: 5 % (data sheets and unit-to-unit spread)
 K_MEASURED_FLOOR = 0.01  # a characterised K: its EMVA uncertainty, at least 1 % (the bench is not the tank)
+# Lens groups (docs/validation.md, "The lens groups"): a lens's transmittance × (N_marked/N_real)² against its
+# table, and a bare sensor's irradiance against the model's π⟨L⟩, each 5 % (σ of ln); the discrepancy between
+# configurations that remains once they are fitted, τ ~ |N(0, 0.02²)|.
+LENS_SPREAD = 0.05
+BARE_SPREAD = 0.05
+CONFIG_SPREAD = 0.02
 
 
 def default_fit_config(
-    cameras: tuple[str, ...], nominal_k: dict[str, float], k_sigma: dict[str, float] | None = None
+    cameras: tuple[str, ...],
+    nominal_k: dict[str, float],
+    k_sigma: dict[str, float] | None = None,
+    lenses: dict[str, float] | None = None,
+    bare: bool = False,
 ) -> FitConfig:
     """Light efficiency (broad), attenuation scale, each camera's K (5 % around its profile, or `k_sigma` where
-    it was measured), the discrepancy within a configuration and the scale of the discrepancy between
-    configurations (both a few per cent)."""
+    it was measured), each lens setting's transmittance (`lenses`: {label: the design's T}; `LENS_SPREAD` around
+    it), the bare sensor's factor when there are bare sensors (`BARE_SPREAD` around 1), the discrepancy within a
+    configuration (a few per cent) and the scale τ of what remains between configurations (`CONFIG_SPREAD`)."""
     k_sigma = k_sigma or {}
     priors = {
         "light_efficiency": LogNormal(median=1.0, sigma=0.5),
@@ -142,17 +162,19 @@ def default_fit_config(
             f"K_dn_per_e:{c}": Normal(mean=nominal_k[c], sigma=k_sigma.get(c, K_PROFILE_SPREAD * nominal_k[c]), lo=0.0)
             for c in cameras
         },
+        **{f"{PER_LENS}:{label}": LogNormal(median=t, sigma=LENS_SPREAD) for label, t in (lenses or {}).items()},
+        **({BARE: LogNormal(median=1.0, sigma=BARE_SPREAD)} if bare else {}),
         "discrepancy": HalfNormal(sigma=0.05),
-        "config_discrepancy": HalfNormal(sigma=0.05),
+        "config_discrepancy": HalfNormal(sigma=CONFIG_SPREAD),
     }
     return FitConfig(priors=priors)
 
 
 def default_config_for(points, rigs: dict, base_dir: Path | None = None) -> FitConfig:
-    """`default_fit_config` for the cameras of these points, K centred on their sensor profiles, or for a camera
-    characterised on the EMVA bench (its rigs' ``sensor.characterised``) on the measured K, referred to zero
-    signal through the measured response curve (`ResponseCurve.zero_signal_gain`), with its uncertainty (at least
-    `K_MEASURED_FLOOR`)."""
+    """`default_fit_config` for the cameras and lens settings of these points: K centred on their sensor profiles,
+    or for a camera characterised on the EMVA bench (its rigs' ``sensor.characterised``) on the measured K, referred
+    to zero signal through the measured response curve (`ResponseCurve.zero_signal_gain`), with its uncertainty (at
+    least `K_MEASURED_FLOOR`); each lens setting's transmittance centred on its design's."""
     cameras = tuple(sorted(points["sensor_profile"].astype(str).unique()))
     nominal = {c: load_sensor_profile(c, base_dir).K_dn_per_e for c in cameras}
     sigma: dict[str, float] = {}
@@ -164,7 +186,8 @@ def default_config_for(points, rigs: dict, base_dir: Path | None = None) -> FitC
             assert measured.response is not None  # characterised_sensor refuses a profile without one
             nominal[camera] = measured.response.zero_signal_gain(measured.K_dn_per_e)
             sigma[camera] = max(measured.K_dn_per_e_std or 0.0, K_MEASURED_FLOOR * measured.K_dn_per_e)
-    return default_fit_config(cameras, nominal, sigma)
+    bare = bool(np.any(lens_labels(points) == NO_LENS.label))
+    return default_fit_config(cameras, nominal, sigma, lens_transmittances(points, rigs, base_dir), bare)
 
 
 def load_fit_config(path: str | Path) -> FitConfig:

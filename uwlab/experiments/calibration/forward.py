@@ -4,12 +4,17 @@ many parameter vectors at once (emcee's ``vectorize=True``).
 For point i of configuration k (a sweep's rig with its lens setting), the model's electron rate at the nominal
 parameters, r_k (the mean over the ROI, axis-centred), is rescaled by the free parameters θ:
 
-  r_k(θ) = r_k · ε · Ω(β₀)/Ω(β) · (M/M₀) · (T/T₀)^[lens] · G_k(s)/G_k(s₀),
+  r_k(θ) = r_k · ε · Ω(β₀)/Ω(β) · (M/M₀) · L_k · G_k(s)/G_k(s₀),
   μ_y,i − μ_y,dark,i = K_cam · 10^(g_i/20) · 2^(b_i − b_profile) · r_k(θ) · t_i,
 
 with ε the light efficiency (true/rated flux), β the beam half-angle (Ω = 2π(1 − cos β) for the cone model,
-π tan²β for the disk), M the target reflectance, T the lens transmittance (absent without a lens), s the
-attenuation scale and K the camera's system gain. G_k(s) is the configuration's rate as a function of s alone:
+π tan²β for the disk), M the target reflectance, s the attenuation scale and K the camera's system gain. L_k is the
+configuration's lens group, shared by every camera carrying the same lens setting: with a lens, T/T₀, its
+transmittance against the design's (``lens_transmittance:<label>``, one per lens setting, e.g.
+``lens_transmittance:30mm-F2.0``, or ``lens_transmittance``, one for every lens); without one, F, the bare
+sensor's irradiance against the model's π⟨L⟩ over its hemisphere (``bare_sensor_factor``, nominal 1: the light
+the model does not render that reaches a bare sensor from oblique directions, and the sensor's own angular
+response); each is 1 when it is not fitted. G_k(s) is the configuration's rate as a function of s alone:
 
 - ``paper`` chain (`uwlab.model.chain`): G_k(s) = ∫ W_k(λ) e^(−s c(λ) D_k) dλ over the light → target → camera
   path D_k, times the mean vignetting over the ROI; every factor is exact for that chain;
@@ -76,11 +81,14 @@ SHARED = (
     "attenuation_scale",
     "reflectance",
     "lens_transmittance",
+    "bare_sensor_factor",
     "discrepancy",
     "config_discrepancy",
 )
 NOT_EXTENDED = ("beam_half_angle_deg", "reflectance")
 PER_CAMERA = ("K_dn_per_e",)
+PER_LENS = "lens_transmittance"  # lens_transmittance:<LensSetting label>, one per lens setting
+BARE = "bare_sensor_factor"
 MODELS = ("paper", "extended")
 REQUIRED_COLUMNS = (
     "sweep_id",
@@ -103,6 +111,7 @@ PARAMETER_LABELS = {
     "attenuation_scale": "attenuation scale (× the water's c)",
     "reflectance": "target reflectance",
     "lens_transmittance": "lens transmittance",
+    "bare_sensor_factor": "bare sensor's irradiance / the model's π⟨L⟩",
     "discrepancy": "discrepancy within a configuration",
     "config_discrepancy": "discrepancy between configurations (τ)",
 }
@@ -147,6 +156,7 @@ class ForwardModel:
     cameras: tuple[str, ...]
     nominal_rate_e_per_s: np.ndarray  # per configuration: mean rate over the ROI at nominal θ [e⁻/s]
     has_lens: np.ndarray  # per configuration
+    lens_groups: tuple[str, ...]  # per configuration: the parameter of its lens group (L_k in the docstring)
     omega_cone: bool
     kind: str  # "paper" or "extended"
     transmission: Transmission  # G_k(s)/G_k(s₀) of every configuration
@@ -167,6 +177,12 @@ class ForwardModel:
         out = np.zeros((self.config.size, self.n_config))
         out[np.arange(self.config.size), self.config] = 1.0
         return out
+
+    @cached_property
+    def _lens_group_index(self) -> tuple[list[str], np.ndarray]:
+        """The distinct lens-group parameters and each configuration's place among them."""
+        groups = list(dict.fromkeys(self.lens_groups))
+        return groups, np.array([groups.index(name) for name in self.lens_groups])
 
     def index(self, name: str) -> int:
         return self.names.index(name)
@@ -219,7 +235,8 @@ class ForwardModel:
         theta = np.atleast_2d(theta)
         shape = self.shape(theta) if shape is None else shape
         p = lambda name: self.parameter(theta, name)[:, None]  # noqa: E731
-        lens = np.where(self.has_lens[None, :], p("lens_transmittance") / self.nominal["lens_transmittance"], 1.0)
+        groups, index = self._lens_group_index
+        lens = np.stack([self.parameter(theta, name) / self.nominal[name] for name in groups], axis=1)[:, index]
         rate = (
             self.nominal_rate_e_per_s[None, :]
             * p("light_efficiency")
@@ -258,6 +275,8 @@ def parameter_label(name: str) -> str:
     """A free parameter in words, e.g. ``system gain K of IMX250M [DN/e⁻]`` for ``K_dn_per_e:imx250m``."""
     if name.startswith("K_dn_per_e:"):
         return f"system gain K of {name.split(':', 1)[1].upper()} [DN/e⁻]"
+    if name.startswith(f"{PER_LENS}:"):
+        return f"transmittance of the {name.split(':', 1)[1]} lens"
     return PARAMETER_LABELS.get(name, name)
 
 
@@ -389,12 +408,18 @@ def build_forward_model(
     if kind is not None and kind not in MODELS:
         raise ConfigError("--model", kind, f"must be one of {', '.join(MODELS)}")
     cameras = tuple(sorted(points["sensor_profile"].astype(str).unique()))
-    allowed = set(SHARED) | {f"{p}:{c}" for p in PER_CAMERA for c in cameras}
+    labels = lens_labels(points)
+    lensed = sorted({label for label in labels if label != NO_LENS.label})
+    allowed = (set(SHARED) - {BARE}) | {f"{p}:{c}" for p in PER_CAMERA for c in cameras}
+    allowed |= {f"{PER_LENS}:{label}" for label in lensed} | ({BARE} if NO_LENS.label in labels else set())
     for name in names:
         if name not in allowed:
             raise ConfigError(
                 f"parameters.{name}", name, f"unknown parameter; this dataset allows {', '.join(sorted(allowed))}"
             )
+    per_lens = [name for name in names if name.startswith(f"{PER_LENS}:")]
+    if per_lens and PER_LENS in names:
+        raise ConfigError(f"parameters.{PER_LENS}", PER_LENS, f"is one for every lens; {per_lens[0]} one lens's")
     key_columns = ["sweep_id", "sensor_profile", "focal_length_mm", "f_number"]
     if "channel" in points:
         key_columns.append("channel")
@@ -404,6 +429,7 @@ def build_forward_model(
     config = np.array([unique.index(k) for k in key_tuples])
     designs: list[Design] = []
     has_lens: list[bool] = []
+    groups: list[str] = []
     rate0: list[float] = []
     transmission: list[np.ndarray] = []
     for sweep_id, sensor, focal, f_number, *channel in unique:
@@ -416,6 +442,10 @@ def build_forward_model(
         )
         designs.append(design)
         has_lens.append(lens)
+        if not lens:
+            groups.append(BARE)
+        else:
+            groups.append(f"{PER_LENS}:{LensSetting(float(focal), float(f_number)).label}" if per_lens else PER_LENS)
         rate0.append(nominal_rate)
         transmission.append(curve)
     kinds = {d["model.kind"] for d in designs}
@@ -434,9 +464,13 @@ def build_forward_model(
         "attenuation_scale": float(first["water.attenuation_scale"]),
         "reflectance": _scalar(first, "target.reflectance"),
         "lens_transmittance": _scalar(with_lens, "lens.transmittance") if with_lens is not None else 1.0,
+        "bare_sensor_factor": 1.0,
         "discrepancy": 0.0,
         "config_discrepancy": 0.0,
     }
+    for design, lens, group in zip(designs, has_lens, groups, strict=True):
+        if lens and group != PER_LENS:
+            nominal[group] = _scalar(design, "lens.transmittance")
     camera = np.array([cameras.index(s) for s in points["sensor_profile"].astype(str)])
     profile_of: dict[str, SensorProfile] = {}
     for idx, design in enumerate(designs):
@@ -482,6 +516,7 @@ def build_forward_model(
         cameras=cameras,
         nominal_rate_e_per_s=np.array(rate0),
         has_lens=np.array(has_lens),
+        lens_groups=tuple(groups),
         omega_cone=beam_model == {"cone"},
         kind=chain,
         transmission=Transmission.from_values(np.stack(transmission, axis=1), nominal["attenuation_scale"]),
@@ -490,6 +525,32 @@ def build_forward_model(
         well_fraction_per_dn=well_fraction,
         responses=tuple(None if p is None else p.response for p in characterised),
     )
+
+
+def lens_labels(points: pd.DataFrame) -> np.ndarray:
+    """Each point's lens setting, as `LensSetting.label` (``no-lens`` for a bare sensor: f-number null)."""
+    focal, f_number = points["focal_length_mm"].to_numpy(float), points["f_number"].to_numpy(float)
+    return np.array(
+        [
+            LensSetting(float(f), float(n)).label if np.isfinite(n) else NO_LENS.label
+            for f, n in zip(focal, f_number, strict=True)
+        ],
+        dtype=object,
+    )
+
+
+def lens_transmittances(points: pd.DataFrame, rigs: dict[str, dict], base_dir: Path | None = None) -> dict[str, float]:
+    """The design's broadband transmittance of each lens setting the points were taken with (bare sensors left out),
+    {label: T}: the nominal values of the ``lens_transmittance:<label>`` parameters."""
+    out: dict[str, float] = {}
+    labels = lens_labels(points)
+    for row, label in zip(points.itertuples(index=False), labels, strict=True):
+        if label != NO_LENS.label and label not in out:
+            design, _ = _configuration_design(
+                rigs[row.sweep_id], base_dir, str(row.sensor_profile), row.focal_length_mm, row.f_number, None
+            )
+            out[label] = _scalar(design, "lens.transmittance")
+    return out
 
 
 def characterised_sensor(source: str, base_dir: Path | None = None) -> SensorProfile:

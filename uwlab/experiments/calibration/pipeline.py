@@ -136,6 +136,7 @@ class Assessment:
                 "held_out_inside_95": self.cross.inside_95,
                 "per_configuration": per_config,
                 **{f"held_out_{key}": value for key, value in self.cross.sharpness.items()},
+                "held_out_90": self.cross.sharpness_90,
             },
             **self.verdict.to_dict(),
             "warnings": self.result.summary()["warnings"] + self.verdict.warnings(),

@@ -19,7 +19,8 @@
   number of folds dealt out in sweep order; or the [holdout] train list; the folds run in parallel:
   `uwlab.experiments.calibration.parallel`); each fold is fitted on the others and predicts its own
   configurations as new ones: δ_new ~ N(0, τ²) with the posterior's between-configuration scale τ, and parameters
-  the training data cannot reach (the gain K of a camera it has not seen) drawn from their priors. Per
+  the training data cannot reach (the gain K of a camera it has not seen, the transmittance of a lens setting
+  no training configuration carried) drawn from their priors. Per
   configuration: the relative error of the median, the fraction of points inside the 95 % band, and a check of
   the configuration's level: ρ = median(y / μ̂ − 1) against the same statistic of replicated data (two-sided p).
 - Spectra: the spectral irradiance the model predicts at the target (facing the light) and at the camera
@@ -34,7 +35,8 @@ import numpy as np
 import pandas as pd
 
 from uwlab.experiments.calibration.fit import LEAVE_ONE_OUT, FitConfig, FitResult, config_offsets, fit_points
-from uwlab.experiments.calibration.forward import ForwardModel, build_forward_model
+from uwlab.experiments.calibration.forward import BARE, PER_LENS, ForwardModel, build_forward_model, lens_labels
+from uwlab.model.optics import NO_LENS
 from uwlab.model.evaluation import stage_spectra
 
 BANDS = (2.5, 16, 50, 84, 97.5)
@@ -112,6 +114,7 @@ def _prediction_frame(model: ForwardModel, draws: Draws) -> pd.DataFrame:
         frame[f"predicted_{key}"] = values
     observed = _bands(draws.observed)
     frame["observed_p2_5"], frame["observed_p97_5"] = observed["p2_5"], observed["p97_5"]
+    frame["observed_p5"], frame["observed_p95"] = np.percentile(draws.observed, (5, 95), axis=0)
     frame["residual_dn"] = model.y - frame["predicted_median"]
     frame["residual_percent"] = 100 * frame["residual_dn"] / frame["predicted_median"]
     frame["residual_sigma"] = frame["residual_dn"] / np.median(draws.sigma, axis=0)
@@ -265,22 +268,29 @@ def default_folds(sweeps: list[str], count: int | str = LEAVE_ONE_OUT) -> list[l
     return [sweeps[i::count] for i in range(min(count, len(sweeps))) if sweeps[i::count]]
 
 
+BAND_COLUMNS = {0.05: ("observed_p2_5", "observed_p97_5"), 0.10: ("observed_p5", "observed_p95")}
+
+
 def band_sharpness(points: pd.DataFrame, alpha: float = 0.05) -> dict[str, float]:
-    """How sharp the held-out 95 % bands are beside how well they cover: medians over the points of the band's
-    half-width and of the realised error, both in % of the predicted median, their ratio, and the interval score
-    of the central (1 − α) band in % (Gneiting & Raftery, JASA 102, 359–378, 2007, eq. 43:
+    """How sharp the held-out central (1 − α) bands (α: 0.05 or 0.10, `BAND_COLUMNS`) are beside how well they
+    cover: medians over the points of the band's half-width and of the realised error, both in % of the predicted
+    median, their ratio, the fraction of points inside (``inside``) and the interval score of the band in %
+    (Gneiting & Raftery, JASA 102, 359–378, 2007, eq. 43:
     IS = (u − l) + (2/α)(l − y)·[y < l] + (2/α)(y − u)·[y > u]; smaller is better: a calibrated band of the
     sharpest width minimises it).
 
     >>> frame = pd.DataFrame({"observed_p2_5": [90.0, 95.0], "observed_p97_5": [110.0, 105.0],
     ...                       "predicted_median": [100.0, 100.0], "measured_dn": [101.0, 106.0]})
-    >>> {key: round(value, 3) for key, value in band_sharpness(frame).items()}
+    >>> {key: round(value, 3) for key, value in band_sharpness(frame).items() if key != "inside"}
     {'half_width_percent': 7.5, 'error_percent': 3.5, 'width_over_error': 2.143, 'interval_score_percent': 35.0}
+    >>> band_sharpness(frame)["inside"]
+    0.5
     """
     if not len(points):
         nan = float("nan")
-        return {"half_width_percent": nan, "error_percent": nan, "width_over_error": nan, "interval_score_percent": nan}
-    lo, hi = points["observed_p2_5"].to_numpy(float), points["observed_p97_5"].to_numpy(float)
+        keys = ("half_width_percent", "error_percent", "width_over_error", "interval_score_percent", "inside")
+        return dict.fromkeys(keys, nan)
+    lo, hi = (points[c].to_numpy(float) for c in BAND_COLUMNS[alpha])
     y, median = points["measured_dn"].to_numpy(float), points["predicted_median"].to_numpy(float)
     score = (hi - lo) + (2 / alpha) * np.clip(lo - y, 0, None) + (2 / alpha) * np.clip(y - hi, 0, None)
     half = float(np.median(100 * (hi - lo) / 2 / median))
@@ -290,6 +300,7 @@ def band_sharpness(points: pd.DataFrame, alpha: float = 0.05) -> dict[str, float
         "error_percent": error,
         "width_over_error": half / error if error > 0 else float("inf"),
         "interval_score_percent": float(np.median(100 * score / median)),
+        "inside": float(np.mean((y >= lo) & (y <= hi))),
     }
 
 
@@ -317,8 +328,13 @@ class CrossValidation:
 
     @property
     def sharpness(self) -> dict[str, float]:
-        """`band_sharpness` of the held-out points."""
-        return band_sharpness(self.points)
+        """`band_sharpness` of the held-out points' 95 % bands (``inside`` is `inside_95`)."""
+        return {k: v for k, v in band_sharpness(self.points).items() if k != "inside"}
+
+    @property
+    def sharpness_90(self) -> dict[str, float]:
+        """`band_sharpness` of the held-out points' 90 % bands."""
+        return band_sharpness(self.points, 0.10)
 
 
 @dataclass
@@ -330,12 +346,13 @@ class HeldOutFold:
     info: dict
 
 
-def _for_cameras(config: FitConfig, points: pd.DataFrame) -> FitConfig:
-    """The config without the gains K of cameras that have no points here."""
-    cameras = set(points["sensor_profile"].astype(str))
-    priors = {
-        n: p for n, p in config.priors.items() if not n.startswith("K_dn_per_e:") or n.split(":", 1)[1] in cameras
-    }
+def _for_points(config: FitConfig, points: pd.DataFrame) -> FitConfig:
+    """The config without the parameters of what has no points here: the gains K of absent cameras, the
+    transmittances of absent lens settings, the bare sensor's factor without bare sensors."""
+    present = {f"K_dn_per_e:{c}" for c in points["sensor_profile"].astype(str)}
+    present |= {BARE if label == NO_LENS.label else f"{PER_LENS}:{label}" for label in lens_labels(points)}
+    grouped = lambda n: n == BARE or n.startswith(("K_dn_per_e:", f"{PER_LENS}:"))  # noqa: E731
+    priors = {n: p for n, p in config.priors.items() if not grouped(n) or n in present}
     return config.model_copy(update={"priors": priors})
 
 
@@ -357,8 +374,8 @@ def held_out_fold(
     test = usable[usable["sweep_id"].isin(fold)]
     if train.empty or test.empty:
         return None
-    result = fit_points(train, rigs, _for_cameras(config, train), progress=progress, kind=kind)
-    model = build_forward_model(test, rigs, _for_cameras(config, test).names, kind=kind)
+    result = fit_points(train, rigs, _for_points(config, train), progress=progress, kind=kind)
+    model = build_forward_model(test, rigs, _for_points(config, test).names, kind=kind)
     rng = np.random.default_rng(seed + number)
     theta = _prior_columns(config, model.names, _thinned(result.samples), result.names, rng)
     draws = predictive_draws(model, theta, seen=False, seed=seed + number)
