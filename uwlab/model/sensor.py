@@ -70,8 +70,7 @@ class ResponseCurve(Schema):
 
     def ratio(self, fraction: np.ndarray) -> np.ndarray:
         """c(u) at well fractions u (held at the ends of `fraction_range`)."""
-        u = np.clip(np.asarray(fraction, float), *self.fraction_range)
-        return 1.0 + self.a * u + self.b * u**2
+        return response_ratio(np.clip(np.asarray(fraction, float), *self.fraction_range), self.a, self.b)
 
     def zero_signal_gain(self, k_photon_transfer: float, fit_fraction: float = 0.7) -> float:
         """The system gain at zero signal (the K of this convention) from the photon-transfer K of EMVA 1288
@@ -90,9 +89,20 @@ class ResponseCurve(Schema):
 
     def ratio_sd(self, fraction: np.ndarray) -> np.ndarray:
         """The standard uncertainty of c(u)."""
-        u = np.clip(np.asarray(fraction, float), *self.fraction_range)
         (caa, cab), (_, cbb) = self.covariance
-        return np.sqrt(np.maximum(caa * u**2 + 2 * cab * u**3 + cbb * u**4, 0.0))
+        return response_ratio_sd(np.clip(np.asarray(fraction, float), *self.fraction_range), caa, cab, cbb)
+
+
+def response_ratio(u: np.ndarray, a, b) -> np.ndarray:
+    """c(u) = 1 + a u + b u² of `ResponseCurve` at well fractions u already held to its range; a, b scalars or arrays
+    broadcasting with u (`uwlab.experiments.calibration.forward` evaluates every camera's curve in one pass)."""
+    return 1.0 + a * u + b * u**2
+
+
+def response_ratio_sd(u: np.ndarray, caa, cab, cbb) -> np.ndarray:
+    """The standard uncertainty of c(u), √(J Σ Jᵀ) with J = (u, u²) and Σ = ((caa, cab), (cab, cbb)) (`ResponseCurve`),
+    at well fractions u already held to its range; the covariances scalars or arrays broadcasting with u."""
+    return np.sqrt(np.maximum(caa * u**2 + 2 * cab * u**3 + cbb * u**4, 0.0))
 
 
 class SensorProfile(Schema):

@@ -71,7 +71,13 @@ from uwlab.model.chain import (
     paper_beam_model,
 )
 from uwlab.model.design import Design
-from uwlab.model.sensor import ResponseCurve, SensorProfile, load_sensor_profile
+from uwlab.model.sensor import (
+    ResponseCurve,
+    SensorProfile,
+    load_sensor_profile,
+    response_ratio,
+    response_ratio_sd,
+)
 from uwlab.model.weights import broadband_factor, spectral_weights
 from uwlab.model.optics import NO_LENS, LensSetting
 
@@ -178,20 +184,43 @@ class ForwardModel:
         out[np.arange(self.config.size), self.config] = 1.0
         return out
 
-    @cached_property
-    def _lens_group_index(self) -> tuple[list[str], np.ndarray]:
-        """The distinct lens-group parameters and each configuration's place among them."""
-        groups = list(dict.fromkeys(self.lens_groups))
-        return groups, np.array([groups.index(name) for name in self.lens_groups])
-
     def index(self, name: str) -> int:
         return self.names.index(name)
 
+    @cached_property
+    def _columns(self) -> dict[str, int]:
+        """Each free parameter's column in θ."""
+        return {name: index for index, name in enumerate(self.names)}
+
     def parameter(self, theta: np.ndarray, name: str) -> np.ndarray:
         """Column `name` of θ (shape (n_walkers,)), or its nominal value when the parameter is fixed."""
-        if name in self.names:
-            return theta[:, self.names.index(name)]
+        column = self._columns.get(name)
+        if column is not None:
+            return theta[:, column]
         return np.full(theta.shape[0], self.nominal[name])
+
+    def _gather(self, names: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+        """How `_per_column` finds the parameters `names`: (θ's column of each, 0 for a fixed one; which are free,
+        None when all are; their nominal values)."""
+        columns = np.array([self._columns.get(name, 0) for name in names], dtype=np.intp)
+        free = np.array([name in self._columns for name in names], dtype=bool)
+        return columns, None if free.all() else free, np.array([self.nominal[name] for name in names])
+
+    @staticmethod
+    def _per_column(theta: np.ndarray, gathered: tuple[np.ndarray, np.ndarray | None, np.ndarray]) -> np.ndarray:
+        """Parameters of every row of θ, shape (n_walkers, len(names)), as `parameter` gives them one by one (θ's
+        column, or the nominal value of a fixed one), in one fancy index; `gathered` from `_gather`."""
+        columns, free, nominal = gathered
+        if free is None:
+            return theta[:, columns]
+        return np.where(free, theta[:, columns], nominal)
+
+    @cached_property
+    def _lookups(self) -> tuple[tuple, tuple, np.ndarray]:
+        """Parameter-independent terms of `predict` and `sigma`, computed once: (`_gather` of each configuration's
+        lens-group parameter, `_gather` of each point's K, the measurement variance σ²_meas per point)."""
+        k_names = tuple(f"K_dn_per_e:{self.cameras[c]}" for c in self.camera)
+        return self._gather(self.lens_groups), self._gather(k_names), self.sigma_meas**2
 
     def shape(self, theta: np.ndarray) -> np.ndarray:
         """The nonlinear shared factors relative to nominal, per configuration, shape (n_walkers, n_config):
@@ -218,16 +247,23 @@ class ForwardModel:
         return np.bincount(self.config, minlength=self.n_config) / self.config.size
 
     @cached_property
-    def _curve_points(self) -> tuple[tuple[ResponseCurve, slice | np.ndarray], ...]:
-        """Each measured response curve with its camera's points: a slice when they are consecutive (a view, as
-        the points of a dataset's cameras usually are), else their indices."""
-        found = []
+    def _curves(
+        self,
+    ) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, ...], tuple[np.ndarray, ...], np.ndarray | None]:
+        """Each point's measured response curve as per-point arrays, so that every camera's curve is evaluated in one
+        pass: (lower, upper end of its `fraction_range`; its (a, b); its covariances (caa, cab, cbb); which points
+        have a curve, None when all do). A point without one gets zeros."""
+        n = self.camera.size
+        lo, hi, a, b, caa, cab, cbb = (np.zeros(n) for _ in range(7))
+        covered = np.zeros(n, dtype=bool)
         for index, curve in enumerate(self.responses):
             if curve is not None:
-                mine = np.flatnonzero(self.camera == index)
-                consecutive = mine.size and mine[-1] - mine[0] + 1 == mine.size
-                found.append((curve, slice(int(mine[0]), int(mine[-1]) + 1) if consecutive else mine))
-        return tuple(found)
+                mine = self.camera == index
+                covered[mine] = True
+                lo[mine], hi[mine] = curve.fraction_range
+                a[mine], b[mine] = curve.a, curve.b
+                (caa[mine], cab[mine]), (_, cbb[mine]) = curve.covariance
+        return lo, hi, (a, b), (caa, cab, cbb), None if covered.all() else covered
 
     def predict(self, theta: np.ndarray, shape: np.ndarray | None = None) -> np.ndarray:
         """Predicted dark-subtracted mean [DN], shape (n_walkers, n_points); `shape` = `self.shape(theta)` when the
@@ -235,8 +271,8 @@ class ForwardModel:
         theta = np.atleast_2d(theta)
         shape = self.shape(theta) if shape is None else shape
         p = lambda name: self.parameter(theta, name)[:, None]  # noqa: E731
-        groups, index = self._lens_group_index
-        lens = np.stack([self.parameter(theta, name) / self.nominal[name] for name in groups], axis=1)[:, index]
+        groups, k, _ = self._lookups
+        lens = self._per_column(theta, groups) / groups[2]
         rate = (
             self.nominal_rate_e_per_s[None, :]
             * p("light_efficiency")
@@ -245,8 +281,7 @@ class ForwardModel:
             * lens
             * shape
         )
-        k = np.stack([self.parameter(theta, f"K_dn_per_e:{cam}") for cam in self.cameras], axis=1)
-        linear = k[:, self.camera] * self.effective_exposure_s[None, :] * rate[:, self.config]
+        linear = self._per_column(theta, k) * self.effective_exposure_s[None, :] * rate[:, self.config]
         if self.well_fraction_per_dn is None:
             return linear
         return linear * self._response(linear * self.well_fraction_per_dn[None, :], "ratio", 1.0)
@@ -254,17 +289,17 @@ class ForwardModel:
     def _response(self, fraction: np.ndarray, what: str, linear: float) -> np.ndarray:
         """c(u) ("ratio") or c_sd(u) ("ratio_sd") of each point's camera at well fractions `fraction` (walkers,
         points); `linear` where a camera has no curve."""
-        out = np.full_like(fraction, linear)
-        for curve, mine in self._curve_points:
-            out[:, mine] = getattr(curve, what)(fraction[:, mine])
-        return out
+        lo, hi, ratio, ratio_sd, covered = self._curves
+        u = np.clip(fraction, lo, hi)
+        out = response_ratio(u, *ratio) if what == "ratio" else response_ratio_sd(u, *ratio_sd)
+        return out if covered is None else np.where(covered, out, linear)
 
     def sigma(self, theta: np.ndarray, prediction: np.ndarray) -> np.ndarray:
         """Per-point standard deviation: measurement noise of the ROI mean ⊕ fractional within-configuration
         discrepancy (the between-configuration discrepancy is in `uwlab.experiments.calibration.fit`) ⊕ the
         uncertainty of a measured response curve (module docstring)."""
         delta = self.parameter(np.atleast_2d(theta), "discrepancy")[:, None]
-        variance = self.sigma_meas[None, :] ** 2 + (delta * prediction) ** 2
+        variance = self._lookups[2] + (delta * prediction) ** 2
         if self.well_fraction_per_dn is not None:
             fraction = prediction * self.well_fraction_per_dn[None, :]
             variance = variance + (prediction * self._response(fraction, "ratio_sd", 0.0)) ** 2
