@@ -182,14 +182,24 @@ class JointPrior:
         self.constant = column([c is not None for _, _, c in forms], bool)
         self.constant_value = column([0.0 if c is None else c for _, _, c in forms])
         self.log_mass = column([p._log_mass for p in priors])
+        # which of the steps below these priors need (the others are left out of every evaluation)
+        self._any_log, self._any_constant = bool(self.log_scale.any()), bool(self.constant.any())
+        self._all_open, self._all_closed = not self.closed.any(), bool(self.closed.all())
 
     def terms(self, x: np.ndarray) -> np.ndarray:
         """ln p_j(x_j) for x of shape (n_priors, n): row j holds prior j's values."""
         with np.errstate(all="ignore"):
-            y = np.where(self.log_scale, np.log(x), x)
+            y = np.log(x, out=x.astype(float), where=self.log_scale) if self._any_log else x
             normal = -(_LOG_NORMALIZATION + ((y - self.mean) / self.sigma) ** 2 / 2) - self.log_sigma
-            density = np.where(self.constant, self.constant_value, np.where(self.log_scale, normal + -y, normal))
-            inside = np.where(self.closed, (x >= self.lo) & (x <= self.hi), (x > self.lo) & (x < self.hi))
+            if self._any_log:  # normal + −y, the change of variables, on the lognormals' rows
+                np.add(normal, -y, out=normal, where=self.log_scale)
+            density = np.where(self.constant, self.constant_value, normal) if self._any_constant else normal
+            if self._all_open:
+                inside = (x > self.lo) & (x < self.hi)
+            elif self._all_closed:
+                inside = (x >= self.lo) & (x <= self.hi)
+            else:
+                inside = np.where(self.closed, (x >= self.lo) & (x <= self.hi), (x > self.lo) & (x < self.hi))
             return np.where(inside, density - self.log_mass, -np.inf)
 
     def __call__(self, theta: np.ndarray) -> np.ndarray:
