@@ -145,7 +145,8 @@ class Transmission:
         log_s = np.log(np.asarray(s, float))
         lo, hi = self.spline.x[0], self.spline.x[-1]
         inside = ((log_s >= lo) & (log_s <= hi))[:, None]
-        return np.where(inside, np.exp(self.spline(np.clip(log_s, lo, hi)) - self.log_g0), np.nan)
+        held = np.minimum(np.maximum(log_s, lo), hi)  # np.clip's values, without its argument checks
+        return np.where(inside, np.exp(self.spline(held) - self.log_g0), np.nan)
 
 
 @dataclass
@@ -290,7 +291,7 @@ class ForwardModel:
         """c(u) ("ratio") or c_sd(u) ("ratio_sd") of each point's camera at well fractions `fraction` (walkers,
         points); `linear` where a camera has no curve."""
         lo, hi, ratio, ratio_sd, covered = self._curves
-        u = np.clip(fraction, lo, hi)
+        u = np.minimum(np.maximum(fraction, lo), hi)  # np.clip's values, without its argument checks
         out = response_ratio(u, *ratio) if what == "ratio" else response_ratio_sd(u, *ratio_sd)
         return out if covered is None else np.where(covered, out, linear)
 
