@@ -221,18 +221,19 @@ class Posterior:
             return -0.5 * chi
         tau2 = self.model.parameter(theta, "config_discrepancy")[:, None] ** 2
         a, s = _config_sums(self.model, r, mu, sigma)
-        return -0.5 * (chi + np.sum(np.log1p(tau2 * s) - tau2 * a**2 / (1 + tau2 * s), axis=1))
+        tau2_s = tau2 * s
+        return -0.5 * (chi + np.sum(np.log1p(tau2_s) - tau2 * a**2 / (1 + tau2_s), axis=1))
 
     def __call__(self, theta: np.ndarray, shape: np.ndarray | None = None) -> np.ndarray:
         """ln p(θ | y) up to a constant; `shape` = `model.shape(θ)` when the caller has it already."""
         theta = np.atleast_2d(theta)
         lp = self.log_prior(theta)
         ok = np.isfinite(lp)
-        out = np.full(theta.shape[0], -np.inf)
         if ok.all():  # the usual case: no copies of the rows
             with np.errstate(all="ignore"):
                 ll = self.log_likelihood(theta, shape)
             return np.where(np.isfinite(ll), lp + ll, -np.inf)
+        out = np.full(theta.shape[0], -np.inf)
         if np.any(ok):
             with np.errstate(all="ignore"):
                 ll = self.log_likelihood(theta[ok], None if shape is None else shape[ok])

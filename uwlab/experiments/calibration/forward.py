@@ -271,7 +271,8 @@ class ForwardModel:
         caller has it already."""
         theta = np.atleast_2d(theta)
         shape = self.shape(theta) if shape is None else shape
-        p = lambda name: self.parameter(theta, name)[:, None]  # noqa: E731
+        # a fixed parameter is its nominal value, a scalar: the products' bits are those with a column of it
+        p = lambda name: theta[:, self._columns[name], None] if name in self._columns else self.nominal[name]  # noqa: E731
         groups, k, _ = self._lookups
         lens = self._per_column(theta, groups) / groups[2]
         rate = (
