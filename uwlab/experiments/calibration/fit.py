@@ -216,13 +216,13 @@ class Posterior:
         mu = self.model.predict(theta, shape)
         sigma = self.model.sigma(theta, mu)
         r = self.model.y - mu
-        chi = np.sum((r / sigma) ** 2 + 2 * np.log(sigma), axis=1)
+        chi = ((r / sigma) ** 2 + 2 * np.log(sigma)).sum(axis=1)
         if "config_discrepancy" not in self.model.names:
             return -0.5 * chi
         tau2 = self.model.parameter(theta, "config_discrepancy")[:, None] ** 2
         a, s = _config_sums(self.model, r, mu, sigma)
         tau2_s = tau2 * s
-        return -0.5 * (chi + np.sum(np.log1p(tau2_s) - tau2 * a**2 / (1 + tau2_s), axis=1))
+        return -0.5 * (chi + (np.log1p(tau2_s) - tau2 * a**2 / (1 + tau2_s)).sum(axis=1))
 
     def __call__(self, theta: np.ndarray, shape: np.ndarray | None = None) -> np.ndarray:
         """ln p(θ | y) up to a constant; `shape` = `model.shape(θ)` when the caller has it already."""

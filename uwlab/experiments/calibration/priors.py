@@ -204,7 +204,7 @@ class JointPrior:
 
     def __call__(self, theta: np.ndarray) -> np.ndarray:
         """Σ_j ln p_j(θ_j) for θ of shape (n, n_priors): the terms summed in the priors' order."""
-        return np.sum(np.ascontiguousarray(self.terms(np.ascontiguousarray(np.atleast_2d(theta).T))), axis=0)
+        return np.ascontiguousarray(self.terms(np.ascontiguousarray(np.atleast_2d(theta).T))).sum(axis=0)
 
 
 PriorSpec = Annotated[Normal | LogNormal | Uniform | HalfNormal, Field(discriminator="kind")]
