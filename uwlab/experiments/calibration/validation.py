@@ -346,13 +346,18 @@ class HeldOutFold:
     info: dict
 
 
-def _for_points(config: FitConfig, points: pd.DataFrame) -> FitConfig:
+def _lens_groups(points: pd.DataFrame) -> set[str]:
+    """The lens-group parameters of these points' configurations (`bare_sensor_factor`, `lens_transmittance:…`)."""
+    return {BARE if label == NO_LENS.label else f"{PER_LENS}:{label}" for label in lens_labels(points)}
+
+
+def _for_points(config: FitConfig, points: pd.DataFrame, lone: str | None = None) -> FitConfig:
     """The config without the parameters of what has no points here: the gains K of absent cameras, the
-    transmittances of absent lens settings, the bare sensor's factor without bare sensors."""
-    present = {f"K_dn_per_e:{c}" for c in points["sensor_profile"].astype(str)}
-    present |= {BARE if label == NO_LENS.label else f"{PER_LENS}:{label}" for label in lens_labels(points)}
+    transmittances of absent lens settings, the bare sensor's factor without bare sensors; and without `lone`, the
+    lens group a fold trained on alone (`held_out_fold`)."""
+    present = {f"K_dn_per_e:{c}" for c in points["sensor_profile"].astype(str)} | _lens_groups(points)
     grouped = lambda n: n == BARE or n.startswith(("K_dn_per_e:", f"{PER_LENS}:"))  # noqa: E731
-    priors = {n: p for n, p in config.priors.items() if not grouped(n) or n in present}
+    priors = {n: p for n, p in config.priors.items() if n != lone and (not grouped(n) or n in present)}
     return config.model_copy(update={"priors": priors})
 
 
@@ -374,8 +379,13 @@ def held_out_fold(
     test = usable[usable["sweep_id"].isin(fold)]
     if train.empty or test.empty:
         return None
-    result = fit_points(train, rigs, _for_points(config, train), progress=progress, kind=kind)
-    model = build_forward_model(test, rigs, _for_points(config, test).names, kind=kind)
+    # A fold that trains on one lens group alone cannot tell the group's factor from the light's efficiency (the
+    # data see only their product): the factor stays at its nominal value in the fit and in the predictions of
+    # its own group, and the efficiency carries it; another group's factor is drawn from its prior.
+    groups = _lens_groups(train)
+    lone = next(iter(groups)) if len(groups) == 1 else None
+    result = fit_points(train, rigs, _for_points(config, train, lone), progress=progress, kind=kind)
+    model = build_forward_model(test, rigs, _for_points(config, test, lone).names, kind=kind)
     rng = np.random.default_rng(seed + number)
     theta = _prior_columns(config, model.names, _thinned(result.samples), result.names, rng)
     draws = predictive_draws(model, theta, seen=False, seed=seed + number)
