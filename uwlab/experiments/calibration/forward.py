@@ -576,6 +576,12 @@ def lens_labels(points: pd.DataFrame) -> np.ndarray:
     )
 
 
+def lens_group_parameters(points: pd.DataFrame) -> set[str]:
+    """The lens-group parameters of these points' configurations: ``bare_sensor_factor`` for bare sensors,
+    ``lens_transmittance:<label>`` for each lens setting."""
+    return {BARE if label == NO_LENS.label else f"{PER_LENS}:{label}" for label in lens_labels(points)}
+
+
 def lens_transmittances(points: pd.DataFrame, rigs: dict[str, dict], base_dir: Path | None = None) -> dict[str, float]:
     """The design's broadband transmittance of each lens setting the points were taken with (bare sensors left out),
     {label: T}: the nominal values of the ``lens_transmittance:<label>`` parameters."""

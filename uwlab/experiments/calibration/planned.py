@@ -43,7 +43,13 @@ import pandas as pd
 from uwlab.errors import ConfigError
 from uwlab.experiments.acquisition.plan import Plan, SweepSpec, resolved_rig
 from uwlab.experiments.calibration.fit import default_config_for
-from uwlab.experiments.calibration.forward import PER_CAMERA, SHARED, build_forward_model, relative_flux
+from uwlab.experiments.calibration.forward import (
+    PER_CAMERA,
+    SHARED,
+    build_forward_model,
+    lens_group_parameters,
+    relative_flux,
+)
 from uwlab.experiments.calibration.validation import predictive_draws
 from uwlab.experiments.dataset import Dataset
 from uwlab.experiments.saturation import sensor_clip_dn
@@ -178,7 +184,7 @@ def _posterior_draws(fit_dir: Path, points: pd.DataFrame, samples: int):
                 )
     frame = table("samples.parquet")
     cameras = set(points["sensor_profile"].astype(str))
-    allowed = set(SHARED) | {f"{p}:{c}" for p in PER_CAMERA for c in cameras}
+    allowed = set(SHARED) | {f"{p}:{c}" for p in PER_CAMERA for c in cameras} | lens_group_parameters(points)
     names = tuple(name for name in frame.columns if name in allowed)
     step = max(1, len(frame) // samples)
     return names, frame[list(names)].to_numpy(float)[::step], summary.get("model")

@@ -35,8 +35,13 @@ import numpy as np
 import pandas as pd
 
 from uwlab.experiments.calibration.fit import LEAVE_ONE_OUT, FitConfig, FitResult, config_offsets, fit_points
-from uwlab.experiments.calibration.forward import BARE, PER_LENS, ForwardModel, build_forward_model, lens_labels
-from uwlab.model.optics import NO_LENS
+from uwlab.experiments.calibration.forward import (
+    BARE,
+    PER_LENS,
+    ForwardModel,
+    build_forward_model,
+    lens_group_parameters,
+)
 from uwlab.model.evaluation import stage_spectra
 
 BANDS = (2.5, 16, 50, 84, 97.5)
@@ -346,16 +351,11 @@ class HeldOutFold:
     info: dict
 
 
-def _lens_groups(points: pd.DataFrame) -> set[str]:
-    """The lens-group parameters of these points' configurations (`bare_sensor_factor`, `lens_transmittance:…`)."""
-    return {BARE if label == NO_LENS.label else f"{PER_LENS}:{label}" for label in lens_labels(points)}
-
-
 def _for_points(config: FitConfig, points: pd.DataFrame, lone: str | None = None) -> FitConfig:
     """The config without the parameters of what has no points here: the gains K of absent cameras, the
     transmittances of absent lens settings, the bare sensor's factor without bare sensors; and without `lone`, the
     lens group a fold trained on alone (`held_out_fold`)."""
-    present = {f"K_dn_per_e:{c}" for c in points["sensor_profile"].astype(str)} | _lens_groups(points)
+    present = {f"K_dn_per_e:{c}" for c in points["sensor_profile"].astype(str)} | lens_group_parameters(points)
     grouped = lambda n: n == BARE or n.startswith(("K_dn_per_e:", f"{PER_LENS}:"))  # noqa: E731
     priors = {n: p for n, p in config.priors.items() if n != lone and (not grouped(n) or n in present)}
     return config.model_copy(update={"priors": priors})
@@ -382,7 +382,7 @@ def held_out_fold(
     # A fold that trains on one lens group alone cannot tell the group's factor from the light's efficiency (the
     # data see only their product): the factor stays at its nominal value in the fit and in the predictions of
     # its own group, and the efficiency carries it; another group's factor is drawn from its prior.
-    groups = _lens_groups(train)
+    groups = lens_group_parameters(train)
     lone = next(iter(groups)) if len(groups) == 1 else None
     result = fit_points(train, rigs, _for_points(config, train, lone), progress=progress, kind=kind)
     model = build_forward_model(test, rigs, _for_points(config, test, lone).names, kind=kind)
