@@ -20,11 +20,17 @@ lemma for the covariance diag(σ²) + τ² μ μᵀ); given θ, δ_k ~ N(m_k, v_
   every ensemble move. So the anchor ε (or the reflectance when ε is fixed) is sampled as
   u_ε = ln ε + h(s, β), h = the points' mean of ln S_k: the ridge becomes a hyperplane in u, s and β move along
   it freely. The map u → θ stays triangular, so ln p(u) = ln p(θ) + Σ ln θ over the logged parameters.
+- Funnel: the data fix each configuration's level only to within τ, so the parameters that carry the levels are
+  held ever more loosely as τ grows, and an ensemble sampler in u misses the tail of τ while its diagnostics look
+  fine. The walkers move in τ-conditioned coordinates instead, w = (ln τ, z) with u_others = m(ln τ) + L(ln τ) z
+  from Laplace approximations of the others' conditional on a grid of τ
+  (`uwlab.experiments.calibration.laplace.ScaleConditioned`); the density is exact, the coordinates only rounder.
 - Sampler: emcee's ensemble sampler (Foreman-Mackey et al. 2013), ``vectorize=True``, with differential-evolution
   moves (ter Braak 2006; 80 %) and snooker moves (ter Braak & Vrugt 2008; 20 %), which mix faster than the
   stretch move (Goodman & Weare 2010) on this problem's elongated posteriors. The run extends itself in chunks until
   the chain is at least 50 integrated autocorrelation times long (τ by emcee's estimator, Sokal 1997) and τ has
-  stabilised.
+  stabilised (changed by < 5 % since the last check), checked every 250 steps on the whole chain so far (emcee's
+  own recipe, "Saving & monitoring progress", checks every 100): a run stops within 250 steps of meeting both.
 - Diagnostics: τ per parameter, mean acceptance fraction, split-chain R-hat (Gelman et al., Bayesian Data
   Analysis, 3rd ed., §11.4) over the walkers, posterior correlations (|ρ| > 0.9 flagged as not separable).
 """
@@ -56,6 +62,7 @@ from uwlab.experiments.calibration.forward import (
     lens_transmittances,
 )
 from uwlab.model.optics import NO_LENS
+from uwlab.experiments.calibration.laplace import SCALE_RANGE, ScaleConditioned, laplace_covariance
 from uwlab.experiments.calibration.priors import HalfNormal, JointPrior, LogNormal, Normal, Prior, PriorSpec
 from uwlab.model.data import read_toml
 from uwlab.model.sensor import load_sensor_profile
@@ -87,7 +94,7 @@ class Sampler(Schema):
     """A fit config's [sampler] section."""
 
     walkers: Walkers | None = Field(None, description="ensemble size (default: max(32, 4 × parameters))")
-    chunk_steps: ChunkSteps = Field(1000, description="steps between convergence checks")
+    chunk_steps: ChunkSteps = Field(250, description="steps between convergence checks")
     max_steps: MaxSteps = Field(60000, description="stop (unconverged) after this many steps")
     seed: Seed = Field(0, description="seed of the walkers' start and of the sampler")
 
@@ -318,34 +325,6 @@ def find_map(log_density: Callable[[np.ndarray], np.ndarray], start: np.ndarray)
     return best
 
 
-def laplace_covariance(log_density: Callable[[np.ndarray], np.ndarray], theta: np.ndarray) -> np.ndarray | None:
-    """Inverse of the finite-difference Hessian of −log p at θ (all evaluations in one vectorised call)."""
-    n = theta.size
-    h = np.full(n, 1e-4)
-    eye = np.eye(n) * h
-    pts = [theta]
-    for i in range(n):
-        for j in range(n):
-            pts += [theta + eye[i] + eye[j], theta + eye[i] - eye[j], theta - eye[i] + eye[j], theta - eye[i] - eye[j]]
-    values = log_density(np.array(pts))
-    hess = np.empty((n, n))
-    k = 1
-    with np.errstate(invalid="ignore", over="ignore"):
-        for i in range(n):
-            for j in range(n):
-                pp, pm, mp, mm = values[k : k + 4]
-                hess[i, j] = -(pp - pm - mp + mm) / (4 * h[i] * h[j])
-                k += 4
-    if not np.all(np.isfinite(hess)):
-        return None
-    try:
-        cov = np.linalg.inv(0.5 * (hess + hess.T))
-        np.linalg.cholesky(cov)
-        return cov
-    except np.linalg.LinAlgError:
-        return None
-
-
 def initial_walkers(log_density, mode: np.ndarray, walkers: int, rng: np.random.Generator) -> np.ndarray:
     """Over-dispersed walkers (Gelman & Rubin 1992): the Laplace approximation at the mode with its covariance
     inflated OVERDISPERSION times (a small ball where it is not positive definite); a walker outside the support
@@ -504,6 +483,17 @@ class _Interruptible:
         return np.full(len(u), -np.inf)
 
 
+def sampling_coordinates(post: Posterior, priors: Mapping[str, Prior], u_mode: np.ndarray) -> ScaleConditioned | None:
+    """The coordinates the walkers move in: for a fit with a between-configuration scale τ, τ-conditioned ones
+    (`uwlab.experiments.calibration.laplace.ScaleConditioned`, which undo the funnel τ makes with the levels);
+    None (the coordinates u) for a fit without one, or where they cannot be built."""
+    names = post.model.names
+    if "config_discrepancy" not in names or len(names) < 2:
+        return None
+    lo, hi = priors["config_discrepancy"].quantile(np.array(SCALE_RANGE))
+    return ScaleConditioned.around(post.log_u, u_mode, names.index("config_discrepancy"), (float(lo), float(hi)))
+
+
 def run_fit(model: ForwardModel, config: FitConfig, progress: Callable[[int, float], None] | None = None) -> FitResult:
     """MAP, then emcee until ≥ 50 τ (or max_steps, then converged = False)."""
     post = Posterior(model, config.priors)
@@ -511,15 +501,21 @@ def run_fit(model: ForwardModel, config: FitConfig, progress: Callable[[int, flo
     medians = {n: config.priors[n].quantile(0.5) for n in model.names}
     start = np.array([medians[n] if n not in DISCREPANCIES else max(medians[n], 1e-3) for n in model.names])
     u_map = find_map(post.log_u, post.to_u(start))
-    p0 = initial_walkers(post.log_u, u_map, config.walkers, rng)
+    coordinates = sampling_coordinates(post, config.priors, u_map)
+    log_density: Callable[[np.ndarray], np.ndarray]
+    if coordinates is None:
+        log_density, mode, to_u = post.log_u, u_map, lambda w: w
+    else:
+        log_density, mode, to_u = coordinates.log_w, coordinates.to_w(u_map[None, :])[0], coordinates.u_of
+    p0 = initial_walkers(log_density, mode, config.walkers, rng)
     moves = [(emcee.moves.DEMove(), 0.8), (emcee.moves.DESnookerMove(), 0.2)]
-    log_u = _Interruptible(post.log_u)
-    sampler = emcee.EnsembleSampler(config.walkers, len(model.names), log_u, vectorize=True, moves=moves)
+    log_w = _Interruptible(log_density)
+    sampler = emcee.EnsembleSampler(config.walkers, len(model.names), log_w, vectorize=True, moves=moves)
     sampler.random_state = np.random.RandomState(int(rng.integers(2**31))).get_state()
     state, old_tau, converged = p0, None, False
     while sampler.iteration < config.sampler.max_steps:
         for step in sampler.sample(state, iterations=config.sampler.chunk_steps):
-            if log_u.interrupted:
+            if log_w.interrupted:
                 raise KeyboardInterrupt
             state = step
         tau = sampler.get_autocorr_time(tol=0)
@@ -533,8 +529,8 @@ def run_fit(model: ForwardModel, config: FitConfig, progress: Callable[[int, flo
     tau = sampler.get_autocorr_time(tol=0)
     burn = int(2 * np.max(tau))
     thin = max(1, int(0.5 * np.min(tau)))
-    chain = post.to_theta(sampler.get_chain())
-    samples = post.to_theta(sampler.get_chain(discard=burn, thin=thin, flat=True))
+    chain = post.to_theta(to_u(sampler.get_chain()))
+    samples = post.to_theta(to_u(sampler.get_chain(discard=burn, thin=thin, flat=True)))
     return FitResult(
         names=model.names,
         samples=samples,

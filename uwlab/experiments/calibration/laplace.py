@@ -1,0 +1,198 @@
+"""Laplace approximations of a vectorised log density, and the sampling coordinates that undo a hierarchical funnel.
+
+- `laplace_covariance`: the inverse of the finite-difference Hessian of −ln p at a point (the Laplace approximation's
+  covariance; Gelman et al., Bayesian Data Analysis, 3rd ed., §4.1).
+- `conditional_mode`: Newton's method on ln p from a nearby point, each step C ∇ln p with C that covariance, halved
+  until ln p does not fall.
+- `ScaleConditioned`: sampling coordinates for a posterior with a scale τ (the between-configuration discrepancy)
+  that sets how tightly the data hold the other parameters. In a hierarchical model the data fix the
+  configurations' levels only to within τ, so the parameters that carry the levels (gains, lens factors) have a
+  conditional spread that grows with τ: a funnel (Neal, Ann. Statist. 31, 705–767, 2003, §8), through which an
+  ensemble sampler neither enters the wide region nor reports that it has not — its autocorrelation time and R̂
+  look fine while the tail of τ is missed (on the seed-0 demo, P(τ > 0.13 %) came out 6 % against 37 % by
+  importance sampling). The cure is to sample what is not funnelled (Papaspiliopoulos, Roberts & Sköld,
+  Statist. Sci. 22, 59–73, 2007, on centred and non-centred parametrisations); here, generically, from Laplace
+  approximations: on a grid of v = ln τ the others' conditional mode m(v) and the Cholesky factor L(v) of their
+  conditional covariance, interpolated linearly in v (clamped beyond the grid), and the sampler moves in
+  w = (v, z) with u_others = m(v) + L(v) z. Where the conditional is Gaussian z is a standard normal whatever τ;
+  where it is not, the sampler still sees a far rounder density. The map is triangular, so the log-Jacobian is
+  v + Σ ln diag L(v), and the density is exact: the approximations only choose coordinates.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+LogDensity = Callable[[np.ndarray], np.ndarray]  # rows of points (n, d) → ln p (n,)
+
+STEP = 1e-4  # finite-difference step in the sampling coordinates (logs: relative), at most a tenth of a coordinate
+# near its bound at 0 (a discrepancy of 2e-4 is sampled as it is)
+NEWTON_STEPS = 20
+GRID_SPACING = 0.5  # in ln τ: the conditional moves smoothly over a factor 1.65
+SCALE_RANGE = (0.001, 0.997)  # the prior quantiles of τ the grid spans; beyond, the end's coordinates are kept
+
+
+def laplace_covariance(log_density: LogDensity, theta: np.ndarray) -> np.ndarray | None:
+    """Inverse of the finite-difference Hessian of −log p at θ (all evaluations in one vectorised call); None when
+    it is not finite or not positive definite."""
+    n = theta.size
+    h = _steps(theta)
+    eye = np.diag(h)
+    pts = [theta]
+    for i in range(n):
+        for j in range(n):
+            pts += [theta + eye[i] + eye[j], theta + eye[i] - eye[j], theta - eye[i] + eye[j], theta - eye[i] - eye[j]]
+    values = log_density(np.array(pts))
+    hess = np.empty((n, n))
+    k = 1
+    with np.errstate(invalid="ignore", over="ignore"):
+        for i in range(n):
+            for j in range(n):
+                pp, pm, mp, mm = values[k : k + 4]
+                hess[i, j] = -(pp - pm - mp + mm) / (4 * h[i] * h[j])
+                k += 4
+    if not np.all(np.isfinite(hess)):
+        return None
+    try:
+        cov = np.linalg.inv(0.5 * (hess + hess.T))
+        np.linalg.cholesky(cov)
+        return cov
+    except np.linalg.LinAlgError:
+        return None
+
+
+def _steps(x: np.ndarray) -> np.ndarray:
+    """The finite-difference step per coordinate (STEP)."""
+    return np.where(x != 0, np.minimum(STEP, 0.1 * np.abs(x)), STEP)
+
+
+def _gradient(log_density: LogDensity, x: np.ndarray) -> np.ndarray:
+    """Central differences of ln p at x, in one vectorised call."""
+    h = _steps(x)
+    values = log_density(np.concatenate([x + np.diag(h), x - np.diag(h)]))
+    return (values[: x.size] - values[x.size :]) / (2 * h)
+
+
+def conditional_mode(log_density: LogDensity, x: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    """(mode, Laplace covariance there) by Newton's method from x (module docstring); the covariance is None where
+    the Hessian is not positive definite, and the search stops at the last point where it was.
+
+    >>> mode, cov = conditional_mode(lambda x: -0.5 * ((x - [1.0, -2.0]) ** 2 / [1.0, 4.0]).sum(axis=1), np.zeros(2))
+    >>> mode.round(6).tolist(), np.diag(cov).round(4).tolist()
+    ([1.0, -2.0], [1.0, 4.0])
+    """
+    cov = laplace_covariance(log_density, x)
+    for _ in range(NEWTON_STEPS):
+        if cov is None:
+            break
+        step = cov @ _gradient(log_density, x)
+        here = log_density(x[None, :])[0]
+        for _ in range(30):
+            if log_density((x + step)[None, :])[0] >= here:
+                break
+            step = 0.5 * step
+        else:
+            break
+        x = x + step
+        cov = laplace_covariance(log_density, x)
+        if np.max(np.abs(step) / np.sqrt(np.diag(cov) if cov is not None else 1.0)) < 1e-6:
+            break
+    return x, cov
+
+
+class ScaleConditioned:
+    """Sampling coordinates w = (v = ln τ at `index`, z elsewhere) over a log density in coordinates u (module
+    docstring), built around the mode `u_mode` for τ within `scale_range` (its prior's quantiles).
+
+    Use `around`, which returns None where the approximation cannot be built (a Hessian not positive definite at
+    the mode) and the sampler keeps the coordinates u."""
+
+    CHUNK = 20_000  # rows per mapping of a whole chain: (CHUNK, d − 1, d − 1) interpolated factors
+
+    def __init__(self, log_u: LogDensity, grid: np.ndarray, index: int, modes: np.ndarray, factors: np.ndarray):
+        self.log_u, self.grid, self.index = log_u, grid, index
+        self.others = np.array([i for i in range(modes.shape[1] + 1) if i != index])
+        self.modes, self.factors = modes, factors  # (grid, d − 1), (grid, d − 1, d − 1): m(v), L(v)
+
+    @classmethod
+    def around(
+        cls, log_u: LogDensity, u_mode: np.ndarray, index: int, scale_range: tuple[float, float]
+    ) -> ScaleConditioned | None:
+        lo, hi = np.log(scale_range[0]), np.log(scale_range[1])
+        v_mode = float(np.clip(np.log(max(u_mode[index], scale_range[0])), lo, hi))
+        below = np.arange(v_mode, lo - GRID_SPACING, -GRID_SPACING)[::-1]
+        grid = np.concatenate([below, np.arange(v_mode + GRID_SPACING, hi + GRID_SPACING, GRID_SPACING)])
+        others = np.array([i for i in range(u_mode.size) if i != index])
+        start = below.size - 1
+        modes = np.empty((grid.size, others.size))
+        factors = np.empty((grid.size, others.size, others.size))
+        # outwards from the mode's τ in both directions, each conditional mode started from its neighbour's; where a
+        # conditional is not approximable the neighbour's coordinates are kept
+        for sequence in (range(start, grid.size), range(start - 1, -1, -1)):
+            x, factor = u_mode[others], None
+            for j in sequence:
+                x_new, cov = conditional_mode(cls._conditional(log_u, u_mode.size, index, np.exp(grid[j])), x)
+                if cov is not None:
+                    x, factor = x_new, np.linalg.cholesky(cov)
+                elif factor is None:
+                    return None
+                modes[j], factors[j] = x, factor
+        return cls(log_u, grid, index, modes, factors)
+
+    @staticmethod
+    def _conditional(log_u: LogDensity, size: int, index: int, scale: float) -> LogDensity:
+        others = np.array([i for i in range(size) if i != index])
+
+        def density(x: np.ndarray) -> np.ndarray:
+            u = np.empty((x.shape[0], size))
+            u[:, others] = x
+            u[:, index] = scale
+            return log_u(u)
+
+        return density
+
+    def _at(self, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """m(v), L(v) for rows v, linear between grid points, the ends' beyond them."""
+        v = np.clip(v, self.grid[0], self.grid[-1])
+        if self.grid.size == 1:
+            return np.repeat(self.modes, v.size, axis=0), np.repeat(self.factors, v.size, axis=0)
+        j = np.clip(np.searchsorted(self.grid, v) - 1, 0, self.grid.size - 2)
+        a = (v - self.grid[j]) / (self.grid[j + 1] - self.grid[j])
+        m = self.modes[j] + a[:, None] * (self.modes[j + 1] - self.modes[j])
+        factor = self.factors[j] + a[:, None, None] * (self.factors[j + 1] - self.factors[j])
+        return m, factor
+
+    def to_u(self, w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(u, ln |∂u/∂w|) for rows w of shape (n, d)."""
+        v = w[:, self.index]
+        m, factor = self._at(v)
+        u = np.empty_like(w)
+        u[:, self.index] = np.exp(v)
+        u[:, self.others] = m + np.einsum("nij,nj->ni", factor, w[:, self.others])
+        with np.errstate(divide="ignore"):
+            log_jacobian = v + np.log(np.abs(np.diagonal(factor, axis1=1, axis2=2))).sum(axis=1)
+        return u, log_jacobian
+
+    def to_w(self, u: np.ndarray) -> np.ndarray:
+        """w for rows u of shape (n, d) with τ > 0."""
+        v = np.log(u[:, self.index])
+        m, factor = self._at(v)
+        w = np.empty_like(u)
+        w[:, self.index] = v
+        w[:, self.others] = np.linalg.solve(factor, (u[:, self.others] - m)[:, :, None])[:, :, 0]
+        return w
+
+    def u_of(self, w: np.ndarray) -> np.ndarray:
+        """u for w of any leading shape (whole chains, CHUNK rows at a time)."""
+        flat = w.reshape(-1, w.shape[-1])
+        parts = [self.to_u(flat[i : i + self.CHUNK])[0] for i in range(0, flat.shape[0], self.CHUNK)]
+        return np.concatenate(parts).reshape(w.shape)
+
+    def log_w(self, w: np.ndarray) -> np.ndarray:
+        """ln p(w) = ln p(u(w)) + ln |∂u/∂w|."""
+        u, log_jacobian = self.to_u(np.atleast_2d(w))
+        with np.errstate(invalid="ignore"):
+            out = self.log_u(u) + log_jacobian
+        return np.where(np.isnan(out), -np.inf, out)
