@@ -1,7 +1,7 @@
 """The demo's targets on a reduced campaign (in process, `uwlab.experiments.demo.quick_demo`; the full demo over
 ten seeds is benchmarks/demo_targets.py, the bands' sharpness over ten seeds benchmarks/held_out_bands.py): the
 extended model in the tank world predicts held-out configurations to about 0.1 % from their lens siblings, inside
-bands about five times their errors, and covers the simulated truths (only the trend check may name the tank
+their bands, and covers the simulated truths (only the trend check may name the tank
 world's unmodelled sensor non-linearity); the paper model in the turbid world is judged inadequate with
 backscatter named; the paper model in the ideal world (the model against itself) is adequate.
 
@@ -23,13 +23,10 @@ def test_extended_model_in_the_tank_world_meets_the_targets(seed):
     assert tally["held_out_inside_95"] >= 0.90, tally
     assert tally["truth_inside_95"] >= 0.90, tally
     # Each configuration predicted from the five others (leave one out) with its lens sibling's transmittance (or
-    # the bare sensors' factor): median errors 0.12-0.13 % over seeds 0-2 (0.9 % with one spread τ for every
-    # configuration), bands ±0.56-0.63 %. The band is set on this campaign by the within-configuration discrepancy
-    # its sweeps to saturation show (the tank world's unmodelled non-linearity), hence 4.4-5.0× the errors:
-    # docs/validation.md.
+    # the bare sensors' factor): median errors about 0.1 % (0.9 % with one spread τ for every configuration). The
+    # bands are not asserted sharp: five configurations leave one degree of freedom for τ after the camera × lens
+    # table, so each fold's τ is mostly its prior's and the bands are ±3 % (docs/validation.md).
     assert tally["held_out_error_percent_median_range"][2] <= 0.3, tally
-    assert tally["held_out_half_width_percent_median_range"][2] <= 1.0, tally
-    assert tally["held_out_width_over_error_median_range"][2] <= 5.5, tally
     # every check passes but, where it fires, the trend check: the tank world's sensor non-linearity, unmodelled
     failed = {check["name"] for check in summary["checks"] if not check["passed"]}
     assert failed <= {"within-configuration trend"}, summary["checks"]
