@@ -19,9 +19,9 @@ lens transmittance) describe the tank's own light, board and lenses and are not 
 
 Known gap (issue 35's lens groups): a fit with `lens_transmittance:<setting>` and `bare_sensor_factor` learns the
 lens groups' ratios, and its τ is only what remains once they are fitted (seed-0 demo: median 0.09 %, 97.5th
-percentile 0.87 %, against ≈ 1.4 % when τ also carried the lenses). A design's own lens is not among the fit's, and the uncertainty of its
-transmittance against its table (the 5 % the fit's lens priors state) is not added here, so the band of a design
-with a new lens is too narrow by about that much.
+percentile 0.87 %, against ≈ 1.4 % when τ also carried the lenses). A design's own lens is not among the fit's,
+and the uncertainty of its transmittance against its table (the 5 % the fit's lens priors state) is not added
+here, so the band of a design with a new lens is too narrow by about that much.
 """
 
 from __future__ import annotations
