@@ -13,6 +13,7 @@ from pathlib import Path
 
 import cv2
 import numpy as np
+import pyarrow as pa
 import pyarrow.parquet as pq
 import pytest
 import scipy
@@ -230,6 +231,21 @@ def test_disk_full_keeps_what_was_recorded(tmp_path, monkeypatch):
     data.append_point(row(1), spectrum(1))
     assert Dataset.open(tmp_path).completed() == {("a", 0), ("a", 1)}
     data.close()
+
+
+def test_the_parquet_reader_is_handed_no_python_object():
+    """What a part's bytes are handed to Arrow's threaded Parquet reader as (`dataset_store.arrow_copy`) holds no
+    Python object, so a reader thread that drops the last reference to it after the read (even while the interpreter
+    shuts down) needs no GIL; a buffer over the Python bytes takes it there, and at exit that aborts the process.
+    The bytes' reference count shows it: unchanged while the copy lives, one more while a buffer over them lives."""
+    data = dataset_store.parquet_bytes([POINT_SCHEMA.empty_table()], POINT_SCHEMA)
+    before = sys.getrefcount(data)
+    source = dataset_store.arrow_copy(data)
+    assert sys.getrefcount(data) == before
+    assert source.to_pybytes() == data
+    over_the_bytes = pa.py_buffer(data)  # the premise: a buffer over the bytes does show in the count
+    assert sys.getrefcount(data) == before + 1
+    del over_the_bytes
 
 
 def test_one_writer_at_a_time_and_stale_locks_are_taken_over(tmp_path):

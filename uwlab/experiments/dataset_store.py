@@ -232,6 +232,17 @@ def parquet_bytes(tables: list[pa.Table], schema: pa.Schema) -> bytes:
     return sink.getvalue().to_pybytes()
 
 
+def arrow_copy(data: bytes) -> pa.Buffer:
+    """A copy of ``data`` in Arrow's own memory, holding no Python object: the input to hand Arrow's threaded
+    Parquet reader. Its worker threads may drop their last reference to the input after the read has returned; a
+    buffer over a Python object (``pa.BufferReader(bytes)``) then takes the GIL in its destructor, and if the
+    interpreter is shutting down by then the thread is ended inside that destructor and the process aborts
+    ("terminate called without an active exception", SIGABRT at the exit of a command that read a dataset)."""
+    sink = pa.BufferOutputStream()
+    sink.write(data)
+    return sink.getvalue()
+
+
 def conform(table: pa.Table, schema: pa.Schema) -> pa.Table:
     """``table`` with exactly ``schema``'s columns: missing ones null (older writers), types cast when safe.
     Unknown columns or impossible casts raise `ValueError` naming the column."""
@@ -342,7 +353,7 @@ class PartStore:
         if hashlib.sha256(data).hexdigest() != entry.sha256:
             raise PartDamaged(self.root, entry.file, "SHA-256 differs from the manifest")
         try:
-            table = conform(pq.read_table(pa.BufferReader(data), page_checksum_verification=True), schema)
+            table = conform(pq.read_table(pa.BufferReader(arrow_copy(data)), page_checksum_verification=True), schema)
         except (OSError, pa.ArrowException, ValueError) as exc:
             raise PartDamaged(self.root, entry.file, f"unreadable: {exc}") from None
         if table.num_rows != entry.rows:
