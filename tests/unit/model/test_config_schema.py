@@ -444,7 +444,7 @@ def test_fit_configs_round_trip(path):
             assert getattr(prior, key) == value, f"{name}.{key}"
     sampler = {
         "walkers": max(32, 4 * len(raw["parameters"])),
-        "chunk_steps": 1000,
+        "chunk_steps": 250,
         "max_steps": 60000,
         "seed": 0,
         **raw.get("sampler", {}),
