@@ -113,7 +113,7 @@ class ScaleConditioned:
 
     def __init__(self, log_u: LogDensity, grid: np.ndarray, index: int, modes: np.ndarray, factors: np.ndarray):
         self.log_u, self.grid, self.index = log_u, grid, index
-        self.others = np.array([i for i in range(modes.shape[1] + 1) if i != index])
+        self.others = np.delete(np.arange(modes.shape[1] + 1), index)
         self.modes, self.factors = modes, factors  # (grid, d − 1), (grid, d − 1, d − 1): m(v), L(v)
 
     @classmethod
@@ -124,7 +124,7 @@ class ScaleConditioned:
         v_mode = float(np.clip(np.log(max(u_mode[index], scale_range[0])), lo, hi))
         below = np.arange(v_mode, lo - GRID_SPACING, -GRID_SPACING)[::-1]
         grid = np.concatenate([below, np.arange(v_mode + GRID_SPACING, hi + GRID_SPACING, GRID_SPACING)])
-        others = np.array([i for i in range(u_mode.size) if i != index])
+        others = np.delete(np.arange(u_mode.size), index)
         start = below.size - 1
         modes = np.empty((grid.size, others.size))
         factors = np.empty((grid.size, others.size, others.size))
@@ -133,7 +133,7 @@ class ScaleConditioned:
         for sequence in (range(start, grid.size), range(start - 1, -1, -1)):
             x, factor = u_mode[others], None
             for j in sequence:
-                x_new, cov = conditional_mode(cls._conditional(log_u, u_mode.size, index, np.exp(grid[j])), x)
+                x_new, cov = conditional_mode(cls._conditional(log_u, others, index, np.exp(grid[j])), x)
                 if cov is not None:
                     x, factor = x_new, np.linalg.cholesky(cov)
                 elif factor is None:
@@ -142,11 +142,11 @@ class ScaleConditioned:
         return cls(log_u, grid, index, modes, factors)
 
     @staticmethod
-    def _conditional(log_u: LogDensity, size: int, index: int, scale: float) -> LogDensity:
-        others = np.array([i for i in range(size) if i != index])
+    def _conditional(log_u: LogDensity, others: np.ndarray, index: int, scale: float) -> LogDensity:
+        """ln p of the `others` coordinates with τ (at `index`) held at `scale`."""
 
         def density(x: np.ndarray) -> np.ndarray:
-            u = np.empty((x.shape[0], size))
+            u = np.empty((x.shape[0], others.size + 1))
             u[:, others] = x
             u[:, index] = scale
             return log_u(u)
