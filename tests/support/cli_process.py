@@ -16,6 +16,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import IO
 
+from uwlab.errors import ConfigError
 from uwlab.experiments.dataset import Dataset
 
 TIMEOUT_S = 180
@@ -80,5 +81,10 @@ def read_line(stream: IO[str], timeout_s: float, what: str) -> str:
 
 
 def points_recorded(root: Path) -> int:
-    """The points a running sweep has recorded so far into the dataset at ``root`` (0 before it exists)."""
-    return len(Dataset.open(root).completed()) if (root / "metadata.json").exists() else 0
+    """The points a running sweep has recorded so far into the dataset at ``root`` (0 while it is not a dataset:
+    before it exists, and while a sweep replaces an empty one left by an interrupted run, whose metadata can vanish
+    between a check for it and its read)."""
+    try:
+        return len(Dataset.open(root).completed())
+    except ConfigError:
+        return 0
