@@ -32,6 +32,11 @@ STEP = 1e-4  # finite-difference step in the sampling coordinates (logs: relativ
 NEWTON_STEPS = 20
 GRID_SPACING = 0.5  # in ln τ: the conditional moves smoothly over a factor 1.65
 SCALE_RANGE = (0.001, 0.997)  # the prior quantiles of τ the grid spans; beyond, the end's coordinates are kept
+MARGINAL_CELLS = 300  # cells of the independence proposal's piecewise-constant density of v
+# ...spanning the grid and beyond it, down to τ e⁻⁸ smaller (below the data's resolution the likelihood is flat and
+# p(v) ∝ e^v: a walker beyond the proposal's support could never leave by this move) and e¹ larger
+MARGINAL_BEYOND = (8.0, 1.0)
+PROPOSAL_SPREAD = 1.2  # the independence proposal's z: N(0, PROPOSAL_SPREAD² I), wider than the Laplace's N(0, I)
 
 
 def laplace_covariance(log_density: LogDensity, theta: np.ndarray) -> np.ndarray | None:
@@ -196,3 +201,57 @@ class ScaleConditioned:
         with np.errstate(invalid="ignore"):
             out = self.log_u(u) + log_jacobian
         return np.where(np.isnan(out), -np.inf, out)
+
+
+class MarginalProposal:
+    """An independence Metropolis–Hastings proposal in a `ScaleConditioned`'s coordinates w (Tierney, Ann. Statist.
+    22, 1701–1762, 1994, §2.3.3), callable as `emcee.moves.MHMove`'s proposal function: v from the Laplace
+    approximation of its marginal and z ~ N(0, s² I) (s = `PROPOSAL_SPREAD`), whatever the walker's position.
+    Where every conditional is Gaussian, p(v, z) = p(v, 0) exp(−|z|²/2) exactly, so the marginal of v is ∝ p(v, 0):
+    it is tabulated on `MARGINAL_CELLS` cells (`MARGINAL_BEYOND`) and drawn as a piecewise-constant density. The
+    move's acceptance ratio carries ln q(w) − ln q(w′), so it leaves the posterior invariant however good the
+    approximation is; a good one moves a walker across τ's whole range in one step, where ensemble moves diffuse.
+
+    >>> from uwlab.experiments.calibration.laplace import MarginalProposal, ScaleConditioned
+    >>> def funnel(u):  # Neal's funnel in u = (s, x): ln s ~ N(0, 1.5²), x | s ~ N(0, s²)
+    ...     s, x = u[:, 0], u[:, 1]
+    ...     return -0.5 * (np.log(s) / 1.5) ** 2 - 2 * np.log(s) - 0.5 * (x / s) ** 2
+    >>> proposal = MarginalProposal(ScaleConditioned.around(funnel, np.array([1.0, 0.0]), 0, (0.01, 100.0)))
+    >>> v = proposal.draw(100_000, np.random.RandomState(0))[:, 0]
+    >>> abs(float(v.mean())) < 0.02, round(float(v.std()), 1)
+    (True, 1.5)
+    """
+
+    def __init__(self, coordinates: ScaleConditioned):
+        self.index, self.others = coordinates.index, coordinates.others
+        grid = coordinates.grid
+        self.edges = np.linspace(grid[0] - MARGINAL_BEYOND[0], grid[-1] + MARGINAL_BEYOND[1], MARGINAL_CELLS + 1)
+        centres = np.zeros((MARGINAL_CELLS, self.others.size + 1))
+        centres[:, self.index] = 0.5 * (self.edges[1:] + self.edges[:-1])
+        log_mass = coordinates.log_w(centres)
+        mass = np.exp(log_mass - np.max(log_mass))
+        self.mass = mass / mass.sum()
+        with np.errstate(divide="ignore"):
+            self.log_density = np.log(self.mass / np.diff(self.edges))  # −inf in cells of no mass, never proposed
+
+    def log_q(self, w: np.ndarray) -> np.ndarray:
+        """ln q(w) for rows w (−inf outside the tabulated range of v)."""
+        v = w[:, self.index]
+        cell = np.clip(np.searchsorted(self.edges, v) - 1, 0, MARGINAL_CELLS - 1)
+        inside = (v >= self.edges[0]) & (v <= self.edges[-1])
+        z = w[:, self.others] / PROPOSAL_SPREAD
+        gauss = -0.5 * (z**2).sum(axis=1) - self.others.size * np.log(PROPOSAL_SPREAD * np.sqrt(2 * np.pi))
+        return np.where(inside, self.log_density[cell], -np.inf) + gauss
+
+    def draw(self, n: int, random: np.random.RandomState) -> np.ndarray:
+        """n independent draws from q, rows of w."""
+        cell = random.choice(MARGINAL_CELLS, size=n, p=self.mass)
+        w = np.empty((n, self.others.size + 1))
+        w[:, self.index] = self.edges[cell] + random.uniform(size=n) * (self.edges[cell + 1] - self.edges[cell])
+        w[:, self.others] = PROPOSAL_SPREAD * random.standard_normal((n, self.others.size))
+        return w
+
+    def __call__(self, coords: np.ndarray, random: np.random.RandomState) -> tuple[np.ndarray, np.ndarray]:
+        """(proposals, ln q(w) − ln q(w′)) for the walkers at `coords` (`emcee.moves.MHMove`'s contract)."""
+        new = self.draw(coords.shape[0], random)
+        return new, self.log_q(coords) - self.log_q(new)
