@@ -110,6 +110,32 @@ def test_report_refuses_to_overwrite_and_fit_refuses_existing_output(demo, capsy
     assert "already holds a calibration" in capsys.readouterr().err
 
 
+def test_a_fit_that_fails_part_way_leaves_nothing_and_runs_again(demo, tmp_path, monkeypatch):
+    """The whole-data outputs are written while the folds run; when the folds then fail, they are removed, so the
+    same command runs again into the same folder (a folder with a calibration in it is refused)."""
+    from uwlab.errors import UwlabError
+    from uwlab.experiments.calibration import pipeline
+    from uwlab.experiments.calibration.output import OUTPUT_FILES
+
+    class FoldsFail:
+        @staticmethod
+        def of(folds):
+            assert (out / "corner.png").is_file()  # written meanwhile
+            raise UwlabError("a fold failed")
+
+    out = tmp_path / "fit"
+    quick = {"dataset_dir": demo / "dataset", "config_path": None, "out": out, "held_out": 2, "model": "paper"}
+    quick["sampler"] = {"max_steps": 1000, "chunk_steps": 500}
+    with monkeypatch.context() as patch:
+        patch.setattr(pipeline, "CrossValidation", FoldsFail)
+        with pytest.raises(UwlabError, match="a fold failed"):
+            pipeline.calibrate(**quick)
+    assert not [name for name in OUTPUT_FILES if (out / name).exists()]
+    calibration = pipeline.calibrate(**quick)
+    assert all((out / name).is_file() for name in OUTPUT_FILES)
+    assert len(calibration.summary["folds"]) == 2
+
+
 def test_fit_with_a_config_file_and_bad_configs(demo, tmp_path, capsys):
     out = tmp_path / "fit"
     assert (

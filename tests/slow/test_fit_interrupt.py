@@ -11,7 +11,7 @@ from uwlab.experiments.calibration.simulate import simulate_campaign
 TRUTH = {"light_efficiency": 0.8, "attenuation_scale": 1.2, "K_dn_per_e:imx250m": 0.36, "K_dn_per_e:icx285alm": 1.05}
 
 
-@pytest.mark.parametrize("interrupt_at_call", [800, 6100, 9000])  # the MAP search, then emcee (from ≈ 6000)
+@pytest.mark.parametrize("interrupt_at_call", [800, 6100, 9000])  # the start's MAP search, then emcee (from ≈ 2200)
 def test_an_interrupt_inside_the_sampler_is_one_keyboard_interrupt(monkeypatch, capsys, interrupt_at_call):
     points, rigs = simulate_campaign(TRUTH, seed=3)
     calls = [0]

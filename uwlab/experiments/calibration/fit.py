@@ -393,7 +393,7 @@ class FitResult:
     samples: np.ndarray  # (n_samples, n_params), burn-in discarded and thinned (emcee's slicing), step-major
     chain: np.ndarray  # (steps, walkers, params), full
     log_prob: np.ndarray  # (n_samples,)
-    map_start: np.ndarray  # θ at the mode the walkers started from, where `theta_map` is sought
+    map_start: np.ndarray  # where `theta_map` is sought from: the start's mode or the best sample, the higher
     tau: np.ndarray
     acceptance: float
     rhat: np.ndarray
@@ -569,12 +569,15 @@ def run_fit(model: ForwardModel, config: FitConfig, progress: Callable[[int, flo
     thin = max(1, int(0.5 * np.min(tau)))
     chain = post.to_theta(to_u(sampler.get_chain()))
     samples = post.to_theta(to_u(sampler.get_chain(discard=burn, thin=thin, flat=True)))
+    log_prob = post(samples)
+    start = post.to_theta(u_map)
+    best = int(np.argmax(log_prob))
     return FitResult(
         names=model.names,
         samples=samples,
         chain=chain,
-        log_prob=post(samples),
-        map_start=post.to_theta(u_map),
+        log_prob=log_prob,
+        map_start=samples[best] if log_prob[best] > post(start[None, :])[0] else start,
         tau=tau,
         acceptance=float(np.mean(sampler.acceptance_fraction)),
         rhat=split_rhat(chain[burn:]),

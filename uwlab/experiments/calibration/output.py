@@ -15,6 +15,7 @@ of `plot_corner`, `plot_traces` and `plot_response`, written with `PNG_OPTIONS`.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import corner
@@ -262,37 +263,60 @@ def _table(path: Path) -> pd.DataFrame:
     return pd.read_parquet(check_input_file(path, "fit", MAX_BINARY_BYTES, "Parquet"))
 
 
-def write_fit(
-    result: FitResult,
-    out: Path,
-    truth: dict | None = None,
-    extra: dict | None = None,
-    held_out: pd.DataFrame | None = None,
-) -> dict:
-    """Write every calibration output to `out` (refusing to overwrite); returns the summary. `held_out`: the
-    held-out predictions (`uwlab.experiments.calibration.validation.held_out_fold`), drawn in response.png and
-    written to heldout.parquet."""
+@dataclass(frozen=True)
+class PosteriorOutputs:
+    """What `write_posterior` wrote and `write_fit` draws on: the point predictions and the dense sweeps."""
+
+    predictions: pd.DataFrame
+    dense: pd.DataFrame
+
+
+def write_posterior(result: FitResult, out: Path, truth: dict | None = None) -> PosteriorOutputs:
+    """The outputs that need the whole-data fit alone — samples.parquet, posterior.nc, predictions.parquet,
+    dense.parquet, corner.png, traces.png — into `out` (refusing to overwrite): `uwlab.experiments.calibration.
+    pipeline.calibrate` writes them while the held-out folds still run, `write_fit` the rest."""
     check_output_dir(out)
     out.mkdir(exist_ok=True)
-    summary = result.summary()
-    if truth:
-        for name, entry in summary["parameters"].items():
-            entry["truth"] = truth.get(name)
-    summary.update(extra or {})
-    summary["provenance"] = provenance()
     pd.DataFrame(result.samples, columns=list(result.names)).to_parquet(out / "samples.parquet", index=False)
     write_inference_data(result, out)
     predictions = point_predictions(result)
     dense = dense_sweeps(result)
     predictions.to_parquet(out / "predictions.parquet", index=False)
     dense.to_parquet(out / "dense.parquet", index=False)
-    figures = {
-        "corner": plot_corner(result.samples, result.names, truth),
-        "traces": plot_traces(result),
-        "response": plot_response(predictions, dense, held_out),
-    }
+    figures = {"corner": plot_corner(result.samples, result.names, truth), "traces": plot_traces(result)}
     for name, fig in figures.items():
         save_figure(fig, out / f"{name}.png", **PNG_OPTIONS[name])
+    return PosteriorOutputs(predictions, dense)
+
+
+def remove_outputs(out: Path) -> None:
+    """Remove every calibration output from `out`: after a calibration that failed part-way, whose output folder
+    held none when it started (`check_output_dir`), so that it can be run again."""
+    for name in OUTPUT_FILES:
+        (out / name).unlink(missing_ok=True)
+
+
+def write_fit(
+    result: FitResult,
+    out: Path,
+    truth: dict | None = None,
+    extra: dict | None = None,
+    held_out: pd.DataFrame | None = None,
+    posterior: PosteriorOutputs | None = None,
+) -> dict:
+    """Write every calibration output to `out` (refusing to overwrite); returns the summary. `held_out`: the
+    held-out predictions (`uwlab.experiments.calibration.validation.held_out_fold`), drawn in response.png and
+    written to heldout.parquet; `posterior`: what `write_posterior` has written already (None: written here)."""
+    if posterior is None:
+        posterior = write_posterior(result, out, truth)
+    summary = result.summary()
+    if truth:
+        for name, entry in summary["parameters"].items():
+            entry["truth"] = truth.get(name)
+    summary.update(extra or {})
+    summary["provenance"] = provenance()
+    response = plot_response(posterior.predictions, posterior.dense, held_out)
+    save_figure(response, out / "response.png", **PNG_OPTIONS["response"])
     if held_out is not None:
         held_out.to_parquet(out / "heldout.parquet", index=False)
     (out / "summary.json").write_text(dumps(summary, indent=2) + "\n")

@@ -11,12 +11,15 @@ score, `uwlab.experiments.calibration.validation.band_sharpness`), the verdict `
 ``checks`` and, when the model fails, the failing checks and likely causes in ``warnings``
 (`uwlab.experiments.calibration.adequacy`), the spectra comparison and, per parameter, the simulated ground truth.
 The held-out folds (by default one per configuration) run beside the whole-data fit, in worker processes or on a
-Dask cluster (`uwlab.experiments.calibration.parallel`).
+Dask cluster (`uwlab.experiments.calibration.parallel`), and so does the writing of what needs the whole-data fit
+alone (`uwlab.experiments.calibration.output.write_posterior`); a calibration that fails part-way removes what it
+wrote.
 """
 
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -35,7 +38,13 @@ from uwlab.experiments.calibration.fit import (
     load_fit_config,
 )
 from uwlab.experiments.calibration.forward import MODELS, characterised_sensor, relative_flux
-from uwlab.experiments.calibration.output import check_output_dir, write_fit
+from uwlab.experiments.calibration.output import (
+    PosteriorOutputs,
+    check_output_dir,
+    remove_outputs,
+    write_fit,
+    write_posterior,
+)
 from uwlab.experiments.calibration.parallel import FoldJob, folds_in_background
 from uwlab.experiments.calibration.validation import (
     CrossValidation,
@@ -155,17 +164,21 @@ def assess(
     progress=None,
     workers: int | None = None,
     dask: str | None = None,
+    meanwhile: Callable[[FitResult], object] | None = None,
 ) -> Assessment:
     """Fit the points with the chain `model`, check every configuration, predict each held-out fold from a fit of
     the others, and judge the model (`uwlab.experiments.calibration.adequacy`). The folds run meanwhile on
     `workers` processes (None: one per core) or on the Dask cluster at `dask`
-    (`uwlab.experiments.calibration.parallel`)."""
+    (`uwlab.experiments.calibration.parallel`), and so does `meanwhile` (given the whole-data fit) once the fit is
+    done."""
     job = FoldJob(points, rigs, config, model, config.sampler.seed, tuple((i, tuple(f)) for i, f in enumerate(folds)))
     with folds_in_background(job, workers, dask) as held_out:
         result = fit_points(points, rigs, config, progress=progress, kind=model)
         # what needs the whole-data fit alone is done while the folds still run: the checks and the MAP search
         ppc = posterior_predictive_checks(result)
         result.theta_map  # noqa: B018 (computed now, kept for the summary)
+        if meanwhile is not None:
+            meanwhile(result)
         cross = CrossValidation.of(held_out())
     return Assessment(result, ppc, cross, verdict(result, ppc, cross))
 
@@ -265,32 +278,43 @@ def calibrate(
         config = config.model_copy(update={"holdout": Holdout(folds=check(Folds, held_out, "--held-out"))})
     sweeps = list(dict.fromkeys(points.loc[~points["saturated"].astype(bool), "sweep_id"]))
     folds = held_out_folds(sweeps, config, train_sweeps)
-    assessment = assess(points, rigs, config, folds, model, progress, dask=dask)
-    result, cross = assessment.result, assessment.cross
-    truth = truth_from_metadata(metadata, points, result.names)
-    predicted = predicted_spectra(result)
-    measured = dataset.spectra()
-    spectra_table = compare_spectra(predicted, measured)
-    extra = {
-        "dataset": str(Path(dataset_dir).resolve()),
-        "plan_sha256": metadata.get("plan_sha256"),
-        "world": world_of(metadata),
-        "sensors": sensor_descriptions(rigs, points),
-        "channel": channel or "combined",
-        **assessment.summary(),
-        "spectra": spectra_table.to_dict(orient="records"),
-        "sim": bool(metadata.get("sim")),
-    }
-    summary = write_fit(result, out, truth, extra, cross.points)
-    merged = (
-        predicted.merge(
-            measured.groupby(["sweep_id", "position", "wavelength_nm"], as_index=False)["irradiance_w_m2_nm"].mean(),
-            how="left",
-            on=["sweep_id", "position", "wavelength_nm"],
+    posterior: list[PosteriorOutputs] = []
+
+    def write_early(result: FitResult) -> None:  # the whole-data outputs, on the core the folds leave
+        posterior.append(write_posterior(result, out, truth_from_metadata(metadata, points, result.names)))
+
+    try:
+        assessment = assess(points, rigs, config, folds, model, progress, dask=dask, meanwhile=write_early)
+        result, cross = assessment.result, assessment.cross
+        predicted = predicted_spectra(result)
+        measured = dataset.spectra()
+        spectra_table = compare_spectra(predicted, measured)
+        extra = {
+            "dataset": str(Path(dataset_dir).resolve()),
+            "plan_sha256": metadata.get("plan_sha256"),
+            "world": world_of(metadata),
+            "sensors": sensor_descriptions(rigs, points),
+            "channel": channel or "combined",
+            **assessment.summary(),
+            "spectra": spectra_table.to_dict(orient="records"),
+            "sim": bool(metadata.get("sim")),
+        }
+        truth = truth_from_metadata(metadata, points, result.names)
+        summary = write_fit(result, out, truth, extra, cross.points, posterior[0])
+        merged = (
+            predicted.merge(
+                measured.groupby(["sweep_id", "position", "wavelength_nm"], as_index=False)[
+                    "irradiance_w_m2_nm"
+                ].mean(),
+                how="left",
+                on=["sweep_id", "position", "wavelength_nm"],
+            )
+            if not measured.empty
+            else predicted.assign(irradiance_w_m2_nm=np.nan)
         )
-        if not measured.empty
-        else predicted.assign(irradiance_w_m2_nm=np.nan)
-    )
-    merged.to_parquet(out / "spectra.parquet", index=False)
-    (out / "cross.json").write_text(json.dumps(cross.table.to_dict(orient="records"), indent=2) + "\n")
+        merged.to_parquet(out / "spectra.parquet", index=False)
+        (out / "cross.json").write_text(json.dumps(cross.table.to_dict(orient="records"), indent=2) + "\n")
+    except BaseException:
+        remove_outputs(out)  # a calibration that fails part-way leaves its folder as it found it, free of outputs
+        raise
     return Calibration(summary, cross.table, spectra_table, out)
