@@ -94,11 +94,17 @@ def viky_at(frame_rate_hz: float, policy: Policy):
 
 
 def test_incomplete_buffers_are_discarded_counted_and_requeued(monkeypatch):
-    monkeypatch.setattr(gentl.Buffer, "is_complete", lambda buffer: buffer.frame_id % 3 != 0)
+    handed: set[int] = set()  # the frames the producer handed over (under load it drops some: no buffer queued)
+
+    def is_complete(buffer) -> bool:
+        handed.add(buffer.frame_id)
+        return buffer.frame_id % 3 != 0
+
+    monkeypatch.setattr(gentl.Buffer, "is_complete", is_complete)
     with viky_at(200.0, Policy(timeout_s=5.0)) as cam:
         frames = cam.acquire(12)
         assert all(f.frame_id % 3 for f in frames) and len({f.frame_id for f in frames}) == 12
-        assert cam.stats.discarded == frames[-1].frame_id // 3 - (frames[0].frame_id - 1) // 3
+        assert cam.stats.discarded == len([i for i in handed if i % 3 == 0]) > 0
         assert cam.transport.incomplete.count == cam.stats.discarded
         assert len(cam.acquire(12)) == 12  # the buffers went back to the pool: the stream did not run dry
 
