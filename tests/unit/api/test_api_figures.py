@@ -14,7 +14,7 @@ from matplotlib.figure import Figure
 import uwlab
 from uwlab.errors import ConfigError
 from uwlab.experiments.calibration.fit import FitConfig, default_config_for, fit_points
-from uwlab.experiments.calibration.output import PNG_OPTIONS, write_fit
+from uwlab.experiments.calibration.output import PNG_OPTIONS, plot_traces, write_fit
 from uwlab.experiments.calibration.simulate import simulate_campaign
 from uwlab.experiments.calibration.validation import point_predictions
 from uwlab.experiments.emva.plots import figure_names
@@ -97,3 +97,10 @@ def test_a_fits_figures_are_its_png_files(fit_dir):
     assert all(ax.get_ylabel() == "residual [%]" for ax in residuals[::3])  # the first of each row of three
     held = [c for ax in residuals for c in ax.collections if c.get_label() == "95 % band, predicted held out"]
     assert len(held) == sweeps  # heldout.parquet drawn again
+
+
+def test_each_trace_panel_names_its_parameter_above_it(fit_dir):
+    _, result, _ = fit_dir
+    axes = plot_traces(result).axes
+    assert [ax.get_title(loc="left") for ax in axes] == list(result.names)
+    assert all(ax.get_ylabel() == "" for ax in axes)  # long names as y-labels ran into their neighbours

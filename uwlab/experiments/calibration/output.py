@@ -84,14 +84,15 @@ def plot_corner(samples: np.ndarray, names: Sequence[str], truth: dict | None = 
 
 
 def plot_traces(result: FitResult) -> Figure:
-    """Every walker's position against the step, one panel per parameter (the whole chain, burn-in included)."""
+    """Every walker's position against the step, one panel per parameter (the whole chain, burn-in included), its
+    name above it (as a y-label the long names, ``lens_transmittance:30mm-F2.0``, ran into their neighbours)."""
     n = len(result.names)
     fig = Figure(figsize=(8, 1.6 * n))
     axes = fig.subplots(n, 1, sharex=True)
     axes = np.atleast_1d(axes)
     for i, ax in enumerate(axes):
         ax.plot(result.chain[:, :, i], color="k", alpha=0.15, linewidth=0.5)
-        ax.set_ylabel(result.names[i], fontsize=TICK_PT)
+        ax.set_title(result.names[i], loc="left", fontsize=TICK_PT)
         ax.tick_params(labelsize=TICK_PT)
     axes[-1].set_xlabel("step")
     fig.suptitle(f"walker traces (τ max {np.max(result.tau):.0f} steps, {result.steps} steps)")
