@@ -573,14 +573,14 @@ def run_fit(model: ForwardModel, config: FitConfig, progress: Callable[[int, flo
     chain = post.to_theta(to_u(sampler.get_chain()))
     samples = post.to_theta(to_u(sampler.get_chain(discard=burn, thin=thin, flat=True)))
     log_prob = post(samples)
-    start = post.to_theta(u_map)
+    mode = post.to_theta(u_map)
     best = int(np.argmax(log_prob))
     return FitResult(
         names=model.names,
         samples=samples,
         chain=chain,
         log_prob=log_prob,
-        map_start=samples[best] if log_prob[best] > post(start[None, :])[0] else start,
+        map_start=samples[best] if log_prob[best] > post(mode[None, :])[0] else mode,
         tau=tau,
         acceptance=float(np.mean(sampler.acceptance_fraction)),
         rhat=split_rhat(chain[burn:]),

@@ -278,10 +278,11 @@ def calibrate(
         config = config.model_copy(update={"holdout": Holdout(folds=check(Folds, held_out, "--held-out"))})
     sweeps = list(dict.fromkeys(points.loc[~points["saturated"].astype(bool), "sweep_id"]))
     folds = held_out_folds(sweeps, config, train_sweeps)
-    posterior: list[PosteriorOutputs] = []
+    early: list[tuple[PosteriorOutputs, dict]] = []
 
     def write_early(result: FitResult) -> None:  # the whole-data outputs, on the core the folds leave
-        posterior.append(write_posterior(result, out, truth_from_metadata(metadata, points, result.names)))
+        truth = truth_from_metadata(metadata, points, result.names)
+        early.append((write_posterior(result, out, truth), truth))
 
     try:
         assessment = assess(points, rigs, config, folds, model, progress, dask=dask, meanwhile=write_early)
@@ -299,8 +300,8 @@ def calibrate(
             "spectra": spectra_table.to_dict(orient="records"),
             "sim": bool(metadata.get("sim")),
         }
-        truth = truth_from_metadata(metadata, points, result.names)
-        summary = write_fit(result, out, truth, extra, cross.points, posterior[0])
+        posterior, truth = early[0]
+        summary = write_fit(result, out, truth, extra, cross.points, posterior)
         merged = (
             predicted.merge(
                 measured.groupby(["sweep_id", "position", "wavelength_nm"], as_index=False)[
