@@ -11,7 +11,9 @@ Lost devices (`DeviceLost`, which `Camera` answers by reconnecting): an Aravis d
 feature access or acquisition start — a device that stopped answering, or one that restarted and
 no longer recognises us as its controller (GigE Vision control channel privilege). When no
 buffer arrives in time, one register read and the controller status tell a silent or restarted
-device from a plain timeout. The register cache is disabled, so every read is a device read-back.
+device from a plain timeout, as it does when an acquisition start fails with any other error
+(`AravisTransport.start`). The register cache is disabled, so every read is a
+device read-back.
 
 Aravis's fake camera (``Fake_1``, ``src/arvfakeinterface.c``; a GenICam device in process whose image is a diagonal
 ramp scaled by its exposure and gain, ``src/arvfakecamera.c``) lives behind the ``Fake`` interface, which Aravis
@@ -201,6 +203,11 @@ class AravisTransport:
             raise self._error(f"cannot execute {name}", exc) from exc
 
     def start(self) -> None:
+        """Create the stream and start acquiring. A device that went silent meanwhile is `DeviceLost`, whatever
+        error Aravis gave: stream creation reads registers with their errors ignored (the stream channel count,
+        the packet size: ``arv_gv_device_create_stream``, src/arvgvdevice.c; ``arv_gv_stream_new``,
+        src/arvgvstream.c), so a silent camera fails it as "No stream channel found" or "Invalid packet size".
+        Any error but a lost device's is therefore followed by one register read (`_check_alive`)."""
         try:
             payload = self._camera.get_payload()
             stream = self._stream = self._camera.create_stream(None, None)
@@ -209,6 +216,8 @@ class AravisTransport:
             self._camera.start_acquisition()
         except GLib.Error as exc:
             self._stream = None
+            if not _is_device_error(exc, LOST_CODES):
+                self._check_alive()
             raise self._error("cannot start acquisition", exc) from exc
 
     def stop(self) -> None:
