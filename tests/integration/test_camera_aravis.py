@@ -119,6 +119,21 @@ def test_incomplete_frames_are_discarded_and_reacquired():
         srv.stop()
 
 
+def test_a_camera_losing_a_packet_of_every_frame_fails_on_the_discard_limit_saying_why():
+    srv = Server("--incomplete-every", "1")
+    try:
+        with open_camera("aravis", srv.address, policy=Policy(timeout_s=10.0, max_discarded_in_row=5)) as cam:
+            cam.set_roi(0, 0, 256, 128)
+            with pytest.raises(
+                DeviceError,
+                match=r"6 incomplete frames in a row \(the last: Aravis buffer status (timeout|missing-packets)\)$",
+            ):
+                cam.acquire(1)
+            assert cam.stats.discarded == 6 and cam.stats.delivered == 0
+    finally:
+        srv.stop()
+
+
 def test_server_stopped_mid_stream_gives_bounded_reconnect_then_error():
     srv = Server()
     try:

@@ -241,9 +241,10 @@ class AravisTransport:
             self._stream.push_buffer(buf)
 
     def _raw(self, buf: Any) -> RawFrame:
-        complete = buf.get_status() == Aravis.BufferStatus.SUCCESS
-        if not complete:
-            return RawFrame(int(buf.get_frame_id()), int(buf.get_timestamp()), 0, 0, "Mono8", b"", complete=False)
+        status = buf.get_status()
+        if status != Aravis.BufferStatus.SUCCESS:  # its nick: missing-packets, size-mismatch, timeout, ...
+            problem = f"Aravis buffer status {status.value_nick}"
+            return RawFrame(int(buf.get_frame_id()), int(buf.get_timestamp()), 0, 0, "Mono8", b"", False, problem)
         fmt = pixel_format(int(buf.get_image_pixel_format()))
         return RawFrame(
             int(buf.get_frame_id()),

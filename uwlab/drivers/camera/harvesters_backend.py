@@ -263,7 +263,7 @@ class HarvestersTransport:
                 with buffer:
                     return raw_frame(buffer)
             if self.incomplete.count > discarded:
-                return RawFrame(-1, time.time_ns(), 0, 0, "Mono8", b"", complete=False)
+                return RawFrame(-1, time.time_ns(), 0, 0, "Mono8", b"", False, "a GenTL buffer not complete")
         raise FrameTimeout(f"harvesters: no buffer within {timeout_s:g} s")
 
     def reconnect(self) -> None:

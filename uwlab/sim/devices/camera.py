@@ -613,7 +613,8 @@ class SimTransport:
         complete = not (self.faults.incomplete_every and self._frame_id % self.faults.incomplete_every == 0)
         if not complete:
             data = data.reshape(-1)[: data.size // 2]
-        return RawFrame(self._frame_id, ts, cfg.width, cfg.height, cfg.pixel_format, data, complete)
+        problem = "" if complete else "half its payload (fault injection)"
+        return RawFrame(self._frame_id, ts, cfg.width, cfg.height, cfg.pixel_format, data, complete, problem)
 
     def reconnect(self) -> None:
         if self._closed:
