@@ -116,6 +116,14 @@ def test_incomplete_frames_are_discarded_counted_and_reacquired():
         assert cam.stats.discarded == 4 and cam.stats.delivered == 10
 
 
+def test_only_incomplete_frames_fail_on_the_discard_limit_naming_the_last_ones_problem():
+    sensor = SimSensor(TRUTH, flat_rate_map(1e5), seed=0)
+    with open_camera("sim", sensor=sensor, faults=SimFaults(incomplete_every=1), policy=Policy(timeout_s=30.0)) as cam:
+        with pytest.raises(DeviceError, match=r"^\S+: 21 incomplete frames in a row \(the last: half its payload "):
+            cam.acquire(1)
+        assert cam.stats.discarded == 21 and cam.stats.delivered == 0
+
+
 def test_acquisition_timeout_is_a_device_error():
     with sim_camera(SimFaults(timeout_after=2)) as cam:
         with pytest.raises(DeviceError, match="acquisition timeout"):

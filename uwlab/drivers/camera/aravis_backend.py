@@ -12,8 +12,7 @@ feature access or acquisition start — a device that stopped answering, or one 
 no longer recognises us as its controller (GigE Vision control channel privilege). When no
 buffer arrives in time, one register read and the controller status tell a silent or restarted
 device from a plain timeout, as it does when an acquisition start fails with any other error
-(`AravisTransport.start`). The register cache is disabled, so every read is a
-device read-back.
+(`AravisTransport.start`). The register cache is disabled, so every read is a device read-back.
 
 Aravis's fake camera (``Fake_1``, ``src/arvfakeinterface.c``; a GenICam device in process whose image is a diagonal
 ramp scaled by its exposure and gain, ``src/arvfakecamera.c``) lives behind the ``Fake`` interface, which Aravis
