@@ -243,7 +243,7 @@ class AravisTransport:
         status = buf.get_status()
         if status != Aravis.BufferStatus.SUCCESS:  # its nick: missing-packets, size-mismatch, timeout, ...
             problem = f"Aravis buffer status {status.value_nick}"
-            return RawFrame(int(buf.get_frame_id()), int(buf.get_timestamp()), 0, 0, "Mono8", b"", False, problem)
+            return RawFrame(int(buf.get_frame_id()), int(buf.get_timestamp()), 0, 0, "Mono8", b"", problem)
         fmt = pixel_format(int(buf.get_image_pixel_format()))
         return RawFrame(
             int(buf.get_frame_id()),

@@ -45,6 +45,7 @@ except ImportError as exc:  # the caller reports the backend as unavailable
 
 ENV_VAR = "GENICAM_GENTL64_PATH"
 POLL_S = 0.05
+INCOMPLETE = "a GenTL buffer not complete"  # RawFrame.problem: GenTL says no more than that
 LOST_ERRORS = (
     gentl.IoException,
     gentl.InvalidHandleException,
@@ -157,7 +158,7 @@ def raw_frame(buffer: Any) -> RawFrame:
         height,
         str(component.data_format),
         data,
-        complete=bool(module.is_complete()),
+        "" if module.is_complete() else INCOMPLETE,
     )
 
 
@@ -263,7 +264,7 @@ class HarvestersTransport:
                 with buffer:
                     return raw_frame(buffer)
             if self.incomplete.count > discarded:
-                return RawFrame(-1, time.time_ns(), 0, 0, "Mono8", b"", False, "a GenTL buffer not complete")
+                return RawFrame(-1, time.time_ns(), 0, 0, "Mono8", b"", INCOMPLETE)
         raise FrameTimeout(f"harvesters: no buffer within {timeout_s:g} s")
 
     def reconnect(self) -> None:

@@ -47,9 +47,8 @@ class DeviceLost(DeviceError):
 
 @dataclass(frozen=True)
 class RawFrame:
-    """A buffer as delivered by a transport, before decoding. ``complete`` is False for frames
-    with missing packets or a size mismatch (``problem`` says which, as the transport reports it); `Camera`
-    discards those."""
+    """A buffer as delivered by a transport, before decoding. ``problem`` is what made it incomplete (missing
+    packets, a size mismatch, as the transport reports it; empty for a complete frame); `Camera` discards those."""
 
     frame_id: int
     timestamp_ns: int
@@ -57,8 +56,11 @@ class RawFrame:
     height: int
     pixel_format: str
     data: Any
-    complete: bool = True
     problem: str = ""
+
+    @property
+    def complete(self) -> bool:
+        return not self.problem
 
 
 class Transport(Protocol):
@@ -611,8 +613,8 @@ class Camera:
             self._state.stats.discarded += 1
             in_row += 1
             if in_row > self.policy.max_discarded_in_row:
-                last = f" (the last: {raw.problem})" if raw.problem else ""
-                raise DeviceError(f"{self.info.device_id}: {in_row} incomplete frames in a row{last}")
+                last = f"the last: {raw.problem}"
+                raise DeviceError(f"{self.info.device_id}: {in_row} incomplete frames in a row ({last})")
 
     def _fetch_one(self, deadline: float, discarded: int) -> RawFrame:
         remaining = deadline - time.monotonic()

@@ -610,11 +610,10 @@ class SimTransport:
         ts = self._next_ts
         self._next_ts += int(self.nodes.frame_period_s() * 1e9)
         self.nodes.run_auto_modes()
-        complete = not (self.faults.incomplete_every and self._frame_id % self.faults.incomplete_every == 0)
-        if not complete:
-            data = data.reshape(-1)[: data.size // 2]
-        problem = "" if complete else "half its payload (fault injection)"
-        return RawFrame(self._frame_id, ts, cfg.width, cfg.height, cfg.pixel_format, data, complete, problem)
+        problem = ""
+        if self.faults.incomplete_every and self._frame_id % self.faults.incomplete_every == 0:
+            data, problem = data.reshape(-1)[: data.size // 2], "half its payload (fault injection)"
+        return RawFrame(self._frame_id, ts, cfg.width, cfg.height, cfg.pixel_format, data, problem)
 
     def reconnect(self) -> None:
         if self._closed:
