@@ -37,6 +37,7 @@ draws exact Poisson electrons (slow; for small ROIs and low-signal tests).
 
 from __future__ import annotations
 
+import functools
 import time
 import zlib
 from collections.abc import Callable
@@ -53,6 +54,33 @@ NOISE_BANK_MARGIN = 1 << 20
 # The brightest 1 % of the scene at half the saturation capacity: where a camera's continuous auto-exposure settles
 # (assumed: vendors' targets vary; this one keeps the highlights unclipped).
 AUTO_EXPOSURE_FILL = 0.5
+
+
+@functools.lru_cache(maxsize=2)
+def _fixed_pattern(
+    resolution_px: tuple[int, int],
+    dsnu_e: float,
+    prnu_percent: float,
+    hot_pixel_fraction: float,
+    hot_pixel_dark_current_e_per_s: float,
+    dark_current_e_per_s: float,
+    seed: int,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """A sensor's fixed pattern drawn from `seed`, read-only: its DSNU [e⁻] and PRNU (gain factor) maps, and its
+    dark-current map [e⁻/s] where it has hot pixels (else None). The last two are kept: the simulated rig opens a
+    camera again for each of its sweeps, with the same seed, and a full sensor's maps take ~0.1 s to draw."""
+    width, height = resolution_px
+    rng = np.random.default_rng(seed)
+    dsnu = rng.standard_normal((height, width), np.float32) * np.float32(dsnu_e)
+    prnu = 1.0 + rng.standard_normal((height, width), np.float32) * np.float32(prnu_percent / 100.0)
+    dark = None
+    if hot_pixel_fraction > 0:
+        hot = np.random.default_rng(seed + 2).random((height, width)) < hot_pixel_fraction
+        dark = np.where(hot, hot_pixel_dark_current_e_per_s, dark_current_e_per_s).astype(np.float32)
+    for array in (dsnu, prnu, dark):
+        if array is not None:
+            array.flags.writeable = False
+    return dsnu, prnu, dark
 
 
 @dataclass(frozen=True)
@@ -156,16 +184,15 @@ class SimSensor:
         self.truth = truth
         self.light_fraction = light_fraction
         self.shot_noise = shot_noise
-        width, height = truth.resolution_px
-        rng = np.random.default_rng(seed)
-        self.dsnu_map_e = rng.standard_normal((height, width), np.float32) * np.float32(truth.dsnu_e)
-        self.prnu_map = 1.0 + rng.standard_normal((height, width), np.float32) * np.float32(truth.prnu_percent / 100.0)
-        self.dark_current_map = None
-        if truth.hot_pixel_fraction > 0:
-            hot = np.random.default_rng(seed + 2).random((height, width)) < truth.hot_pixel_fraction
-            self.dark_current_map = np.where(
-                hot, truth.hot_pixel_dark_current_e_per_s, truth.dark_current_e_per_s
-            ).astype(np.float32)
+        self.dsnu_map_e, self.prnu_map, self.dark_current_map = _fixed_pattern(
+            truth.resolution_px,
+            truth.dsnu_e,
+            truth.prnu_percent,
+            truth.hot_pixel_fraction,
+            truth.hot_pixel_dark_current_e_per_s,
+            truth.dark_current_e_per_s,
+            seed,
+        )
         self._rng = np.random.default_rng(seed + 1)
         self._bank = np.empty(0, np.float32)
         self._work = np.empty((0, 0), np.float32)
@@ -200,7 +227,7 @@ class SimSensor:
     def electrons(self, cfg: SensorConfig, fraction: float) -> tuple[np.ndarray, np.ndarray]:
         """Mean electrons and temporal variance [e-²] per output pixel (before clipping)."""
         t = cfg.exposure_us * 1e-6
-        photo = self._binned(self.rate_e_per_s * self.prnu_map, cfg) * np.float32(t * fraction)
+        photo = self._binned(self.rate_e_per_s, cfg, self.prnu_map) * np.float32(t * fraction)
         dark = self._dark_electrons(cfg, t)
         mean = photo + dark + self._binned(self.dsnu_map_e, cfg)
         var = photo + dark + np.float32(self.truth.dark_noise_e**2)
@@ -226,10 +253,13 @@ class SimSensor:
             native = self._render_gaussian(cfg, fraction)
         return self._to_format(native, pixel_format(cfg.pixel_format))
 
-    def _binned(self, full: np.ndarray, cfg: SensorConfig) -> np.ndarray:
+    def _binned(self, full: np.ndarray, cfg: SensorConfig, times: np.ndarray | None = None) -> np.ndarray:
+        """The window's output pixels of a full-sensor map (its sensor pixels summed over the binning), of the
+        product with `times` (another full-sensor map) when given: only the window's pixels are multiplied."""
         bh, bv = cfg.binning_h, cfg.binning_v
         x0, y0 = cfg.offset_x * bh, cfg.offset_y * bv
-        region = full[y0 : y0 + cfg.height * bv, x0 : x0 + cfg.width * bh]
+        window = np.s_[y0 : y0 + cfg.height * bv, x0 : x0 + cfg.width * bh]
+        region = full[window] if times is None else full[window] * times[window]
         if bh == bv == 1:
             return region
         return region.reshape(cfg.height, bv, cfg.width, bh).sum(axis=(1, 3), dtype=np.float32)
@@ -270,7 +300,7 @@ class SimSensor:
 
     def _render_poisson(self, cfg: SensorConfig, fraction: float) -> np.ndarray:
         t = cfg.exposure_us * 1e-6
-        poisson_mean = self._binned(self.rate_e_per_s * self.prnu_map, cfg) * (t * fraction)
+        poisson_mean = self._binned(self.rate_e_per_s, cfg, self.prnu_map) * (t * fraction)
         poisson_mean = poisson_mean + self._dark_electrons(cfg, t)
         electrons = self._rng.poisson(np.maximum(poisson_mean, 0.0)).astype(np.float32)
         electrons += self._binned(self.dsnu_map_e, cfg)
