@@ -385,14 +385,17 @@ _REUSED: ContextVar[dict | None] = ContextVar("reused_configurations", default=N
 
 
 @contextmanager
-def reused_configurations() -> Iterator[None]:
+def reused_configurations(evaluated: dict | None = None) -> Iterator[dict]:
     """Within the block, `build_forward_model` evaluates each configuration's chain (its design, nominal ROI rate
     and G(S_GRID): the costly part of a build) once and reuses it for every model that has the configuration, as
-    the fits of a calibration's held-out folds do. The rigs' files are not read again meanwhile: the block is one
-    job's (`uwlab.experiments.calibration.parallel.run_folds`)."""
-    token = _REUSED.set({})
+    the whole-data fit and the fits of a calibration's held-out folds do. Yields the store, which starts as a copy
+    of `evaluated` (a store filled elsewhere, picklable: the whole-data fit's, sent to the folds' workers). The
+    rigs' files are not read again meanwhile: the block is one calibration's
+    (`uwlab.experiments.calibration.pipeline.assess`, `uwlab.experiments.calibration.parallel.run_folds`)."""
+    store = dict(evaluated or {})
+    token = _REUSED.set(store)
     try:
-        yield
+        yield store
     finally:
         _REUSED.reset(token)
 

@@ -24,7 +24,7 @@ import pandas as pd
 from matplotlib.ticker import FuncFormatter
 
 from uwlab.errors import UwlabError
-from uwlab.experiments.figures import LABEL_PT, PALETTE, TICK_PT, Figure, log_ticks, save_figure
+from uwlab.experiments.figures import LABEL_PT, PALETTE, TICK_PT, DrawnOnDemand, Figure, log_ticks, save_figure
 from uwlab.experiments.calibration.fit import FitResult
 from uwlab.experiments.calibration.inference import POSTERIOR_NAME, write_inference_data
 from uwlab.experiments.calibration.validation import dense_sweeps, point_predictions
@@ -240,23 +240,28 @@ def _residuals(ax, pts: pd.DataFrame, held_out: pd.DataFrame | None) -> None:
     ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _: f"{v:+.3g}" if v else "0"))
 
 
-def fit_dir_figures(fit_dir: Path) -> dict[str, Figure]:
-    """The figures of a written calibration drawn again from its files, by name: ``corner`` (from
-    ``samples.parquet`` and the truth in ``summary.json``) and ``response`` (from ``predictions.parquet``,
-    ``dense.parquet`` and ``heldout.parquet``) — with `PNG_OPTIONS`, the very ``corner.png`` and ``response.png``.
-    The traces are not among them: a fit directory keeps the samples after burn-in, not the whole chain."""
-    summary = read_json(fit_dir / "summary.json", "fit")
-    samples = _table(fit_dir / "samples.parquet")
-    truth = {name: p["truth"] for name, p in summary["parameters"].items() if "truth" in p}
-    held_out = fit_dir / "heldout.parquet"
-    return {
-        "corner": plot_corner(samples.to_numpy(), list(samples.columns), truth or None),
-        "response": plot_response(
+def fit_dir_figures(fit_dir: Path) -> DrawnOnDemand:
+    """The figures of a written calibration drawn again from its files, by name, each when first asked for:
+    ``corner`` (from ``samples.parquet`` and the truth in ``summary.json``) and ``response`` (from
+    ``predictions.parquet``, ``dense.parquet`` and ``heldout.parquet``) — with `PNG_OPTIONS`, the very ``corner.png``
+    and ``response.png``. The traces are not among them: a fit directory keeps the samples after burn-in, not the
+    whole chain."""
+
+    def corner_figure() -> Figure:
+        summary = read_json(fit_dir / "summary.json", "fit")
+        samples = _table(fit_dir / "samples.parquet")
+        truth = {name: p["truth"] for name, p in summary["parameters"].items() if "truth" in p}
+        return plot_corner(samples.to_numpy(), list(samples.columns), truth or None)
+
+    def response_figure() -> Figure:
+        held_out = fit_dir / "heldout.parquet"
+        return plot_response(
             _table(fit_dir / "predictions.parquet"),
             _table(fit_dir / "dense.parquet"),
             _table(held_out) if held_out.exists() else None,
-        ),
-    }
+        )
+
+    return DrawnOnDemand([("corner", corner_figure), ("response", response_figure)])
 
 
 def _table(path: Path) -> pd.DataFrame:

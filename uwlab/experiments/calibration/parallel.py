@@ -24,7 +24,7 @@ import sys
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import cast
 
 import pandas as pd
@@ -39,8 +39,9 @@ SINGLE_THREAD = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 
 @dataclass(frozen=True)
 class FoldJob:
-    """Folds to fit: the dataset's points and rigs, the fit config, the chain (`kind`), the prediction seed and
-    the folds as (number, held-out sweeps)."""
+    """Folds to fit: the dataset's points and rigs, the fit config, the chain (`kind`), the prediction seed, the
+    folds as (number, held-out sweeps) and the configurations' chains evaluated already (a `reused_configurations`
+    store: the whole-data fit's)."""
 
     points: pd.DataFrame
     rigs: dict
@@ -48,6 +49,7 @@ class FoldJob:
     kind: str | None
     seed: int
     folds: tuple[tuple[int, tuple[str, ...]], ...]
+    configurations: dict = field(default_factory=dict)
 
     def share(self, index: int, count: int) -> FoldJob:
         """Every `count`-th fold from the `index`-th."""
@@ -56,8 +58,9 @@ class FoldJob:
 
 def run_folds(job: FoldJob) -> list[HeldOutFold | None]:
     """Fit and predict the job's folds here, in order (`uwlab.experiments.calibration.validation.held_out_fold`),
-    each configuration's chain evaluated once for all of them (`reused_configurations`)."""
-    with reused_configurations():
+    each configuration's chain evaluated once for all of them, or not at all where the job carries it
+    (`reused_configurations`)."""
+    with reused_configurations(job.configurations):
         return [
             held_out_fold(job.points, job.rigs, job.config, list(fold), number, job.kind, seed=job.seed)
             for number, fold in job.folds

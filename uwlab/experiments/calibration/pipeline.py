@@ -37,7 +37,13 @@ from uwlab.experiments.calibration.fit import (
     fit_points,
     load_fit_config,
 )
-from uwlab.experiments.calibration.forward import MODELS, characterised_sensor, relative_flux
+from uwlab.experiments.calibration.forward import (
+    MODELS,
+    build_forward_model,
+    characterised_sensor,
+    relative_flux,
+    reused_configurations,
+)
 from uwlab.experiments.calibration.output import (
     PosteriorOutputs,
     check_output_dir,
@@ -170,16 +176,21 @@ def assess(
     the others, and judge the model (`uwlab.experiments.calibration.adequacy`). The folds run meanwhile on
     `workers` processes (None: one per core) or on the Dask cluster at `dask`
     (`uwlab.experiments.calibration.parallel`), and so does `meanwhile` (given the whole-data fit) once the fit is
-    done."""
-    job = FoldJob(points, rigs, config, model, config.sampler.seed, tuple((i, tuple(f)) for i, f in enumerate(folds)))
-    with folds_in_background(job, workers, dask) as held_out:
-        result = fit_points(points, rigs, config, progress=progress, kind=model)
-        # what needs the whole-data fit alone is done while the folds still run: the checks and the MAP search
-        ppc = posterior_predictive_checks(result)
-        result.theta_map  # noqa: B018 (computed now, kept for the summary)
-        if meanwhile is not None:
-            meanwhile(result)
-        cross = CrossValidation.of(held_out())
+    done. Each configuration's chain is evaluated once, here, for the fit and the folds (`reused_configurations`)."""
+    numbered = tuple((i, tuple(f)) for i, f in enumerate(folds))
+    with reused_configurations() as configurations:
+        unsaturated = points[~points["saturated"].astype(bool)]
+        if not unsaturated.empty:  # (fit_points refuses an empty table)
+            build_forward_model(unsaturated, rigs, config.names, kind=model)
+        job = FoldJob(points, rigs, config, model, config.sampler.seed, numbered, configurations)
+        with folds_in_background(job, workers, dask) as held_out:
+            result = fit_points(points, rigs, config, progress=progress, kind=model)
+            # what needs the whole-data fit alone is done while the folds still run: the checks and the MAP search
+            ppc = posterior_predictive_checks(result)
+            result.theta_map  # noqa: B018 (computed now, kept for the summary)
+            if meanwhile is not None:
+                meanwhile(result)
+            cross = CrossValidation.of(held_out())
     return Assessment(result, ppc, cross, verdict(result, ppc, cross))
 
 
