@@ -136,12 +136,13 @@ class Fit:
 
         return pd.DataFrame(self.summary.get("cross_configuration") or [])
 
-    def figures(self) -> dict[str, Figure]:
+    def figures(self) -> Mapping[str, Figure]:
         """The fit's figures as matplotlib Figures (a notebook shows each inline), drawn again from this
         directory: ``corner`` (the posterior's marginals, the simulated truth marked) and ``response`` (measured
         against predicted per configuration, residuals with the fitted and held-out 95 % bands) — the same figures
         as ``corner.png`` and ``response.png`` and the report. The walker traces need the whole chain, which is
-        kept only in ``traces.png``; ``arviz.plot_trace(fit.posterior)`` draws the kept samples."""
+        kept only in ``traces.png``; ``arviz.plot_trace(fit.posterior)`` draws the kept samples. Each figure is
+        drawn when first asked for (`uwlab.experiments.figures.DrawnOnDemand`)."""
         from uwlab.experiments.calibration.output import fit_dir_figures
 
         return fit_dir_figures(self.directory)

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 import tempfile
+from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -109,12 +110,13 @@ class EmvaResult:
 
         return str(results_xml(self.analysis))
 
-    def figures(self) -> dict[str, Figure]:
+    def figures(self) -> Mapping[str, Figure]:
         """The EMVA 1288 figures the data allow, by name, as matplotlib Figures (a notebook shows each inline):
         ``photon_transfer`` (the general model: ``characteristic``), ``snr``, ``linearity`` (linear model),
         ``stability``, ``dark_current``, then where measured ``dark_current_temperature``, ``spatial_variances``
         and the DSNU/PRNU spectrograms, profiles and histograms — the same figures as the datasheet and the
-        ``NAME.png`` files of `write` (`uwlab.experiments.emva.plots`)."""
+        ``NAME.png`` files of `write` (`uwlab.experiments.emva.plots`). Each is drawn when first asked for
+        (`uwlab.experiments.figures.DrawnOnDemand`)."""
         from uwlab.experiments.emva.plots import figures
 
         return figures(self.analysis)

@@ -17,6 +17,7 @@ from __future__ import annotations
 import base64
 import io
 import math
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from pathlib import Path
 
 import matplotlib.figure
@@ -27,6 +28,7 @@ __all__ = [
     "LABEL_PT",
     "PALETTE",
     "TICK_PT",
+    "DrawnOnDemand",
     "Figure",
     "figure_png",
     "log_ticks",
@@ -62,6 +64,37 @@ class Figure(matplotlib.figure.Figure):
 
     def _repr_png_(self) -> bytes:
         return figure_png(self, tight_bbox=True)
+
+
+class DrawnOnDemand(Mapping[str, Figure]):
+    """Figures by name, each drawn when it is first asked for and kept: what the API's ``figures()`` return, so that
+    a notebook cell showing one figure does not draw the others (a fit's corner plot takes ~2 s). A read-only
+    mapping; ``dict(figures)`` draws them all.
+
+    >>> figures = DrawnOnDemand([("empty", lambda: Figure(figsize=(1, 1)))])
+    >>> list(figures), figures
+    (['empty'], <figures: empty>)
+    >>> figures["empty"] is figures["empty"]
+    True
+    """
+
+    def __init__(self, makers: Iterable[tuple[str, Callable[[], Figure]]]):
+        self._makers = dict(makers)
+        self._drawn: dict[str, Figure] = {}
+
+    def __getitem__(self, name: str) -> Figure:
+        if name not in self._drawn:
+            self._drawn[name] = self._makers[name]()
+        return self._drawn[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._makers)
+
+    def __len__(self) -> int:
+        return len(self._makers)
+
+    def __repr__(self) -> str:
+        return f"<figures: {', '.join(self._makers)}>"
 
 
 def log_ticks(axis: Axis, max_labelled_decades: float = 3.0) -> None:

@@ -5,6 +5,7 @@ very PNG files)."""
 from __future__ import annotations
 
 import io
+import shutil
 
 import matplotlib.figure
 import numpy as np
@@ -104,3 +105,16 @@ def test_each_trace_panel_names_its_parameter_above_it(fit_dir):
     axes = plot_traces(result).axes
     assert [ax.get_title(loc="left") for ax in axes] == list(result.names)
     assert all(ax.get_ylabel() == "" for ax in axes)  # long names as y-labels ran into their neighbours
+
+
+def test_a_fits_figure_is_drawn_from_its_own_files_only_when_asked_for(fit_dir, tmp_path):
+    """Showing the response does not draw the corner: without the samples the corner needs, the response is drawn
+    and the corner fails only when asked for."""
+    out, _, _ = fit_dir
+    copy = tmp_path / "fit"
+    shutil.copytree(out, copy)
+    (copy / "samples.parquet").unlink()
+    figures = uwlab.Fit.open(copy).figures()
+    assert figure_png(figures["response"], **PNG_OPTIONS["response"]) == (out / "response.png").read_bytes()
+    with pytest.raises(ConfigError, match="samples.parquet"):
+        figures["corner"]

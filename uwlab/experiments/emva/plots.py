@@ -11,6 +11,7 @@ characterisation writes each as ``NAME.png`` and embeds the same PNGs (`figure_p
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable
 from typing import TypedDict
 
@@ -20,7 +21,7 @@ from uwlab.errors import ConfigError
 from uwlab.experiments.emva.analysis import EmvaResult
 from uwlab.experiments.frames.nonuniformity import ImageAnalysis
 from uwlab.experiments.emva.linear import total_snr_model
-from uwlab.experiments.figures import PALETTE, Figure, figure_png, log_ticks
+from uwlab.experiments.figures import PALETTE, DrawnOnDemand, Figure, figure_png, log_ticks
 from uwlab.model.sensor import snr
 
 FIGSIZE = (6.4, 4.2)
@@ -424,9 +425,9 @@ def figure_names(result: EmvaResult) -> list[str]:
     return [name for name, _ in figure_makers(result)]
 
 
-def figures(result: EmvaResult) -> dict[str, Figure]:
-    """Every figure of `figure_makers`, drawn, by name."""
-    return {name: make(result) for name, make in figure_makers(result)}
+def figures(result: EmvaResult) -> DrawnOnDemand:
+    """Every figure of `figure_makers` by name, each drawn when first asked for."""
+    return DrawnOnDemand((name, functools.partial(make, result)) for name, make in figure_makers(result))
 
 
 def figure_pngs(result: EmvaResult) -> dict[str, bytes]:
