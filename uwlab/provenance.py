@@ -51,7 +51,7 @@ def provenance() -> dict[str, Any]:
     """The record of this process's software and machine (module docstring), JSON-able:
     ``{"uwlab", "commit", "modified", "python", "packages", "blas": {"library", "version", "threads"}, "cpu",
     "cpus", "numpy_simd", "platform"}``."""
-    commit, modified = _commit()
+    commit, modified = _commit(Path(__file__).resolve().parent.parent)
     return {
         "uwlab": __version__,
         "commit": commit,
@@ -94,10 +94,10 @@ def provenance_line(record: dict[str, Any]) -> str:
 
 
 @functools.cache
-def _commit() -> tuple[str, bool | None]:
-    """(HEAD's commit, whether tracked files differ from it) of the git checkout uwlab is imported from; (UNKNOWN,
-    None) for an installed copy or without git. Once per process."""
-    root = Path(__file__).resolve().parent.parent
+def _commit(root: Path) -> tuple[str, bool | None]:
+    """(HEAD's commit, whether tracked files differ from it) of the git checkout at `root` (uwlab's: the one it is
+    imported from); (UNKNOWN, None) for an installed copy, without git or before the first commit. Once per
+    process."""
     if not (root / ".git").exists():
         return UNKNOWN, None
     environment = {k: v for k, v in os.environ.items() if not k.startswith("GIT_")}
@@ -107,12 +107,15 @@ def _commit() -> tuple[str, bool | None]:
             ["git", "-C", str(root), *args], capture_output=True, text=True, timeout=10, check=True, env=environment
         ).stdout.strip()
 
+    # One git call (each costs ~5 ms): "# branch.oid SHA" ("(initial)" before the first commit), a line per change.
     try:
-        commit = git("rev-parse", "HEAD")
-        modified = bool(git("status", "--porcelain", "--untracked-files=no"))
+        lines = git("status", "--porcelain=v2", "--branch", "--untracked-files=no").splitlines()
     except (OSError, subprocess.SubprocessError):
         return UNKNOWN, None
-    return commit or UNKNOWN, modified
+    commit = next((line.split()[2] for line in lines if line.startswith("# branch.oid ")), "(initial)")
+    if commit == "(initial)":
+        return UNKNOWN, None
+    return commit, any(not line.startswith("#") for line in lines)
 
 
 @functools.cache

@@ -12,7 +12,7 @@ import scipy
 
 import uwlab
 from uwlab.experiments.report import _dataset_made_with
-from uwlab.provenance import UNKNOWN, provenance, provenance_line
+from uwlab.provenance import UNKNOWN, _commit, provenance, provenance_line
 
 ROOT = Path(uwlab.__file__).resolve().parent.parent
 
@@ -32,6 +32,23 @@ def test_the_record_names_the_versions_python_and_the_cpu():
 def test_the_commit_is_the_checkouts_head():
     head = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "HEAD"], capture_output=True, text=True, check=True)
     assert provenance()["commit"] == head.stdout.strip()
+
+
+@pytest.mark.skipif(shutil.which("git") is None, reason="no git")
+def test_a_checkout_is_modified_by_a_change_to_a_tracked_file_only(tmp_path):
+    def git(*args: str) -> str:
+        return subprocess.run(["git", "-C", str(tmp_path), *args], capture_output=True, text=True, check=True).stdout
+
+    git("init", "-q")
+    assert _commit.__wrapped__(tmp_path) == (UNKNOWN, None)  # no commit yet
+    (tmp_path / "tracked.txt").write_text("a\n")
+    git("add", "tracked.txt")
+    git("-c", "user.name=t", "-c", "user.email=t@example.org", "commit", "-qm", "first")
+    head = git("rev-parse", "HEAD").strip()
+    (tmp_path / "untracked.txt").write_text("b\n")
+    assert _commit.__wrapped__(tmp_path) == (head, False)
+    (tmp_path / "tracked.txt").write_text("c\n")
+    assert _commit.__wrapped__(tmp_path) == (head, True)
 
 
 def test_the_blas_thread_count_follows_its_setting():

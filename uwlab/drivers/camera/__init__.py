@@ -9,8 +9,8 @@ same way.
 
 from __future__ import annotations
 
+import functools
 import importlib
-from importlib.metadata import entry_points
 from types import ModuleType
 from typing import Any
 
@@ -30,8 +30,24 @@ from uwlab.drivers.camera.interface import (
 from uwlab.errors import ConfigError, DeviceError
 
 ENTRY_POINT_GROUP = "uwlab.camera_backends"
-# Backend name -> module, in the order pyproject.toml declares them.
-BACKENDS = {ep.name: ep.value for ep in entry_points(group=ENTRY_POINT_GROUP)}
+
+
+@functools.cache
+def _backends() -> dict[str, str]:
+    """Backend name -> module, in the order pyproject.toml declares them: `BACKENDS`, read from the installed
+    distributions' entry points when first asked for (~15 ms, which a command that never opens a camera, such as
+    ``uwlab emva characterize``, need not pay)."""
+    from importlib.metadata import entry_points
+
+    return {ep.name: ep.value for ep in entry_points(group=ENTRY_POINT_GROUP)}
+
+
+def __getattr__(name: str) -> Any:
+    """``BACKENDS`` (`_backends`), read when first used."""
+    if name == "BACKENDS":
+        return _backends()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 __all__ = [
     "AcquisitionStats",
@@ -58,20 +74,21 @@ class BackendUnavailable(DeviceError):
 
 
 def backend_module(name: str) -> ModuleType:
-    if name not in BACKENDS:
-        raise ConfigError("backend", name, f"expected one of {', '.join(BACKENDS)}")
+    backends = _backends()
+    if name not in backends:
+        raise ConfigError("backend", name, f"expected one of {', '.join(backends)}")
     try:
-        module = importlib.import_module(BACKENDS[name])
+        module = importlib.import_module(backends[name])
     except ImportError as exc:
         raise BackendUnavailable(f"{name}: not installed ({exc})") from exc
     return module
 
 
-def discover(backends: tuple[str, ...] = tuple(BACKENDS), **options: Any) -> tuple[list[DeviceEntry], dict[str, str]]:
-    """Cameras on every backend, and ``{backend: reason}`` for backends that are unavailable."""
+def discover(backends: tuple[str, ...] | None = None, **options: Any) -> tuple[list[DeviceEntry], dict[str, str]]:
+    """Cameras on `backends` (None: every backend), and ``{backend: reason}`` for backends that are unavailable."""
     found: list[DeviceEntry] = []
     unavailable: dict[str, str] = {}
-    for name in backends:
+    for name in _backends() if backends is None else backends:
         try:
             found.extend(backend_module(name).discover(**options))
         except BackendUnavailable as exc:
