@@ -156,3 +156,27 @@ def test_grab_cli_over_aravis(server, capsys):
     assert {(f["width"], f["height"], f["pixel_format"], f["exposure_us"]) for f in doc["frames"]} == {
         (128, 64, "Mono16", 1500.0)
     }
+
+
+def test_a_stray_packet_aravis_cannot_make_a_frame_of_is_not_counted_as_a_frame():
+    """The twin opens a block in a stream format it never sends (H.264) before every frame: Aravis hands back an
+    unfilled buffer, status ``cleared``, for each (``_find_frame_data``, src/arvgvstream.c, 0.8.26), then the frame.
+    Those are no frames, incomplete or not: every frame arrives, none is discarded. (At 20 frames/s, so that Aravis
+    has a buffer free for each stray block.)"""
+    srv = Server("--stray-every", "1")
+    try:
+        with open_camera("aravis", srv.address, policy=Policy(timeout_s=5.0, max_discarded_in_row=3)) as cam:
+            cam.set_roi(0, 0, 64, 48)
+            cam.frame_rate_hz = 20.0
+            frames = cam.acquire(8)
+            assert len(frames) == 8 and cam.stats.discarded == 0
+            assert all(f.image.shape == (48, 64) for f in frames)
+    finally:
+        srv.stop()
+
+
+@pytest.mark.parametrize("flag", ["--incomplete-every", "--stray-every"])
+def test_a_negative_fault_period_is_one_line_naming_it(flag, capsys):
+    assert main(["sim", "camera", "--gige", flag, "-1"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and flag.lstrip("-") in err and "-1" in err

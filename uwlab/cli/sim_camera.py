@@ -40,6 +40,13 @@ def add_sim_camera_parser(sub) -> None:
         help="fault injection: lose one packet of every N-th frame for good",
     )
     p.add_argument(
+        "--stray-every",
+        type=int,
+        default=0,
+        metavar="N",
+        help="fault injection: before every N-th frame, a stray packet opening a block no host can make a frame of",
+    )
+    p.add_argument(
         "--json",
         action="store_true",
         help='print {"address", "gvcp_port", "gvsp_port", "device_id"} as one JSON line once ready',
@@ -60,8 +67,9 @@ def loopback_address(text: str) -> str:
 
 def run_sim_camera(args) -> int:
     address = loopback_address(args.address)
-    if args.incomplete_every < 0:
-        raise ConfigError("incomplete-every", args.incomplete_every, "must be >= 0")
+    for flag, value in (("incomplete-every", args.incomplete_every), ("stray-every", args.stray_every)):
+        if value < 0:
+            raise ConfigError(flag, value, "must be >= 0")
     check(Seed, args.seed, "--seed")
     if args.rig_state is not None and os.path.lexists(args.rig_state):  # a mistake shown now, not a dark image later
         check_input_file(args.rig_state, "--rig-state", MAX_JSON_BYTES, "light-state")
@@ -69,7 +77,7 @@ def run_sim_camera(args) -> int:
     stop = threading.Event()
     previous = signal.signal(signal.SIGTERM, lambda *_: stop.set())
     try:
-        with GigeCameraServer(sensor, address, faults=GigeFaults(args.incomplete_every)) as server:
+        with GigeCameraServer(sensor, address, faults=GigeFaults(args.incomplete_every, args.stray_every)) as server:
             info = {
                 "address": server.address,
                 "gvcp_port": GVCP_PORT,

@@ -228,12 +228,22 @@ class AravisTransport:
             self._stream = None
 
     def fetch(self, timeout_s: float) -> RawFrame:
+        """The next frame within `timeout_s`. A buffer Aravis hands back unfilled, status ``cleared``, is no frame
+        and is not one: Aravis pushes one out when the packet that opens a block does not let it size a frame (an
+        unknown payload or content type: ``_find_frame_data``, src/arvgvstream.c, 0.8.26), and it never began to
+        fill it. It goes back to the stream and the wait goes on."""
         if self._stream is None:
             raise FrameTimeout(f"aravis: {self.device_id}: not acquiring")
-        buf = self._stream.timeout_pop_buffer(max(int(timeout_s * 1e6), 1))
-        if buf is None:
-            self._check_alive()
-            raise FrameTimeout(f"aravis: {self.device_id}: no buffer within {timeout_s:g} s")
+        deadline = time.monotonic() + timeout_s
+        while True:
+            left_us = max(int((deadline - time.monotonic()) * 1e6), 1)
+            buf = self._stream.timeout_pop_buffer(left_us)
+            if buf is None:
+                self._check_alive()
+                raise FrameTimeout(f"aravis: {self.device_id}: no buffer within {timeout_s:g} s")
+            if buf.get_status() != Aravis.BufferStatus.CLEARED:
+                break
+            self._stream.push_buffer(buf)
         try:
             return self._raw(buf)
         finally:

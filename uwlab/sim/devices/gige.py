@@ -60,17 +60,19 @@ STATUS_OK, STATUS_NOT_IMPLEMENTED, STATUS_INVALID_PARAMETER, STATUS_INVALID_ADDR
 )
 STATUS_ACCESS_DENIED = 0x8006
 REG_CCP, REG_HEARTBEAT, REG_SCP, REG_SCDA = 0x0A00, 0x0938, 0x0D00, 0x0D18
-GVSP_LEADER, GVSP_TRAILER, GVSP_PAYLOAD = 1, 2, 3
+GVSP_LEADER, GVSP_TRAILER, GVSP_PAYLOAD, GVSP_H264 = 1, 2, 3, 5
 GVSP_OVERHEAD = 20 + 8 + 8  # IP + UDP + GVSP headers, counted in the packet size (GigE Vision 2.0, 4.3)
 RESEND_FRAMES = 4
 
 
 @dataclass(frozen=True)
 class GigeFaults:
-    """Fault injection: every ``incomplete_every``-th frame loses one payload packet for good
-    (resend requests for it are refused)."""
+    """Fault injection: every ``incomplete_every``-th frame loses one payload packet for good (resend requests for
+    it are refused); before every ``stray_every``-th frame a stray packet, the opening of a block in a stream format
+    this camera never sends (H.264, GVSP content type 5), which a host cannot make a frame of."""
 
     incomplete_every: int = 0
+    stray_every: int = 0
 
 
 def _mac(address: str) -> bytes:
@@ -422,6 +424,8 @@ class GigeCameraServer:
         st.history[st.block_id] = (packets, lost)
         st.history.pop((st.block_id - RESEND_FRAMES - 1) % 0xFFFF + 1, None)
         target = self._stream_target()
+        if target is not None and self.faults.stray_every and st.block_id % self.faults.stray_every == 0:
+            self._send(struct.pack(">HHI", 0, st.block_id, GVSP_H264 << 24) + bytes(16), target)
         for i, pkt in enumerate(packets):
             if i != lost and target is not None:
                 self._send(pkt, target)
