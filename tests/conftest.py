@@ -28,7 +28,7 @@ def sim_rig():
 # four workers on two cores, `--dist loadfile`) they run last, one after another on one worker, once every other
 # test has been handed out: beside the rest of the suite they took 1.5–2.3 times their time alone (the README's
 # script 75 s), so their times said more about their neighbours than about them. Alone at the end they take about
-# their own time (36–41 s); the suite takes about a minute longer.
+# their own time (25–42 s); the suite takes 1–1½ minutes longer.
 CAMPAIGN_FILES = (
     "tests/integration/test_api_script.py",
     "tests/integration/test_notebook.py",

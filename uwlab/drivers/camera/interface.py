@@ -613,8 +613,9 @@ class Camera:
             self._state.stats.discarded += 1
             in_row += 1
             if in_row > self.policy.max_discarded_in_row:
-                last = f"the last: {raw.problem}"
-                raise DeviceError(f"{self.info.device_id}: {in_row} incomplete frames in a row ({last})")
+                raise DeviceError(
+                    f"{self.info.device_id}: {in_row} incomplete frames in a row (the last: {raw.problem})"
+                )
 
     def _fetch_one(self, deadline: float, discarded: int) -> RawFrame:
         remaining = deadline - time.monotonic()

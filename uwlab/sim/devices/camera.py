@@ -67,8 +67,9 @@ def _fixed_pattern(
     seed: int,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """A sensor's fixed pattern drawn from `seed`, read-only: its DSNU [e⁻] and PRNU (gain factor) maps, and its
-    dark-current map [e⁻/s] where it has hot pixels (else None). The last two are kept: the simulated rig opens a
-    camera again for each of its sweeps, with the same seed, and a full sensor's maps take ~0.1 s to draw."""
+    dark-current map [e⁻/s] where it has hot pixels (else None). The last two sensors' patterns are kept: the
+    simulated rig opens a camera again for each of its sweeps, with the same seed, and a full sensor's maps take
+    ~0.1 s to draw."""
     width, height = resolution_px
     rng = np.random.default_rng(seed)
     dsnu = rng.standard_normal((height, width), np.float32) * np.float32(dsnu_e)

@@ -75,6 +75,11 @@ class GigeFaults:
     stray_every: int = 0
 
 
+def _gvsp_packet(block_id: int, content: int, packet_id: int, body: bytes) -> bytes:
+    """A GVSP packet with the standard header: status OK, 16-bit block id, content type and 24-bit packet id."""
+    return struct.pack(">HHI", 0, block_id, (content << 24) | packet_id) + body
+
+
 def _mac(address: str) -> bytes:
     return b"\x02\x00" + socket.inet_aton(address)
 
@@ -425,7 +430,7 @@ class GigeCameraServer:
         st.history.pop((st.block_id - RESEND_FRAMES - 1) % 0xFFFF + 1, None)
         target = self._stream_target()
         if target is not None and self.faults.stray_every and st.block_id % self.faults.stray_every == 0:
-            self._send(struct.pack(">HHI", 0, st.block_id, GVSP_H264 << 24) + bytes(16), target)
+            self._send(_gvsp_packet(st.block_id, GVSP_H264, 0, bytes(16)), target)
         for i, pkt in enumerate(packets):
             if i != lost and target is not None:
                 self._send(pkt, target)
@@ -454,9 +459,7 @@ class GigeCameraServer:
             *((GVSP_PAYLOAD, b) for b in bodies),
             (GVSP_TRAILER, struct.pack(">HHI", 0, 0x0001, cfg.height)),
         ]
-        return [
-            struct.pack(">HHI", 0, block_id, (fmt_id << 24) | pid) + body for pid, (fmt_id, body) in enumerate(parts)
-        ]
+        return [_gvsp_packet(block_id, content, pid, body) for pid, (content, body) in enumerate(parts)]
 
     def _stream_target(self) -> tuple[str, int] | None:
         port = struct.unpack_from(">I", self._bootstrap, REG_SCP)[0] & 0xFFFF
