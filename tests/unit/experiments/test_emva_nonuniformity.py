@@ -180,6 +180,8 @@ def test_stack_statistics_needs_a_pair():
         (np.uint16, 8190, (1100, 1000)),
         (np.uint16, 46340, (300, 7)),
         (np.uint16, 65535, (70, 9)),
+        (np.uint16, 46340, (600, 450)),  # Σ y² ≥ 2^49: not OpenCV's norm but its pieces (of one row)
+        (np.uint16, 65535, (400, 331)),  # Σ y² ≥ 2^49 and y² ≥ 2^31: int64
         (np.int16, 32767, (50, 11)),
         (np.int32, 1 << 20, (20, 13)),
     ],
@@ -187,7 +189,8 @@ def test_stack_statistics_needs_a_pair():
 def test_frame_sums_are_exact_at_their_bounds(dtype, top, shape):
     """Σ y, Σ y² and a pair's Σ (a − b)² to the last unit, the pixels at the top code (every partial sum as large
     as the piece rules allow: 2^31 / 8190² = 32 rows of 2048 columns) and random, contiguous or not, whatever
-    routine the type takes (OpenCV over pieces of the image's memory, with elements left over, or int64)."""
+    routine the type takes (OpenCV's squared norm, OpenCV over pieces of the image's memory, with elements left
+    over, or int64)."""
     from uwlab.experiments.frames.stack import _diff_square_sum, _sums, _total
 
     rng = np.random.default_rng(top)

@@ -48,7 +48,7 @@ import numpy as np
 from uwlab.errors import ConfigError
 from uwlab.experiments.emva.dark import DarkSeries
 from uwlab.experiments.emva.transfer import SheetInfo
-from uwlab.experiments.frames.stack import StackStatistics, WorkImages, stack_statistics
+from uwlab.experiments.frames.stack import StackAccumulator, StackStatistics, WorkImages
 from uwlab.experiments.emva.transfer import NonuniformityStack, PhotonTransfer, SpatialSplit
 from uwlab.experiments.saturation import ClipLevel, clip_level
 from uwlab.model.data import MAX_BINARY_BYTES, check_input_file, read_text
@@ -249,6 +249,10 @@ class ImageReader:
     def read(self, name: str, out: np.ndarray | None = None) -> np.ndarray:
         """The image ``name``, checked; ``out``: an array of the expected shape and type to read a TIFF into (the
         result may be ``out`` itself: the caller reuses it)."""
+        return self._read(name, out)[0]
+
+    def _read(self, name: str, out: np.ndarray | None) -> tuple[np.ndarray, int]:
+        """`read`, and the image's largest value (found by the range check: the accumulator need not look again)."""
         path = check_input_file(self.path(name), "image", MAX_BINARY_BYTES, "image")
         image = None
         if path.suffix.lower() in (".tif", ".tiff"):
@@ -270,9 +274,10 @@ class ImageReader:
                 f"size {image.shape[1]}x{image.shape[0]} differs from the "
                 f"descriptor's n line ({self.shape[1]}x{self.shape[0]})",
             )
-        if (image.dtype.kind == "i" and image.min() < 0) or image.max() > self.full:
+        top = int(image.max())
+        if (image.dtype.kind == "i" and image.min() < 0) or top > self.full:
             raise ConfigError("image", str(path), f"values outside 0..{self.full} (the descriptor's bit depth)")
-        return image if image.dtype.itemsize <= 2 else image.astype(np.uint16 if self.full > 255 else np.uint8)
+        return (image if image.dtype.itemsize <= 2 else image.astype(np.uint16 if self.full > 255 else np.uint8)), top
 
     def _read_tiff(self, path: Path, out: np.ndarray | None) -> np.ndarray | None:
         """A TIFF through tifffile (a plain read into one array: ~10x faster than OpenCV's decoder on uncompressed
@@ -301,33 +306,33 @@ class ImageReader:
         except (ValueError, KeyError, NotImplementedError, OSError, tifffile.TiffFileError):
             return None
 
-    def frames(self, block: Block, work: WorkImages | None = None) -> Iterator[np.ndarray]:
-        """The block's images one at a time; with ``work``, read into two work images in turn, so that no frame
+    def stack(
+        self, block: Block, clip_dn: float, keep_mean_image: bool = False, work: WorkImages | None = None
+    ) -> StackStatistics:
+        """`StackStatistics` of the block, its images streamed through an accumulator one at a time, each with the
+        largest value its range check found; with ``work``, read into two work images in turn, so that no frame
         costs the page faults of a fresh 10 MB array and each stays unchanged until the next one has been added to
         the accumulator (its ``stable_frames``: a frame waiting for its partner is not copied)."""
-        if work is None:
-            return (self.read(name) for name in block.images)
+        acc = StackAccumulator(clip_dn, keep_mean_image, work=work, stable_frames=work is not None)
         dtype = np.uint16 if self.full > 255 else np.uint8
-        buffers = (work.get("read 0", self.shape, dtype), work.get("read 1", self.shape, dtype))
-        return (self.read(name, buffers[i % 2]) for i, name in enumerate(block.images))
+        buffers = [None, None] if work is None else [work.get(f"read {i}", self.shape, dtype) for i in (0, 1)]
+        for i, name in enumerate(block.images):
+            acc.add(*self._read(name, buffers[i % 2]))
+        return acc.result()
 
     def statistics(self, blocks: list[Block], clip_dn: float, keep_mean_image: bool = False) -> list[StackStatistics]:
-        """`StackStatistics` of each block, the blocks spread over `WORKERS` threads (reading and the arithmetic
-        release the GIL); each block's frames stream through its accumulator one at a time, so memory stays at
-        one accumulator, a frame and the work images of the highpass (`WorkImages`, reused) per thread."""
+        """`StackStatistics` of each block (`stack`), the blocks spread over `WORKERS` threads (reading and the
+        arithmetic release the GIL); memory stays at one accumulator, a frame and the work images of the highpass
+        (`WorkImages`, reused) per thread."""
         if len(blocks) < 2 or WORKERS == 1:
             work = WorkImages()
-            return [
-                stack_statistics(self.frames(b, work), clip_dn, keep_mean_image, work=work, stable_frames=True)
-                for b in blocks
-            ]
+            return [self.stack(b, clip_dn, keep_mean_image, work) for b in blocks]
         local = threading.local()
 
         def one(block: Block) -> StackStatistics:
             if not hasattr(local, "work"):
                 local.work = WorkImages()  # each thread its own, gone with the pool
-            frames = self.frames(block, local.work)
-            return stack_statistics(frames, clip_dn, keep_mean_image, work=local.work, stable_frames=True)
+            return self.stack(block, clip_dn, keep_mean_image, local.work)
 
         with _opencv_single_threaded(), ThreadPoolExecutor(min(WORKERS, len(blocks))) as pool:
             return list(pool.map(one, blocks))
