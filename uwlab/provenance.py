@@ -18,8 +18,9 @@ import functools
 import importlib
 import os
 import platform
+import re
 import subprocess
-from importlib import metadata as importlib_metadata
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -120,13 +121,30 @@ def _commit(root: Path) -> tuple[str, bool | None]:
 
 @functools.cache
 def _packages() -> dict[str, str]:
-    versions = {}
-    for name in PACKAGES:
+    """The installed versions of `PACKAGES`, from the names of the ``.dist-info`` directories on ``sys.path``
+    (``{name}-{version}.dist-info``, the name with ``_`` for ``-``: PyPA's "Recording installed projects"
+    specification), the first on the path as an import finds it: one directory listing per path entry, where
+    ``importlib.metadata.version`` parses each package's METADATA (~20 ms of a short command's start)."""
+    wanted = {_normalized(name): name for name in PACKAGES}
+    versions: dict[str, str] = {}
+    for entry in sys.path:
         try:
-            versions[name] = importlib_metadata.version(name)
-        except importlib_metadata.PackageNotFoundError:
+            names = os.listdir(entry or ".")
+        except OSError:
             continue
-    return versions
+        for directory in names:
+            if not directory.endswith(".dist-info"):
+                continue
+            name, _, version = directory.removesuffix(".dist-info").partition("-")
+            package = wanted.get(_normalized(name))
+            if version and package and package not in versions:
+                versions[package] = version
+    return {name: versions[name] for name in PACKAGES if name in versions}
+
+
+def _normalized(name: str) -> str:
+    """A distribution name as PyPA's name normalisation (PEP 503) compares it: lower case, runs of ``-_.`` as ``-``."""
+    return re.sub(r"[-_.]+", "-", name).lower()
 
 
 def _blas() -> dict[str, Any]:

@@ -4,6 +4,7 @@ thread setting), and the report's provenance rows read every form a dataset has 
 import shutil
 import subprocess
 import sys
+from importlib import metadata
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +13,7 @@ import scipy
 
 import uwlab
 from uwlab.experiments.report import _dataset_made_with
-from uwlab.provenance import UNKNOWN, _commit, provenance, provenance_line
+from uwlab.provenance import PACKAGES, UNKNOWN, _commit, provenance, provenance_line
 
 ROOT = Path(uwlab.__file__).resolve().parent.parent
 
@@ -21,6 +22,13 @@ def test_the_record_names_the_versions_python_and_the_cpu():
     record = provenance()
     assert record["uwlab"] == uwlab.__version__
     assert record["packages"]["numpy"] == np.__version__ and record["packages"]["scipy"] == scipy.__version__
+    installed = {}
+    for name in PACKAGES:
+        try:
+            installed[name] = metadata.version(name)
+        except metadata.PackageNotFoundError:
+            continue
+    assert record["packages"] == installed  # as importlib.metadata reads them (opencv's, colour-science's names)
     assert record["python"].startswith(".".join(map(str, sys.version_info[:3])))
     if Path("/proc/cpuinfo").exists():
         assert record["cpu"] != UNKNOWN and record["cpu"] in Path("/proc/cpuinfo").read_text()
