@@ -3,7 +3,7 @@
 
 import socket
 
-import httpx
+import httpx2
 
 from tests.support.cli import one_line_error
 from tests.support.console_process import Console
@@ -14,9 +14,9 @@ def test_serves_the_rig_and_stops_on_ctrl_c():
     console = Console("--sim")
     try:
         assert console.url.startswith("http://127.0.0.1:")
-        rig = httpx.get(console.url + "api/rig", timeout=30).json()
+        rig = httpx2.get(console.url + "api/rig", timeout=30).json()
         assert rig["camera"]["width"] == 2448 and rig["lights"]["light"]["on"] is False
-        on = httpx.post(console.url + "api/lights/light", json={"on": True, "level": 0.5}, timeout=30).json()
+        on = httpx2.post(console.url + "api/lights/light", json={"on": True, "level": 0.5}, timeout=30).json()
         assert on["on"] is True and on["level"] == 0.5
     finally:
         code, err = console.stop()

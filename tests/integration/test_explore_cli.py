@@ -4,7 +4,7 @@ with one line and 130; a bad config, a busy port or a bad profile is one line an
 import json
 import socket
 
-import httpx
+import httpx2
 import pytest
 
 from uwlab.cli.main import main
@@ -18,9 +18,9 @@ def test_serves_the_page_and_the_api_and_stops_on_ctrl_c():
     explorer = Explorer(str(EXAMPLE))
     try:
         assert explorer.url.startswith("http://127.0.0.1:")
-        page = httpx.get(explorer.url, timeout=30)
+        page = httpx2.get(explorer.url, timeout=30)
         assert page.status_code == 200 and "uwlab" in page.text and 'data-key="lens.f_number"' in page.text
-        answer = httpx.post(explorer.url + "api/design", json={"set": {"lens.f_number": 4}}, timeout=30)
+        answer = httpx2.post(explorer.url + "api/design", json={"set": {"lens.f_number": 4}}, timeout=30)
         assert answer.status_code == 200 and answer.json()["snr_db"] > 0
     finally:
         code, err = explorer.stop()

@@ -8,7 +8,7 @@ from __future__ import annotations
 import time
 from urllib.parse import urlsplit
 
-import httpx
+import httpx2
 import pytest
 
 from tests.support.explorer_process import (
@@ -53,7 +53,7 @@ def test_no_hostile_request_gets_a_500_an_offsite_redirect_or_a_foreign_cookie(e
 def test_no_file_outside_the_roots_is_quoted_over_http(explorer, tmp_path):
     _, port = explorer
     probes = file_probes(plant_secrets(tmp_path / "outside"))
-    with httpx.Client(base_url=f"http://127.0.0.1:{port}", headers={"Authorization": f"token {TOKEN}"}) as client:
+    with httpx2.Client(base_url=f"http://127.0.0.1:{port}", headers={"Authorization": f"token {TOKEN}"}) as client:
         for name, path, body in probes[:: max(1, len(probes) // 120)]:  # every key and endpoint, a sample of names
             answer = client.post(path, json=body, timeout=60)
             assert answer.status_code == 422 and SECRET not in answer.text, (name, answer.status_code)
@@ -61,13 +61,13 @@ def test_no_file_outside_the_roots_is_quoted_over_http(explorer, tmp_path):
 
 def test_held_connections_are_closed_while_normal_requests_answer(explorer):
     _, port = explorer
-    client = httpx.Client(base_url=f"http://127.0.0.1:{port}", headers={"Authorization": f"token {TOKEN}"})
+    client = httpx2.Client(base_url=f"http://127.0.0.1:{port}", headers={"Authorization": f"token {TOKEN}"})
 
     def probe() -> float | None:
         started = time.monotonic()
         try:
             ok = client.get("/api/config", timeout=30).status_code == 200
-        except httpx.HTTPError:
+        except httpx2.HTTPError:
             return None
         return time.monotonic() - started if ok else None
 
