@@ -13,7 +13,7 @@ import sys
 import time
 from pathlib import Path
 
-import httpx
+import httpx2
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -23,7 +23,7 @@ from tests.support.explorer_process import Explorer  # noqa: E402
 EXAMPLE = ROOT / "configs" / "design" / "example.toml"
 
 
-def timed(client: httpx.Client, url: str, bodies: list[dict]) -> dict:
+def timed(client: httpx2.Client, url: str, bodies: list[dict]) -> dict:
     times = []
     for body in bodies:
         t0 = time.perf_counter()
@@ -36,7 +36,7 @@ def timed(client: httpx.Client, url: str, bodies: list[dict]) -> dict:
 def main() -> None:
     explorer = Explorer(str(EXAMPLE))
     try:
-        with httpx.Client(base_url=explorer.url, timeout=60) as client:
+        with httpx2.Client(base_url=explorer.url, timeout=60) as client:
             client.post("api/view", json={})  # first request: caches warm
             numbers = [{"set": {"lens.f_number": 1.4 + 0.1 * i}} for i in range(60)]
             design = timed(client, "api/design", numbers)

@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 from urllib.parse import parse_qsl, urlsplit
 
-import httpx
+import httpx2
 import psutil
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -31,7 +31,7 @@ LOAD_S = 10.0
 
 
 def hostile(base: str, secret: Path) -> list[tuple[str, str, dict]]:
-    """(name, method + path, httpx request options) of every hostile request."""
+    """(name, method + path, httpx2 request options) of every hostile request."""
     origin = {"Origin": "http://evil.example"}
     plain = {"Content-Type": "text/plain"}
     requests = [
@@ -105,7 +105,7 @@ def main() -> None:
             token = dict(parse_qsl(parts.query))["token"]
             base = f"http://127.0.0.1:{parts.port}/"
             succeeded, statuses = [], {}
-            with httpx.Client(base_url=base, timeout=60) as client:
+            with httpx2.Client(base_url=base, timeout=60) as client:
                 campaign = hostile(base, secret)
                 for name, what, options in campaign:
                     method, path = what.split(" ", 1)
@@ -145,7 +145,7 @@ def load_test(base: str, token: str, pid: int) -> dict:
     stop = time.perf_counter() + LOAD_S
 
     def client_loop(seed: int) -> None:
-        with httpx.Client(base_url=base, timeout=60, headers={"Authorization": f"token {token}"}) as client:
+        with httpx2.Client(base_url=base, timeout=60, headers={"Authorization": f"token {token}"}) as client:
             i = 0
             while time.perf_counter() < stop:
                 body = {"set": {"lens.f_number": 1.4 + 0.01 * ((seed * 97 + i) % 500)}}
@@ -157,7 +157,7 @@ def load_test(base: str, token: str, pid: int) -> dict:
                     errors[0] += not answer.is_success
                 i += 1
 
-    with httpx.Client(base_url=base, timeout=60, headers={"Authorization": f"token {token}"}) as warm:
+    with httpx2.Client(base_url=base, timeout=60, headers={"Authorization": f"token {token}"}) as warm:
         warm.post("api/design", json={})
     before = rss_mb(pid)
     started = time.perf_counter()

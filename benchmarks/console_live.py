@@ -44,7 +44,7 @@ import threading
 import time
 from pathlib import Path
 
-import httpx
+import httpx2
 import psutil
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -65,7 +65,7 @@ def watch(url: str, seconds: float) -> dict:
     stop = threading.Event()
 
     def follow() -> None:
-        with httpx.Client(timeout=None) as client, client.stream("GET", url + "api/stream") as stream:
+        with httpx2.Client(timeout=None) as client, client.stream("GET", url + "api/stream") as stream:
             event = None
             for line in stream.iter_lines():
                 if stop.is_set():
@@ -78,7 +78,7 @@ def watch(url: str, seconds: float) -> dict:
 
     threading.Thread(target=follow, daemon=True).start()
     latencies, received, seen = [], 0, -1
-    with httpx.Client(base_url=url, timeout=30) as client:
+    with httpx2.Client(base_url=url, timeout=30) as client:
         end = time.monotonic() + seconds
         while time.monotonic() < end:
             frame = dict(latest)
@@ -137,7 +137,7 @@ def plan(path: Path, points: int) -> Path:
     )
 
 
-def console_run(client: httpx.Client, path: Path, out: Path) -> dict[str, float]:
+def console_run(client: httpx2.Client, path: Path, out: Path) -> dict[str, float]:
     """A run of the plan through the console, from its taking the rig to its end (the live view stopped): its wall
     time (``elapsed_s``: the engine's work and the rig's opening and closing, as `session_times` counts them), the
     console process's CPU seconds (``cpu_s``), those of the run's own thread (``run_cpu_s``) and the rest
@@ -176,7 +176,7 @@ class Watcher:
 
     def _follow(self) -> None:
         try:
-            with httpx.Client(base_url=self.url, timeout=30) as client:
+            with httpx2.Client(base_url=self.url, timeout=30) as client:
                 with client.stream("GET", "api/stream", timeout=None) as stream:
                     self._socket = stream.extensions["network_stream"].get_extra_info("socket")
                     self._opened.set()
@@ -192,7 +192,7 @@ class Watcher:
                             elif event == "stats" and data["frame_id"] != seen:
                                 seen = data["frame_id"]
                                 client.get("api/camera/frame.png", params={"n": seen})
-        except httpx.HTTPError:  # left (the socket shut down) or the server stopped
+        except httpx2.HTTPError:  # left (the socket shut down) or the server stopped
             return
         finally:
             self._opened.set()
@@ -205,7 +205,7 @@ class Watcher:
         time.sleep(STREAM_IDLE_S + 0.2)  # the server sees the stream close at its next look
 
 
-def watcher_idle_cpu(client: httpx.Client, url: str, server: psutil.Process, folder: Path, pairs: int) -> dict:
+def watcher_idle_cpu(client: httpx2.Client, url: str, server: psutil.Process, folder: Path, pairs: int) -> dict:
     """The console process's CPU (cores: CPU seconds a second) while a run is paused (the live view released, nothing
     changes), without a watcher and with one (`Watcher`), alternating ``pairs`` times for `IDLE_S` each: what a
     watcher costs when there is nothing to tell."""
@@ -258,7 +258,7 @@ def session_times(folder: Path, points: int, repeats: int) -> list[float]:
     return times
 
 
-def sweep_pairs(client: httpx.Client, url: str, folder: Path, points: int, pairs: int) -> list[dict]:
+def sweep_pairs(client: httpx2.Client, url: str, folder: Path, points: int, pairs: int) -> list[dict]:
     """``pairs`` pairs of runs of the plan through the console, one unwatched and one watched (`Watcher`), in the
     order ABBA ABBA… (unwatched first in even pairs) after a warm-up run, so that a change of the machine's load
     falls on both alike; each pair's `console_run` times."""
@@ -315,7 +315,7 @@ def main() -> None:
         cpu1, t1 = server.cpu_times(), time.monotonic()
         cores = (cpu1.user + cpu1.system - cpu0.user - cpu0.system) / (t1 - t0)
         in_browser = browser_updates(console.url, args.watch_s / 2)
-        with tempfile.TemporaryDirectory() as folder, httpx.Client(base_url=console.url, timeout=60) as client:
+        with tempfile.TemporaryDirectory() as folder, httpx2.Client(base_url=console.url, timeout=60) as client:
             while not client.post("api/control", json={}).json()["controlling"]:  # the browser's page just closed
                 time.sleep(0.5)
             pairs = sweep_pairs(client, console.url, Path(folder), args.points, args.pairs)

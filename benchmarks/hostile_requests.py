@@ -16,7 +16,7 @@ import time
 from pathlib import Path
 from urllib.parse import urlsplit
 
-import httpx
+import httpx2
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -58,7 +58,7 @@ def main() -> dict:
                 failures.append(f"{name} → {status}")
         with (
             tempfile.TemporaryDirectory() as tmp,
-            httpx.Client(
+            httpx2.Client(
                 base_url=f"http://127.0.0.1:{port}", headers={"Authorization": f"token {TOKEN}"}, timeout=60
             ) as client,
         ):
@@ -76,7 +76,7 @@ def main() -> dict:
                 started = time.monotonic()
                 try:
                     ok = client.get("/api/config", timeout=30).status_code == 200
-                except httpx.HTTPError:
+                except httpx2.HTTPError:
                     return None
                 return time.monotonic() - started if ok else None
 

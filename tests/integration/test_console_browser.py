@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import time
 
-import httpx
+import httpx2
 import numpy as np
 import pytest
 from selenium.common.exceptions import StaleElementReferenceException
@@ -125,7 +125,7 @@ def test_the_live_page(browser, console, tmp_path):
     apply_exposure(browser, 3000)
     wait(browser, lambda d: float(text(d, "s-sat").split()[0]) > 1.0, "nothing clipped")
     red, _ = wait(browser, lambda d: (r := d.execute_script(RED_FRACTION_JS))[0] > 0.01 and r, "no clipping overlay")
-    stats = httpx.get(console.url + "api/camera/stats", timeout=30).json()
+    stats = httpx2.get(console.url + "api/camera/stats", timeout=30).json()
     assert red == pytest.approx(stats["saturated_fraction"], rel=0.1)
     browser.save_screenshot(str(tmp_path / "console-clipping.png"))
 
@@ -133,7 +133,7 @@ def test_the_live_page(browser, console, tmp_path):
     # the dark level), and nothing clips.
     apply_exposure(browser, 500)
     wait(browser, lambda d: float(text(d, "s-sat").split()[0]) == 0.0, "still clipping at 500 µs")
-    assert httpx.get(console.url + "api/rig", timeout=30).json()["camera"]["exposure_us"] == 500.0
+    assert httpx2.get(console.url + "api/rig", timeout=30).json()["camera"]["exposure_us"] == 500.0
     bright = mean_dn(browser)
     red, _ = browser.execute_script(RED_FRACTION_JS)
     assert red < 1e-4  # at most a hot pixel or two of the sim's sensor
@@ -206,8 +206,8 @@ def test_a_run_from_the_page_is_the_dataset_of_uwlab_sweep(browser, console, tmp
     assert "8/8 points" in text(browser, "run-status")
     # The points of both sweeps, and under them the model's band (shaded) and median for the sweep at full light
     # (the dimmed one is not predicted: GET /api/runs/ID/prediction says why, and so does the page).
-    run_id = httpx.get(console.url + "api/runs", timeout=30).json()["runs"][-1]["id"]
-    prediction = httpx.get(console.url + f"api/runs/{run_id}/prediction", timeout=30).json()
+    run_id = httpx2.get(console.url + "api/runs", timeout=30).json()["runs"][-1]["id"]
+    prediction = httpx2.get(console.url + f"api/runs/{run_id}/prediction", timeout=30).json()
     assert [c["sweep_id"] for c in prediction["configurations"]] == ["f4"] and set(prediction["skipped"]) == {"f2"}
     wait(browser, lambda d: d.execute_script(TRACES_JS, "points") == 2, "no points plotted")
     wait(browser, lambda d: d.execute_script(FILLS_JS) == 1, "no band drawn")

@@ -8,7 +8,7 @@ import time
 from pathlib import Path
 from urllib.parse import parse_qsl, urlsplit
 
-import httpx
+import httpx2
 import pytest
 from selenium.webdriver.common.by import By
 from selenium.webdriver.common.keys import Keys
@@ -74,7 +74,7 @@ def set_field(driver, key: str, text: str) -> None:
 
 def view(explorer, text: dict) -> dict:
     """The page's view of a design as the API gives it (rows by key)."""
-    answer = httpx.post(explorer.url + "api/view", json={"config": {}, "text": text}, timeout=30).json()
+    answer = httpx2.post(explorer.url + "api/view", json={"config": {}, "text": text}, timeout=30).json()
     return {row["key"]: row["text"] for row in answer["rows"]}
 
 
@@ -111,7 +111,7 @@ def test_bad_value_shows_the_message(browser, explorer):
     set_field(browser, "lens.f_number", "0")
     banner = browser.find_element(By.ID, "error")
     wait(browser, lambda d: banner.get_attribute("hidden") is None, "no error shown")
-    expected = httpx.post(explorer.url + "api/design", json={"set": {"lens.f_number": 0}}, timeout=30).json()["error"]
+    expected = httpx2.post(explorer.url + "api/design", json={"set": {"lens.f_number": 0}}, timeout=30).json()["error"]
     assert banner.text == "⚠ " + expected
     field = browser.find_element(By.CSS_SELECTOR, '.field[data-key="lens.f_number"]')
     assert "error" in field.get_attribute("class") and expected in field.text
@@ -133,7 +133,7 @@ def test_save_and_load_a_toml(browser, explorer, downloads, capsys):
     from_cli = json.loads(capsys.readouterr().out)
     assert (
         from_cli
-        == httpx.post(explorer.url + "api/design", json={"config": {}, "text": page_texts(browser)}, timeout=30).json()
+        == httpx2.post(explorer.url + "api/design", json={"config": {}, "text": page_texts(browser)}, timeout=30).json()
     )
     set_field(browser, "light.luminous_flux_lm", "999")
     wait(browser, lambda d: readout(d)["mean_dn"] != shown["mean_dn"], "value not changed")
@@ -179,7 +179,7 @@ def test_beyond_the_loopback_the_page_needs_the_printed_token(browser, tmp_path)
         token = dict(parse_qsl(parts.query))["token"]
         assert len(token) >= 24
         local = f"http://127.0.0.1:{parts.port}/"
-        assert httpx.get(local + "api/config", timeout=30).status_code == 403
+        assert httpx2.get(local + "api/config", timeout=30).status_code == 403
         browser.delete_all_cookies()
         browser.get(local)
         assert "token is required" in browser.page_source

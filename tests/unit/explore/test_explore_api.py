@@ -1,4 +1,4 @@
-"""The explorer's JSON API (Starlette TestClient over httpx): `/api/design` is `uwlab design --json`, bad input is
+"""The explorer's JSON API (Starlette TestClient over httpx2): `/api/design` is `uwlab design --json`, bad input is
 the CLI's one line with 422, the page's view reads like the CLI's table, saved TOML reads back to the same
 numbers, sweeps and solve agree with the CLI, the form follows the config schema, user profiles load."""
 
