@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from uwlab.drivers.camera import Policy, open_camera
-from uwlab.drivers.camera.aravis_backend import N_BUFFERS, AravisTransport
+from uwlab.drivers.camera.aravis_backend import GVCP_CCP_REGISTER, N_BUFFERS, AravisTransport
 from uwlab.sim.devices.camera import SensorConfig, sensor_from_rig
 from uwlab.errors import DeviceError
 from tests.support.gige_server import Server
@@ -181,22 +181,42 @@ def test_a_10_s_freeze_as_the_stream_is_created_is_ridden_out(truth_mean_dn, mon
 
 
 def test_a_short_freeze_at_a_register_read_is_ridden_out(truth_mean_dn):
-    """Frozen for 4 s: longer than a register read's timeout (2.5 s), short enough that the old connection's
-    heartbeats resume after the thaw and the device still counts it as its controller (measured: freezes of 4 s
-    and 6 s locked a reconnecting camera out for good before it gave that control up explicitly; 8 s did not)."""
+    """Frozen for 6 s: longer than two register reads' timeouts (2 × 2.5 s), so that our read always fails. Aravis's
+    heartbeat thread reads the device every second over the same control channel, one read at a time: a heartbeat
+    that begins at the freeze holds the channel for its 2.5 s before our read starts (Aravis 0.8.26,
+    src/arvgvdevice.c), and a 4 s freeze then ended during our read, which was answered: no reconnect (one CI run
+    in many). The test makes that worst case every time: a read like the heartbeat's holds the channel at the
+    freeze (with it, a 4 s freeze gives no reconnect). Short enough that the old connection's heartbeats resume
+    after the thaw and the device still counts it as its controller (measured: freezes of 4 s and 6 s locked a
+    reconnecting camera out for good before it gave that control up explicitly; 8 s did not)."""
     server = Server()
     try:
         with open_camera("aravis", server.address, policy=POLICY) as cam:
             configure(cam)
             server.freeze()
-            thaw = threading.Timer(4.0, server.thaw)
+            thaw = threading.Timer(6.0, server.thaw)
             thaw.start()
+            heartbeat = threading.Thread(target=read_privilege, args=(cam.transport,))
+            heartbeat.start()
+            time.sleep(0.05)  # its read has the channel
             assert cam.verify_settings().exposure_us == EXPOSURE_US
             assert cam.stats.reconnects == 1
             check_frames(cam, cam.acquire(3), truth_mean_dn)
             thaw.join()
+            heartbeat.join()
     finally:
         server.stop()
+
+
+def read_privilege(transport: AravisTransport) -> None:
+    """One read of the control channel privilege register, as Aravis's heartbeat thread makes every second (it
+    fails while the device is frozen)."""
+    from gi.repository import GLib
+
+    try:
+        transport._device.read_register(GVCP_CCP_REGISTER)
+    except GLib.Error:
+        pass
 
 
 @pytest.mark.parametrize("when", ["before acquiring", "as the stream is created"])
