@@ -18,7 +18,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-import corner
 import numpy as np
 import pandas as pd
 from matplotlib.ticker import FuncFormatter
@@ -67,6 +66,8 @@ def plot_corner(samples: np.ndarray, names: Sequence[str], truth: dict | None = 
     simulated `truth` (by parameter name) marked where known; `samples`: (draws, parameters) in the order of
     `names`."""
     truths = [truth.get(n) for n in names] if truth else None
+    import corner  # it imports pyplot (0.4 s): only where a corner plot is drawn
+
     k = len(names)  # corner's own figure size for k parameters (its defaults), on a Figure of ours
     size = 1.0 + 2.0 * k + 2.0 * (k - 1) * 0.05 + 0.4
     fig: Figure = corner.corner(
