@@ -34,8 +34,8 @@ class Explorer:
         ready, _, _ = select.select([self.process.stdout], [], [], START_TIMEOUT_S)
         line = self.process.stdout.readline() if ready else ""
         if not line:
-            self.stop()
-            raise RuntimeError(f"uwlab {self.VERB} did not start: {self.process.stderr.read()}")
+            _, err = self.stop()
+            raise RuntimeError(f"uwlab {self.VERB} did not start: {err}")
         self.url = json.loads(line)["url"]
 
     def stop(self) -> tuple[int, str]:
