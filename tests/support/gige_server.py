@@ -40,8 +40,8 @@ class Server:
             if line:
                 self.info = json.loads(line)
                 return
-            self.stop()
-        raise RuntimeError(f"GigE sim server did not start: {self.proc.stderr.read()}")
+            err = self.stop()
+        raise RuntimeError(f"GigE sim server did not start: {err}")
 
     def restarted(self) -> Server:
         """A new server process on the same address (the old one must be gone)."""
@@ -58,7 +58,8 @@ class Server:
     def thaw(self) -> None:
         self.proc.send_signal(signal.SIGCONT)
 
-    def stop(self) -> None:
+    def stop(self) -> str:
+        """Stop the server (SIGTERM, then SIGKILL); returns what it wrote to stderr."""
         if self.proc.poll() is None:
             self.proc.send_signal(signal.SIGCONT)
             self.proc.terminate()
@@ -67,5 +68,7 @@ class Server:
             except subprocess.TimeoutExpired:
                 self.proc.kill()
                 self.proc.wait(timeout=10)
+        err = "" if self.proc.stderr.closed else self.proc.stderr.read()
         for stream in (self.proc.stdout, self.proc.stderr):
             stream.close()
+        return err
