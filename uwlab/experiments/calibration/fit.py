@@ -40,6 +40,11 @@ lemma for the covariance diag(σ²) + τ² μ μᵀ); given θ, δ_k ~ N(m_k, v_
   emcee's estimator, Sokal 1997) and τ has stabilised (changed by < 5 % since the last check), checked every 250
   steps on the whole chain so far (emcee's own recipe, "Saving & monitoring progress", checks every 100): a run
   stops within 250 steps of meeting both.
+- Threads: a fit and a held-out fold's predictions run on one BLAS thread (`one_blas_thread`). OpenBLAS splits a
+  product's sums over its threads, so their last digits depend on the thread count; the start's search turns such
+  digits into another mode where the posterior is flat (a scale at zero), and the chain into other numbers. On one
+  thread a fit gives the same numbers in this process as in a fold's worker (`uwlab.experiments.calibration.parallel`)
+  and on any core count; its products are too small for threads to speed them up.
 - Diagnostics: τ per parameter, mean acceptance fraction, split-chain R-hat (Gelman et al., Bayesian Data
   Analysis, 3rd ed., §11.4) over the walkers, posterior correlations (|ρ| > 0.9 flagged as not separable).
 """
@@ -49,6 +54,8 @@ from __future__ import annotations
 from typing import Annotated, Final, Literal
 
 import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -59,6 +66,7 @@ import numpy as np
 import pandas as pd
 from pydantic import ConfigDict, Field, model_validator
 from scipy import optimize
+from threadpoolctl import threadpool_limits
 
 from uwlab.errors import UwlabError
 from uwlab.experiments.calibration.forward import (
@@ -85,6 +93,7 @@ MAP_EVALUATIONS = 500  # per parameter and method: the reported maximum a poster
 START_EVALUATIONS = 100
 CORRELATED = 0.9
 OVERDISPERSION = 4.0
+REDRAWS_PER_HALVING = 10  # initial_walkers
 LINEAR = ("attenuation_scale", "beam_half_angle_deg", "discrepancy", "config_discrepancy")
 DISCREPANCIES = ("discrepancy", "config_discrepancy")
 SHAPE_PARAMETERS = ("attenuation_scale", "beam_half_angle_deg")
@@ -344,19 +353,29 @@ def find_map(
 
 def initial_walkers(log_density, mode: np.ndarray, walkers: int, rng: np.random.Generator) -> np.ndarray:
     """Over-dispersed walkers (Gelman & Rubin 1992): the Laplace approximation at the mode with its covariance
-    inflated OVERDISPERSION times (a small ball where it is not positive definite); a walker outside the support
-    has its offset mirrored, then halved, until its density is finite. The burn-in discards the start."""
+    inflated OVERDISPERSION times (a small ball where it is not positive definite). A walker outside the support is
+    drawn again, from a ball halved every REDRAWS_PER_HALVING draws, until its density is finite: a mode on the
+    support's edge in k coordinates at once (two discrepancy scales at zero, say) leaves a draw inside one time in
+    2^k, where mirroring a whole offset never mends one with mixed signs. The burn-in discards the start.
+
+    >>> inside = lambda p: np.where((p > 0).all(axis=1), 0.0, -np.inf)  # a density on the positive quadrant
+    >>> p0 = initial_walkers(inside, np.array([1e-20, 1e-25]), 32, np.random.default_rng(0))
+    >>> p0.shape, bool((p0 > 0).all())
+    ((32, 2), True)
+    """
     cov = laplace_covariance(log_density, mode)
-    if cov is not None:
-        offsets = rng.multivariate_normal(np.zeros(mode.size), OVERDISPERSION * cov, size=walkers)
-    else:
-        offsets = 1e-3 * rng.standard_normal((walkers, mode.size))
-    for attempt in range(80):
-        p0 = mode + offsets
+
+    def ball(n: int, scale: float) -> np.ndarray:
+        if cov is not None:
+            return rng.multivariate_normal(np.zeros(mode.size), scale**2 * OVERDISPERSION * cov, size=n)
+        return scale * 1e-3 * rng.standard_normal((n, mode.size))
+
+    p0 = mode + ball(walkers, 1.0)
+    for attempt in range(1, 81):
         bad = ~np.isfinite(log_density(p0))
         if not bad.any():
             return p0
-        offsets[bad] = -offsets[bad] if attempt % 2 == 0 else 0.5 * offsets[bad]
+        p0[bad] = mode + ball(int(bad.sum()), 0.5 ** (attempt // REDRAWS_PER_HALVING))
     raise UwlabError("could not place the walkers where the posterior is finite")
 
 
@@ -531,8 +550,21 @@ def sampling_coordinates(post: Posterior, priors: Mapping[str, Prior], u_mode: n
     return ScaleConditioned.around(post.log_u, u_mode, names.index("config_discrepancy"), (float(lo), float(hi)))
 
 
+@contextmanager
+def one_blas_thread() -> Iterator[None]:
+    """BLAS on one thread inside the block, its thread count restored after (module docstring, "Threads")."""
+    with threadpool_limits(limits=1, user_api="blas"):
+        yield
+
+
 def run_fit(model: ForwardModel, config: FitConfig, progress: Callable[[int, float], None] | None = None) -> FitResult:
-    """The start (module docstring), then emcee until ≥ 50 τ (or max_steps, then converged = False)."""
+    """The start (module docstring), then emcee until ≥ 50 τ (or max_steps, then converged = False), on one BLAS
+    thread."""
+    with one_blas_thread():
+        return _run_fit(model, config, progress)
+
+
+def _run_fit(model: ForwardModel, config: FitConfig, progress: Callable[[int, float], None] | None) -> FitResult:
     post = Posterior(model, config.priors)
     rng = np.random.default_rng(config.sampler.seed)
     medians = {n: config.priors[n].quantile(0.5) for n in model.names}

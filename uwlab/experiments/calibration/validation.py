@@ -34,7 +34,14 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pandas as pd
 
-from uwlab.experiments.calibration.fit import LEAVE_ONE_OUT, FitConfig, FitResult, config_offsets, fit_points
+from uwlab.experiments.calibration.fit import (
+    LEAVE_ONE_OUT,
+    FitConfig,
+    FitResult,
+    config_offsets,
+    fit_points,
+    one_blas_thread,
+)
 from uwlab.experiments.calibration.forward import (
     BARE,
     PER_LENS,
@@ -373,7 +380,21 @@ def held_out_fold(
 ) -> HeldOutFold | None:
     """Fit the unsaturated points of every sweep but those of `fold` and predict these as new configurations
     (module docstring); None when either side has no points. `number` tells the fold's draws apart (seed +
-    number)."""
+    number). On one BLAS thread (`one_blas_thread`): the same numbers here as in a fold's worker."""
+    with one_blas_thread():
+        return _held_out_fold(points, rigs, config, fold, number, kind, progress, seed)
+
+
+def _held_out_fold(
+    points: pd.DataFrame,
+    rigs: dict,
+    config: FitConfig,
+    fold: list[str],
+    number: int,
+    kind: str | None,
+    progress,
+    seed: int,
+) -> HeldOutFold | None:
     usable = points[~points["saturated"].astype(bool)]
     train = usable[~usable["sweep_id"].isin(fold)]
     test = usable[usable["sweep_id"].isin(fold)]
