@@ -28,7 +28,7 @@ def sim_rig():
 # four workers on two cores, `--dist loadfile`) they run last, one after another on one worker, once every other
 # test has been handed out: beside the rest of the suite they took 1.5–2.3 times their time alone (the README's
 # script 75 s), so their times said more about their neighbours than about them. Alone at the end they take about
-# their own time (25–42 s on the faster machine, 40–54 s on the slower).
+# their own time (25–42 s); the suite takes 1–1½ minutes longer.
 CAMPAIGN_FILES = (
     "tests/integration/test_api_script.py",
     "tests/integration/test_notebook.py",
@@ -36,30 +36,11 @@ CAMPAIGN_FILES = (
     "tests/integration/test_demo_seed.py",
 )
 CAMPAIGN_LANE = "whole campaigns, last"
-# Beside them, on the other workers, only the files that mostly wait (on timeouts, restarts and reconnects: 6–27 %
-# of a core while they ran, longest first): the campaigns left 40 % of the two cores idle (their sweeps wait on the
-# simulated spectrometer's integrations), and these files had held a worker for four minutes in all while the
-# heavy files queued behind them.
-WAITING_FILES = (
-    "tests/integration/test_camera_outages.py",
-    "tests/integration/test_sweep_faults.py",
-    "tests/integration/test_camera_aravis.py",
-    "tests/integration/test_explore_hostile.py",
-    "tests/integration/test_serial_drivers.py",
-)
 
 
 def pytest_collection_modifyitems(items):
-    """The campaign files' tests (`CAMPAIGN_FILES`), then the waiting files' (`WAITING_FILES`, in their order) after
-    every other test, which keeps its order."""
-
-    def place(item) -> tuple[int, int]:
-        path = item.nodeid.split("::", 1)[0]
-        if path in CAMPAIGN_FILES:
-            return 1, 0
-        return (2, WAITING_FILES.index(path)) if path in WAITING_FILES else (0, 0)
-
-    items.sort(key=place)
+    """The campaign files' tests last (`CAMPAIGN_FILES`), every test else in its order."""
+    items.sort(key=lambda item: item.nodeid.split("::", 1)[0] in CAMPAIGN_FILES)
 
 
 @pytest.hookimpl(optionalhook=True)  # pytest-xdist's hook: unknown to a run without it

@@ -44,7 +44,7 @@ lemma for the covariance diag(σ²) + τ² μ μᵀ); given θ, δ_k ~ N(m_k, v_
   product's sums over its threads, so their last digits depend on the thread count; the start's search turns such
   digits into another mode where the posterior is flat (a scale at zero), and the chain into other numbers. On one
   thread a fit gives the same numbers in this process as in a fold's worker (`uwlab.experiments.calibration.parallel`)
-  and on any core count; its products are too small for threads to speed them up.
+  and on any core count; the demo's fits take as long on one thread as on two (its products are small).
 - Diagnostics: τ per parameter, mean acceptance fraction, split-chain R-hat (Gelman et al., Bayesian Data
   Analysis, 3rd ed., §11.4) over the walkers, posterior correlations (|ρ| > 0.9 flagged as not separable).
 """
