@@ -552,19 +552,16 @@ def sampling_coordinates(post: Posterior, priors: Mapping[str, Prior], u_mode: n
 
 @contextmanager
 def one_blas_thread() -> Iterator[None]:
-    """BLAS on one thread inside the block, its thread count restored after (module docstring, "Threads")."""
+    """BLAS on one thread inside the block (or the decorated function: ``@one_blas_thread()``), its thread count
+    restored after (module docstring, "Threads")."""
     with threadpool_limits(limits=1, user_api="blas"):
         yield
 
 
+@one_blas_thread()
 def run_fit(model: ForwardModel, config: FitConfig, progress: Callable[[int, float], None] | None = None) -> FitResult:
     """The start (module docstring), then emcee until ≥ 50 τ (or max_steps, then converged = False), on one BLAS
     thread."""
-    with one_blas_thread():
-        return _run_fit(model, config, progress)
-
-
-def _run_fit(model: ForwardModel, config: FitConfig, progress: Callable[[int, float], None] | None) -> FitResult:
     post = Posterior(model, config.priors)
     rng = np.random.default_rng(config.sampler.seed)
     medians = {n: config.priors[n].quantile(0.5) for n in model.names}

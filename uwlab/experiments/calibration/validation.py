@@ -368,6 +368,7 @@ def _for_points(config: FitConfig, points: pd.DataFrame, lone: str | None = None
     return config.model_copy(update={"priors": priors})
 
 
+@one_blas_thread()
 def held_out_fold(
     points: pd.DataFrame,
     rigs: dict,
@@ -381,20 +382,6 @@ def held_out_fold(
     """Fit the unsaturated points of every sweep but those of `fold` and predict these as new configurations
     (module docstring); None when either side has no points. `number` tells the fold's draws apart (seed +
     number). On one BLAS thread (`one_blas_thread`): the same numbers here as in a fold's worker."""
-    with one_blas_thread():
-        return _held_out_fold(points, rigs, config, fold, number, kind, progress, seed)
-
-
-def _held_out_fold(
-    points: pd.DataFrame,
-    rigs: dict,
-    config: FitConfig,
-    fold: list[str],
-    number: int,
-    kind: str | None,
-    progress,
-    seed: int,
-) -> HeldOutFold | None:
     usable = points[~points["saturated"].astype(bool)]
     train = usable[~usable["sweep_id"].isin(fold)]
     test = usable[usable["sweep_id"].isin(fold)]
