@@ -550,6 +550,14 @@ def sampling_coordinates(post: Posterior, priors: Mapping[str, Prior], u_mode: n
     return ScaleConditioned.around(post.log_u, u_mode, names.index("config_discrepancy"), (float(lo), float(hi)))
 
 
+def start_mode(post: Posterior, priors: Mapping[str, Prior]) -> np.ndarray:
+    """The start's search for the mode (module docstring), in u: from the prior medians (a discrepancy's at least
+    1e-3), `START_EVALUATIONS` per parameter and method."""
+    medians = {n: priors[n].quantile(0.5) for n in post.model.names}
+    start = np.array([medians[n] if n not in DISCREPANCIES else max(medians[n], 1e-3) for n in post.model.names])
+    return find_map(post.log_u, post.to_u(start), START_EVALUATIONS)
+
+
 @contextmanager
 def one_blas_thread() -> Iterator[None]:
     """BLAS on one thread inside the block (or the decorated function: ``@one_blas_thread()``), its thread count
@@ -564,9 +572,7 @@ def run_fit(model: ForwardModel, config: FitConfig, progress: Callable[[int, flo
     thread."""
     post = Posterior(model, config.priors)
     rng = np.random.default_rng(config.sampler.seed)
-    medians = {n: config.priors[n].quantile(0.5) for n in model.names}
-    start = np.array([medians[n] if n not in DISCREPANCIES else max(medians[n], 1e-3) for n in model.names])
-    u_map = find_map(post.log_u, post.to_u(start), START_EVALUATIONS)
+    u_map = start_mode(post, config.priors)
     coordinates = sampling_coordinates(post, config.priors, u_map)
     log_density: Callable[[np.ndarray], np.ndarray]
     if coordinates is None:
