@@ -33,8 +33,8 @@ import numpy as np
 
 LogDensity = Callable[[np.ndarray], np.ndarray]  # rows of points (n, d) → ln p (n,)
 
-STEP = 1e-4  # finite-difference step in the sampling coordinates (logs: relative); a density with a bound within a
-# step of the point has no Laplace approximation there (a fit's discrepancies are mirrored about theirs: `Posterior`)
+STEP = 1e-4  # finite-difference step in the sampling coordinates (logs: relative); a coordinate within the stencil's
+# reach of its support's edge is differenced from inside (`_inside`)
 NEWTON_STEPS = 20
 GRID_SPACING = 0.5  # in ln τ: the conditional moves smoothly over a factor 1.65
 SCALE_RANGE = (0.001, 0.997)  # the prior quantiles of τ the grid spans; beyond, the end's coordinates are kept
