@@ -53,8 +53,13 @@ def laplace_covariance(log_density: LogDensity, theta: np.ndarray) -> np.ndarray
     >>> round(float(laplace_covariance(half_normal, np.array([1e-18]))[0, 0]), 9)
     0.25
     """
+    return _curvature(log_density, theta)[0]
+
+
+def _curvature(log_density: LogDensity, theta: np.ndarray) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
+    """(`laplace_covariance`, then `_inside`'s centre and edge, which Newton's step at θ differences from too)."""
     n = theta.size
-    c, _ = _inside(log_density, theta)
+    c, edge = _inside(log_density, theta)
     eye = STEP * np.eye(n)
     pts = []
     for i in range(n):
@@ -70,13 +75,13 @@ def laplace_covariance(log_density: LogDensity, theta: np.ndarray) -> np.ndarray
                 hess[i, j] = -(pp - pm - mp + mm) / (4 * STEP**2)
                 k += 4
     if not np.all(np.isfinite(hess)):
-        return None
+        return None, c, edge
     try:
         cov = np.linalg.inv(0.5 * (hess + hess.T))
         np.linalg.cholesky(cov)
-        return cov
+        return cov, c, edge
     except np.linalg.LinAlgError:
-        return None
+        return None, c, edge
 
 
 def _inside(log_density: LogDensity, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -92,18 +97,18 @@ def _inside(log_density: LogDensity, x: np.ndarray) -> tuple[np.ndarray, np.ndar
     return x + 2 * STEP * edge, edge
 
 
-def _newton_step(log_density: LogDensity, x: np.ndarray, cov: np.ndarray) -> np.ndarray:
-    """C ∇ln p, the gradient by central differences (`_inside`'s centre). A coordinate on its edge whose gradient
+def _newton_step(log_density: LogDensity, centre: np.ndarray, edge: np.ndarray, cov: np.ndarray) -> np.ndarray:
+    """C ∇ln p, the gradient by central differences at `_inside`'s centre. A coordinate on its edge whose gradient
     points out of the support stays there; the others take the Newton step of their conditional given it."""
-    centre, edge = _inside(log_density, x)
-    steps = STEP * np.eye(x.size)
+    n = centre.size
+    steps = STEP * np.eye(n)
     values = log_density(np.concatenate([centre + steps, centre - steps]))
-    gradient = (values[: x.size] - values[x.size :]) / (2 * STEP)
+    gradient = (values[:n] - values[n:]) / (2 * STEP)
     held = edge * gradient < 0
     if not held.any():
         return cov @ gradient
     free = ~held
-    step = np.zeros(x.size)
+    step = np.zeros(n)
     step[free] = np.linalg.solve(np.linalg.inv(cov)[np.ix_(free, free)], gradient[free])
     return step
 
@@ -121,11 +126,11 @@ def conditional_mode(log_density: LogDensity, x: np.ndarray) -> tuple[np.ndarray
     >>> float(mode[0]) == 1e-18, round(float(mode[1]), 3)
     (True, 0.0)
     """
-    cov = laplace_covariance(log_density, x)
+    cov, centre, edge = _curvature(log_density, x)
     for _ in range(NEWTON_STEPS):
         if cov is None:
             break
-        step = _newton_step(log_density, x, cov)
+        step = _newton_step(log_density, centre, edge, cov)
         here = log_density(x[None, :])[0]
         for _ in range(30):
             if log_density((x + step)[None, :])[0] >= here:
@@ -134,7 +139,7 @@ def conditional_mode(log_density: LogDensity, x: np.ndarray) -> tuple[np.ndarray
         else:
             break
         x = x + step
-        cov = laplace_covariance(log_density, x)
+        cov, centre, edge = _curvature(log_density, x)
         if np.max(np.abs(step) / np.sqrt(np.diag(cov) if cov is not None else 1.0)) < 1e-6:
             break
     return x, cov
